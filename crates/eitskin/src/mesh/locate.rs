@@ -1,0 +1,176 @@
+//! Point location on a mesh (a uniform grid of buckets) and the raster map built on it.
+
+use super::Mesh;
+
+/// Finds the triangle that holds a point, through a uniform grid of triangle buckets.
+#[derive(Debug, Clone)]
+pub struct PointLocator<'a> {
+    mesh: &'a Mesh,
+    lo: [f64; 2],
+    cell: [f64; 2],
+    dims: [usize; 2],
+    start: Vec<usize>,
+    items: Vec<usize>,
+}
+
+impl<'a> PointLocator<'a> {
+    /// Buckets the triangles of `mesh`, about one triangle per bucket.
+    pub fn new(mesh: &'a Mesh) -> PointLocator<'a> {
+        let [lo, hi] = mesh.bounds();
+        let side = (mesh.triangles().len() as f64).sqrt().ceil().max(1.0) as usize;
+        let dims = [side, side];
+        let cell = [
+            ((hi[0] - lo[0]) / side as f64).max(f64::MIN_POSITIVE),
+            ((hi[1] - lo[1]) / side as f64).max(f64::MIN_POSITIVE),
+        ];
+        let mut locator = PointLocator { mesh, lo, cell, dims, start: vec![0; side * side + 1], items: Vec::new() };
+        // Two passes (count, then fill) give a compressed bucket list without per-bucket vectors.
+        for pass in 0..2 {
+            let mut fill = locator.start.clone();
+            for t in 0..mesh.triangles().len() {
+                let [(i0, i1), (j0, j1)] = locator.cell_range(t);
+                for j in j0..=j1 {
+                    for i in i0..=i1 {
+                        let b = j * side + i;
+                        if pass == 0 {
+                            locator.start[b + 1] += 1;
+                        } else {
+                            locator.items[fill[b]] = t;
+                            fill[b] += 1;
+                        }
+                    }
+                }
+            }
+            if pass == 0 {
+                for b in 0..side * side {
+                    locator.start[b + 1] += locator.start[b];
+                }
+                locator.items = vec![0; locator.start[side * side]];
+            }
+        }
+        locator
+    }
+
+    fn cell_of(&self, p: [f64; 2]) -> Option<(usize, usize)> {
+        let fx = (p[0] - self.lo[0]) / self.cell[0];
+        let fy = (p[1] - self.lo[1]) / self.cell[1];
+        let eps = 1e-9;
+        if fx < -eps || fy < -eps || fx > self.dims[0] as f64 + eps || fy > self.dims[1] as f64 + eps {
+            return None;
+        }
+        let clamp = |f: f64, n: usize| (f.max(0.0) as usize).min(n - 1);
+        Some((clamp(fx, self.dims[0]), clamp(fy, self.dims[1])))
+    }
+
+    fn cell_range(&self, t: usize) -> [(usize, usize); 2] {
+        let p = self.mesh.corners(t);
+        let clamp = |f: f64, n: usize| (f.max(0.0) as usize).min(n - 1);
+        let axis = |k: usize| {
+            let lo = p.iter().map(|q| q[k]).fold(f64::INFINITY, f64::min);
+            let hi = p.iter().map(|q| q[k]).fold(f64::NEG_INFINITY, f64::max);
+            let f = |v: f64| (v - self.lo[k]) / self.cell[k];
+            (clamp(f(lo) - 1e-9, self.dims[k]), clamp(f(hi) + 1e-9, self.dims[k]))
+        };
+        [axis(0), axis(1)]
+    }
+
+    /// The triangle holding `p` (in m), or `None` outside the mesh; a point on a shared edge
+    /// goes to one of its triangles.
+    pub fn locate(&self, p: [f64; 2]) -> Option<usize> {
+        let (i, j) = self.cell_of(p)?;
+        let b = j * self.dims[0] + i;
+        self.items[self.start[b]..self.start[b + 1]]
+            .iter()
+            .copied()
+            .find(|&t| barycentric(self.mesh.corners(t), p).iter().all(|&w| w >= -1e-12))
+    }
+}
+
+/// Barycentric coordinates of `p` in the triangle `[a, b, c]`.
+pub fn barycentric([a, b, c]: [[f64; 2]; 3], p: [f64; 2]) -> [f64; 3] {
+    let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+    let wb = ((p[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (p[1] - a[1])) / det;
+    let wc = ((b[0] - a[0]) * (p[1] - a[1]) - (p[0] - a[0]) * (b[1] - a[1])) / det;
+    [1.0 - wb - wc, wb, wc]
+}
+
+/// Which triangle lies under each pixel centre of a grid over the mesh's bounding box.
+///
+/// Pixels are stored row by row, the first row at the top (largest y), as in an image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RasterMap {
+    /// Columns and rows `[nx, ny]`.
+    pub size: [usize; 2],
+    /// The box covered, `[[x_min, y_min], [x_max, y_max]]`, in m.
+    pub bounds: [[f64; 2]; 2],
+    /// Triangle under each pixel centre, row-major from the top; `None` outside the mesh (masked).
+    pub triangle: Vec<Option<usize>>,
+}
+
+impl RasterMap {
+    /// Maps an `nx × ny` grid over the bounding box of `mesh`.
+    pub fn new(mesh: &Mesh, [nx, ny]: [usize; 2]) -> RasterMap {
+        let bounds = mesh.bounds();
+        let locator = PointLocator::new(mesh);
+        let mut map = RasterMap { size: [nx, ny], bounds, triangle: Vec::with_capacity(nx * ny) };
+        for row in 0..ny {
+            for col in 0..nx {
+                let p = map.pixel_centre(col, row);
+                map.triangle.push(locator.locate(p));
+            }
+        }
+        map
+    }
+
+    /// Centre of the pixel in column `col` and row `row` (row 0 at the top), in m.
+    pub fn pixel_centre(&self, col: usize, row: usize) -> [f64; 2] {
+        let [lo, hi] = self.bounds;
+        let dx = (hi[0] - lo[0]) / self.size[0] as f64;
+        let dy = (hi[1] - lo[1]) / self.size[1] as f64;
+        [lo[0] + (col as f64 + 0.5) * dx, hi[1] - (row as f64 + 0.5) * dy]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Outline;
+    use crate::mesh::MeshParams;
+
+    #[test]
+    fn locator_agrees_with_brute_force_on_a_disk() {
+        let outline = Outline::Circle { radius: 1.0 };
+        let params = MeshParams { triangles: 600, ..MeshParams::default() };
+        let mesh = Mesh::generate(&outline, &[], &params).unwrap();
+        let locator = PointLocator::new(&mesh);
+        let inside = |t: usize, p| barycentric(mesh.corners(t), p).iter().all(|&w| w >= -1e-12);
+        for k in 0..400 {
+            let a = k as f64 * 0.7;
+            let r = (k as f64 / 400.0).sqrt() * 1.02;
+            let p = [r * a.cos(), r * a.sin()];
+            let brute = (0..mesh.triangles().len()).find(|&t| inside(t, p));
+            match (locator.locate(p), brute) {
+                (Some(t), Some(_)) => assert!(inside(t, p)),
+                (None, None) => {}
+                other => panic!("point {p:?}: locator and brute force disagree: {other:?}"),
+            }
+        }
+        assert_eq!(locator.locate(mesh.centroid(17)), Some(17));
+    }
+
+    #[test]
+    fn raster_masks_pixels_outside_a_disk() {
+        let mesh = Mesh::generate(
+            &Outline::Circle { radius: 1.0 },
+            &[],
+            &MeshParams { triangles: 400, ..MeshParams::default() },
+        )
+        .unwrap();
+        let map = RasterMap::new(&mesh, [64, 64]);
+        let inside = map.triangle.iter().filter(|t| t.is_some()).count() as f64;
+        let share = inside / (64.0 * 64.0);
+        assert!((share - std::f64::consts::PI / 4.0).abs() < 0.02, "{share}");
+        assert_eq!(map.triangle[0], None, "top-left corner is outside the disk");
+        assert!(map.pixel_centre(0, 0)[1] > 0.9);
+    }
+}
