@@ -1,0 +1,120 @@
+//! Custom protocol files (JSON): drive and measurement quads, or whole patterns.
+//!
+//! ```json
+//! { "description": "my board", "electrodes": 16, "index_base": 1,
+//!   "quads": [[1, 2, 3, 4], [1, 2, 4, 5]] }
+//! ```
+//! Each quad is `[drive+, drive−, measure+, measure−]` with 1 A from drive+ to drive− and the
+//! value U(measure+) − U(measure−). Electrodes count from 1 unless `index_base` is 0 (as in
+//! EIDORS' exported files, which this reads as they are). Instead of `quads`, a file may give
+//! `stimulations` (current per electrode, A) and `measurements` (`{"stimulation": k, "weights": […]}`
+//! with k counted from `index_base`). Other keys are ignored, so files of other tools load.
+
+use std::path::Path;
+
+use eitskin::{Measurement, Protocol};
+use serde::Deserialize;
+
+use crate::Error;
+
+#[derive(Debug, Deserialize)]
+struct ProtocolJson {
+    #[serde(default)]
+    description: Option<String>,
+    #[serde(default)]
+    electrodes: Option<usize>,
+    #[serde(default = "one")]
+    index_base: usize,
+    #[serde(default)]
+    quads: Option<Vec<[usize; 4]>>,
+    #[serde(default)]
+    stimulations: Option<Vec<Vec<f64>>>,
+    #[serde(default)]
+    measurements: Option<Vec<MeasurementJson>>,
+}
+
+#[derive(Debug, Deserialize)]
+struct MeasurementJson {
+    stimulation: usize,
+    weights: Vec<f64>,
+}
+
+fn one() -> usize {
+    1
+}
+
+/// Reads a protocol file.
+pub fn read_protocol(path: &Path) -> Result<Protocol, Error> {
+    let text = crate::read_text(path)?;
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    parse_protocol(&text, &name).map_err(|e| e.in_file(path))
+}
+
+/// Parses protocol JSON; `name` describes it when the file has no `description`.
+pub fn parse_protocol(text: &str, name: &str) -> Result<Protocol, Error> {
+    let file: ProtocolJson =
+        serde_json::from_str(text).map_err(|e| Error::Json { path: None, message: e.to_string() })?;
+    let description = file.description.unwrap_or_else(|| format!("custom protocol from {name}"));
+    if file.index_base > 1 {
+        return Err(Error::Key {
+            path: None,
+            key: "index_base",
+            reason: format!("must be 0 or 1, got {}", file.index_base),
+        });
+    }
+    let base = file.index_base;
+    match (file.quads, file.stimulations, file.measurements) {
+        (Some(quads), None, None) => {
+            let count =
+                file.electrodes.unwrap_or_else(|| quads.iter().flatten().map(|&e| e + 1 - base).max().unwrap_or(0));
+            // Shift to 1-based; a 0 in a 1-based file stays 0 and is reported by `from_quads`.
+            let quads: Vec<[usize; 4]> = quads.iter().map(|q| q.map(|e| e + 1 - base)).collect();
+            Ok(Protocol::from_quads(description, count, &quads)?)
+        }
+        (None, Some(stimulations), Some(measurements)) => {
+            let count = file.electrodes.unwrap_or_else(|| stimulations.first().map_or(0, Vec::len));
+            let mut checked = Vec::with_capacity(measurements.len());
+            for (row, m) in measurements.into_iter().enumerate() {
+                let Some(stimulation) = m.stimulation.checked_sub(base) else {
+                    return Err(Error::Key {
+                        path: None,
+                        key: "measurements",
+                        reason: format!("measurement {} names stimulation 0, but they count from 1", row + 1),
+                    });
+                };
+                checked.push(Measurement { stimulation, weights: m.weights });
+            }
+            Ok(Protocol::new(description, count, stimulations, checked)?)
+        }
+        _ => Err(Error::Key {
+            path: None,
+            key: "quads",
+            reason: "give either `quads`, or both `stimulations` and `measurements`".into(),
+        }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn zero_and_one_based_quads_agree_with_the_builtin() {
+        let one = r#"{"electrodes": 16, "quads": [[2,1,3,4],[2,1,4,5]]}"#;
+        let zero = r#"{"index_base": 0, "electrodes": 16, "quads": [[1,0,2,3],[1,0,3,4]], "v_homog": [1, 2]}"#;
+        let a = parse_protocol(one, "a").unwrap();
+        let b = parse_protocol(zero, "b").unwrap();
+        assert_eq!(a.measurements(), b.measurements());
+        let builtin = Protocol::adjacent(16, true).unwrap();
+        assert_eq!(a.stimulations()[0], builtin.stimulations()[0]);
+        assert_eq!(a.measurements()[0], builtin.measurements()[0]);
+    }
+
+    #[test]
+    fn bad_files_say_what() {
+        let err = parse_protocol(r#"{"electrodes": 16, "quads": [[1,2,3,17]]}"#, "x").unwrap_err();
+        assert_eq!(err.to_string(), "row 1 names electrode 17, but electrodes are numbered 1 to 16");
+        let err = parse_protocol(r#"{"electrodes": 16}"#, "x").unwrap_err();
+        assert!(err.to_string().contains("give either `quads`"), "{err}");
+    }
+}

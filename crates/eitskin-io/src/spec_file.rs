@@ -1,0 +1,305 @@
+//! The sensor spec file (TOML): parsed into [`SensorSpec`], lengths converted to metres once.
+//!
+//! Every key is documented in the README. Unknown keys are errors, and so is a key that does
+//! not belong to the chosen `kind` or `placement`; values are then checked by
+//! [`SensorSpec::validate`], whose errors name the key at fault.
+
+use std::path::Path;
+
+use eitskin::{ElectrodeSpec, LengthUnit, MeshParams, Outline, Placement, ProtocolSpec, SensorSpec};
+use serde::{Deserialize, Serialize};
+
+use crate::{protocol_file, Error};
+
+/// The file's shape, keys exactly as written; lengths in the file's `units`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SpecFile {
+    #[serde(default = "default_units")]
+    units: String,
+    thickness: f64,
+    conductivity: f64,
+    outline: OutlineFile,
+    electrodes: ElectrodesFile,
+    #[serde(default)]
+    protocol: ProtocolFile,
+    #[serde(default)]
+    mesh: MeshFile,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+enum OutlineFile {
+    Rectangle { width: f64, height: f64 },
+    Circle { radius: f64 },
+    Polygon { points: Vec<[f64; 2]> },
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ElectrodesFile {
+    count: usize,
+    #[serde(default = "default_model")]
+    model: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    width: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    contact_impedance: Option<f64>,
+    placement: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    start_angle_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    positions: Option<Vec<[f64; 2]>>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProtocolFile {
+    kind: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    file: Option<String>,
+}
+
+impl Default for ProtocolFile {
+    fn default() -> Self {
+        ProtocolFile { kind: "two-terminal".into(), file: None }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshFile {
+    #[serde(default = "default_triangles")]
+    triangles: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    max_element_size: Option<f64>,
+    #[serde(default = "default_grading")]
+    grading: f64,
+    #[serde(default = "default_min_angle")]
+    min_angle_deg: f64,
+}
+
+impl Default for MeshFile {
+    fn default() -> Self {
+        let d = MeshParams::default();
+        MeshFile { triangles: d.triangles, max_element_size: None, grading: d.grading, min_angle_deg: d.min_angle_deg }
+    }
+}
+
+fn default_units() -> String {
+    "mm".into()
+}
+fn default_model() -> String {
+    "complete".into()
+}
+fn default_triangles() -> usize {
+    MeshParams::default().triangles
+}
+fn default_grading() -> f64 {
+    MeshParams::default().grading
+}
+fn default_min_angle() -> f64 {
+    MeshParams::default().min_angle_deg
+}
+
+/// Reads and checks a spec file; a custom protocol file is found relative to the spec's folder.
+pub fn read_spec(path: &Path) -> Result<SensorSpec, Error> {
+    let text = crate::read_text(path)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    parse_spec(&text, base).map_err(|e| e.in_file(path))
+}
+
+/// Parses and checks spec text; `base` is the folder a custom protocol `file` is relative to.
+pub fn parse_spec(text: &str, base: &Path) -> Result<SensorSpec, Error> {
+    let file: SpecFile = toml::from_str(text).map_err(|e| Error::Toml { path: None, message: e.to_string() })?;
+    let spec = file.into_spec(base)?;
+    spec.validate()?;
+    Ok(spec)
+}
+
+/// The spec as TOML text, lengths in its own unit (a custom protocol is written as `custom`
+/// with no file: save the protocol separately).
+pub fn spec_to_toml(spec: &SensorSpec) -> String {
+    let k = 1.0 / spec.length_unit.metres();
+    let outline = match &spec.outline {
+        Outline::Rectangle { width, height } => OutlineFile::Rectangle { width: width * k, height: height * k },
+        Outline::Circle { radius } => OutlineFile::Circle { radius: radius * k },
+        Outline::Polygon { points } => {
+            OutlineFile::Polygon { points: points.iter().map(|p| p.map(|c| c * k)).collect() }
+        }
+    };
+    let e = &spec.electrodes;
+    let (placement, start_angle_deg, positions) = match &e.placement {
+        Placement::PerSide => ("per-side", None, None),
+        Placement::Equal { start_angle_deg } => ("equal", Some(*start_angle_deg), None),
+        Placement::Explicit { positions } => {
+            ("explicit", None, Some(positions.iter().map(|p| p.map(|c| c * k)).collect()))
+        }
+    };
+    let (model, width, contact_impedance) =
+        if e.point { ("point", None, None) } else { ("complete", Some(e.width * k), Some(e.contact_impedance)) };
+    let file = SpecFile {
+        units: spec.length_unit.symbol().into(),
+        thickness: spec.thickness * k,
+        conductivity: spec.conductivity,
+        outline,
+        electrodes: ElectrodesFile {
+            count: e.count,
+            model: model.into(),
+            width,
+            contact_impedance,
+            placement: placement.into(),
+            start_angle_deg,
+            positions,
+        },
+        protocol: ProtocolFile { kind: protocol_kind(&spec.protocol).into(), file: None },
+        mesh: MeshFile {
+            triangles: spec.mesh.triangles,
+            max_element_size: spec.mesh.max_element_size.map(|h| h * k),
+            grading: spec.mesh.grading,
+            min_angle_deg: spec.mesh.min_angle_deg,
+        },
+    };
+    // Serialising plain structs of numbers and strings cannot fail.
+    toml::to_string(&file).unwrap_or_default()
+}
+
+/// The spec file's name of a protocol kind.
+pub fn protocol_kind(protocol: &ProtocolSpec) -> &'static str {
+    match protocol {
+        ProtocolSpec::TwoTerminal => "two-terminal",
+        ProtocolSpec::Adjacent => "adjacent",
+        ProtocolSpec::AdjacentAll => "adjacent-all",
+        ProtocolSpec::Opposite => "opposite",
+        ProtocolSpec::Custom(_) => "custom",
+    }
+}
+
+/// A protocol named as on the command line or in `protocol.kind`; anything else is a file.
+pub fn protocol_by_name(name: &str, base: &Path) -> Result<ProtocolSpec, Error> {
+    Ok(match name {
+        "two-terminal" => ProtocolSpec::TwoTerminal,
+        "adjacent" => ProtocolSpec::Adjacent,
+        "adjacent-all" => ProtocolSpec::AdjacentAll,
+        "opposite" => ProtocolSpec::Opposite,
+        file => ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(file))?),
+    })
+}
+
+impl SpecFile {
+    fn into_spec(self, base: &Path) -> Result<SensorSpec, Error> {
+        let length_unit = match self.units.as_str() {
+            "mm" => LengthUnit::Millimetre,
+            "m" => LengthUnit::Metre,
+            other => return Err(key_error("units", format!("must be \"mm\" or \"m\", got \"{other}\""))),
+        };
+        let k = length_unit.metres();
+        let outline = match self.outline {
+            OutlineFile::Rectangle { width, height } => Outline::Rectangle { width: width * k, height: height * k },
+            OutlineFile::Circle { radius } => Outline::Circle { radius: radius * k },
+            OutlineFile::Polygon { points } => {
+                Outline::Polygon { points: points.iter().map(|p| p.map(|c| c * k)).collect() }
+            }
+        };
+        let e = self.electrodes;
+        let point = match e.model.as_str() {
+            "complete" => false,
+            "point" => true,
+            other => {
+                return Err(key_error(
+                    "electrodes.model",
+                    format!("must be \"complete\" or \"point\", got \"{other}\""),
+                ))
+            }
+        };
+        if !point {
+            for (key, value) in [("electrodes.width", e.width), ("electrodes.contact_impedance", e.contact_impedance)] {
+                if value.is_none() {
+                    return Err(key_error(key, "is required for complete electrodes".into()));
+                }
+            }
+        }
+        let only_for = |key: &'static str, given: bool, placement: &str| {
+            if given && e.placement != placement {
+                Err(key_error(key, format!("applies only to placement = \"{placement}\", not \"{}\"", e.placement)))
+            } else {
+                Ok(())
+            }
+        };
+        only_for("electrodes.start_angle_deg", e.start_angle_deg.is_some(), "equal")?;
+        only_for("electrodes.positions", e.positions.is_some(), "explicit")?;
+        let placement = match e.placement.as_str() {
+            "per-side" => Placement::PerSide,
+            "equal" => Placement::Equal { start_angle_deg: e.start_angle_deg.unwrap_or(0.0) },
+            "explicit" => match e.positions {
+                Some(positions) => {
+                    Placement::Explicit { positions: positions.iter().map(|p| p.map(|c| c * k)).collect() }
+                }
+                None => {
+                    return Err(key_error("electrodes.positions", "is required for placement = \"explicit\"".into()))
+                }
+            },
+            other => {
+                return Err(key_error(
+                    "electrodes.placement",
+                    format!("must be \"per-side\", \"equal\" or \"explicit\", got \"{other}\""),
+                ))
+            }
+        };
+        let protocol = match (self.protocol.kind.as_str(), self.protocol.file) {
+            ("custom", Some(file)) => protocol_by_name(&file, base)?,
+            ("custom", None) => return Err(key_error("protocol.file", "is required for kind = \"custom\"".into())),
+            (_, Some(_)) => return Err(key_error("protocol.file", "applies only to kind = \"custom\"".into())),
+            ("two-terminal" | "adjacent" | "adjacent-all" | "opposite", None) => {
+                protocol_by_name(&self.protocol.kind, base)?
+            }
+            (other, None) => {
+                return Err(key_error(
+                    "protocol.kind",
+                    format!("must be two-terminal, adjacent, adjacent-all, opposite or custom, got \"{other}\""),
+                ))
+            }
+        };
+        Ok(SensorSpec {
+            length_unit,
+            thickness: self.thickness * k,
+            conductivity: self.conductivity,
+            outline,
+            electrodes: ElectrodeSpec {
+                count: e.count,
+                width: e.width.unwrap_or(0.0) * k,
+                contact_impedance: e.contact_impedance.unwrap_or(0.0),
+                placement,
+                point,
+            },
+            protocol,
+            mesh: MeshParams {
+                triangles: self.mesh.triangles,
+                max_element_size: self.mesh.max_element_size.map(|h| h * k),
+                grading: self.mesh.grading,
+                min_angle_deg: self.mesh.min_angle_deg,
+            },
+        })
+    }
+}
+
+fn key_error(key: &'static str, reason: String) -> Error {
+    Error::Key { path: None, key, reason }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_spec_round_trips_through_toml() {
+        let spec = SensorSpec::square_hydrogel();
+        let text = spec_to_toml(&spec);
+        let back = parse_spec(&text, Path::new(".")).unwrap();
+        assert_eq!(back.electrodes, spec.electrodes);
+        assert_eq!(back.outline, spec.outline);
+        assert!((back.thickness - spec.thickness).abs() < 1e-15);
+        assert_eq!(back.protocol, spec.protocol);
+        assert!(text.contains("units = \"mm\"") && text.contains("width = 200.0"), "{text}");
+    }
+}
