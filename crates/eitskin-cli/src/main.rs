@@ -1,1 +1,53 @@
-fn main() {}
+//! The `eitskin` command: thin glue from files and flags to the `eitskin` library.
+
+mod bench;
+mod convergence;
+
+mod forward;
+mod load;
+mod mesh;
+mod plot;
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+/// EIT tactile skins: sensor model, forward solver, images, touches and forces.
+#[derive(Debug, Parser)]
+#[command(name = "eitskin", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print a sensor spec as TOML (the built-in paper sensor unless SPEC is given).
+    Spec {
+        /// Sensor spec file (TOML); default: the paper's 200 mm square, 16 electrodes.
+        spec: Option<PathBuf>,
+    },
+    /// Mesh the sensor: write the mesh as JSON and a PNG picture with the electrodes marked.
+    Mesh(mesh::Args),
+    /// Simulate the measurements of the sensor, in protocol order (V at 1 A, i.e. Ω).
+    Forward(forward::Args),
+    /// Time each stage of the setup chain and print the medians.
+    Bench(bench::Args),
+    /// Refine the mesh step by step and report how the measurements converge.
+    Convergence(convergence::Args),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Spec { spec } => load::spec(spec.as_deref()).map(|s| print!("{}", eitskin_io::spec_to_toml(&s))),
+        Command::Mesh(args) => mesh::run(args),
+        Command::Forward(args) => forward::run(args),
+        Command::Bench(args) => bench::run(args),
+        Command::Convergence(args) => convergence::run(args),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}

@@ -25,7 +25,9 @@
 #![warn(rustdoc::broken_intra_doc_links)]
 #![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod analytic;
 pub mod conductivity;
+pub mod convergence;
 pub mod forward;
 pub mod geometry;
 pub mod mesh;

@@ -1,0 +1,49 @@
+//! Loading what the subcommands share: the spec (file or built-in) and inclusion flags.
+
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use eitskin::conductivity::Inclusion;
+use eitskin::SensorSpec;
+
+/// The spec in `path`, or the built-in paper sensor.
+pub fn spec(path: Option<&Path>) -> Result<SensorSpec> {
+    Ok(match path {
+        Some(p) => eitskin_io::read_spec(p)?,
+        None => SensorSpec::square_hydrogel(),
+    })
+}
+
+/// An inclusion from `x,y,r,sigma`: centre and radius in the spec's units (relative to the
+/// outline's centre), conductivity in S/m.
+pub fn inclusion(text: &str, spec: &SensorSpec) -> Result<Inclusion> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("--inclusion {text:?}: expected four numbers x,y,r,sigma"))?;
+    let [x, y, r, sigma] = values[..] else {
+        bail!("--inclusion {text:?}: expected four numbers x,y,r,sigma, got {}", values.len());
+    };
+    if !(r > 0.0 && sigma > 0.0 && x.is_finite() && y.is_finite() && r.is_finite() && sigma.is_finite()) {
+        bail!("--inclusion {text:?}: radius and conductivity must be positive and every value finite");
+    }
+    let k = spec.length_unit.metres();
+    Ok(Inclusion { centre: [x * k, y * k], radius: r * k, conductivity: sigma })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inclusion_converts_millimetres_and_refuses_garbage() {
+        let spec = SensorSpec::square_hydrogel();
+        let inc = inclusion("50, -20, 10, 0.5", &spec).unwrap();
+        assert_eq!(inc.centre, [0.05, -0.02]);
+        assert!((inc.radius - 0.01).abs() < 1e-15 && inc.conductivity == 0.5);
+        assert!(inclusion("1,2,3", &spec).unwrap_err().to_string().contains("got 3"));
+        assert!(inclusion("1,2,x,4", &spec).is_err());
+        assert!(inclusion("1,2,3,-4", &spec).is_err());
+    }
+}

@@ -1,0 +1,121 @@
+//! Issue 2, through the real binary: `eitskin mesh`, `forward` (with EIDORS' mesh loaded),
+//! `bench --json`, `spec`, and clear failures for bad input.
+
+#[path = "../../eitskin-io/tests/common/mod.rs"]
+mod common;
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn eitskin(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_eitskin")).args(args).output().expect("the binary runs")
+}
+
+fn stdout_json(out: &Output) -> serde_json::Value {
+    assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("eitskin-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// EIDORS' 2×2 square as a spec: metres, unit depth, 0.2 m electrodes, z = 0.01 Ω·m².
+const EIDORS_SQUARE: &str = r#"
+units = "m"
+thickness = 1.0
+conductivity = 1.0
+[outline]
+kind = "rectangle"
+width = 2.0
+height = 2.0
+[electrodes]
+count = 16
+width = 0.2
+contact_impedance = 0.01
+placement = "per-side"
+"#;
+
+#[test]
+fn forward_on_eidors_mesh_matches_eidors() {
+    let dir = scratch("eidors");
+    let spec = dir.join("square.toml");
+    std::fs::write(&spec, EIDORS_SQUARE).unwrap();
+    let mesh = common::shared().join("reference/eidors/mesh.json");
+    for (protocol, file) in [("two-terminal", "two_terminal"), ("adjacent", "adjacent")] {
+        let out =
+            eitskin(&["forward", spec.to_str().unwrap(), "--mesh", mesh.to_str().unwrap(), "--protocol", protocol]);
+        let json = stdout_json(&out);
+        let ours = common::floats(&json["measurements"]);
+        let reference = common::floats(&common::json(&format!("reference/eidors/protocol_{file}.json"))["v_homog"]);
+        let err = common::max_relative_error(&ours, &reference);
+        assert!(err < 1e-6, "{protocol}: {err:e}");
+        assert_eq!(json["triangles"], 3200);
+    }
+}
+
+#[test]
+fn forward_default_sensor_prints_120_values_in_json_and_csv() {
+    let json = stdout_json(&eitskin(&["forward", "--triangles", "800"]));
+    assert_eq!(json["measurements"].as_array().unwrap().len(), 120);
+    assert!(json["protocol"].as_str().unwrap().contains("two-terminal"));
+    let values = common::floats(&json["measurements"]);
+    // A press (lower conductivity) raises every two-terminal transfer impedance.
+    let pressed = stdout_json(&eitskin(&["forward", "--triangles", "800", "--inclusion", "-50,20,10,0.2"]));
+    assert!(common::floats(&pressed["measurements"]).iter().zip(&values).all(|(p, v)| p >= v));
+    let csv = eitskin(&["forward", "--triangles", "800", "--format", "csv", "--protocol", "adjacent"]);
+    let text = String::from_utf8(csv.stdout).unwrap();
+    assert_eq!(text.lines().count(), 1 + 208);
+    assert!(text.starts_with("measurement,value_ohm\n1,"));
+}
+
+#[test]
+fn mesh_writes_json_that_forward_reads_back_and_a_png() {
+    let dir = scratch("mesh");
+    let out_json = dir.join("paper.json");
+    let out = eitskin(&["mesh", "--triangles", "1500", "--out", out_json.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let png = std::fs::read(dir.join("paper.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let fresh = stdout_json(&eitskin(&["forward", "--triangles", "1500"]));
+    let loaded = stdout_json(&eitskin(&["forward", "--mesh", out_json.to_str().unwrap()]));
+    assert_eq!(fresh["measurements"], loaded["measurements"], "the same mesh gives the same values");
+}
+
+#[test]
+fn bench_json_has_every_stage() {
+    let json = stdout_json(&eitskin(&["bench", "--triangles", "500", "--repeat", "3", "--json"]));
+    for stage in ["mesh", "model", "assembly", "factorisation", "solves", "measurements", "total"] {
+        assert!(json[stage].as_f64().is_some_and(|t| t > 0.0), "stage {stage} missing: {json}");
+    }
+}
+
+#[test]
+fn spec_prints_toml_that_reads_back() {
+    let out = eitskin(&["spec"]);
+    assert!(out.status.success());
+    let dir = scratch("spec");
+    std::fs::write(dir.join("paper.toml"), &out.stdout).unwrap();
+    let again = eitskin(&["spec", dir.join("paper.toml").to_str().unwrap()]);
+    assert_eq!(out.stdout, again.stdout);
+}
+
+#[test]
+fn bad_input_fails_with_a_message_that_says_where() {
+    let dir = scratch("bad");
+    let spec = dir.join("bad.toml");
+    std::fs::write(&spec, EIDORS_SQUARE.replace("contact_impedance = 0.01", "contact_impedance = 0")).unwrap();
+    let out = eitskin(&["forward", spec.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("bad.toml") && err.contains("`electrodes.contact_impedance` must be a positive number"),
+        "{err}"
+    );
+    let out = eitskin(&["forward", "--inclusion", "1,2,3"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("expected four numbers"));
+    let out = eitskin(&["forward", "--mesh", "/nonexistent/mesh.json"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read /nonexistent/mesh.json"));
+}

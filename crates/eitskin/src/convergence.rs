@@ -1,0 +1,135 @@
+//! Mesh-convergence studies: the same sensor meshed ever finer, each level's measurements and
+//! setup time, and the converged answer they approach.
+//!
+//! The answer is analytic where one exists (a disk with homogeneous conductivity: the
+//! Fourier-series complete electrode model of [`crate::analytic`]); otherwise it is the
+//! Richardson extrapolation of the two finest levels, v* = v₂ + (v₂ − v₁)/(r^p − 1), with h
+//! shrinking by r between them and p the order observed over the three finest levels.
+//! Errors are max_m |v_m − v*_m| / max_m |v*_m|: relative to the largest value, so that
+//! values near zero (four-terminal protocols) do not dominate.
+
+use std::time::Instant;
+
+use crate::analytic::DiskCem;
+use crate::conductivity::{with_inclusions, Inclusion};
+use crate::geometry::Outline;
+use crate::protocol::Protocol;
+use crate::spec::{SensorSpec, SpecError};
+
+/// One refinement level: its mesh size, setup time and results.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Level {
+    /// Triangles in the mesh.
+    pub triangles: usize,
+    /// The whole setup chain (mesh, model, assembly, factorisation, solves, measurements), in s.
+    pub setup_seconds: f64,
+    /// Measurements with the background conductivity, in V at 1 A (Ω).
+    pub values: Vec<f64>,
+    /// Measurements with the inclusions minus `values`, in V at 1 A (empty without inclusions).
+    pub difference: Vec<f64>,
+}
+
+/// Meshes `spec` at about each count of `triangles` and measures it, with and without `inclusions`.
+pub fn levels(spec: &SensorSpec, triangles: &[usize], inclusions: &[Inclusion]) -> Result<Vec<Level>, SpecError> {
+    let mut out = Vec::with_capacity(triangles.len());
+    for &n in triangles {
+        let mut spec = spec.clone();
+        spec.mesh.triangles = n;
+        spec.mesh.max_element_size = None;
+        let start = Instant::now();
+        let model = spec.forward_model()?;
+        let values = model.measure(&spec.homogeneous(model.mesh()))?;
+        let setup_seconds = start.elapsed().as_secs_f64();
+        let difference = if inclusions.is_empty() {
+            Vec::new()
+        } else {
+            let sigma = with_inclusions(model.mesh(), spec.conductivity, inclusions);
+            model.measure(&sigma)?.iter().zip(&values).map(|(a, b)| a - b).collect()
+        };
+        out.push(Level { triangles: model.mesh().triangles().len(), setup_seconds, values, difference });
+    }
+    Ok(out)
+}
+
+/// The exact homogeneous measurements of a disk sensor with complete electrodes (Fourier series,
+/// extrapolated in the number of modes), or `None` for other outlines or point electrodes.
+pub fn disk_values(spec: &SensorSpec) -> Result<Option<Vec<f64>>, SpecError> {
+    let Outline::Circle { radius } = spec.outline else { return Ok(None) };
+    if spec.electrodes.point {
+        return Ok(None);
+    }
+    let cem = DiskCem {
+        radius,
+        conductivity: spec.conductivity,
+        thickness: spec.thickness,
+        centres: spec.electrode_positions()?.iter().map(|e| e.centre / radius).collect(),
+        width: spec.electrodes.width,
+        contact_impedance: spec.electrodes.contact_impedance,
+    };
+    let protocol = spec.protocol()?;
+    let currents: Vec<&[f64]> = protocol.stimulations().iter().map(Vec::as_slice).collect();
+    let at = |modes| measurements(&protocol, &cem.electrode_voltages_many(&currents, modes));
+    // The series converges as N⁻² (a little slower before that): one Richardson step from
+    // 1200 and 2400 modes leaves about 1e-5 of the values.
+    Ok(Some(richardson(&at(1200), &at(2400), 2.0, 2.0)))
+}
+
+/// A protocol's measurements from the electrode voltages (V) of each of its stimulations.
+pub fn measurements(protocol: &Protocol, per_stimulation: &[Vec<f64>]) -> Vec<f64> {
+    protocol
+        .measurements()
+        .iter()
+        .map(|m| m.weights.iter().zip(&per_stimulation[m.stimulation]).map(|(w, u)| w * u).sum())
+        .collect()
+}
+
+/// v₂ + (v₂ − v₁)/(ratio^order − 1): the extrapolated limit of values converging as h^order
+/// when h shrinks by `ratio` from `coarse` to `fine`.
+pub fn richardson(coarse: &[f64], fine: &[f64], ratio: f64, order: f64) -> Vec<f64> {
+    let k = 1.0 / (ratio.powf(order) - 1.0);
+    fine.iter().zip(coarse).map(|(f, c)| f + (f - c) * k).collect()
+}
+
+/// max |a − b| / max |b|: the error of `a` relative to the largest value of `reference`.
+pub fn relative_error(a: &[f64], reference: &[f64]) -> f64 {
+    let scale = reference.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    a.iter().zip(reference).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / scale
+}
+
+/// The order p in h observed over three levels, from the differences between them
+/// (h ∝ triangles^(−1/2)); `None` when the differences do not shrink.
+pub fn observed_order(levels: [&[f64]; 3], triangles: [usize; 3]) -> Option<f64> {
+    let gap = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    let (d1, d2) = (gap(levels[1], levels[0]), gap(levels[2], levels[1]));
+    let r1 = (triangles[1] as f64 / triangles[0] as f64).sqrt();
+    let r2 = (triangles[2] as f64 / triangles[1] as f64).sqrt();
+    if !(d2 < d1 && d2 > 0.0) {
+        return None;
+    }
+    // d1/d2 = r^p when both steps shrink h by the same r; for unequal steps, take their
+    // geometric mean.
+    let r = (r1 * r2).sqrt();
+    Some((d1 / d2).ln() / r.ln())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn richardson_removes_the_leading_error_term() {
+        // v(h) = 3 + 0.5·h²: exact limit from h = 0.2 and 0.1.
+        let v = |h: f64| 3.0 + 0.5 * h * h;
+        let limit = richardson(&[v(0.2)], &[v(0.1)], 2.0, 2.0);
+        assert!((limit[0] - 3.0).abs() < 1e-14);
+    }
+
+    #[test]
+    fn order_of_a_known_sequence() {
+        // Values converging as h^1.5 with h ∝ N^(−1/2).
+        let at = |n: f64| vec![1.0 + n.powf(-0.75)];
+        let (a, b, c) = (at(1000.0), at(4000.0), at(16000.0));
+        let p = observed_order([&a, &b, &c], [1000, 4000, 16000]).unwrap();
+        assert!((p - 1.5).abs() < 1e-9, "{p}");
+    }
+}
