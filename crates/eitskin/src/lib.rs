@@ -30,12 +30,18 @@ pub mod conductivity;
 pub mod convergence;
 pub mod forward;
 pub mod geometry;
+pub mod image;
+pub mod inverse;
 pub mod mesh;
 pub mod protocol;
 pub mod spec;
+pub mod touch;
 
 pub use forward::{ElectrodeModel, ForwardError, ForwardModel, ForwardSolution};
 pub use geometry::{Electrode, Outline};
+pub use image::Image;
+pub use inverse::{InverseError, Prior, Reconstructor, ReconstructorParams};
 pub use mesh::{Mesh, MeshError, MeshParams, PointLocator, RasterMap};
 pub use protocol::{Measurement, Protocol, ProtocolError};
 pub use spec::{ElectrodeSpec, LengthUnit, Placement, ProtocolSpec, SensorSpec, SpecError};
+pub use touch::{Touch, TouchParams};

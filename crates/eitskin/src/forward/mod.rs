@@ -10,6 +10,7 @@
 //! stimulation of any protocol is a combination of those, so measurements cost no more solves.
 
 mod assemble;
+mod jacobian;
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};

@@ -124,10 +124,7 @@ impl RasterMap {
 
     /// Centre of the pixel in column `col` and row `row` (row 0 at the top), in m.
     pub fn pixel_centre(&self, col: usize, row: usize) -> [f64; 2] {
-        let [lo, hi] = self.bounds;
-        let dx = (hi[0] - lo[0]) / self.size[0] as f64;
-        let dy = (hi[1] - lo[1]) / self.size[1] as f64;
-        [lo[0] + (col as f64 + 0.5) * dx, hi[1] - (row as f64 + 0.5) * dy]
+        crate::image::pixel_centre(self.bounds, self.size, col, row)
     }
 }
 

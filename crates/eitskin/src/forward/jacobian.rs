@@ -1,0 +1,104 @@
+//! The Jacobian by the adjoint method, from the L−1 fields already solved (no extra solve).
+//!
+//! For measurement m (stimulation s, measurement weights w) and triangle k,
+//!
+//!   J[m,k] = ∂v_m/∂σ_k = −t·A_k·∇u_s·∇u_w,
+//!
+//! where u_s is the field of the stimulation's currents and u_w the field of 1 A driven by the
+//! measurement's weights (reciprocity), both combinations of the basis fields; t is the
+//! thickness and A_k the triangle's area. Units: V/A per S/m, i.e. Ω·m/S.
+
+use faer::Mat;
+
+use super::{ForwardModel, ForwardSolution, GROUNDED};
+
+impl ForwardModel {
+    /// The Jacobian of the protocol's measurements (rows) with respect to each triangle's
+    /// conductivity (columns), at the conductivity `solution` was solved for, in Ω per S/m.
+    pub fn jacobian(&self, solution: &ForwardSolution) -> Mat<f64> {
+        let mesh = &self.mesh;
+        let protocol = &self.protocol;
+        let basis = self.mesh.electrodes().len() - 1;
+        // Pattern coefficients on the basis e_p − e_L: the first L−1 entries (they sum to zero).
+        let stimulations: Vec<&[f64]> = protocol.stimulations().iter().map(|s| &s[..basis]).collect();
+        let weights: Vec<&[f64]> = protocol.measurements().iter().map(|m| &m.weights[..basis]).collect();
+        let mut jacobian = Mat::<f64>::zeros(protocol.len(), mesh.triangles().len());
+        let mut grad = vec![[0.0; 2]; basis];
+        let mut grad_s = vec![[0.0; 2]; stimulations.len()];
+        let fields = solution.fields();
+        for (k, tri) in mesh.triangles().iter().enumerate() {
+            let p = mesh.corners(k);
+            let area = mesh.area(k);
+            // ∇φ_i = (y_j − y_l, x_l − x_j)/(2A) over the cyclic corners (i, j, l).
+            let dphi: [[f64; 2]; 3] = std::array::from_fn(|i| {
+                let (j, l) = ((i + 1) % 3, (i + 2) % 3);
+                [(p[j][1] - p[l][1]) / (2.0 * area), (p[l][0] - p[j][0]) / (2.0 * area)]
+            });
+            for (b, g) in grad.iter_mut().enumerate() {
+                *g = [0.0; 2];
+                for (i, &n) in tri.iter().enumerate() {
+                    let row = self.row_of_node[n];
+                    if row != GROUNDED {
+                        let u = fields[(row, b)];
+                        g[0] += u * dphi[i][0];
+                        g[1] += u * dphi[i][1];
+                    }
+                }
+            }
+            let combine = |coefs: &[f64]| {
+                coefs.iter().zip(&grad).fold([0.0; 2], |acc, (c, g)| [acc[0] + c * g[0], acc[1] + c * g[1]])
+            };
+            for (gs, s) in grad_s.iter_mut().zip(&stimulations) {
+                *gs = combine(s);
+            }
+            let scale = -self.thickness * area;
+            let column = jacobian.col_mut(k);
+            for ((j, w), m) in column.iter_mut().zip(&weights).zip(protocol.measurements()) {
+                let gw = combine(w);
+                let gs = grad_s[m.stimulation];
+                *j = scale * (gs[0] * gw[0] + gs[1] * gw[1]);
+            }
+        }
+        jacobian
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::{conductivity::with_inclusions, conductivity::Inclusion, SensorSpec};
+
+    #[test]
+    fn jacobian_matches_central_finite_differences() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 600;
+        let model = spec.forward_model().unwrap();
+        // An inhomogeneous background, so the test does not rest on symmetry.
+        let press = Inclusion { centre: [0.03, -0.02], radius: 0.03, conductivity: 0.4 };
+        let sigma = with_inclusions(model.mesh(), 1.0, &[press]);
+        let jacobian = model.jacobian(&model.solve(&sigma).unwrap());
+        let mut worst = 0.0f64;
+        for k in [0, 17, 123, 301, 599.min(model.mesh().triangles().len() - 1)] {
+            let h = 1e-4 * sigma[k];
+            let mut up = sigma.clone();
+            up[k] += h;
+            let mut down = sigma.clone();
+            down[k] -= h;
+            let (vu, vd) = (model.measure(&up).unwrap(), model.measure(&down).unwrap());
+            let scale = (0..jacobian.nrows()).map(|m| jacobian[(m, k)].abs()).fold(0.0, f64::max);
+            for m in 0..jacobian.nrows() {
+                let fd = (vu[m] - vd[m]) / (2.0 * h);
+                worst = worst.max((fd - jacobian[(m, k)]).abs() / scale);
+            }
+        }
+        assert!(worst < 1e-5, "adjoint Jacobian differs from finite differences by {worst:e}");
+    }
+
+    #[test]
+    fn two_terminal_jacobian_is_never_positive() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let model = spec.forward_model().unwrap();
+        let jacobian = model.jacobian(&model.solve(&spec.homogeneous(model.mesh())).unwrap());
+        assert!((0..jacobian.nrows()).all(|m| (0..jacobian.ncols()).all(|k| jacobian[(m, k)] <= 1e-15)));
+    }
+}

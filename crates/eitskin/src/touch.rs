@@ -1,0 +1,478 @@
+//! Touches: the pressed regions of a conductivity-change image, with their centres and peaks.
+//!
+//! A press lowers the local conductivity, so a touch shows in an [`Image`] as a dip of Δσ. The
+//! paper's extraction (its Fig. 2) is followed step by step:
+//!
+//! 1. intensity of each inside pixel in the press direction, s = −Δσ (or +Δσ, see [`Polarity`]),
+//!    and the peak P = max s; no touch if P ≤ 0 or P < `min_peak`;
+//! 2. keep the pixels with s ≥ 0.6·P (the `threshold`);
+//! 3. label the connected components of the kept pixels (8-connectivity: a pixel touches its
+//!    8 neighbours, so a diagonal chain is one region);
+//! 4. per component, the centre of gravity c = Σ sᵢ·xᵢ / Σ sᵢ and the peak max sᵢ.
+//!
+//! Touches come strongest first. [`detect`] is the easy form; [`detect_into`] writes into
+//! buffers the caller owns and allocates nothing once they have grown, for the per-frame path.
+//!
+//! ```
+//! use eitskin::{image::Image, touch::{self, TouchParams}};
+//! let mut image = Image::new([32, 32], [[0.0, 0.0], [0.2, 0.2]], vec![true; 32 * 32]);
+//! for row in 0..32 {
+//!     for col in 0..32 {
+//!         let [x, y] = image.pixel_centre(col, row);
+//!         let r2 = (x - 0.05).powi(2) + (y - 0.15).powi(2); // a press at (50 mm, 150 mm)
+//!         image.values[row * 32 + col] = (-0.3 * (-r2 / (2.0 * 0.012_f64.powi(2))).exp()) as f32;
+//!     }
+//! }
+//! let touches = touch::detect(&image, &TouchParams::default());
+//! assert_eq!(touches.len(), 1);
+//! assert!((touches[0].centre[0] - 0.05).abs() < 1e-3 && (touches[0].centre[1] - 0.15).abs() < 1e-3);
+//! ```
+//!
+//! Not for: locating the unit of a pseudo-array sensor that a touch falls on (a later module
+//! maps touches to units), nor for force (that is the calibration's job, from a [`Touch`]).
+
+use crate::image::Image;
+
+/// Which sign of conductivity change a press makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Polarity {
+    /// A press lowers the conductivity (the default, as in a hydrogel skin).
+    #[default]
+    Decrease,
+    /// A press raises the conductivity.
+    Increase,
+}
+
+impl Polarity {
+    /// The change `change` (Δσ, in S/m) in the press direction, in S/m: positive where pressed.
+    pub fn intensity(self, change: f32) -> f64 {
+        match self {
+            Polarity::Decrease => -f64::from(change),
+            Polarity::Increase => f64::from(change),
+        }
+    }
+}
+
+/// How touches are found; `Default` gives the paper's method.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TouchParams {
+    /// Keep pixels at or above this fraction of the peak, dimensionless in (0, 1] (0.6 in the paper).
+    pub threshold: f64,
+    /// Peak change below which there is no touch (noise floor), in S/m, ≥ 0; default 0.
+    pub min_peak: f64,
+    /// Intensity-weighted centre of gravity (true, default) or the plain centroid of the pixels.
+    pub weighted: bool,
+    /// The sign of change a press makes.
+    pub polarity: Polarity,
+}
+
+impl Default for TouchParams {
+    fn default() -> TouchParams {
+        TouchParams { threshold: 0.6, min_peak: 0.0, weighted: true, polarity: Polarity::Decrease }
+    }
+}
+
+/// One touch: a connected region of the thresholded image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Touch {
+    /// Centre of gravity of the region, in m.
+    pub centre: [f64; 2],
+    /// Strongest change in the press direction inside the region, a positive number in S/m.
+    pub peak: f64,
+    /// Centre of the pixel where that peak is, in m.
+    pub peak_at: [f64; 2],
+    /// Area of the region, in m².
+    pub area: f64,
+    /// Number of pixels in the region.
+    pub pixels: usize,
+    /// Bounding box of the region's pixel centres, `[[x_min, y_min], [x_max, y_max]]`, in m.
+    pub bounding_box: [[f64; 2]; 2],
+}
+
+/// Reusable buffers for [`detect_into`], so that it allocates nothing once they have grown.
+#[derive(Debug, Clone, Default)]
+pub struct TouchScratch {
+    /// Per pixel: kept by the threshold and not yet given to a region.
+    pending: Vec<bool>,
+    /// Row-major indices of the pixels waiting to be visited by the flood fill.
+    stack: Vec<usize>,
+}
+
+impl TouchScratch {
+    /// Buffers for images of `[nx, ny]` pixels (`Default` gives empty ones that grow on first use).
+    pub fn new([nx, ny]: [usize; 2]) -> TouchScratch {
+        TouchScratch { pending: Vec::with_capacity(nx * ny), stack: Vec::with_capacity(nx * ny) }
+    }
+}
+
+/// The touches of `image`, strongest first.
+///
+/// Allocates its buffers on every call; per frame, use [`detect_into`].
+#[track_caller]
+pub fn detect(image: &Image, params: &TouchParams) -> Vec<Touch> {
+    let mut touches = Vec::new();
+    detect_into(image, params, &mut TouchScratch::new(image.size), &mut touches);
+    touches
+}
+
+/// The touches of `image`, strongest first, into `touches` (cleared first); allocates nothing
+/// once `scratch` has seen an image this size and `touches` has room for as many touches.
+///
+/// Panics if `image.values` or `image.inside` does not have nx·ny entries (a caller contract).
+#[track_caller]
+pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScratch, touches: &mut Vec<Touch>) {
+    let [nx, ny] = image.size;
+    let n = nx * ny;
+    assert!(
+        image.values.len() == n && image.inside.len() == n,
+        "an image of {nx} × {ny} pixels needs {n} values and mask entries, got {} and {}",
+        image.values.len(),
+        image.inside.len()
+    );
+    touches.clear();
+    let intensity = |i: usize| params.polarity.intensity(image.values[i]);
+
+    // 1. The peak over the inside pixels, at least 0 (`f64::max` skips NaN).
+    let mut peak = 0.0_f64;
+    for i in (0..n).filter(|&i| image.inside[i]) {
+        peak = peak.max(intensity(i));
+    }
+    if peak <= 0.0 || peak < params.min_peak {
+        return;
+    }
+
+    // 2. Keep the pixels at or above the threshold; a pixel with no change is never kept, so
+    //    every kept weight is positive whatever the threshold.
+    let cutoff = params.threshold * peak;
+    scratch.pending.clear();
+    scratch.pending.extend((0..n).map(|i| image.inside[i] && intensity(i) >= cutoff && intensity(i) > 0.0));
+    scratch.stack.clear();
+    scratch.stack.reserve(n); // each pixel is pushed at most once, so the stack never grows past n
+
+    // 3. Flood-fill each region from its first pixel in row-major order, with an explicit stack.
+    for seed in 0..n {
+        if !scratch.pending[seed] {
+            continue;
+        }
+        scratch.pending[seed] = false;
+        scratch.stack.push(seed);
+        let mut region = Region::new();
+        while let Some(i) = scratch.stack.pop() {
+            let (col, row) = (i % nx, i / nx);
+            region.add(i, image.pixel_centre(col, row), intensity(i), params.weighted);
+            for r in row.saturating_sub(1)..=(row + 1).min(ny - 1) {
+                for c in col.saturating_sub(1)..=(col + 1).min(nx - 1) {
+                    let j = r * nx + c;
+                    if scratch.pending[j] {
+                        scratch.pending[j] = false;
+                        scratch.stack.push(j);
+                    }
+                }
+            }
+        }
+        // 4. Centre of gravity and peak of the region.
+        touches.push(region.touch(image.pixel_area()));
+    }
+
+    // Strongest first; equal peaks by the peak's position (top to bottom, left to right), so
+    // the order never depends on the sort.
+    touches.sort_unstable_by(|a, b| {
+        b.peak
+            .total_cmp(&a.peak)
+            .then(b.peak_at[1].total_cmp(&a.peak_at[1]))
+            .then(a.peak_at[0].total_cmp(&b.peak_at[0]))
+    });
+}
+
+/// Running sums over the pixels of one region.
+struct Region {
+    weight: f64,
+    moment: [f64; 2],
+    pixels: usize,
+    peak: f64,
+    peak_index: usize,
+    peak_at: [f64; 2],
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+impl Region {
+    fn new() -> Region {
+        Region {
+            weight: 0.0,
+            moment: [0.0; 2],
+            pixels: 0,
+            peak: f64::NEG_INFINITY,
+            peak_index: usize::MAX,
+            peak_at: [0.0; 2],
+            lo: [f64::INFINITY; 2],
+            hi: [f64::NEG_INFINITY; 2],
+        }
+    }
+
+    /// Adds pixel `index` at `p` (m) with intensity `s` (S/m, positive).
+    fn add(&mut self, index: usize, p: [f64; 2], s: f64, weighted: bool) {
+        let w = if weighted { s } else { 1.0 };
+        self.weight += w;
+        self.moment[0] += w * p[0];
+        self.moment[1] += w * p[1];
+        self.pixels += 1;
+        // Equal peaks go to the first pixel in row-major order, not to the flood-fill order.
+        if s > self.peak || (s == self.peak && index < self.peak_index) {
+            self.peak = s;
+            self.peak_index = index;
+            self.peak_at = p;
+        }
+        self.lo = [self.lo[0].min(p[0]), self.lo[1].min(p[1])];
+        self.hi = [self.hi[0].max(p[0]), self.hi[1].max(p[1])];
+    }
+
+    /// The touch this region makes, with pixels of `pixel_area` m².
+    fn touch(&self, pixel_area: f64) -> Touch {
+        Touch {
+            centre: [self.moment[0] / self.weight, self.moment[1] / self.weight],
+            peak: self.peak,
+            peak_at: self.peak_at,
+            area: self.pixels as f64 * pixel_area,
+            pixels: self.pixels,
+            bounding_box: [self.lo, self.hi],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 64 × 64 image over a 200 mm square, masked to the inscribed disk (3.125 mm pixels).
+    fn disk() -> Image {
+        let (n, radius) = (64, 0.1);
+        let mut image = Image::new([n, n], [[-radius, -radius], [radius, radius]], vec![false; n * n]);
+        for row in 0..n {
+            for col in 0..n {
+                let [x, y] = image.pixel_centre(col, row);
+                image.inside[row * n + col] = x * x + y * y <= radius * radius;
+            }
+        }
+        image
+    }
+
+    const PIXEL: f64 = 0.2 / 64.0;
+
+    /// Adds a Gaussian change `depth·exp(−r²/2σ²)` (S/m) at `centre` (m) to the inside pixels.
+    fn add_gaussian(image: &mut Image, centre: [f64; 2], sigma: f64, depth: f64) {
+        let [nx, ny] = image.size;
+        for row in 0..ny {
+            for col in 0..nx {
+                let i = row * nx + col;
+                if image.inside[i] {
+                    let [x, y] = image.pixel_centre(col, row);
+                    let r2 = (x - centre[0]).powi(2) + (y - centre[1]).powi(2);
+                    image.values[i] += (depth * (-r2 / (2.0 * sigma * sigma)).exp()) as f32;
+                }
+            }
+        }
+    }
+
+    fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+        (a[0] - b[0]).hypot(a[1] - b[1])
+    }
+
+    #[test]
+    fn one_gaussian_dip_gives_one_touch_at_its_centre() {
+        let (centre, sigma, depth) = ([0.0213, -0.0371], 0.012, 2.0);
+        let mut image = disk();
+        add_gaussian(&mut image, centre, sigma, -depth);
+        let touches = detect(&image, &TouchParams::default());
+        assert_eq!(touches.len(), 1, "{touches:?}");
+        let t = touches[0];
+        let error = distance(t.centre, centre);
+        assert!(error < 0.1 * PIXEL, "centre {:?} is {:.3} pixels off", t.centre, error / PIXEL);
+        // The peak is the deepest sample: the Gaussian at the pixel centre nearest the dip.
+        let nearest = distance(t.peak_at, centre);
+        assert!(nearest <= PIXEL * std::f64::consts::FRAC_1_SQRT_2, "peak at {:?}", t.peak_at);
+        let sampled = depth * (-nearest * nearest / (2.0 * sigma * sigma)).exp();
+        assert!((t.peak - sampled).abs() < 1e-6 * depth, "peak {} vs sampled {sampled}", t.peak);
+        assert!(t.bounding_box[0][0] < centre[0] && centre[0] < t.bounding_box[1][0]);
+        assert!(t.bounding_box[0][1] < centre[1] && centre[1] < t.bounding_box[1][1]);
+        assert_eq!(t.area, t.pixels as f64 * image.pixel_area());
+    }
+
+    #[test]
+    fn peak_is_the_dip_depth_when_the_dip_sits_on_a_pixel_centre() {
+        let mut image = disk();
+        let centre = image.pixel_centre(20, 37);
+        add_gaussian(&mut image, centre, 0.01, -0.75);
+        let touches = detect(&image, &TouchParams::default());
+        assert_eq!(touches.len(), 1);
+        assert_eq!(touches[0].peak, 0.75);
+        assert_eq!(touches[0].peak_at, centre);
+        assert!(distance(touches[0].centre, centre) < 1e-9, "a symmetric region is centred on its peak");
+    }
+
+    #[test]
+    fn two_separated_dips_give_two_touches_strongest_first() {
+        // The weaker dip comes first in row-major order, so the order must come from the sort.
+        let (weak, strong) = ([-0.05, 0.04], [0.04, -0.05]);
+        let mut image = disk();
+        add_gaussian(&mut image, weak, 0.01, -0.8);
+        add_gaussian(&mut image, strong, 0.01, -1.0);
+        let touches = detect(&image, &TouchParams::default());
+        assert_eq!(touches.len(), 2, "{touches:?}");
+        assert!(distance(touches[0].centre, strong) < 0.5 * PIXEL, "{:?}", touches[0]);
+        assert!(distance(touches[1].centre, weak) < 0.5 * PIXEL, "{:?}", touches[1]);
+        assert!((touches[0].peak - 1.0).abs() < 0.05 && (touches[1].peak - 0.8).abs() < 0.05);
+    }
+
+    #[test]
+    fn a_diagonal_bridge_joins_two_dips_into_one_touch() {
+        // Two 2 × 2 blocks at (2..4, 2..4) and (8..10, 8..10) (col, row), and a chain of pixels
+        // (4, 4) … (7, 7) above the threshold that meets them and each other only at corners.
+        let n = 12;
+        let mut image = Image::new([n, n], [[0.0, 0.0], [0.012, 0.012]], vec![true; n * n]);
+        let mut set = |col: usize, row: usize, v: f32| image.values[row * n + col] = v;
+        for k in 0..2 {
+            for l in 0..2 {
+                set(2 + k, 2 + l, -1.0);
+                set(8 + k, 8 + l, -1.0);
+            }
+        }
+        for d in 4..8 {
+            set(d, d, -0.7);
+        }
+        let touches = detect(&image, &TouchParams::default());
+        assert_eq!(touches.len(), 1, "8-connectivity joins diagonal neighbours: {touches:?}");
+        assert_eq!(touches[0].pixels, 12);
+        assert_eq!(touches[0].bounding_box, [image.pixel_centre(2, 9), image.pixel_centre(9, 2)]);
+        assert_eq!(touches[0].peak_at, image.pixel_centre(2, 2), "equal peaks go to the first pixel");
+
+        // Control: with one bridge pixel below the threshold the dips come apart.
+        image.values[6 * n + 6] = -0.5;
+        let touches = detect(&image, &TouchParams::default());
+        assert_eq!(touches.len(), 2, "{touches:?}");
+        assert_eq!(touches.iter().map(|t| t.pixels).sum::<usize>(), 11);
+    }
+
+    #[test]
+    fn noise_below_the_floor_gives_no_touch() {
+        let mut image = disk();
+        let mut state = 0x2545_f491_4f6c_dd1d_u64; // fixed seed; xorshift noise in ±1 mS/m
+        for v in &mut image.values {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            *v = ((state >> 11) as f64 / (1u64 << 53) as f64 * 2e-3 - 1e-3) as f32;
+        }
+        let floor = TouchParams { min_peak: 0.01, ..TouchParams::default() };
+        assert!(detect(&image, &floor).is_empty());
+        // Control: without the floor the noise's own peaks are reported.
+        assert!(!detect(&image, &TouchParams::default()).is_empty());
+    }
+
+    #[test]
+    fn a_flat_or_raised_image_gives_no_press() {
+        let mut image = disk();
+        assert!(detect(&image, &TouchParams::default()).is_empty(), "all zero");
+        add_gaussian(&mut image, [0.0, 0.0], 0.01, 1.0);
+        assert!(detect(&image, &TouchParams::default()).is_empty(), "a rise is not a press");
+    }
+
+    #[test]
+    fn masked_pixels_are_ignored() {
+        let centre = [-0.02, 0.03];
+        let mut image = disk();
+        add_gaussian(&mut image, centre, 0.01, -1.0);
+        for (v, &inside) in image.values.iter_mut().zip(&image.inside) {
+            if !inside {
+                *v = -100.0; // far stronger than the dip, but outside the sensor
+            }
+        }
+        assert_eq!(image.values[0], -100.0, "the corner pixel is masked");
+        let touches = detect(&image, &TouchParams::default());
+        assert_eq!(touches.len(), 1, "{touches:?}");
+        assert!(touches[0].peak <= 1.0 && touches[0].peak > 0.9);
+        assert!(distance(touches[0].centre, centre) < 0.5 * PIXEL);
+        assert!(image.peak().is_some_and(|(_, v)| v > -1.0 - 1e-6));
+    }
+
+    #[test]
+    fn increase_polarity_finds_rises_and_ignores_dips() {
+        let (rise, dip) = ([0.03, 0.02], [-0.04, -0.03]);
+        let mut image = disk();
+        add_gaussian(&mut image, rise, 0.01, 0.5);
+        add_gaussian(&mut image, dip, 0.01, -2.0);
+        let params = TouchParams { polarity: Polarity::Increase, ..TouchParams::default() };
+        let touches = detect(&image, &params);
+        assert_eq!(touches.len(), 1, "{touches:?}");
+        assert!(distance(touches[0].centre, rise) < 0.5 * PIXEL);
+        assert!((touches[0].peak - 0.5).abs() < 0.05);
+        let touches = detect(&image, &TouchParams::default());
+        assert_eq!(touches.len(), 1);
+        assert!(distance(touches[0].centre, dip) < 0.5 * PIXEL);
+    }
+
+    #[test]
+    fn a_higher_threshold_gives_a_smaller_area() {
+        let (centre, sigma) = ([0.0113, -0.0071], 0.012);
+        let mut image = disk();
+        add_gaussian(&mut image, centre, sigma, -1.0);
+        let mut last = f64::INFINITY;
+        for threshold in [0.2, 0.4, 0.6, 0.8] {
+            let touches = detect(&image, &TouchParams { threshold, ..TouchParams::default() });
+            assert_eq!(touches.len(), 1);
+            let area = touches[0].area;
+            assert!(area < last, "threshold {threshold}: area {area} m² is not below {last} m²");
+            // The level set s ≥ t·P of a Gaussian is a disk of area 2πσ²·ln(1/t).
+            let exact = 2.0 * std::f64::consts::PI * sigma * sigma * (1.0 / threshold).ln();
+            assert!((area / exact - 1.0).abs() < 0.1, "threshold {threshold}: area {area} vs {exact}");
+            last = area;
+        }
+    }
+
+    #[test]
+    fn unweighted_centre_is_the_plain_centroid() {
+        // Three pixels in a row, 1 mm wide, the right one weaker: kept at 60 %, centres 0.5, 1.5, 2.5 mm.
+        let mut image = Image::new([5, 1], [[0.0, 0.0], [0.005, 0.001]], vec![true; 5]);
+        image.values[..3].copy_from_slice(&[-1.0, -1.0, -0.7]);
+        let plain = detect(&image, &TouchParams { weighted: false, ..TouchParams::default() });
+        assert!((plain[0].centre[0] - 0.0015).abs() < 1e-12, "{:?}", plain[0]);
+        let weighted = detect(&image, &TouchParams::default());
+        let expected = (1.0 * 0.0005 + 1.0 * 0.0015 + 0.7 * 0.0025) / 2.7;
+        assert!((weighted[0].centre[0] - expected).abs() < 1e-9, "{:?}", weighted[0]);
+        assert!((weighted[0].centre[1] - 0.0005).abs() < 1e-12);
+    }
+
+    #[test]
+    fn detect_into_reuses_its_buffers() {
+        let mut image = disk();
+        add_gaussian(&mut image, [-0.05, 0.04], 0.01, -0.8);
+        add_gaussian(&mut image, [0.04, -0.05], 0.01, -1.0);
+        let params = TouchParams::default();
+        let mut scratch = TouchScratch::default(); // grows on first use
+        let mut touches = Vec::new();
+        detect_into(&image, &params, &mut scratch, &mut touches);
+        let first = touches.clone();
+        let capacities = (scratch.pending.capacity(), scratch.stack.capacity(), touches.capacity());
+        let pointers = (scratch.pending.as_ptr(), scratch.stack.as_ptr(), touches.as_ptr());
+        detect_into(&image, &params, &mut scratch, &mut touches);
+        assert_eq!(touches, first);
+        assert_eq!(touches, detect(&image, &params));
+        assert_eq!((scratch.pending.capacity(), scratch.stack.capacity(), touches.capacity()), capacities);
+        assert_eq!((scratch.pending.as_ptr(), scratch.stack.as_ptr(), touches.as_ptr()), pointers);
+
+        // Preallocated buffers do not grow at all.
+        let mut scratch = TouchScratch::new(image.size);
+        let sized = (scratch.pending.capacity(), scratch.stack.capacity());
+        detect_into(&image, &params, &mut scratch, &mut touches);
+        assert_eq!((scratch.pending.capacity(), scratch.stack.capacity()), sized);
+        assert_eq!(touches, first);
+    }
+
+    #[test]
+    #[should_panic(expected = "needs 4 values and mask entries, got 3 and 4")]
+    fn detect_into_rejects_an_image_of_the_wrong_length() {
+        let mut image = Image::new([2, 2], [[0.0, 0.0], [1.0, 1.0]], vec![true; 4]);
+        image.values.pop();
+        let _ = detect(&image, &TouchParams::default());
+    }
+}
