@@ -2,12 +2,18 @@
 //!
 //! Stages: `mesh` (triangulation and refinement), `model` (sparsity pattern and symbolic
 //! Cholesky, once per mesh), `assembly`, `factorisation` (numeric Cholesky), `solves` (all
-//! L−1 current patterns), `measurements` (the protocol's values from the fields).
+//! L−1 current patterns), `measurements` (the protocol's values from the fields); then the
+//! imaging chain: `jacobian`, `reconstructor` (prior, the measurement-sized solve and the
+//! raster projection) and, per frame (median over many frames), `frame_image` and
+//! `frame_touches`.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
+use eitskin::conductivity::{with_inclusions, Inclusion};
+use eitskin::touch::{detect_into, TouchScratch};
+use eitskin::{Reconstructor, ReconstructorParams, TouchParams};
 
 use crate::load;
 
@@ -61,6 +67,24 @@ pub fn run(args: Args) -> Result<()> {
         solution.measurements_into(model.protocol(), &mut values);
         Ok(())
     })?;
+    let (t_jacobian, _) = time(n, || Ok(model.jacobian(&solution)))?;
+    let params = ReconstructorParams::default();
+    let background = spec.conductivity;
+    let (t_recon, recon) = time(n, || Ok(Reconstructor::new(&model, background, &params)?))?;
+    // A frame with a press at (30 %, −20 %) of the half-width, so the touch stage finds one.
+    let [lo, hi] = model.mesh().bounds();
+    let half = (hi[0] - lo[0]) / 2.0;
+    let press = Inclusion { centre: [0.3 * half, -0.2 * half], radius: 0.1 * half, conductivity: 0.5 * background };
+    let frame = model.measure(&with_inclusions(model.mesh(), background, &[press]))?;
+    let mut image = recon.blank_image();
+    let frames = 2001;
+    let (t_image, ()) = time(frames, || Ok(recon.image_into(&values, &frame, &mut image)?))?;
+    let (mut scratch, mut touches) = (TouchScratch::new(image.size), Vec::with_capacity(16));
+    let touch_params = TouchParams::default();
+    let (t_touches, ()) = time(frames, || {
+        detect_into(&image, &touch_params, &mut scratch, &mut touches);
+        Ok(())
+    })?;
     let stages = [
         ("mesh", t_mesh),
         ("model", t_model),
@@ -68,8 +92,12 @@ pub fn run(args: Args) -> Result<()> {
         ("factorisation", t_factor),
         ("solves", t_solves),
         ("measurements", t_measure),
+        ("jacobian", t_jacobian),
+        ("reconstructor", t_recon),
+        ("frame_image", t_image),
+        ("frame_touches", t_touches),
     ];
-    let total: f64 = stages.iter().map(|s| s.1).sum();
+    let total: f64 = stages[..6].iter().map(|s| s.1).sum();
     if args.json {
         let mut out = serde_json::Map::new();
         out.insert("triangles".into(), model.mesh().triangles().len().into());
@@ -79,6 +107,7 @@ pub fn run(args: Args) -> Result<()> {
             out.insert(name.into(), t.into());
         }
         out.insert("total".into(), total.into());
+        out.insert("frame".into(), (t_image + t_touches).into());
         println!("{}", serde_json::Value::Object(out));
     } else {
         println!(
@@ -87,10 +116,17 @@ pub fn run(args: Args) -> Result<()> {
             model.mesh().nodes().len(),
             values.len()
         );
-        for (name, t) in stages {
+        for (name, t) in &stages[..6] {
             println!("  {name:<14} {:>10.3} ms", t * 1e3);
         }
-        println!("  {:<14} {:>10.3} ms", "total", total * 1e3);
+        println!("  {:<14} {:>10.3} ms  (forward setup chain)", "total", total * 1e3);
+        for (name, t) in &stages[6..8] {
+            println!("  {name:<14} {:>10.3} ms", t * 1e3);
+        }
+        println!("per frame, median of {frames} ({} pixels, {} touch):", image.values.len(), touches.len());
+        for (name, t) in &stages[8..] {
+            println!("  {name:<14} {:>10.3} µs", t * 1e6);
+        }
     }
     Ok(())
 }

@@ -87,7 +87,19 @@ fn mesh_writes_json_that_forward_reads_back_and_a_png() {
 #[test]
 fn bench_json_has_every_stage() {
     let json = stdout_json(&eitskin(&["bench", "--triangles", "500", "--repeat", "3", "--json"]));
-    for stage in ["mesh", "model", "assembly", "factorisation", "solves", "measurements", "total"] {
+    for stage in [
+        "mesh",
+        "model",
+        "assembly",
+        "factorisation",
+        "solves",
+        "measurements",
+        "total",
+        "jacobian",
+        "reconstructor",
+        "frame_image",
+        "frame_touches",
+    ] {
         assert!(json[stage].as_f64().is_some_and(|t| t > 0.0), "stage {stage} missing: {json}");
     }
 }

@@ -121,12 +121,38 @@ impl Reconstructor {
         let pixels = self.template.values.len();
         assert_eq!(image.values.len(), pixels, "the image must come from blank_image()");
         image.values.fill(0.0);
-        for ((&r, &x), column) in v_ref.iter().zip(v).zip(self.matrix.chunks_exact(pixels)) {
-            let dv = if self.params.normalized { x / r - 1.0 } else { x - r } as f32;
-            for (pixel, h) in image.values.iter_mut().zip(column) {
-                *pixel += h * dv;
-            }
-        }
+        let normalized = self.params.normalized;
+        let difference = |m: usize| if normalized { v[m] / v_ref[m] - 1.0 } else { v[m] - v_ref[m] } as f32;
+        accumulate(&mut image.values, &self.matrix, difference);
         Ok(())
     }
+}
+
+/// values += Σ_m matrix[:, m]·difference(m), the matrix column-major with `values.len()` rows;
+/// with 8-lane AVX2 where the processor has it (checked at run time), else portable code.
+fn accumulate(values: &mut [f32], matrix: &[f32], difference: impl Fn(usize) -> f32) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the features the function is compiled for were just detected.
+        unsafe { accumulate_avx2(values, matrix, difference) };
+        return;
+    }
+    accumulate_portable(values, matrix, difference);
+}
+
+#[inline(always)]
+fn accumulate_portable(values: &mut [f32], matrix: &[f32], difference: impl Fn(usize) -> f32) {
+    for (m, column) in matrix.chunks_exact(values.len()).enumerate() {
+        let d = difference(m);
+        for (pixel, h) in values.iter_mut().zip(column) {
+            *pixel += h * d;
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn accumulate_avx2(values: &mut [f32], matrix: &[f32], difference: impl Fn(usize) -> f32) {
+    // The same loop, compiled for 8-lane vectors.
+    accumulate_portable(values, matrix, difference);
 }
