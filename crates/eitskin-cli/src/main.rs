@@ -4,6 +4,7 @@ mod bench;
 mod convergence;
 
 mod forward;
+mod image;
 mod load;
 mod mesh;
 mod plot;
@@ -31,6 +32,8 @@ enum Command {
     Mesh(mesh::Args),
     /// Simulate the measurements of the sensor, in protocol order (V at 1 A, i.e. Ω).
     Forward(forward::Args),
+    /// Reconstruct a frame against a reference: print its touches, draw the image.
+    Image(image::Args),
     /// Time each stage of the setup chain and print the medians.
     Bench(bench::Args),
     /// Refine the mesh step by step and report how the measurements converge.
@@ -43,6 +46,7 @@ fn main() {
         Command::Spec { spec } => load::spec(spec.as_deref()).map(|s| print!("{}", eitskin_io::spec_to_toml(&s))),
         Command::Mesh(args) => mesh::run(args),
         Command::Forward(args) => forward::run(args),
+        Command::Image(args) => image::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Convergence(args) => convergence::run(args),
     };

@@ -37,3 +37,42 @@ pub fn mesh_png(mesh: &Mesh, path: &Path) -> Result<()> {
     root.present().map_err(|e| fail(&e))?;
     Ok(())
 }
+
+/// Draws a conductivity-change image as a heat map (decrease blue, increase red, both scaled to
+/// the largest |change|; masked pixels grey) with a black ring at each touch's centre.
+pub fn image_png(image: &eitskin::Image, touches: &[eitskin::Touch], path: &Path) -> Result<()> {
+    let [nx, ny] = image.size;
+    let cell = (640 / nx.max(ny)).max(1) as u32;
+    let (w, h) = (nx as u32 * cell, ny as u32 * cell);
+    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let scale = image.peak().map_or(1.0, |(_, v)| v.abs().max(f32::MIN_POSITIVE));
+    for row in 0..ny {
+        for col in 0..nx {
+            let p = row * nx + col;
+            let colour = if !image.inside[p] {
+                RGBColor(200, 200, 200)
+            } else {
+                let t = (image.values[p] / scale).clamp(-1.0, 1.0);
+                let fade = |c: f32| (255.0 * (1.0 - c.abs())) as u8;
+                if t < 0.0 {
+                    RGBColor(fade(t), fade(t), 255)
+                } else {
+                    RGBColor(255, fade(t), fade(t))
+                }
+            };
+            let (x, y) = ((col as u32 * cell) as i32, (row as u32 * cell) as i32);
+            root.draw(&Rectangle::new([(x, y), (x + cell as i32, y + cell as i32)], colour.filled()))
+                .map_err(|e| fail(&e))?;
+        }
+    }
+    let [lo, hi] = image.bounds;
+    for t in touches {
+        let x = ((t.centre[0] - lo[0]) / (hi[0] - lo[0]) * w as f64) as i32;
+        let y = ((hi[1] - t.centre[1]) / (hi[1] - lo[1]) * h as f64) as i32;
+        root.draw(&Circle::new((x, y), 8, BLACK.stroke_width(3))).map_err(|e| fail(&e))?;
+    }
+    root.present().map_err(|e| fail(&e))?;
+    Ok(())
+}

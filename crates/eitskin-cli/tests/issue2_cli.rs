@@ -131,3 +131,30 @@ fn bad_input_fails_with_a_message_that_says_where() {
     let out = eitskin(&["forward", "--mesh", "/nonexistent/mesh.json"]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read /nonexistent/mesh.json"));
 }
+
+#[test]
+fn image_finds_a_simulated_press_from_forward_output() {
+    let dir = scratch("image");
+    let (reference, frame, png) = (dir.join("ref.json"), dir.join("frame.csv"), dir.join("image.png"));
+    std::fs::write(&reference, eitskin(&["forward", "--triangles", "1500"]).stdout).unwrap();
+    let pressed = eitskin(&["forward", "--triangles", "3000", "--format", "csv", "--inclusion", "40,-30,10,0.5"]);
+    std::fs::write(&frame, pressed.stdout).unwrap();
+    let out = eitskin(&[
+        "image",
+        "--triangles",
+        "1500",
+        "--reference",
+        reference.to_str().unwrap(),
+        "--frame",
+        frame.to_str().unwrap(),
+        "--png",
+        png.to_str().unwrap(),
+        "--json",
+    ]);
+    let json = stdout_json(&out);
+    let touches = json["touches"].as_array().unwrap();
+    assert_eq!(touches.len(), 1, "{json}");
+    let (x, y) = (touches[0]["x"].as_f64().unwrap(), touches[0]["y"].as_f64().unwrap());
+    assert!((x - 40.0).hypot(y + 30.0) < 20.0, "touch at ({x}, {y}) mm, press at (40, -30)");
+    assert_eq!(&std::fs::read(png).unwrap()[1..4], b"PNG");
+}

@@ -1,6 +1,7 @@
 //! # eitskin-io
 //!
-//! File formats for [`eitskin`]: sensor specs (TOML), meshes and custom protocols (JSON).
+//! File formats for [`eitskin`]: sensor specs (TOML), meshes and custom protocols (JSON),
+//! single frames (JSON or CSV).
 //! Every reader checks what it reads and says which file and which key is at fault.
 //!
 //! ```
@@ -29,12 +30,14 @@
 #![warn(rustdoc::broken_intra_doc_links)]
 #![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
 
+mod frame_file;
 mod mesh_file;
 mod protocol_file;
 mod spec_file;
 
 use std::path::{Path, PathBuf};
 
+pub use frame_file::{parse_frame, read_frame};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
 pub use protocol_file::{parse_protocol, read_protocol};
 pub use spec_file::{parse_spec, protocol_by_name, protocol_kind, read_spec, spec_to_toml};
