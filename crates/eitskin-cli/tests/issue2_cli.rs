@@ -136,7 +136,8 @@ fn bad_input_fails_with_a_message_that_says_where() {
 fn image_finds_a_simulated_press_from_forward_output() {
     let dir = scratch("image");
     let (reference, frame, png) = (dir.join("ref.json"), dir.join("frame.csv"), dir.join("image.png"));
-    std::fs::write(&reference, eitskin(&["forward", "--triangles", "1500"]).stdout).unwrap();
+    // Both frames from the same finer "truth" mesh; the image is reconstructed on a coarser one.
+    std::fs::write(&reference, eitskin(&["forward", "--triangles", "3000"]).stdout).unwrap();
     let pressed = eitskin(&["forward", "--triangles", "3000", "--format", "csv", "--inclusion", "40,-30,10,0.5"]);
     std::fs::write(&frame, pressed.stdout).unwrap();
     let out = eitskin(&[
