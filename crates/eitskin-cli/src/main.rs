@@ -8,6 +8,7 @@ mod image;
 mod load;
 mod mesh;
 mod plot;
+mod sensitivity;
 
 use std::path::PathBuf;
 
@@ -34,6 +35,8 @@ enum Command {
     Forward(forward::Args),
     /// Reconstruct a frame against a reference: print its touches, draw the image.
     Image(image::Args),
+    /// The paper's Fig. 3: reconstructed peak of one inclusion against its position.
+    Sensitivity(sensitivity::Args),
     /// Time each stage of the setup chain and print the medians.
     Bench(bench::Args),
     /// Refine the mesh step by step and report how the measurements converge.
@@ -47,6 +50,7 @@ fn main() {
         Command::Mesh(args) => mesh::run(args),
         Command::Forward(args) => forward::run(args),
         Command::Image(args) => image::run(args),
+        Command::Sensitivity(args) => sensitivity::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Convergence(args) => convergence::run(args),
     };

@@ -76,3 +76,48 @@ pub fn image_png(image: &eitskin::Image, touches: &[eitskin::Touch], path: &Path
     root.present().map_err(|e| fail(&e))?;
     Ok(())
 }
+
+/// A line through (x, y) points scaled to fill the picture, with a dot at each point.
+pub fn profile_png(xs: &[f64], ys: &[f64], path: &Path) -> Result<()> {
+    let (w, h) = (800u32, 500u32);
+    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let (x0, x1) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+    let y1 = ys.iter().fold(0.0f64, |m, &y| m.max(y)).max(f64::MIN_POSITIVE);
+    let px = |x: f64, y: f64| {
+        (
+            40 + ((x - x0) / (x1 - x0).max(f64::MIN_POSITIVE) * (w - 80) as f64) as i32,
+            (h - 40) as i32 - (y / y1 * (h - 80) as f64) as i32,
+        )
+    };
+    root.draw(&PathElement::new(vec![(40, (h - 40) as i32), ((w - 40) as i32, (h - 40) as i32)], BLACK))
+        .map_err(|e| fail(&e))?;
+    let points: Vec<(i32, i32)> = xs.iter().zip(ys).map(|(&x, &y)| px(x, y)).collect();
+    root.draw(&PathElement::new(points.clone(), BLUE.stroke_width(2))).map_err(|e| fail(&e))?;
+    for p in points {
+        root.draw(&Circle::new(p, 4, BLUE.filled())).map_err(|e| fail(&e))?;
+    }
+    root.present().map_err(|e| fail(&e))?;
+    Ok(())
+}
+
+/// Values at scattered centres drawn as squares shaded from white (0) to red (largest).
+pub fn map_png(centres: &[[f64; 2]], values: &[f64], [lo, hi]: [[f64; 2]; 2], path: &Path) -> Result<()> {
+    let size = 600u32;
+    let root = BitMapBackend::new(path, (size, size)).into_drawing_area();
+    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
+    root.fill(&RGBColor(200, 200, 200)).map_err(|e| fail(&e))?;
+    let top = values.iter().fold(0.0f64, |m, &v| m.max(v)).max(f64::MIN_POSITIVE);
+    let n = (centres.len() as f64).sqrt().ceil().max(1.0);
+    let half = (size as f64 / n / 2.0).ceil() as i32;
+    for (c, v) in centres.iter().zip(values) {
+        let x = ((c[0] - lo[0]) / (hi[0] - lo[0]) * size as f64) as i32;
+        let y = ((hi[1] - c[1]) / (hi[1] - lo[1]) * size as f64) as i32;
+        let fade = (255.0 * (1.0 - v / top)) as u8;
+        root.draw(&Rectangle::new([(x - half, y - half), (x + half, y + half)], RGBColor(255, fade, fade).filled()))
+            .map_err(|e| fail(&e))?;
+    }
+    root.present().map_err(|e| fail(&e))?;
+    Ok(())
+}

@@ -159,3 +159,17 @@ fn image_finds_a_simulated_press_from_forward_output() {
     assert!((x - 40.0).hypot(y + 30.0) < 20.0, "touch at ({x}, {y}) mm, press at (40, -30)");
     assert_eq!(&std::fs::read(png).unwrap()[1..4], b"PNG");
 }
+
+#[test]
+fn sensitivity_writes_the_profile_and_map() {
+    let dir = scratch("sensitivity");
+    let out = eitskin(&["sensitivity", "--out", dir.to_str().unwrap(), "--refine", "2", "--map", "3"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(dir.join("profile.csv")).unwrap();
+    let peaks: Vec<f64> = csv.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();
+    assert_eq!(peaks.len(), 17);
+    assert!(peaks[0] > 2.0 * peaks[8] && peaks[16] > 2.0 * peaks[8], "edges must image stronger: {peaks:?}");
+    for png in ["profile.png", "map.png"] {
+        assert_eq!(&std::fs::read(dir.join(png)).unwrap()[1..4], b"PNG");
+    }
+}

@@ -34,6 +34,7 @@ pub mod image;
 pub mod inverse;
 pub mod mesh;
 pub mod protocol;
+pub mod sensitivity;
 pub mod spec;
 pub mod touch;
 

@@ -104,6 +104,9 @@ pub enum SpecError {
     /// The forward model could not be built.
     #[error("forward model: {0}")]
     Forward(#[from] ForwardError),
+    /// The inverse model could not be built, or a frame was refused.
+    #[error("inverse model: {0}")]
+    Inverse(#[from] crate::inverse::InverseError),
 }
 
 /// The unit that lengths in the spec file and in outputs are given in.

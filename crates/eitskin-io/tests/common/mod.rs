@@ -1,4 +1,6 @@
 //! Where the shared reference data live, for the tests that compare against them.
+// Each test binary uses a subset of these helpers.
+#![allow(dead_code)]
 
 use std::path::PathBuf;
 

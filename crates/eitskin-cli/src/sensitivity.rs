@@ -1,0 +1,78 @@
+//! `eitskin sensitivity`: the paper's Fig. 3, the reconstructed peak of one inclusion against
+//! its position along the x axis (CSV and PNG), and a map of the peak over the sheet (PNG).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use eitskin::conductivity::Inclusion;
+use eitskin::sensitivity::{along_x, peaks};
+use eitskin::{Reconstructor, ReconstructorParams};
+
+use crate::{load, plot};
+
+/// Flags of `eitskin sensitivity`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Sensor spec file (TOML); default: the paper's sensor.
+    spec: Option<PathBuf>,
+    /// Folder for profile.csv, profile.png and map.png.
+    #[arg(long, default_value = "sensitivity")]
+    out: PathBuf,
+    /// Triangles of the finer mesh the frames are simulated on, as a multiple of the spec's.
+    #[arg(long, default_value_t = 4)]
+    refine: usize,
+    /// Positions per side of the map grid.
+    #[arg(long, default_value_t = 17)]
+    map: usize,
+}
+
+/// Runs `eitskin sensitivity`.
+pub fn run(args: Args) -> Result<()> {
+    let spec = load::spec(args.spec.as_deref())?;
+    let model = spec.forward_model()?;
+    let mut fine = spec.clone();
+    fine.mesh.triangles = spec.mesh.triangles * args.refine.max(1);
+    let truth = fine.forward_model()?;
+    let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
+    let [lo, hi] = spec.outline.bounds();
+    let side = hi[0] - lo[0];
+    let (radius, sigma) = (0.05 * side, 0.5 * spec.conductivity);
+    let inclusions = along_x(side / 2.0, 0.05 * side, radius, sigma, 0.25 * radius);
+    let profile = peaks(&truth, spec.conductivity, &recon, &inclusions)?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let k = 1.0 / spec.length_unit.metres();
+    let mut csv = format!("x_{},peak_s_per_m\n", spec.length_unit.symbol());
+    for (inc, p) in inclusions.iter().zip(&profile) {
+        csv += &format!("{},{p:e}\n", inc.centre[0] * k);
+    }
+    std::fs::write(args.out.join("profile.csv"), csv)?;
+    let xs: Vec<f64> = inclusions.iter().map(|i| i.centre[0]).collect();
+    plot::profile_png(&xs, &profile, &args.out.join("profile.png"))?;
+
+    let n = args.map.max(2);
+    let inset = |a: f64, b: f64, t: f64| a + radius * 1.25 + t * (b - a - 2.5 * radius);
+    let grid: Vec<Inclusion> = (0..n * n)
+        .map(|i| {
+            let (col, row) = (i % n, i / n);
+            let t = |k: usize| k as f64 / (n - 1) as f64;
+            Inclusion {
+                centre: [inset(lo[0], hi[0], t(col)), inset(lo[1], hi[1], 1.0 - t(row))],
+                radius,
+                conductivity: sigma,
+            }
+        })
+        .filter(|inc| spec.outline.contains(inc.centre))
+        .collect();
+    let map = peaks(&truth, spec.conductivity, &recon, &grid)?;
+    let centres: Vec<[f64; 2]> = grid.iter().map(|g| g.centre).collect();
+    plot::map_png(&centres, &map, spec.outline.bounds(), &args.out.join("map.png"))?;
+    let centre = profile[profile.len() / 2];
+    println!(
+        "{} positions along x, {} on the map; edge-to-centre peak ratio {:.2}; wrote {}",
+        profile.len(),
+        map.len(),
+        profile[0].max(profile[profile.len() - 1]) / centre,
+        args.out.display()
+    );
+    Ok(())
+}
