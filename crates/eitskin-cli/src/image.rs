@@ -35,6 +35,10 @@ pub struct Args {
     /// Mesh with about this many triangles instead of the spec's count.
     #[arg(long)]
     triangles: Option<usize>,
+    /// Always rebuild the reconstructor instead of loading it from the cache
+    /// ($XDG_CACHE_HOME/eitskin or ~/.cache/eitskin, or $EITSKIN_CACHE).
+    #[arg(long)]
+    no_cache: bool,
 }
 
 #[derive(Serialize)]
@@ -61,9 +65,11 @@ pub fn run(args: Args) -> Result<()> {
     }
     let v_ref = eitskin_io::read_frame(&args.reference)?;
     let v = eitskin_io::read_frame(&args.frame)?;
-    let model = spec.forward_model()?;
     let params = ReconstructorParams { hyperparameter: args.hyperparameter, ..ReconstructorParams::default() };
-    let recon = Reconstructor::new(&model, spec.conductivity, &params)?;
+    let recon = match (args.no_cache, load::cache_dir()) {
+        (false, Some(dir)) => eitskin_io::load_or_build(&dir, &spec, &params)?.0,
+        _ => Reconstructor::new(&spec.forward_model()?, spec.conductivity, &params)?,
+    };
     let image = recon.image(&v_ref, &v).with_context(|| format!("imaging {}", args.frame.display()))?;
     let touches = detect(&image, &TouchParams { threshold: args.threshold, ..TouchParams::default() });
     let k = 1.0 / spec.length_unit.metres();

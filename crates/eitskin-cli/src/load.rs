@@ -32,6 +32,15 @@ pub fn inclusion(text: &str, spec: &SensorSpec) -> Result<Inclusion> {
     Ok(Inclusion { centre: [x * k, y * k], radius: r * k, conductivity: sigma })
 }
 
+/// Where precomputed reconstructors are cached: `$EITSKIN_CACHE`, else `$XDG_CACHE_HOME/eitskin`,
+/// else `~/.cache/eitskin`; `None` when none of these is set.
+pub fn cache_dir() -> Option<std::path::PathBuf> {
+    let var = |name| std::env::var_os(name).filter(|v| !v.is_empty()).map(std::path::PathBuf::from);
+    var("EITSKIN_CACHE")
+        .or_else(|| var("XDG_CACHE_HOME").map(|d| d.join("eitskin")))
+        .or_else(|| var("HOME").map(|d| d.join(".cache/eitskin")))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

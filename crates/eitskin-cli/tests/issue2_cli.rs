@@ -8,7 +8,12 @@ use std::path::PathBuf;
 use std::process::{Command, Output};
 
 fn eitskin(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_eitskin")).args(args).output().expect("the binary runs")
+    let cache = std::env::temp_dir().join(format!("eitskin-cli-{}-cache", std::process::id()));
+    Command::new(env!("CARGO_BIN_EXE_eitskin"))
+        .args(args)
+        .env("EITSKIN_CACHE", cache)
+        .output()
+        .expect("the binary runs")
 }
 
 fn stdout_json(out: &Output) -> serde_json::Value {

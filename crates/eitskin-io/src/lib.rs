@@ -33,6 +33,7 @@
 mod frame_file;
 mod mesh_file;
 mod protocol_file;
+mod reconstructor_file;
 mod spec_file;
 
 use std::path::{Path, PathBuf};
@@ -40,6 +41,7 @@ use std::path::{Path, PathBuf};
 pub use frame_file::{parse_frame, read_frame};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
 pub use protocol_file::{parse_protocol, read_protocol};
+pub use reconstructor_file::{cache_key, cache_path, decode, encode, load_or_build};
 pub use spec_file::{parse_spec, protocol_by_name, protocol_kind, read_spec, spec_to_toml};
 
 use eitskin::{MeshError, ProtocolError, SpecError};

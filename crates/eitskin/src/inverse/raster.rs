@@ -79,6 +79,23 @@ impl Reconstructor {
         Ok(Reconstructor { params: *params, template, matrix, measurements })
     }
 
+    /// A reconstructor from its parts, as saved by [`Reconstructor::matrix`] and
+    /// [`Reconstructor::blank_image`]; `None` if the sizes disagree.
+    pub fn from_parts(params: ReconstructorParams, template: Image, matrix: Vec<f32>) -> Option<Reconstructor> {
+        let pixels = template.size[0] * template.size[1];
+        let consistent = pixels > 0
+            && template.values.len() == pixels
+            && template.inside.len() == pixels
+            && !matrix.is_empty()
+            && matrix.len() % pixels == 0;
+        consistent.then(|| Reconstructor { params, measurements: matrix.len() / pixels, template, matrix })
+    }
+
+    /// The raster matrix: pixels × measurements, column-major, in S/m per V.
+    pub fn matrix(&self) -> &[f32] {
+        &self.matrix
+    }
+
     /// The parameters it was built with.
     pub fn params(&self) -> &ReconstructorParams {
         &self.params
