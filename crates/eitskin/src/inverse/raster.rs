@@ -87,7 +87,7 @@ impl Reconstructor {
             && template.values.len() == pixels
             && template.inside.len() == pixels
             && !matrix.is_empty()
-            && matrix.len() % pixels == 0;
+            && matrix.len().is_multiple_of(pixels);
         consistent.then(|| Reconstructor { params, measurements: matrix.len() / pixels, template, matrix })
     }
 
