@@ -25,6 +25,9 @@
 #![warn(rustdoc::broken_intra_doc_links)]
 #![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
 
+/// The linear-algebra crate whose matrices appear in this API (Jacobians, reconstruction matrices).
+pub use faer;
+
 pub mod analytic;
 pub mod conductivity;
 pub mod convergence;

@@ -100,6 +100,21 @@ pub fn element_sized(
     Ok(faer::linalg::solvers::Solve::solve(&llt, jacobian.transpose()))
 }
 
+/// Divides row m of the Jacobian by the background measurement v_m (V), for normalised
+/// differences Δv_m / v_m (EIDORS `normalize_measurements`, pyEIT `jac_normalized`).
+pub fn normalize_jacobian(jacobian: &mut Mat<f64>, background: &[f64]) -> Result<(), InverseError> {
+    assert_eq!(jacobian.nrows(), background.len(), "one background value per measurement");
+    for (m, &v) in background.iter().enumerate() {
+        if v == 0.0 {
+            return Err(InverseError::ZeroReference { measurement: m + 1 });
+        }
+        for k in 0..jacobian.ncols() {
+            jacobian[(m, k)] /= v;
+        }
+    }
+    Ok(())
+}
+
 fn check_hyperparameter(hyperparameter: f64) -> Result<(), InverseError> {
     if hyperparameter > 0.0 && hyperparameter.is_finite() {
         Ok(())
