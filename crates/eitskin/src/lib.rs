@@ -1,25 +1,32 @@
 //! # eitskin
 //!
-//! Electrical impedance tomography for tactile skins: from a sensor spec to the voltages its
-//! electrodes measure. The chain is spec → mesh → forward model (P1 FEM with the complete
-//! electrode model, one sparse Cholesky factorisation, L−1 solves) → measurements in protocol
-//! order. Everything is in SI units (m, S/m, Ω·m², A, V); no I/O happens here (see `eitskin-io`).
+//! Electrical impedance tomography for tactile skins. The chain is spec → mesh → forward model
+//! (P1 FEM with the complete electrode model, one sparse Cholesky factorisation, L−1 solves)
+//! → Jacobian → one-step Gauss–Newton reconstructor (NOSER prior, λ = 0.1, projected once onto
+//! a raster) → image → touches. Everything is in SI units (m, S/m, Ω·m², A, V); no I/O
+//! happens here (see `eitskin-io`).
 //!
 //! ```
-//! use eitskin::{conductivity::{with_inclusions, Inclusion}, SensorSpec};
-//! let spec = SensorSpec::square_hydrogel();          // 200 mm square, 16 electrodes, 120 pairs
+//! use eitskin::conductivity::{with_inclusions, Inclusion};
+//! use eitskin::{touch, Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
+//! let mut spec = SensorSpec::square_hydrogel();       // 200 mm square, 16 electrodes, 120 pairs
+//! spec.mesh.triangles = 1500;
 //! let model = spec.forward_model()?;                  // mesh + FEM + complete electrode model
-//! let v_ref = model.measure(&spec.homogeneous(model.mesh()))?;
-//! let press = Inclusion { centre: [0.05, 0.0], radius: 0.01, conductivity: 0.5 };
-//! let v = model.measure(&with_inclusions(model.mesh(), 1.0, &[press]))?;
-//! assert_eq!(v.len(), 120);
-//! // A less conductive spot raises every two-terminal transfer impedance (Ω at 1 A).
-//! assert!(v.iter().zip(&v_ref).all(|(a, b)| a >= b));
+//! let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
+//! let mut skin = spec.clone();                        // the "real" sheet: its own, finer mesh
+//! skin.mesh.triangles = 4000;
+//! let truth = skin.forward_model()?;
+//! let v_ref = truth.measure(&skin.homogeneous(truth.mesh()))?;
+//! let press = Inclusion { centre: [0.05, -0.04], radius: 0.01, conductivity: 0.5 };
+//! let v = truth.measure(&with_inclusions(truth.mesh(), 1.0, &[press]))?;
+//! let touches = touch::detect(&recon.image(&v_ref, &v)?, &TouchParams::default());
+//! let [x, y] = touches[0].centre;                     // metres from the sheet's centre
+//! assert!(touches.len() == 1 && (x - 0.05).hypot(y + 0.04) < 0.01);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! Not for: reading files or ports (that is `eitskin-io`), or anything per frame that
-//! allocates.
+//! Not for: reading files or ports (that is `eitskin-io`). Setup allocates; the per-frame
+//! path ([`Reconstructor::image_into`], [`touch::detect_into`]) does not.
 
 #![deny(missing_docs)]
 #![warn(rustdoc::broken_intra_doc_links)]
