@@ -131,21 +131,27 @@ pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScrat
     );
     touches.clear();
     let intensity = |i: usize| params.polarity.intensity(image.values[i]);
+    // The press direction as a sign, so the two passes below stay in f32 and vectorise.
+    let sign = params.polarity.intensity(1.0) as f32;
 
-    // 1. The peak over the inside pixels, at least 0 (`f64::max` skips NaN).
-    let mut peak = 0.0_f64;
-    for i in (0..n).filter(|&i| image.inside[i]) {
-        peak = peak.max(intensity(i));
-    }
+    // 1. The peak over the inside pixels, at least 0 (`f32::max` skips NaN).
+    let peak = image
+        .values
+        .iter()
+        .zip(&image.inside)
+        .fold(0.0_f32, |m, (&v, &inside)| if inside { m.max(sign * v) } else { m });
+    let peak = f64::from(peak);
     if peak <= 0.0 || peak < params.min_peak {
         return;
     }
 
     // 2. Keep the pixels at or above the threshold; a pixel with no change is never kept, so
     //    every kept weight is positive whatever the threshold.
-    let cutoff = params.threshold * peak;
+    let cutoff = (params.threshold * peak) as f32;
     scratch.pending.clear();
-    scratch.pending.extend((0..n).map(|i| image.inside[i] && intensity(i) >= cutoff && intensity(i) > 0.0));
+    scratch.pending.extend(
+        image.values.iter().zip(&image.inside).map(|(&v, &inside)| inside && sign * v >= cutoff && sign * v > 0.0),
+    );
     scratch.stack.clear();
     scratch.stack.reserve(n); // each pixel is pushed at most once, so the stack never grows past n
 
