@@ -8,7 +8,9 @@ mod image;
 mod load;
 mod mesh;
 mod plot;
+mod report;
 mod sensitivity;
+mod study;
 
 use std::path::PathBuf;
 
@@ -37,6 +39,8 @@ enum Command {
     Image(image::Args),
     /// The paper's Fig. 3: reconstructed peak of one inclusion against its position.
     Sensitivity(sensitivity::Args),
+    /// Rerun the paper's study on the virtual sensor: figures, numbers, report.md.
+    Study(study::Args),
     /// Time each stage of the setup chain and print the medians.
     Bench(bench::Args),
     /// Refine the mesh step by step and report how the measurements converge.
@@ -51,6 +55,7 @@ fn main() {
         Command::Forward(args) => forward::run(args),
         Command::Image(args) => image::run(args),
         Command::Sensitivity(args) => sensitivity::run(args),
+        Command::Study(args) => study::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Convergence(args) => convergence::run(args),
     };

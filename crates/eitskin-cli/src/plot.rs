@@ -121,3 +121,84 @@ pub fn map_png(centres: &[[f64; 2]], values: &[f64], [lo, hi]: [[f64; 2]; 2], pa
     root.present().map_err(|e| fail(&e))?;
     Ok(())
 }
+
+/// One series of a chart: named points, joined by a line or drawn as dots.
+pub struct Series {
+    /// Legend text.
+    pub name: String,
+    /// (x, y) points.
+    pub points: Vec<(f64, f64)>,
+    /// Join the points with a line (else dots).
+    pub line: bool,
+}
+
+/// The bundled font (DejaVu Sans, Bitstream Vera licence: `assets/DejaVuSans-LICENSE.txt`).
+const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+
+fn register_font() -> Result<()> {
+    static ONCE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let ok = *ONCE.get_or_init(|| plotters::style::register_font("sans-serif", FontStyle::Normal, FONT).is_ok());
+    if ok {
+        Ok(())
+    } else {
+        Err(anyhow!("the bundled font could not be loaded"))
+    }
+}
+
+/// A titled chart with labelled axes and a legend, to a PNG.
+pub fn chart(path: &Path, title: &str, (x_label, y_label): (&str, &str), series: &[Series]) -> Result<()> {
+    register_font()?;
+    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
+    let all = series.iter().flat_map(|s| s.points.iter()).filter(|p| p.0.is_finite() && p.1.is_finite());
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for &(x, y) in all {
+        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+    }
+    if x0.is_nan() || x1.is_nan() || x0 >= x1 {
+        let mid = if x0.is_finite() { x0 } else { 0.0 };
+        (x0, x1) = (mid - 1.0, mid + 1.0);
+    }
+    if !y0.is_finite() || !y1.is_finite() {
+        (y0, y1) = (0.0, 1.0);
+    }
+    let pad = 0.05 * (y1 - y0).max(f64::MIN_POSITIVE);
+    let (y0, y1) = (y0.min(0.0) - pad, y1 + pad);
+    let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 24))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| fail(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .label_style(("sans-serif", 15))
+        .draw()
+        .map_err(|e| fail(&e))?;
+    for (k, s) in series.iter().enumerate() {
+        let colour = Palette99::pick(k).to_rgba();
+        let points = s.points.iter().copied().filter(|p| p.0.is_finite() && p.1.is_finite());
+        let drawn = if s.line {
+            chart.draw_series(LineSeries::new(points, colour.stroke_width(2))).map_err(|e| fail(&e))?
+        } else {
+            chart.draw_series(points.map(|p| Circle::new(p, 2, colour.filled()))).map_err(|e| fail(&e))?
+        };
+        drawn
+            .label(s.name.clone())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 16, y + 4)], colour.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 15))
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()
+        .map_err(|e| fail(&e))?;
+    root.present().map_err(|e| fail(&e))?;
+    Ok(())
+}

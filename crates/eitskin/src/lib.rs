@@ -36,6 +36,7 @@
 pub use faer;
 
 pub mod analytic;
+pub mod calibration;
 pub mod conductivity;
 pub mod convergence;
 pub mod forward;
@@ -44,8 +45,11 @@ pub mod image;
 pub mod inverse;
 pub mod mesh;
 pub mod protocol;
+pub mod pseudo_array;
 pub mod sensitivity;
+pub mod sim;
 pub mod spec;
+pub mod study;
 pub mod touch;
 
 pub use forward::{ElectrodeModel, ForwardError, ForwardModel, ForwardSolution};

@@ -104,6 +104,12 @@ pub enum SpecError {
     /// The forward model could not be built.
     #[error("forward model: {0}")]
     Forward(#[from] ForwardError),
+    /// A pseudo-array could not be made.
+    #[error("pseudo-array: {0}")]
+    PseudoArray(#[from] crate::pseudo_array::PseudoArrayError),
+    /// A calibration could not be fitted or used.
+    #[error("calibration: {0}")]
+    Calibration(#[from] crate::calibration::CalibrationError),
     /// The inverse model could not be built, or a frame was refused.
     #[error("inverse model: {0}")]
     Inverse(#[from] crate::inverse::InverseError),

@@ -1,0 +1,114 @@
+//! The study's numbers as JSON and as a Markdown report beside the paper's.
+
+use eitskin::study::{StudyParams, StudyReport};
+use eitskin::LengthUnit;
+use serde_json::{json, Value};
+
+/// The paper's Table 2 (a, b, c, R² per area, its sign convention) and headline figures.
+const PAPER_TABLE_2: [(f64, f64, f64, f64); 6] = [
+    (-0.0012, -12.9166, 1.1442e-4, 0.89),
+    (-0.0017, -11.5566, 7.6769e-4, 0.96),
+    (-0.0023, -5.6269, 0.0014, 0.98),
+    (-0.0015, -9.8576, 1.1136e-4, 0.96),
+    (-0.0023, -5.2634, 7.0521e-4, 0.99),
+    (-0.0178, -9.7668, 0.0165, 0.99),
+];
+
+/// Everything measured, as one JSON value.
+pub fn json(study: &StudyReport, params: &StudyParams, seconds: f64) -> Value {
+    let curve = |c: &eitskin::calibration::Curve| json!({"a": c.a, "b_newton": c.b, "c": c.c, "r_squared": c.r_squared, "force_range_newton": c.force_range, "samples": c.samples});
+    json!({
+        "seconds": seconds,
+        "seed": params.seed,
+        "noise_relative": params.sim.noise_relative,
+        "location_dependence": study.profile.iter().map(|(p, v)| json!({"x_m": p[0], "peak": v})).collect::<Vec<_>>(),
+        "simulated_area_fits": study.simulated_fits.iter().map(curve).collect::<Vec<_>>(),
+        "validation_presses": study.validation.len(),
+        "touches_found": study.validation_touches.iter().filter(|t| t.is_some()).count(),
+        "mean_position_error_m": study.mean_position_error,
+        "share_in_right_unit": study.right_unit,
+        "methods": study.methods.iter().map(|m| json!({
+            "name": m.name,
+            "calibration_samples": m.calibration_samples,
+            "curves": m.curves.iter().map(curve).collect::<Vec<_>>(),
+            "rms_newton": m.errors.rms,
+            "rms_percent_of_max": m.errors.rms_percent_of_max,
+            "correlation": m.errors.correlation,
+            "mean_absolute_newton": m.errors.mean_absolute,
+            "count": m.errors.count,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// The Markdown report: each result beside the paper's.
+pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, seconds: f64) -> String {
+    let k = 1.0 / unit.metres();
+    let u = unit.symbol();
+    let mut s = String::new();
+    s += "# The paper's study, rerun on the virtual sensor\n\n";
+    s += &format!(
+        "Seed {}, noise {:.1e} of each value ({:.0} dB), {} calibration frames per press, {} validation presses; {seconds:.1} s.\n\n",
+        params.seed,
+        params.sim.noise_relative,
+        -20.0 * params.sim.noise_relative.log10(),
+        params.repeats,
+        params.validation
+    );
+    let centre = study.profile[study.profile.len() / 2].1;
+    let edge = study.profile.first().map_or(0.0, |p| p.1).max(study.profile.last().map_or(0.0, |p| p.1));
+    s += "## Location dependence (Fig. 3c)\n\n![](fig3c_location.png)\n\n";
+    s += &format!("Edge-to-centre peak ratio: **{:.2}** (EIDORS on the paper's geometry: 3.3; the paper's Fig. 3c shows the same rise toward the edges).\n\n", edge / centre);
+    s += "## Per-area curves in simulation (Fig. 4b)\n\n![](fig4b_areas.png)\n\n| area | a | b | c | R² |\n|---|---|---|---|---|\n";
+    for (i, c) in study.simulated_fits.iter().enumerate() {
+        s += &format!("| {} | {:.4} | {:.4} | {:.4} | {:.3} |\n", i + 1, c.a, c.b, c.c, c.r_squared);
+    }
+    let mean_r2 =
+        study.simulated_fits.iter().map(|c| c.r_squared).sum::<f64>() / study.simulated_fits.len().max(1) as f64;
+    s += &format!("\nMean R² {mean_r2:.3} (paper: 0.99).\n\n");
+    s += "## Calibration (Table 2)\n\nOurs: peak(F) = a·e^(−F/b) + c with the peak a positive magnitude, so our b > 0 where the paper's (signed conductivity) b < 0.\n\n";
+    s += "| area | a | b [N] | c | R² | forces [N] | samples | paper a | paper b | paper c | paper R² |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+    if let Some(m) = study.methods.first() {
+        for (i, c) in m.curves.iter().enumerate() {
+            let paper = PAPER_TABLE_2
+                .get(i)
+                .map_or("| | | | ".to_string(), |p| format!("| {} | {} | {:e} | {} ", p.0, p.1, p.2, p.3));
+            s += &format!(
+                "| {} | {:.4e} | {:.3} | {:.4e} | {:.3} | {:.0}–{:.0} | {} {paper}|\n",
+                i + 1,
+                c.a,
+                c.b,
+                c.c,
+                c.r_squared,
+                c.force_range[0],
+                c.force_range[1],
+                c.samples
+            );
+        }
+    }
+    s += "\n## Force and position on the validation presses (Fig. 12)\n\n";
+    let found = study.validation_touches.iter().filter(|t| t.is_some()).count();
+    s += &format!(
+        "{found} of {} validation presses gave a touch. Mean position error **{:.1} {u}** on a {:.0} {u} sheet; **{:.1} %** of touches in the pressed unit.\n\n",
+        study.validation.len(),
+        study.mean_position_error * k,
+        0.2 * k,
+        100.0 * study.right_unit
+    );
+    s += "| method | calibration samples | RMS error [N] | RMS [% of max force] | correlation | mean abs. error [N] |\n|---|---|---|---|---|---|\n";
+    s += "| paper, experiment (5×5 pseudo-array) | 1245 | 1.62 | 10.15 | 0.91 | |\n";
+    for m in &study.methods {
+        s += &format!(
+            "| {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |\n",
+            m.name,
+            m.calibration_samples,
+            m.errors.rms,
+            m.errors.rms_percent_of_max,
+            m.errors.correlation,
+            m.errors.mean_absolute
+        );
+    }
+    for (i, m) in study.methods.iter().enumerate() {
+        s += &format!("\n![{}](fig12_{}.png)\n", m.name, i + 1);
+    }
+    s
+}

@@ -1,0 +1,111 @@
+//! `eitskin study`: the paper's simulation and in-silico experiment rerun on the virtual sensor,
+//! every force method side by side; figures (PNG), numbers (JSON) and `report.md`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use eitskin::study::{run as run_study, StudyParams, StudyReport};
+
+use crate::{load, plot, report};
+
+/// Flags of `eitskin study`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Sensor spec file (TOML); default: the paper's sensor.
+    spec: Option<PathBuf>,
+    /// Folder for the figures, `study.json` and `report.md`.
+    #[arg(long, default_value = "study")]
+    out: PathBuf,
+    /// Seed of the noise and the validation presses.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Measurement noise, relative standard deviation per value (3e-4 = 70 dB).
+    #[arg(long)]
+    noise: Option<f64>,
+    /// Validation presses (475 in the paper).
+    #[arg(long)]
+    validation: Option<usize>,
+    /// Noisy frames per calibration press (15 in the paper).
+    #[arg(long)]
+    repeats: Option<usize>,
+}
+
+/// Runs `eitskin study`.
+pub fn run(args: Args) -> Result<()> {
+    let spec = load::spec(args.spec.as_deref())?;
+    let mut params = StudyParams { seed: args.seed, ..StudyParams::default() };
+    if let Some(n) = args.noise {
+        params.sim.noise_relative = n;
+    }
+    if let Some(n) = args.validation {
+        params.validation = n;
+    }
+    if let Some(n) = args.repeats {
+        params.repeats = n;
+    }
+    let start = Instant::now();
+    let mut last = String::new();
+    let mut progress = |stage: &str, done: usize, all: usize| {
+        if stage != last || done == all {
+            eprintln!("[{:>5.1} s] {stage} {done}/{all}", start.elapsed().as_secs_f64());
+            last = stage.to_string();
+        }
+    };
+    let study = run_study(&spec, &params, &mut progress)?;
+    let seconds = start.elapsed().as_secs_f64();
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    write_figures(&study, &args)?;
+    let json = report::json(&study, &params, seconds);
+    std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
+    let markdown = report::markdown(&study, &params, spec.length_unit, seconds);
+    std::fs::write(args.out.join("report.md"), &markdown)?;
+    println!("{markdown}");
+    eprintln!("wrote {} in {seconds:.1} s", args.out.display());
+    Ok(())
+}
+
+fn write_figures(study: &StudyReport, args: &Args) -> Result<()> {
+    let xs: Vec<f64> = study.profile.iter().map(|p| p.0[0] * 1e3).collect();
+    let ys: Vec<f64> = study.profile.iter().map(|p| p.1).collect();
+    plot::chart(
+        &args.out.join("fig3c_location.png"),
+        "Fig. 3c: reconstructed peak along x",
+        ("x [mm]", "peak |Δσ| [S/m]"),
+        &[plot::Series { name: "peak".into(), points: xs.into_iter().zip(ys).collect(), line: true }],
+    )?;
+    let curves: Vec<plot::Series> = study
+        .simulated_curves
+        .iter()
+        .enumerate()
+        .map(|(k, (drops, peaks))| plot::Series {
+            name: format!("area {}", k + 1),
+            points: drops.iter().copied().zip(peaks.iter().copied()).collect(),
+            line: true,
+        })
+        .collect();
+    plot::chart(
+        &args.out.join("fig4b_areas.png"),
+        "Fig. 4b: peak against conductivity drop, per area",
+        ("drop [fraction of background]", "peak |Δσ| [S/m]"),
+        &curves,
+    )?;
+    for (k, method) in study.methods.iter().enumerate() {
+        let points: Vec<(f64, f64)> = study
+            .validation
+            .iter()
+            .zip(&method.predicted)
+            .filter(|(_, p)| p.is_finite())
+            .map(|(t, p)| (t.force, *p))
+            .collect();
+        let diagonal = plot::Series { name: "ideal".into(), points: vec![(0.0, 0.0), (16.0, 16.0)], line: true };
+        let dots = plot::Series { name: method.name.clone(), points, line: false };
+        plot::chart(
+            &args.out.join(format!("fig12_{}.png", k + 1)),
+            &format!("Fig. 12: true against predicted force, {}", method.name),
+            ("true force [N]", "predicted force [N]"),
+            &[diagonal, dots],
+        )?;
+    }
+    Ok(())
+}

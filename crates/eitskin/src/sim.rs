@@ -1,0 +1,238 @@
+//! The virtual sensor: a hydrogel sheet that is pressed, simulated on its own finer mesh (never
+//! the reconstruction mesh, so no inverse crime), with measurement noise and slow drift.
+//!
+//! **Press model.** An indenter of radius r (10 mm: the paper's 20 mm cylinder) pressing with
+//! force F lowers the conductivity under it to σ·(1 − d(F)), with the saturating drop
+//!
+//!   d(F) = d_max·(1 − e^(−F/F₀)),  d_max = 0.9, F₀ = 5.54 N,
+//!
+//! so 16 N lowers it by 85 % (inside the paper's 0.1–0.9 C₀ range, section 2.1.2) and the
+//! response flattens at large forces as the paper's hydrogel does (its Fig. 9, Table 2).
+//! Triangles cut by the indenter's rim get the area-weighted value.
+//!
+//! **Noise.** Each value gets independent Gaussian noise of standard deviation
+//! `noise_relative`·|v_m|. **Drift.** The background conductivity falls by `drift_per_hour`
+//! (relative) per simulated hour of [`VirtualSensor::advance`], as a dehydrating gel does.
+//!
+//! Not for: reconstruction (use [`crate::Reconstructor`] on the spec's own mesh).
+
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+
+use crate::conductivity::{with_inclusions, Inclusion};
+use crate::forward::ForwardModel;
+use crate::spec::{SensorSpec, SpecError};
+
+/// How the gel answers a press: drop d(F) = `max_drop`·(1 − e^(−F/`force_scale`)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hydrogel {
+    /// The largest relative conductivity drop, approached at large force (dimensionless).
+    pub max_drop: f64,
+    /// Force scale F₀ of the saturation, in N.
+    pub force_scale: f64,
+    /// Radius of the indenter, in m.
+    pub indenter_radius: f64,
+}
+
+impl Default for Hydrogel {
+    fn default() -> Self {
+        Hydrogel { max_drop: 0.9, force_scale: 5.54, indenter_radius: 0.010 }
+    }
+}
+
+impl Hydrogel {
+    /// The relative conductivity drop under the indenter at `force` (N); 0 for no force.
+    pub fn drop(&self, force: f64) -> f64 {
+        self.max_drop * (1.0 - (-force.max(0.0) / self.force_scale).exp())
+    }
+}
+
+/// One press: where, how hard.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Press {
+    /// Centre of the indenter, in m from the outline's centre.
+    pub position: [f64; 2],
+    /// Force, in N.
+    pub force: f64,
+}
+
+/// Settings of the virtual sensor; `Default` is what the study uses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimParams {
+    /// Its mesh has this many times the spec's triangles.
+    pub refine: usize,
+    /// The gel's answer to a press.
+    pub hydrogel: Hydrogel,
+    /// Noise standard deviation relative to each value (dimensionless; 3e-4 is 70 dB).
+    pub noise_relative: f64,
+    /// Relative fall of the background conductivity per hour of simulated time.
+    pub drift_per_hour: f64,
+}
+
+impl Default for SimParams {
+    fn default() -> Self {
+        SimParams { refine: 3, hydrogel: Hydrogel::default(), noise_relative: 3e-4, drift_per_hour: 0.0 }
+    }
+}
+
+/// A simulated skin: press it, read frames in protocol order (V at 1 A).
+#[derive(Debug)]
+pub struct VirtualSensor {
+    model: ForwardModel,
+    background: f64,
+    params: SimParams,
+    presses: Vec<Press>,
+    hours: f64,
+    rng: StdRng,
+    noise: Normal<f64>,
+}
+
+impl VirtualSensor {
+    /// The sensor of `spec` with the default settings and noise seeded by `seed`.
+    pub fn new(spec: &SensorSpec, seed: u64) -> Result<VirtualSensor, SpecError> {
+        VirtualSensor::with_params(spec, SimParams::default(), seed)
+    }
+
+    /// The sensor of `spec` with `params`, noise seeded by `seed`.
+    pub fn with_params(spec: &SensorSpec, params: SimParams, seed: u64) -> Result<VirtualSensor, SpecError> {
+        let mut fine = spec.clone();
+        fine.mesh.triangles = spec.mesh.triangles * params.refine.max(1);
+        fine.mesh.max_element_size = spec.mesh.max_element_size.map(|h| h / (params.refine.max(1) as f64).sqrt());
+        let model = fine.forward_model()?;
+        // A standard deviation of 1 is always valid.
+        let noise = Normal::new(0.0, 1.0).map_err(|_| SpecError::NotPositive { key: "noise", value: 1.0 })?;
+        Ok(VirtualSensor {
+            model,
+            background: spec.conductivity,
+            params,
+            presses: Vec::new(),
+            hours: 0.0,
+            rng: StdRng::seed_from_u64(seed),
+            noise,
+        })
+    }
+
+    /// Its own forward model (the finer mesh).
+    pub fn model(&self) -> &ForwardModel {
+        &self.model
+    }
+
+    /// Adds a press at `position` (m) with `force` (N).
+    pub fn press(&mut self, position: [f64; 2], force: f64) {
+        self.presses.push(Press { position, force });
+    }
+
+    /// Lifts every press.
+    pub fn release(&mut self) {
+        self.presses.clear();
+    }
+
+    /// The presses now on the sheet.
+    pub fn presses(&self) -> &[Press] {
+        &self.presses
+    }
+
+    /// Lets `seconds` of simulated time pass (the background drifts).
+    pub fn advance(&mut self, seconds: f64) {
+        self.hours += seconds / 3600.0;
+    }
+
+    /// The background conductivity now, in S/m.
+    pub fn background(&self) -> f64 {
+        self.background * (1.0 - self.params.drift_per_hour * self.hours).max(0.05)
+    }
+
+    /// The conductivity of each triangle of its mesh now, in S/m.
+    pub fn conductivity(&self) -> Vec<f64> {
+        self.conductivity_with(&self.presses)
+    }
+
+    /// The conductivity of each triangle (S/m) under `presses`, with the background of now.
+    pub fn conductivity_with(&self, presses: &[Press]) -> Vec<f64> {
+        let background = self.background();
+        let h = self.params.hydrogel;
+        let inclusions: Vec<Inclusion> = presses
+            .iter()
+            .map(|p| Inclusion {
+                centre: p.position,
+                radius: h.indenter_radius,
+                conductivity: background * (1.0 - h.drop(p.force)),
+            })
+            .collect();
+        with_inclusions(self.model.mesh(), background, &inclusions)
+    }
+
+    /// The noise-free frame now, in V at 1 A.
+    pub fn clean_frame(&self) -> Result<Vec<f64>, SpecError> {
+        Ok(self.model.measure(&self.conductivity())?)
+    }
+
+    /// Noise-free frames (V at 1 A) for several sets of presses, solved in parallel; the
+    /// presses on the sheet are left as they are.
+    pub fn clean_frames(&self, cases: &[Vec<Press>]) -> Result<Vec<Vec<f64>>, SpecError> {
+        use rayon::prelude::*;
+        cases.par_iter().map(|presses| Ok(self.model.measure(&self.conductivity_with(presses))?)).collect()
+    }
+
+    /// A frame now, with noise, in V at 1 A.
+    pub fn frame(&mut self) -> Result<Vec<f64>, SpecError> {
+        let mut v = self.clean_frame()?;
+        self.add_noise(&mut v);
+        Ok(v)
+    }
+
+    /// Adds the sensor's measurement noise to a clean frame (for repeated frames of one press).
+    pub fn add_noise(&mut self, frame: &mut [f64]) {
+        let k = self.params.noise_relative;
+        for v in frame.iter_mut() {
+            *v += k * v.abs() * self.noise.sample(&mut self.rng);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sixteen_newtons_lower_the_gel_by_85_percent() {
+        let d = Hydrogel::default().drop(16.0);
+        assert!((d - 0.85).abs() < 0.005, "{d}");
+        assert_eq!(Hydrogel::default().drop(0.0), 0.0);
+        assert!(Hydrogel::default().drop(8.0) < d);
+    }
+
+    #[test]
+    fn a_press_raises_two_terminal_values_and_noise_is_seeded() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 400;
+        let mut a = VirtualSensor::new(&spec, 7).unwrap();
+        let mut b = VirtualSensor::new(&spec, 7).unwrap();
+        assert!(a.model().mesh().triangles().len() > 2 * 400, "its own, finer mesh");
+        let rest = a.clean_frame().unwrap();
+        a.press([0.03, 0.02], 10.0);
+        b.press([0.03, 0.02], 10.0);
+        let pressed = a.clean_frame().unwrap();
+        assert!(pressed.iter().zip(&rest).all(|(p, r)| p >= r));
+        assert_eq!(a.frame().unwrap(), b.frame().unwrap(), "same seed, same noise");
+        let noisy = a.frame().unwrap();
+        let worst = noisy.iter().zip(&pressed).map(|(n, c)| ((n - c) / c).abs()).fold(0.0, f64::max);
+        assert!(worst > 0.0 && worst < 6.0 * 3e-4, "noise {worst}");
+    }
+
+    #[test]
+    fn drift_lowers_the_background() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let params = SimParams { drift_per_hour: 0.02, ..SimParams::default() };
+        let mut skin = VirtualSensor::with_params(&spec, params, 1).unwrap();
+        let before = skin.clean_frame().unwrap();
+        skin.advance(1800.0);
+        assert!((skin.background() - 0.99).abs() < 1e-12);
+        let after = skin.clean_frame().unwrap();
+        // The sheet's share of each value scales as 1/σ; the contact impedance's does not.
+        let ratio = after[0] / before[0];
+        assert!(ratio > 1.0 && ratio <= 1.0 / 0.99 + 1e-12, "{ratio}");
+    }
+}

@@ -1,0 +1,380 @@
+//! The paper's study rerun on the virtual sensor (its sections 2.1 and 3.3), with every force
+//! method side by side on the same validation presses.
+//!
+//! 1. Location dependence (Fig. 3c): an inclusion of radius 5 % of the side at half the
+//!    background conductivity, every 5 % of the side along x.
+//! 2. Per-area curves in simulation (Fig. 4b): on one unit of each area, the inclusion's
+//!    conductivity from 0.9 to 0.1 of the background; the reconstructed peak against the drop,
+//!    fitted with the same exponential, with R².
+//! 3. The in-silico experiment (section 3.3): calibration presses on one unit per area in the
+//!    lower-left 3×3 units, 0–15 N (central areas 1, 2, 4), 0–12 N (area 3), 0–11 N (area 5),
+//!    0–9 N (area 6), 1 N steps, 15 noisy frames each (1,245 samples); validation at random
+//!    positions anywhere in the lower-right and upper-right 3×3 units with random forces
+//!    0–16 N (475 samples).
+//! 4. Beyond the pseudo-array, calibrated from presses laid out the same way and validated on
+//!    the same 475 presses: a finer n×n division, and the continuous calibration, where the
+//!    forward model supplies the sensitivity S(x) (the reconstructed peak of a reference
+//!    inclusion, mapped over the sheet at setup) and one curve is fitted to peak ÷ S(centre).
+
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+
+use crate::calibration::{force_errors, Calibration, Curve, ForceErrors, Sample};
+use crate::conductivity::Inclusion;
+use crate::inverse::{Reconstructor, ReconstructorParams};
+use crate::pseudo_array::PseudoArray;
+use crate::sensitivity::{along_x, peaks};
+use crate::sim::{Press, SimParams, VirtualSensor};
+use crate::spec::{SensorSpec, SpecError};
+use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
+
+/// How to run the study; `Default` is the paper's design.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StudyParams {
+    /// The virtual sensor's settings (noise, press model, its finer mesh).
+    pub sim: SimParams,
+    /// Seed of the noise and of the validation positions and forces.
+    pub seed: u64,
+    /// Noisy frames per calibration press (15 in the paper).
+    pub repeats: usize,
+    /// Validation presses (475 in the paper).
+    pub validation: usize,
+    /// Units per side of the faithful pseudo-array (5 in the paper).
+    pub grid: usize,
+    /// Units per side of the finer division (10).
+    pub fine_grid: usize,
+    /// Positions per side of the continuous calibration's sensitivity map.
+    pub sensitivity_map: usize,
+    /// Largest validation force, in N (16 in the paper).
+    pub max_force: f64,
+}
+
+impl Default for StudyParams {
+    fn default() -> Self {
+        StudyParams {
+            sim: SimParams::default(),
+            seed: 1,
+            repeats: 15,
+            validation: 475,
+            grid: 5,
+            fine_grid: 10,
+            sensitivity_map: 21,
+            max_force: 16.0,
+        }
+    }
+}
+
+/// One force method's calibration and its validation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MethodResult {
+    /// Its name, e.g. "pseudo-array 5×5".
+    pub name: String,
+    /// The fitted curves (one per area; one for the continuous method).
+    pub curves: Vec<Curve>,
+    /// Calibration samples used.
+    pub calibration_samples: usize,
+    /// Predicted force per validation press, in N (NaN where no touch was found).
+    pub predicted: Vec<f64>,
+    /// Errors against the true forces, over the presses that gave a touch.
+    pub errors: ForceErrors,
+}
+
+/// Everything the study measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyReport {
+    /// Fig. 3c: inclusion centres along x (m) and the reconstructed peak at each (S/m).
+    pub profile: Vec<([f64; 2], f64)>,
+    /// Fig. 4b: per area, the conductivity drops (fraction of the background) and the peaks (S/m).
+    pub simulated_curves: Vec<(Vec<f64>, Vec<f64>)>,
+    /// Fig. 4b: the exponential fitted to each area's simulated curve (x = drop).
+    pub simulated_fits: Vec<Curve>,
+    /// Validation presses: position (m) and force (N).
+    pub validation: Vec<Press>,
+    /// The strongest touch of each validation frame, if any.
+    pub validation_touches: Vec<Option<Touch>>,
+    /// Mean distance from touch centre to press centre, in m.
+    pub mean_position_error: f64,
+    /// Share of validation touches placed in the unit of the press (0–1).
+    pub right_unit: f64,
+    /// The force methods, the faithful pseudo-array first.
+    pub methods: Vec<MethodResult>,
+}
+
+/// Progress: a stage name, work done, work in all.
+pub type Progress<'a> = &'a mut dyn FnMut(&str, usize, usize);
+
+/// The paper's force ranges by area (its numbering from 1): 15, 15, 12, 15, 11, 9 N; areas
+/// past the sixth (finer divisions) take the range of the 5×5 area their unit centre lies in.
+const PAPER_RANGES: [f64; 6] = [15.0, 15.0, 12.0, 15.0, 11.0, 9.0];
+
+/// Runs the whole study on `spec`'s sensor.
+pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> Result<StudyReport, SpecError> {
+    progress("setting up the sensor and the reconstructor", 0, 1);
+    let model = spec.forward_model()?;
+    let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
+    let mut skin = VirtualSensor::with_params(spec, params.sim, params.seed)?;
+    let electrodes = spec.electrode_positions()?;
+    let array = PseudoArray::by_symmetry(&spec.outline, &electrodes, [params.grid; 2])?;
+    let fine = PseudoArray::by_symmetry(&spec.outline, &electrodes, [params.fine_grid; 2])?;
+    let [lo, hi] = spec.outline.bounds();
+    let side = hi[0] - lo[0];
+    let mut chain = Chain::new(&recon, &mut skin, params.repeats)?;
+
+    progress("location dependence (Fig. 3c)", 0, 1);
+    let (radius, half) = (0.05 * side, 0.5 * spec.conductivity);
+    let line = along_x(side / 2.0, 0.05 * side, radius, half, 0.25 * radius);
+    let line_peaks = peaks(chain.skin.model(), chain.skin.background(), &recon, &line)?;
+    let profile = line.iter().zip(line_peaks).map(|(i, p)| (i.centre, p)).collect();
+
+    progress("per-area curves in simulation (Fig. 4b)", 0, 1);
+    let drops: Vec<f64> = (1..=9).map(|k| 0.1 * k as f64).collect();
+    let mut simulated_curves = Vec::new();
+    let mut simulated_fits = Vec::new();
+    for unit in representatives(&array) {
+        let centre = array.unit_centre(unit);
+        let inclusions: Vec<Inclusion> = drops
+            .iter()
+            .map(|d| Inclusion { centre, radius: 0.05 * side, conductivity: spec.conductivity * (1.0 - d) })
+            .collect();
+        let p = peaks(chain.skin.model(), chain.skin.background(), &recon, &inclusions)?;
+        simulated_fits.push(Curve::fit(array.area_of(unit), &drops, &p)?);
+        simulated_curves.push((drops.clone(), p));
+    }
+
+    progress("calibration presses", 0, 1);
+    let coarse_samples = chain.calibration(&array, &array, params.repeats, progress)?;
+    let fine_samples = chain.calibration(&fine, &array, params.repeats, progress)?;
+
+    progress("validation presses", 0, 1);
+    let mut rng = StdRng::seed_from_u64(params.seed ^ 0x5eed);
+    let blocks = [units_block(&array, 2, 0), units_block(&array, 2, params.grid.saturating_sub(3))];
+    let validation: Vec<Press> = (0..params.validation)
+        .map(|_| {
+            let block = &blocks[rng.random_range(0..blocks.len())];
+            let unit = block[rng.random_range(0..block.len())];
+            let [u_lo, u_hi] = array.unit_bounds(unit);
+            let position = [rng.random_range(u_lo[0]..u_hi[0]), rng.random_range(u_lo[1]..u_hi[1])];
+            Press { position, force: rng.random_range(0.0..params.max_force) }
+        })
+        .collect();
+    let validation_touches = chain.validation(&validation, progress)?;
+
+    progress("continuous calibration: sensitivity map", 0, 1);
+    let map = SensitivityMap::new(spec, &model, &recon, params.sensitivity_map)?;
+
+    let truth: Vec<f64> = validation.iter().map(|p| p.force).collect();
+    let mut methods = Vec::new();
+    for (name, division, samples) in [
+        (format!("pseudo-array {0}×{0}", params.grid), &array, &coarse_samples),
+        (format!("pseudo-array {0}×{0}", params.fine_grid), &fine, &fine_samples),
+    ] {
+        let per_area: Vec<Sample> =
+            samples.iter().map(|s| Sample { area: division.area_of(s.unit), force: s.force, peak: s.peak }).collect();
+        let calibration = Calibration::fit(&per_area, division.area_count())?;
+        let predicted: Vec<f64> = validation_touches
+            .iter()
+            .map(|t| match t.and_then(|t| division.unit_at(t.centre).map(|u| (u, t.peak))) {
+                Some((unit, peak)) => calibration.force(division.area_of(unit), peak).map_or(f64::NAN, |f| f.newtons),
+                None => f64::NAN,
+            })
+            .collect();
+        methods.push(method(name, calibration.curves, per_area.len(), predicted, &truth));
+    }
+    let normalised: Vec<(f64, f64)> = coarse_samples.iter().map(|s| (s.force, s.peak / map.at(s.centre))).collect();
+    let (forces, ratios): (Vec<f64>, Vec<f64>) = normalised.iter().copied().unzip();
+    let curve = Curve::fit(0, &forces, &ratios)?;
+    let predicted = validation_touches
+        .iter()
+        .map(|t| t.map_or(f64::NAN, |t| curve.force(t.peak / map.at(t.centre)).newtons))
+        .collect();
+    methods.push(method("continuous".into(), vec![curve], normalised.len(), predicted, &truth));
+
+    let found: Vec<(&Press, &Touch)> =
+        validation.iter().zip(&validation_touches).filter_map(|(p, t)| t.as_ref().map(|t| (p, t))).collect();
+    let distance = |p: &Press, t: &Touch| (t.centre[0] - p.position[0]).hypot(t.centre[1] - p.position[1]);
+    let mean_position_error = found.iter().map(|(p, t)| distance(p, t)).sum::<f64>() / found.len().max(1) as f64;
+    let right = found.iter().filter(|(p, t)| array.unit_at(p.position) == array.unit_at(t.centre)).count();
+    let right_unit = right as f64 / found.len().max(1) as f64;
+    Ok(StudyReport {
+        profile,
+        simulated_curves,
+        simulated_fits,
+        validation,
+        validation_touches,
+        mean_position_error,
+        right_unit,
+        methods,
+    })
+}
+
+fn method(name: String, curves: Vec<Curve>, samples: usize, predicted: Vec<f64>, truth: &[f64]) -> MethodResult {
+    let (t, p): (Vec<f64>, Vec<f64>) =
+        truth.iter().zip(&predicted).filter(|(_, p)| p.is_finite()).map(|(t, p)| (*t, *p)).unzip();
+    MethodResult { name, curves, calibration_samples: samples, errors: force_errors(&t, &p), predicted }
+}
+
+/// The first unit of each area met when scanning the lower-left block of [`units_block`]
+/// (then the rest of the grid, for areas the block misses).
+fn representatives(array: &PseudoArray) -> Vec<usize> {
+    let mut found: Vec<Option<usize>> = vec![None; array.area_count()];
+    for unit in units_block(array, 0, 0).into_iter().chain(0..array.unit_count()) {
+        let area = array.area_of(unit);
+        if found[area].is_none() {
+            found[area] = Some(unit);
+        }
+    }
+    found.into_iter().flatten().collect()
+}
+
+/// The units of the 3×3 block (of a 5×5 grid; scaled for others) whose bottom-left unit is at
+/// column `col`·n/5 … and row `row`·n/5 ….
+fn units_block(array: &PseudoArray, col: usize, row: usize) -> Vec<usize> {
+    let [nx, ny] = array.grid();
+    let span = |n: usize| (3 * n).div_ceil(5);
+    let (c0, r0) = (col * nx / 5, row * ny / 5);
+    let mut units = Vec::new();
+    for r in r0..(r0 + span(ny)).min(ny) {
+        for c in c0..(c0 + span(nx)).min(nx) {
+            units.push(r * nx + c);
+        }
+    }
+    units
+}
+
+/// A calibration sample before it is assigned to an area: the pressed unit, force, peak and
+/// the touch's centre (m).
+#[derive(Debug, Clone, Copy)]
+struct UnitSample {
+    unit: usize,
+    force: f64,
+    peak: f64,
+    centre: [f64; 2],
+}
+
+/// The measuring chain: virtual sensor → reference → image → strongest touch.
+struct Chain<'a> {
+    recon: &'a Reconstructor,
+    skin: &'a mut VirtualSensor,
+    reference: Vec<f64>,
+    image: crate::image::Image,
+    scratch: TouchScratch,
+    touches: Vec<Touch>,
+}
+
+impl<'a> Chain<'a> {
+    /// The chain with its reference: the mean of `frames` noisy frames of the untouched sheet.
+    fn new(recon: &'a Reconstructor, skin: &'a mut VirtualSensor, frames: usize) -> Result<Chain<'a>, SpecError> {
+        skin.release();
+        let clean = skin.clean_frame()?;
+        let mut reference = vec![0.0; clean.len()];
+        for _ in 0..frames.max(1) {
+            let mut v = clean.clone();
+            skin.add_noise(&mut v);
+            reference.iter_mut().zip(&v).for_each(|(r, x)| *r += x / frames.max(1) as f64);
+        }
+        let image = recon.blank_image();
+        let scratch = TouchScratch::new(image.size);
+        Ok(Chain { recon, skin, reference, image, scratch, touches: Vec::with_capacity(16) })
+    }
+
+    /// The strongest touch in a frame.
+    fn strongest(&mut self, frame: &[f64]) -> Result<Option<Touch>, SpecError> {
+        self.recon.image_into(&self.reference, frame, &mut self.image)?;
+        detect_into(&self.image, &TouchParams::default(), &mut self.scratch, &mut self.touches);
+        Ok(self.touches.first().copied())
+    }
+
+    /// Presses one unit per area of `division` (the first met in its lower-left 3×3 block) at
+    /// 1 N steps up to the paper's range for the area of `paper` holding it, `repeats` frames each.
+    fn calibration(
+        &mut self,
+        division: &PseudoArray,
+        paper: &PseudoArray,
+        repeats: usize,
+        progress: Progress<'_>,
+    ) -> Result<Vec<UnitSample>, SpecError> {
+        let mut cases = Vec::new();
+        for unit in representatives(division) {
+            let centre = division.unit_centre(unit);
+            let range =
+                paper.unit_at(centre).map_or(15.0, |u| PAPER_RANGES.get(paper.area_of(u)).copied().unwrap_or(15.0));
+            for f in 0..=(range as usize) {
+                cases.push((unit, f as f64, centre));
+            }
+        }
+        let presses: Vec<Vec<Press>> =
+            cases.iter().map(|&(_, force, position)| vec![Press { position, force }]).collect();
+        let frames = self.skin.clean_frames(&presses)?;
+        let mut samples = Vec::with_capacity(cases.len() * repeats);
+        for (k, (&(unit, force, _), clean)) in cases.iter().zip(&frames).enumerate() {
+            progress("calibration presses", k + 1, cases.len());
+            for _ in 0..repeats.max(1) {
+                let mut v = clean.clone();
+                self.skin.add_noise(&mut v);
+                if let Some(t) = self.strongest(&v)? {
+                    samples.push(UnitSample { unit, force, peak: t.peak, centre: t.centre });
+                }
+            }
+        }
+        Ok(samples)
+    }
+
+    /// One noisy frame per validation press; the strongest touch of each.
+    fn validation(&mut self, presses: &[Press], progress: Progress<'_>) -> Result<Vec<Option<Touch>>, SpecError> {
+        let cases: Vec<Vec<Press>> = presses.iter().map(|p| vec![*p]).collect();
+        let mut out = Vec::with_capacity(presses.len());
+        for (chunk, batch) in cases.chunks(50).enumerate() {
+            let frames = self.skin.clean_frames(batch)?;
+            for mut v in frames {
+                self.skin.add_noise(&mut v);
+                out.push(self.strongest(&v)?);
+            }
+            progress("validation presses", (chunk * 50 + batch.len()).min(presses.len()), presses.len());
+        }
+        Ok(out)
+    }
+}
+
+/// The continuous calibration's sensitivity S(x): the reconstructed peak of a reference
+/// inclusion (the indenter's size, half the background conductivity) simulated on the
+/// reconstruction model itself, on a grid over the sheet, read bilinearly.
+struct SensitivityMap {
+    lo: [f64; 2],
+    step: [f64; 2],
+    n: usize,
+    values: Vec<f64>,
+}
+
+impl SensitivityMap {
+    fn new(
+        spec: &SensorSpec,
+        model: &crate::forward::ForwardModel,
+        recon: &Reconstructor,
+        n: usize,
+    ) -> Result<SensitivityMap, SpecError> {
+        let n = n.max(2);
+        let radius = SimParams::default().hydrogel.indenter_radius;
+        let [lo, hi] = spec.outline.bounds();
+        let lo = [lo[0] + radius, lo[1] + radius];
+        let step = [(hi[0] - radius - lo[0]) / (n - 1) as f64, (hi[1] - radius - lo[1]) / (n - 1) as f64];
+        let inclusions: Vec<Inclusion> = (0..n * n)
+            .map(|k| Inclusion {
+                centre: [lo[0] + (k % n) as f64 * step[0], lo[1] + (k / n) as f64 * step[1]],
+                radius,
+                conductivity: 0.5 * spec.conductivity,
+            })
+            .collect();
+        let values = peaks(model, spec.conductivity, recon, &inclusions)?;
+        Ok(SensitivityMap { lo, step, n, values })
+    }
+
+    /// S at `p` (m), bilinear between grid points, clamped to the grid.
+    fn at(&self, p: [f64; 2]) -> f64 {
+        let coord = |k: usize| ((p[k] - self.lo[k]) / self.step[k]).clamp(0.0, (self.n - 1) as f64);
+        let (x, y) = (coord(0), coord(1));
+        let (i, j) = ((x as usize).min(self.n - 2), (y as usize).min(self.n - 2));
+        let (fx, fy) = (x - i as f64, y - j as f64);
+        let v = |a: usize, b: usize| self.values[b * self.n + a];
+        (1.0 - fy) * ((1.0 - fx) * v(i, j) + fx * v(i + 1, j)) + fy * ((1.0 - fx) * v(i, j + 1) + fx * v(i + 1, j + 1))
+    }
+}
