@@ -1,6 +1,7 @@
 //! The `eitskin` command: thin glue from files and flags to the `eitskin` library.
 
 mod bench;
+mod calibrate;
 mod convergence;
 
 mod forward;
@@ -41,6 +42,10 @@ enum Command {
     Sensitivity(sensitivity::Args),
     /// Rerun the paper's study on the virtual sensor: figures, numbers, report.md.
     Study(study::Args),
+    /// Fit a per-area calibration from recorded samples and write it (JSON).
+    Calibrate(calibrate::CalibrateArgs),
+    /// Measure a calibration's force error on samples.
+    Evaluate(calibrate::EvaluateArgs),
     /// Time each stage of the setup chain and print the medians.
     Bench(bench::Args),
     /// Refine the mesh step by step and report how the measurements converge.
@@ -56,6 +61,8 @@ fn main() {
         Command::Image(args) => image::run(args),
         Command::Sensitivity(args) => sensitivity::run(args),
         Command::Study(args) => study::run(args),
+        Command::Calibrate(args) => calibrate::calibrate(args),
+        Command::Evaluate(args) => calibrate::evaluate(args),
         Command::Bench(args) => bench::run(args),
         Command::Convergence(args) => convergence::run(args),
     };

@@ -20,7 +20,7 @@ pub struct Args {
     /// Seed of the noise and the validation presses.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Measurement noise, relative standard deviation per value (3e-4 = 70 dB).
+    /// Measurement noise, relative standard deviation per value (default 1e-4 = 80 dB).
     #[arg(long)]
     noise: Option<f64>,
     /// Validation presses (475 in the paper).
@@ -58,10 +58,29 @@ pub fn run(args: Args) -> Result<()> {
     write_figures(&study, &args)?;
     let json = report::json(&study, &params, seconds);
     std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
+    write_samples(&study, &args, spec.length_unit.metres())?;
     let markdown = report::markdown(&study, &params, spec.length_unit, seconds);
     std::fs::write(args.out.join("report.md"), &markdown)?;
     println!("{markdown}");
     eprintln!("wrote {} in {seconds:.1} s", args.out.display());
+    Ok(())
+}
+
+/// The calibration samples (`unit,force,peak`) and validation samples (`x,y,force,peak`, the
+/// touch's centre in the spec's units) as CSV, for `eitskin calibrate` and `evaluate`.
+fn write_samples(study: &StudyReport, args: &Args, metres: f64) -> Result<()> {
+    let mut csv = String::from("unit,force,peak\n");
+    for s in &study.calibration {
+        csv += &format!("{},{},{:e}\n", s.unit + 1, s.force, s.peak);
+    }
+    std::fs::write(args.out.join("calibration_samples.csv"), csv)?;
+    let mut csv = String::from("x,y,force,peak\n");
+    for (press, touch) in study.validation.iter().zip(&study.validation_touches) {
+        if let Some(t) = touch {
+            csv += &format!("{},{},{},{:e}\n", t.centre[0] / metres, t.centre[1] / metres, press.force, t.peak);
+        }
+    }
+    std::fs::write(args.out.join("validation_samples.csv"), csv)?;
     Ok(())
 }
 

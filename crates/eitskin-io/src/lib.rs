@@ -30,18 +30,22 @@
 #![warn(rustdoc::broken_intra_doc_links)]
 #![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
 
+mod calibration_file;
 mod frame_file;
 mod mesh_file;
 mod protocol_file;
 mod reconstructor_file;
+mod samples_file;
 mod spec_file;
 
 use std::path::{Path, PathBuf};
 
+pub use calibration_file::{calibration_to_json, parse_calibration, read_calibration, spec_key};
 pub use frame_file::{parse_frame, read_frame};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
 pub use protocol_file::{parse_protocol, read_protocol};
 pub use reconstructor_file::{cache_key, cache_path, decode, encode, load_or_build};
+pub use samples_file::{parse_samples, read_samples, Location, Measured, SampleRow};
 pub use spec_file::{parse_spec, protocol_by_name, protocol_kind, read_spec, spec_to_toml};
 
 use eitskin::{MeshError, ProtocolError, SpecError};

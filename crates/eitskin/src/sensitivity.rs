@@ -12,22 +12,25 @@ use crate::inverse::Reconstructor;
 use crate::spec::SpecError;
 
 /// Peak |Δσ| (S/m) of the image of each inclusion, simulated on `truth` with the `background`
-/// conductivity (S/m) and reconstructed by `recon` against the homogeneous frame.
+/// conductivity (S/m) and reconstructed by `recon` against the homogeneous frame; in parallel.
 pub fn peaks(
     truth: &ForwardModel,
     background: f64,
     recon: &Reconstructor,
     inclusions: &[Inclusion],
 ) -> Result<Vec<f64>, SpecError> {
+    use rayon::prelude::*;
     let v_ref = truth.measure(&vec![background; truth.mesh().triangles().len()])?;
-    let mut image = recon.blank_image();
     inclusions
-        .iter()
-        .map(|inc| {
-            let v = truth.measure(&with_inclusions(truth.mesh(), background, &[*inc]))?;
-            recon.image_into(&v_ref, &v, &mut image)?;
-            Ok(image.peak().map_or(0.0, |(_, value)| f64::from(value.abs())))
-        })
+        .par_iter()
+        .map_init(
+            || recon.blank_image(),
+            |image, inc| {
+                let v = truth.measure(&with_inclusions(truth.mesh(), background, &[*inc]))?;
+                recon.image_into(&v_ref, &v, image)?;
+                Ok(image.peak().map_or(0.0, |(_, value)| f64::from(value.abs())))
+            },
+        )
         .collect()
 }
 

@@ -12,9 +12,12 @@
 //!    positions anywhere in the lower-right and upper-right 3×3 units with random forces
 //!    0–16 N (475 samples).
 //! 4. Beyond the pseudo-array, calibrated from presses laid out the same way and validated on
-//!    the same 475 presses: a finer n×n division, and the continuous calibration, where the
+//!    the same 475 presses: a finer n×n division; the continuous calibration, where the
 //!    forward model supplies the sensitivity S(x) (the reconstructed peak of a reference
-//!    inclusion, mapped over the sheet at setup) and one curve is fitted to peak ÷ S(centre).
+//!    inclusion, mapped over the sheet at setup) and one curve is fitted to peak ÷ S(centre);
+//!    and the contrast map, its extension to the image's nonlinearity: at every map point the
+//!    forward model gives the peak for a ladder of conductivity drops, a touch's peak is read
+//!    back as the drop d̂ that explains it at its centre, and one curve d̂(F) is fitted.
 
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -58,7 +61,7 @@ impl Default for StudyParams {
             validation: 475,
             grid: 5,
             fine_grid: 10,
-            sensitivity_map: 21,
+            sensitivity_map: 31,
             max_force: 16.0,
         }
     }
@@ -98,6 +101,8 @@ pub struct StudyReport {
     pub right_unit: f64,
     /// The force methods, the faithful pseudo-array first.
     pub methods: Vec<MethodResult>,
+    /// The calibration samples of the faithful pseudo-array (units of its grid).
+    pub calibration: Vec<StudySample>,
 }
 
 /// Progress: a stage name, work done, work in all.
@@ -159,8 +164,8 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
         .collect();
     let validation_touches = chain.validation(&validation, progress)?;
 
-    progress("continuous calibration: sensitivity map", 0, 1);
-    let map = SensitivityMap::new(spec, &model, &recon, params.sensitivity_map)?;
+    progress("continuous calibration: sensitivity and contrast maps", 0, 1);
+    let map = ContrastMap::new(spec, &model, &recon, params.sensitivity_map)?;
 
     let truth: Vec<f64> = validation.iter().map(|p| p.force).collect();
     let mut methods = Vec::new();
@@ -180,14 +185,19 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
             .collect();
         methods.push(method(name, calibration.curves, per_area.len(), predicted, &truth));
     }
-    let normalised: Vec<(f64, f64)> = coarse_samples.iter().map(|s| (s.force, s.peak / map.at(s.centre))).collect();
-    let (forces, ratios): (Vec<f64>, Vec<f64>) = normalised.iter().copied().unzip();
-    let curve = Curve::fit(0, &forces, &ratios)?;
-    let predicted = validation_touches
-        .iter()
-        .map(|t| t.map_or(f64::NAN, |t| curve.force(t.peak / map.at(t.centre)).newtons))
-        .collect();
-    methods.push(method("continuous".into(), vec![curve], normalised.len(), predicted, &truth));
+    // One curve of a per-position normalised peak against force, for the whole sheet.
+    let continuous = |name: &str, normalise: &dyn Fn(f64, [f64; 2]) -> f64| -> Result<MethodResult, SpecError> {
+        let forces: Vec<f64> = coarse_samples.iter().map(|s| s.force).collect();
+        let values: Vec<f64> = coarse_samples.iter().map(|s| normalise(s.peak, s.centre)).collect();
+        let curve = Curve::fit(0, &forces, &values)?;
+        let predicted = validation_touches
+            .iter()
+            .map(|t| t.map_or(f64::NAN, |t| curve.force(normalise(t.peak, t.centre)).newtons))
+            .collect();
+        Ok(method(name.into(), vec![curve], forces.len(), predicted, &truth))
+    };
+    methods.push(continuous("continuous", &|peak, at| peak / map.sensitivity(at))?);
+    methods.push(continuous("contrast map", &|peak, at| map.drop(peak, at))?);
 
     let found: Vec<(&Press, &Touch)> =
         validation.iter().zip(&validation_touches).filter_map(|(p, t)| t.as_ref().map(|t| (p, t))).collect();
@@ -204,6 +214,7 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
         mean_position_error,
         right_unit,
         methods,
+        calibration: coarse_samples,
     })
 }
 
@@ -241,14 +252,17 @@ fn units_block(array: &PseudoArray, col: usize, row: usize) -> Vec<usize> {
     units
 }
 
-/// A calibration sample before it is assigned to an area: the pressed unit, force, peak and
-/// the touch's centre (m).
-#[derive(Debug, Clone, Copy)]
-struct UnitSample {
-    unit: usize,
-    force: f64,
-    peak: f64,
-    centre: [f64; 2],
+/// A calibration sample before it is assigned to an area.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StudySample {
+    /// The pressed unit of the division it was taken for (0-based).
+    pub unit: usize,
+    /// Applied force, in N.
+    pub force: f64,
+    /// Peak of the strongest touch, in S/m.
+    pub peak: f64,
+    /// Centre of gravity of that touch, in m.
+    pub centre: [f64; 2],
 }
 
 /// The measuring chain: virtual sensor → reference → image → strongest touch.
@@ -292,7 +306,7 @@ impl<'a> Chain<'a> {
         paper: &PseudoArray,
         repeats: usize,
         progress: Progress<'_>,
-    ) -> Result<Vec<UnitSample>, SpecError> {
+    ) -> Result<Vec<StudySample>, SpecError> {
         let mut cases = Vec::new();
         for unit in representatives(division) {
             let centre = division.unit_centre(unit);
@@ -312,7 +326,7 @@ impl<'a> Chain<'a> {
                 let mut v = clean.clone();
                 self.skin.add_noise(&mut v);
                 if let Some(t) = self.strongest(&v)? {
-                    samples.push(UnitSample { unit, force, peak: t.peak, centre: t.centre });
+                    samples.push(StudySample { unit, force, peak: t.peak, centre: t.centre });
                 }
             }
         }
@@ -335,46 +349,88 @@ impl<'a> Chain<'a> {
     }
 }
 
-/// The continuous calibration's sensitivity S(x): the reconstructed peak of a reference
-/// inclusion (the indenter's size, half the background conductivity) simulated on the
-/// reconstruction model itself, on a grid over the sheet, read bilinearly.
-struct SensitivityMap {
+/// The forward model's view of the sheet for the continuous calibrations: at each point of an
+/// n×n grid (inset by the indenter's radius), the reconstructed peak of an inclusion of the
+/// indenter's size for conductivity drops 0.1, 0.2 … 0.9, simulated on the reconstruction model
+/// itself (no knowledge of the virtual sensor); read bilinearly between grid points.
+struct ContrastMap {
     lo: [f64; 2],
     step: [f64; 2],
     n: usize,
-    values: Vec<f64>,
+    drops: Vec<f64>,
+    /// `peaks[k][j]`: peak (S/m) at grid point j for drop k.
+    peaks: Vec<Vec<f64>>,
 }
 
-impl SensitivityMap {
+/// The drop whose peak is the sensitivity S(x) of the plain continuous calibration.
+const REFERENCE_DROP: usize = 4; // 0.5
+
+impl ContrastMap {
     fn new(
         spec: &SensorSpec,
         model: &crate::forward::ForwardModel,
         recon: &Reconstructor,
         n: usize,
-    ) -> Result<SensitivityMap, SpecError> {
+    ) -> Result<ContrastMap, SpecError> {
         let n = n.max(2);
         let radius = SimParams::default().hydrogel.indenter_radius;
         let [lo, hi] = spec.outline.bounds();
         let lo = [lo[0] + radius, lo[1] + radius];
         let step = [(hi[0] - radius - lo[0]) / (n - 1) as f64, (hi[1] - radius - lo[1]) / (n - 1) as f64];
-        let inclusions: Vec<Inclusion> = (0..n * n)
-            .map(|k| Inclusion {
-                centre: [lo[0] + (k % n) as f64 * step[0], lo[1] + (k / n) as f64 * step[1]],
-                radius,
-                conductivity: 0.5 * spec.conductivity,
+        let drops: Vec<f64> = (1..=9).map(|k| 0.1 * k as f64).collect();
+        let peaks = drops
+            .iter()
+            .map(|d| {
+                let inclusions: Vec<Inclusion> = (0..n * n)
+                    .map(|k| Inclusion {
+                        centre: [lo[0] + (k % n) as f64 * step[0], lo[1] + (k / n) as f64 * step[1]],
+                        radius,
+                        conductivity: (1.0 - d) * spec.conductivity,
+                    })
+                    .collect();
+                peaks(model, spec.conductivity, recon, &inclusions)
             })
-            .collect();
-        let values = peaks(model, spec.conductivity, recon, &inclusions)?;
-        Ok(SensitivityMap { lo, step, n, values })
+            .collect::<Result<_, _>>()?;
+        Ok(ContrastMap { lo, step, n, drops, peaks })
     }
 
-    /// S at `p` (m), bilinear between grid points, clamped to the grid.
-    fn at(&self, p: [f64; 2]) -> f64 {
+    /// Bilinear weights and grid indices at `p` (m), clamped to the grid.
+    fn corners(&self, p: [f64; 2]) -> [(usize, f64); 4] {
         let coord = |k: usize| ((p[k] - self.lo[k]) / self.step[k]).clamp(0.0, (self.n - 1) as f64);
         let (x, y) = (coord(0), coord(1));
         let (i, j) = ((x as usize).min(self.n - 2), (y as usize).min(self.n - 2));
         let (fx, fy) = (x - i as f64, y - j as f64);
-        let v = |a: usize, b: usize| self.values[b * self.n + a];
-        (1.0 - fy) * ((1.0 - fx) * v(i, j) + fx * v(i + 1, j)) + fy * ((1.0 - fx) * v(i, j + 1) + fx * v(i + 1, j + 1))
+        let at = |a: usize, b: usize| b * self.n + a;
+        [
+            (at(i, j), (1.0 - fx) * (1.0 - fy)),
+            (at(i + 1, j), fx * (1.0 - fy)),
+            (at(i, j + 1), (1.0 - fx) * fy),
+            (at(i + 1, j + 1), fx * fy),
+        ]
+    }
+
+    /// The peak (S/m) of drop number `k` at `p` (m).
+    fn peak(&self, k: usize, p: [f64; 2]) -> f64 {
+        self.corners(p).iter().map(|&(j, w)| w * self.peaks[k][j]).sum()
+    }
+
+    /// S(x): the peak of the reference drop at `p`, in S/m.
+    fn sensitivity(&self, p: [f64; 2]) -> f64 {
+        self.peak(REFERENCE_DROP, p)
+    }
+
+    /// The drop (fraction of the background) whose peak at `p` is `peak`: piecewise linear
+    /// through (0, 0) and the ladder, extended past its ends along the nearest segment.
+    fn drop(&self, peak: f64, p: [f64; 2]) -> f64 {
+        let ladder: Vec<(f64, f64)> = std::iter::once((0.0, 0.0))
+            .chain(self.drops.iter().enumerate().map(|(k, &d)| (self.peak(k, p), d)))
+            .collect();
+        let segment = ladder.windows(2).position(|w| peak <= w[1].0).unwrap_or(ladder.len() - 2);
+        let ((p0, d0), (p1, d1)) = (ladder[segment], ladder[segment + 1]);
+        if p1 > p0 {
+            d0 + (peak - p0) * (d1 - d0) / (p1 - p0)
+        } else {
+            d0
+        }
     }
 }

@@ -1,0 +1,101 @@
+//! Issue 4, through the real binary: `eitskin study` on the default sensor writes its figures,
+//! numbers and report; `calibrate` and `evaluate` reproduce the study's pseudo-array from the
+//! samples it wrote; a calibration made for another spec is refused.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn eitskin(args: &[&str]) -> Output {
+    let cache = std::env::temp_dir().join(format!("eitskin-study-{}-cache", std::process::id()));
+    Command::new(env!("CARGO_BIN_EXE_eitskin"))
+        .args(args)
+        .env("EITSKIN_CACHE", cache)
+        .output()
+        .expect("the binary runs")
+}
+
+fn ok(out: Output) -> String {
+    assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout).expect("UTF-8")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("eitskin-study-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn study_on_the_default_sensor_meets_the_papers_bars() {
+    let dir = scratch("run");
+    ok(eitskin(&["study", "--out", dir.to_str().unwrap()]));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("study.json")).unwrap()).unwrap();
+    for png in ["fig3c_location.png", "fig4b_areas.png", "fig12_1.png", "fig12_4.png"] {
+        assert_eq!(&std::fs::read(dir.join(png)).unwrap()[1..4], b"PNG", "{png}");
+    }
+    assert!(
+        std::fs::read_to_string(dir.join("report.md")).unwrap().contains("10.15"),
+        "the paper's figure beside ours"
+    );
+
+    // Location dependence: the edges image several times stronger than the centre.
+    let profile: Vec<f64> =
+        json["location_dependence"].as_array().unwrap().iter().map(|p| p["peak"].as_f64().unwrap()).collect();
+    assert!(profile[0] > 2.5 * profile[profile.len() / 2], "{profile:?}");
+    // Fig. 4b in simulation: the exponential fits the per-area curves.
+    for fit in json["simulated_area_fits"].as_array().unwrap() {
+        assert!(fit["r_squared"].as_f64().unwrap() > 0.99, "{fit}");
+    }
+    // The experiment: 1,245 calibration samples, 475 validation presses, position within 10 mm.
+    let methods = json["methods"].as_array().unwrap();
+    assert_eq!(methods[0]["calibration_samples"], 1245);
+    assert_eq!(json["validation_presses"], 475);
+    let position = json["mean_position_error_m"].as_f64().unwrap();
+    assert!(position < 0.010, "mean position error {position} m");
+    // Every method beyond the faithful pseudo-array does better on the same presses.
+    let rms = |k: usize| methods[k]["rms_newton"].as_f64().unwrap();
+    for k in 1..methods.len() {
+        assert!(
+            rms(k) < rms(0),
+            "{} ({}) is not better than {} ({})",
+            methods[k]["name"],
+            rms(k),
+            methods[0]["name"],
+            rms(0)
+        );
+    }
+
+    // calibrate + evaluate on the samples the study wrote give the study's 5×5 result.
+    let cal = dir.join("cal.json");
+    ok(eitskin(&[
+        "calibrate",
+        "--samples",
+        dir.join("calibration_samples.csv").to_str().unwrap(),
+        "--out",
+        cal.to_str().unwrap(),
+    ]));
+    let text = ok(eitskin(&[
+        "evaluate",
+        "--calibration",
+        cal.to_str().unwrap(),
+        "--samples",
+        dir.join("validation_samples.csv").to_str().unwrap(),
+    ]));
+    assert!(text.contains(&format!("RMS error {:.3} N", rms(0))), "{text} vs {}", rms(0));
+
+    // The same calibration is refused for a sensor with other electrodes.
+    let spec = dir.join("other.toml");
+    let paper = ok(eitskin(&["spec"]));
+    std::fs::write(&spec, paper.replace("width = 10.0", "width = 12.0")).unwrap();
+    let out = eitskin(&[
+        "evaluate",
+        spec.to_str().unwrap(),
+        "--calibration",
+        cal.to_str().unwrap(),
+        "--samples",
+        dir.join("validation_samples.csv").to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("made for another sensor spec"));
+}

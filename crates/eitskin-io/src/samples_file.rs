@@ -1,0 +1,124 @@
+//! Calibration samples (CSV with a header): where each press was, its force, and the peak of
+//! its touch or the raw frame.
+//!
+//! Columns, by name: `unit` (counted from 1) or `x`, `y` (in the spec's units, from the
+//! outline's centre); `force` (N); then either `peak` (S/m) or the frame's measurements in
+//! protocol order in all remaining columns. Lines starting with `#` are comments.
+
+use std::path::Path;
+
+use crate::Error;
+
+/// Where a sample was pressed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Location {
+    /// A pseudo-array unit, 0-based.
+    Unit(usize),
+    /// A point, in m from the outline's centre.
+    Point([f64; 2]),
+}
+
+/// What was measured for a sample.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Measured {
+    /// The peak of the press's touch, in S/m.
+    Peak(f64),
+    /// The raw frame, in protocol order.
+    Frame(Vec<f64>),
+}
+
+/// One row of a samples file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleRow {
+    /// Where.
+    pub location: Location,
+    /// Force, in N.
+    pub force: f64,
+    /// The peak or the frame.
+    pub measured: Measured,
+}
+
+/// Reads a samples file; `metres` converts x, y from the spec's units (e.g. 1e-3 for mm).
+pub fn read_samples(path: &Path, metres: f64) -> Result<Vec<SampleRow>, Error> {
+    parse_samples(&crate::read_text(path)?, metres).map_err(|e| e.in_file(path))
+}
+
+/// Parses samples CSV (see the module doc).
+pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
+    let fail = |line: usize, reason: String| Error::Key {
+        path: None,
+        key: "samples",
+        reason: format!("line {line}: {reason}"),
+    };
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let Some((_, header)) = lines.next() else {
+        return Err(fail(1, "no header line".into()));
+    };
+    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let column = |name: &str| names.iter().position(|n| *n == name);
+    let location = match (column("unit"), column("x"), column("y")) {
+        (Some(u), _, _) => Ok(u),
+        (None, Some(x), Some(y)) => Err((x, y)),
+        _ => return Err(fail(1, "needs a `unit` column or `x` and `y` columns".into())),
+    };
+    let Some(force) = column("force") else {
+        return Err(fail(1, "needs a `force` column".into()));
+    };
+    let peak = column("peak");
+    let used: Vec<usize> = [Some(force), peak, location.ok(), location.err().map(|p| p.0), location.err().map(|p| p.1)]
+        .into_iter()
+        .flatten()
+        .collect();
+    let mut rows = Vec::new();
+    for (n, line) in lines {
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let number = |k: usize| -> Result<f64, Error> {
+            let text = fields.get(k).copied().unwrap_or("");
+            text.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| fail(n + 1, format!("column {} ({:?}) is not a finite number", k + 1, text)))
+        };
+        let location = match location {
+            Ok(u) => {
+                let unit = number(u)?;
+                if unit < 1.0 || unit.fract() != 0.0 {
+                    return Err(fail(n + 1, format!("unit {unit} is not a unit number (they count from 1)")));
+                }
+                Location::Unit(unit as usize - 1)
+            }
+            Err((x, y)) => Location::Point([number(x)? * metres, number(y)? * metres]),
+        };
+        let measured = match peak {
+            Some(p) => Measured::Peak(number(p)?),
+            None => Measured::Frame(
+                (0..fields.len()).filter(|k| !used.contains(k)).map(number).collect::<Result<Vec<f64>, Error>>()?,
+            ),
+        };
+        rows.push(SampleRow { location, force: number(force)?, measured });
+    }
+    Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn units_points_peaks_and_frames_are_read() {
+        let rows = parse_samples("# from the study\nunit,force,peak\n1,0,0.001\n25,15,0.2\n", 1e-3).unwrap();
+        assert_eq!(rows[1], SampleRow { location: Location::Unit(24), force: 15.0, measured: Measured::Peak(0.2) });
+        let rows = parse_samples("x,y,force,v1,v2,v3\n10,-20,5,1.5,2.5,3.5\n", 1e-3).unwrap();
+        assert_eq!(rows[0].location, Location::Point([0.01, -0.02]));
+        assert_eq!(rows[0].measured, Measured::Frame(vec![1.5, 2.5, 3.5]));
+    }
+
+    #[test]
+    fn bad_rows_say_where() {
+        let err = parse_samples("unit,force,peak\n1,2,x\n", 1.0).unwrap_err().to_string();
+        assert_eq!(err, "`samples` line 2: column 3 (\"x\") is not a finite number");
+        let err = parse_samples("unit,force,peak\n0,2,1\n", 1.0).unwrap_err().to_string();
+        assert!(err.contains("count from 1"), "{err}");
+        assert!(parse_samples("force,peak\n1,2\n", 1.0).unwrap_err().to_string().contains("`unit` column"));
+    }
+}
