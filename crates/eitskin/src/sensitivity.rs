@@ -10,6 +10,7 @@ use crate::conductivity::{with_inclusions, Inclusion};
 use crate::forward::ForwardModel;
 use crate::inverse::Reconstructor;
 use crate::spec::SpecError;
+use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
 
 /// Peak |Δσ| (S/m) of the image of each inclusion, simulated on `truth` with the `background`
 /// conductivity (S/m) and reconstructed by `recon` against the homogeneous frame; in parallel.
@@ -29,6 +30,31 @@ pub fn peaks(
                 let v = truth.measure(&with_inclusions(truth.mesh(), background, &[*inc]))?;
                 recon.image_into(&v_ref, &v, image)?;
                 Ok(image.peak().map_or(0.0, |(_, value)| f64::from(value.abs())))
+            },
+        )
+        .collect()
+}
+
+/// The strongest touch (paper's method, default [`TouchParams`]) in the image of each
+/// inclusion, simulated on `truth` with the `background` conductivity (S/m) and reconstructed by
+/// `recon` against the homogeneous frame; `None` where the image has no touch; in parallel.
+pub fn strongest_touches(
+    truth: &ForwardModel,
+    background: f64,
+    recon: &Reconstructor,
+    inclusions: &[Inclusion],
+) -> Result<Vec<Option<Touch>>, SpecError> {
+    use rayon::prelude::*;
+    let v_ref = truth.measure(&vec![background; truth.mesh().triangles().len()])?;
+    inclusions
+        .par_iter()
+        .map_init(
+            || (recon.blank_image(), TouchScratch::default(), Vec::new()),
+            |(image, scratch, touches), inc| {
+                let v = truth.measure(&with_inclusions(truth.mesh(), background, &[*inc]))?;
+                recon.image_into(&v_ref, &v, image)?;
+                detect_into(image, &TouchParams::default(), scratch, touches);
+                Ok(touches.first().copied())
             },
         )
         .collect()

@@ -26,7 +26,7 @@ use crate::calibration::{force_errors, Calibration, Curve, ForceErrors, Sample};
 use crate::conductivity::Inclusion;
 use crate::inverse::{Reconstructor, ReconstructorParams};
 use crate::pseudo_array::PseudoArray;
-use crate::sensitivity::{along_x, peaks};
+use crate::sensitivity::{along_x, peaks, strongest_touches};
 use crate::sim::{Press, SimParams, VirtualSensor};
 use crate::spec::{SensorSpec, SpecError};
 use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
@@ -350,9 +350,9 @@ impl<'a> Chain<'a> {
 }
 
 /// The forward model's view of the sheet for the continuous calibrations: at each point of an
-/// n×n grid (inset by the indenter's radius), the reconstructed peak of an inclusion of the
-/// indenter's size for conductivity drops 0.1, 0.2 … 0.9, simulated on the reconstruction model
-/// itself (no knowledge of the virtual sensor); read bilinearly between grid points.
+/// n×n grid of touch centres (inset by the indenter's radius), the reconstructed peak of an
+/// inclusion of the indenter's size for conductivity drops 0.1, 0.2 … 0.9, simulated on the
+/// reconstruction model itself (no knowledge of the virtual sensor); read bilinearly.
 struct ContrastMap {
     lo: [f64; 2],
     step: [f64; 2],
@@ -364,6 +364,9 @@ struct ContrastMap {
 
 /// The drop whose peak is the sensitivity S(x) of the plain continuous calibration.
 const REFERENCE_DROP: usize = 4; // 0.5
+
+/// Fixed-point steps that move map inclusions so their images' centres land on the grid.
+const MAP_ITERATIONS: usize = 2;
 
 impl ContrastMap {
     fn new(
@@ -378,19 +381,33 @@ impl ContrastMap {
         let lo = [lo[0] + radius, lo[1] + radius];
         let step = [(hi[0] - radius - lo[0]) / (n - 1) as f64, (hi[1] - radius - lo[1]) / (n - 1) as f64];
         let drops: Vec<f64> = (1..=9).map(|k| 0.1 * k as f64).collect();
+        let grid: Vec<[f64; 2]> =
+            (0..n * n).map(|k| [lo[0] + (k % n) as f64 * step[0], lo[1] + (k / n) as f64 * step[1]]).collect();
+        let at = |centres: &[[f64; 2]], drop: f64| -> Result<Vec<Option<Touch>>, SpecError> {
+            let inclusions: Vec<Inclusion> = centres
+                .iter()
+                .map(|&centre| Inclusion { centre, radius, conductivity: (1.0 - drop) * spec.conductivity })
+                .collect();
+            strongest_touches(model, spec.conductivity, recon, &inclusions)
+        };
+        // Touches are looked up by their centre of gravity, which is pulled away from the
+        // press near the edges: move each map inclusion until its image's centre of gravity
+        // sits on the grid point, so the map is indexed the way it is read.
+        let mut centres = grid.clone();
+        for _ in 0..MAP_ITERATIONS {
+            let touches = at(&centres, drops[REFERENCE_DROP])?;
+            for ((c, g), t) in centres.iter_mut().zip(&grid).zip(touches) {
+                if let Some(t) = t {
+                    for k in 0..2 {
+                        c[k] = (c[k] + g[k] - t.centre[k]).clamp(lo[k], hi[k] - radius);
+                    }
+                }
+            }
+        }
         let peaks = drops
             .iter()
-            .map(|d| {
-                let inclusions: Vec<Inclusion> = (0..n * n)
-                    .map(|k| Inclusion {
-                        centre: [lo[0] + (k % n) as f64 * step[0], lo[1] + (k / n) as f64 * step[1]],
-                        radius,
-                        conductivity: (1.0 - d) * spec.conductivity,
-                    })
-                    .collect();
-                peaks(model, spec.conductivity, recon, &inclusions)
-            })
-            .collect::<Result<_, _>>()?;
+            .map(|&d| Ok(at(&centres, d)?.iter().map(|t| t.map_or(0.0, |t| t.peak)).collect()))
+            .collect::<Result<_, SpecError>>()?;
         Ok(ContrastMap { lo, step, n, drops, peaks })
     }
 
