@@ -135,7 +135,7 @@ fn samples(spec: &SensorSpec, array: &PseudoArray, path: &Path, reference: Optio
                     let image = recon.image(v_ref, v).with_context(|| format!("sample {}", k + 1))?;
                     detect(&image, &TouchParams::default()).first().map_or(0.0, |t| t.peak)
                 }
-                (Measured::Frame(_), None) => unreachable!("frames were checked above"),
+                (Measured::Frame(_), None) => bail!("sample {} holds a raw frame: give --reference FILE", k + 1),
             };
             Ok(Sample { area: array.area_of(unit), force: *force, peak })
         })
