@@ -186,18 +186,19 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
         methods.push(method(name, calibration.curves, per_area.len(), predicted, &truth));
     }
     // One curve of a per-position normalised peak against force, for the whole sheet.
-    let continuous = |name: &str, normalise: &dyn Fn(f64, [f64; 2]) -> f64| -> Result<MethodResult, SpecError> {
+    let continuous = |name: &str, normalise: &dyn Fn(f64, f64, [f64; 2]) -> f64| -> Result<MethodResult, SpecError> {
         let forces: Vec<f64> = coarse_samples.iter().map(|s| s.force).collect();
-        let values: Vec<f64> = coarse_samples.iter().map(|s| normalise(s.peak, s.centre)).collect();
+        let values: Vec<f64> = coarse_samples.iter().map(|s| normalise(s.peak, s.volume, s.centre)).collect();
         let curve = Curve::fit(0, &forces, &values)?;
         let predicted = validation_touches
             .iter()
-            .map(|t| t.map_or(f64::NAN, |t| curve.force(normalise(t.peak, t.centre)).newtons))
+            .map(|t| t.map_or(f64::NAN, |t| curve.force(normalise(t.peak, t.volume, t.centre)).newtons))
             .collect();
         Ok(method(name.into(), vec![curve], forces.len(), predicted, &truth))
     };
-    methods.push(continuous("continuous", &|peak, at| peak / map.sensitivity(at))?);
-    methods.push(continuous("contrast map", &|peak, at| map.drop(peak, at))?);
+    methods.push(continuous("continuous", &|peak, _, at| peak / map.sensitivity(at))?);
+    methods.push(continuous("contrast map", &|peak, _, at| map.drop(peak, at, false))?);
+    methods.push(continuous("contrast map (volume)", &|_, volume, at| map.drop(volume, at, true))?);
 
     let found: Vec<(&Press, &Touch)> =
         validation.iter().zip(&validation_touches).filter_map(|(p, t)| t.as_ref().map(|t| (p, t))).collect();
@@ -261,6 +262,8 @@ pub struct StudySample {
     pub force: f64,
     /// Peak of the strongest touch, in S/m.
     pub peak: f64,
+    /// Volume of the strongest touch (change summed over its pixels × pixel area), in S/m·m².
+    pub volume: f64,
     /// Centre of gravity of that touch, in m.
     pub centre: [f64; 2],
 }
@@ -326,7 +329,7 @@ impl<'a> Chain<'a> {
                 let mut v = clean.clone();
                 self.skin.add_noise(&mut v);
                 if let Some(t) = self.strongest(&v)? {
-                    samples.push(StudySample { unit, force, peak: t.peak, centre: t.centre });
+                    samples.push(StudySample { unit, force, peak: t.peak, volume: t.volume, centre: t.centre });
                 }
             }
         }
@@ -360,6 +363,8 @@ struct ContrastMap {
     drops: Vec<f64>,
     /// `peaks[k][j]`: peak (S/m) at grid point j for drop k.
     peaks: Vec<Vec<f64>>,
+    /// `volumes[k][j]`: volume (S/m·m²) at grid point j for drop k.
+    volumes: Vec<Vec<f64>>,
 }
 
 /// The drop whose peak is the sensitivity S(x) of the plain continuous calibration.
@@ -404,11 +409,11 @@ impl ContrastMap {
                 }
             }
         }
-        let peaks = drops
-            .iter()
-            .map(|&d| Ok(at(&centres, d)?.iter().map(|t| t.map_or(0.0, |t| t.peak)).collect()))
-            .collect::<Result<_, SpecError>>()?;
-        Ok(ContrastMap { lo, step, n, drops, peaks })
+        let ladder: Vec<Vec<Option<Touch>>> = drops.iter().map(|&d| at(&centres, d)).collect::<Result<_, _>>()?;
+        let of = |f: fn(&Touch) -> f64| -> Vec<Vec<f64>> {
+            ladder.iter().map(|row| row.iter().map(|t| t.as_ref().map_or(0.0, f)).collect()).collect()
+        };
+        Ok(ContrastMap { lo, step, n, peaks: of(|t| t.peak), volumes: of(|t| t.volume), drops })
     }
 
     /// Bilinear weights and grid indices at `p` (m), clamped to the grid.
@@ -426,21 +431,22 @@ impl ContrastMap {
         ]
     }
 
-    /// The peak (S/m) of drop number `k` at `p` (m).
-    fn peak(&self, k: usize, p: [f64; 2]) -> f64 {
-        self.corners(p).iter().map(|&(j, w)| w * self.peaks[k][j]).sum()
+    /// The peak (S/m), or with `volume` the volume (S/m·m²), of drop number `k` at `p` (m).
+    fn strength(&self, k: usize, p: [f64; 2], volume: bool) -> f64 {
+        let table = if volume { &self.volumes } else { &self.peaks };
+        self.corners(p).iter().map(|&(j, w)| w * table[k][j]).sum()
     }
 
     /// S(x): the peak of the reference drop at `p`, in S/m.
     fn sensitivity(&self, p: [f64; 2]) -> f64 {
-        self.peak(REFERENCE_DROP, p)
+        self.strength(REFERENCE_DROP, p, false)
     }
 
     /// The drop (fraction of the background) whose peak at `p` is `peak`: piecewise linear
     /// through (0, 0) and the ladder, extended past its ends along the nearest segment.
-    fn drop(&self, peak: f64, p: [f64; 2]) -> f64 {
+    fn drop(&self, peak: f64, p: [f64; 2], volume: bool) -> f64 {
         let ladder: Vec<(f64, f64)> = std::iter::once((0.0, 0.0))
-            .chain(self.drops.iter().enumerate().map(|(k, &d)| (self.peak(k, p), d)))
+            .chain(self.drops.iter().enumerate().map(|(k, &d)| (self.strength(k, p, volume), d)))
             .collect();
         let segment = ladder.windows(2).position(|w| peak <= w[1].0).unwrap_or(ladder.len() - 2);
         let ((p0, d0), (p1, d1)) = (ladder[segment], ladder[segment + 1]);
