@@ -31,6 +31,7 @@
 #![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
 
 mod calibration_file;
+pub mod codec;
 mod frame_file;
 mod mesh_file;
 mod protocol_file;
