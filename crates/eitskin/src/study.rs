@@ -61,7 +61,7 @@ impl Default for StudyParams {
             validation: 475,
             grid: 5,
             fine_grid: 10,
-            sensitivity_map: 31,
+            sensitivity_map: 41,
             max_force: 16.0,
         }
     }
