@@ -44,6 +44,7 @@ pub mod geometry;
 pub mod image;
 pub mod inverse;
 pub mod mesh;
+pub mod pipeline;
 pub mod protocol;
 pub mod pseudo_array;
 pub mod sensitivity;
