@@ -10,6 +10,7 @@ mod load;
 mod mesh;
 mod plot;
 mod report;
+mod run;
 mod sensitivity;
 mod study;
 
@@ -46,6 +47,8 @@ enum Command {
     Calibrate(calibrate::CalibrateArgs),
     /// Measure a calibration's force error on samples.
     Evaluate(calibrate::EvaluateArgs),
+    /// Run a sensor live: frames from the virtual sensor or a file, touches as JSON lines.
+    Run(run::Args),
     /// Time each stage of the setup chain and print the medians.
     Bench(bench::Args),
     /// Refine the mesh step by step and report how the measurements converge.
@@ -63,6 +66,7 @@ fn main() {
         Command::Study(args) => study::run(args),
         Command::Calibrate(args) => calibrate::calibrate(args),
         Command::Evaluate(args) => calibrate::evaluate(args),
+        Command::Run(args) => run::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Convergence(args) => convergence::run(args),
     };

@@ -196,9 +196,96 @@ impl VirtualSensor {
     }
 }
 
+/// Presses over time: each held from a start to an end time (s) at a position (m) with a force (N).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Script {
+    /// (start s, end s, press), in any order; overlapping presses are all on the sheet.
+    pub presses: Vec<(f64, f64, Press)>,
+}
+
+/// A line of a press script that is not `start end x y force`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("script line {line}: {reason}")]
+pub struct ScriptError {
+    /// 1-based line.
+    pub line: usize,
+    /// What is wrong.
+    pub reason: String,
+}
+
+impl Script {
+    /// Parses lines `start end x y force` (seconds, positions in units of `metres` m, N),
+    /// separated by spaces, tabs or commas; `#` starts a comment.
+    pub fn parse(text: &str, metres: f64) -> Result<Script, ScriptError> {
+        let mut presses = Vec::new();
+        for (n, line) in text.lines().enumerate() {
+            let line = line.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
+                continue;
+            }
+            let fail = |reason: String| ScriptError { line: n + 1, reason };
+            let v: Vec<f64> = line
+                .split([',', ' ', '\t'])
+                .filter(|f| !f.is_empty())
+                .map(|f| f.parse::<f64>().map_err(|_| fail(format!("{f:?} is not a number"))))
+                .collect::<Result<_, _>>()?;
+            let [start, end, x, y, force] = v[..] else {
+                return Err(fail(format!("expected 5 numbers `start end x y force`, got {}", v.len())));
+            };
+            if !(end > start && force >= 0.0) {
+                return Err(fail("needs end > start and a force ≥ 0".into()));
+            }
+            presses.push((start, end, Press { position: [x * metres, y * metres], force }));
+        }
+        Ok(Script { presses })
+    }
+
+    /// One press every `period` s, held half of it, at a random place inside `outline` (kept
+    /// 10 % of the width from the box's edges) with a random force from 2 to 12 N, for `count` presses.
+    pub fn random(outline: &crate::Outline, period: f64, count: usize, seed: u64) -> Script {
+        use rand::RngExt;
+        let [lo, hi] = outline.bounds();
+        let margin = 0.1 * (hi[0] - lo[0]);
+        let mut rng = StdRng::seed_from_u64(seed);
+        let presses = (0..count)
+            .map(|k| {
+                let position = [
+                    rng.random_range(lo[0] + margin..hi[0] - margin),
+                    rng.random_range(lo[1] + margin..hi[1] - margin),
+                ];
+                let start = period * (k as f64 + 0.5);
+                (start, start + 0.5 * period, Press { position, force: rng.random_range(2.0..12.0) })
+            })
+            .filter(|p| outline.contains(p.2.position))
+            .collect();
+        Script { presses }
+    }
+
+    /// The presses on the sheet at time `t` (s).
+    pub fn at(&self, t: f64) -> impl Iterator<Item = Press> + '_ {
+        self.presses.iter().filter(move |p| p.0 <= t && t < p.1).map(|p| p.2)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn scripts_parse_and_say_where_they_are_wrong() {
+        let script = Script::parse("# t0 t1 x y F\n0 1 50 -20 8\n0.5, 2, 0, 0, 3 # two at once\n", 1e-3).unwrap();
+        assert_eq!(script.at(0.7).count(), 2);
+        assert_eq!(script.at(1.5).next(), Some(Press { position: [0.0, 0.0], force: 3.0 }));
+        assert_eq!(
+            Script::parse("0 1 2 3\n", 1.0).unwrap_err().to_string(),
+            "script line 1: expected 5 numbers `start end x y force`, got 4"
+        );
+        assert!(Script::parse("\n1 0 0 0 1\n", 1.0).unwrap_err().to_string().starts_with("script line 2"));
+        let random = Script::random(&crate::Outline::Circle { radius: 0.1 }, 2.0, 50, 4);
+        assert!(
+            !random.presses.is_empty() && random.presses.iter().all(|p| p.2.position[0].hypot(p.2.position[1]) <= 0.1)
+        );
+    }
 
     #[test]
     fn sixteen_newtons_lower_the_gel_by_85_percent() {

@@ -1,0 +1,218 @@
+//! `eitskin run`: a live sensor. Frames come from the virtual sensor, a file or a serial port;
+//! each goes through the pipeline (reference, image, touches, forces) and out as one JSON line.
+//!
+//! Acquisition runs on its own thread and hands frames over an unbounded channel, so a slow
+//! consumer never stalls it; processing writes every frame to the recorder before it prints.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use eitskin::pipeline::{Pipeline, PipelineParams, Status};
+use eitskin::sim::{Script, VirtualSensor};
+use eitskin::{ReconstructorParams, SensorSpec};
+use eitskin_io::codec::{Decoder, Event, LinesDecoder};
+use serde_json::json;
+
+use crate::load;
+
+/// Flags of `eitskin run`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Sensor spec file (TOML); default: the paper's sensor.
+    spec: Option<PathBuf>,
+    /// Where frames come from: `sim[:SCRIPT]`, `file:PATH`.
+    #[arg(long, default_value = "sim")]
+    source: String,
+    /// Frames per second of the virtual sensor, or of a file without timestamps (0: as fast as possible).
+    #[arg(long, default_value_t = 20.0)]
+    rate: f64,
+    /// Do not wait between frames (the virtual sensor's clock still advances at --rate).
+    #[arg(long)]
+    fast: bool,
+    /// Mesh with about this many triangles instead of the spec's count.
+    #[arg(long)]
+    triangles: Option<usize>,
+    /// Stop after this many frames (default: at the end of the source, never for `sim`).
+    #[arg(long)]
+    frames: Option<u64>,
+    /// Frames averaged into the reference.
+    #[arg(long, default_value_t = 10)]
+    reference_frames: usize,
+    /// Baseline update weight per frame without a touch (0 = off).
+    #[arg(long, default_value_t = 0.0)]
+    baseline_rate: f64,
+    /// A calibration (JSON, from `eitskin calibrate`): forces in N per touch.
+    #[arg(long)]
+    calibration: Option<PathBuf>,
+    /// Seed of the virtual sensor's noise and random presses.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+/// One thing the acquisition thread saw.
+enum Acquired {
+    Frame { seq: u64, t: f64, values: Vec<f64> },
+    Bad { seq: Option<u64>, reason: String },
+}
+
+/// Runs `eitskin run`.
+pub fn run(args: Args) -> Result<()> {
+    let mut spec = load::spec(args.spec.as_deref())?;
+    if let Some(n) = args.triangles {
+        spec.mesh.triangles = n;
+    }
+    let recon = match load::cache_dir() {
+        Some(dir) => eitskin_io::load_or_build(&dir, &spec, &ReconstructorParams::default())?.0,
+        None => {
+            eitskin::Reconstructor::new(&spec.forward_model()?, spec.conductivity, &ReconstructorParams::default())?
+        }
+    };
+    let calibration = match &args.calibration {
+        Some(path) => Some(eitskin_io::read_calibration(path, &spec)?),
+        None => None,
+    };
+    let params = PipelineParams {
+        reference_frames: args.reference_frames,
+        baseline_rate: args.baseline_rate,
+        ..PipelineParams::default()
+    };
+    let mut pipeline = Pipeline::new(recon, params, calibration);
+    let (tx, rx) = mpsc::channel();
+    let acquisition = start_source(&args, &spec, tx)?;
+    let k = 1.0 / spec.length_unit.metres();
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    let (mut frames, mut bad) = (0u64, 0u64);
+    for item in rx {
+        let line = match item {
+            Acquired::Bad { seq, reason } => {
+                bad += 1;
+                json!({"event": "bad", "seq": seq, "reason": reason})
+            }
+            Acquired::Frame { seq, t, values } => match pipeline.process(&values) {
+                Err(e) => {
+                    bad += 1;
+                    json!({"event": "bad", "seq": seq, "reason": e.to_string()})
+                }
+                Ok(status) => {
+                    frames += 1;
+                    let touches: Vec<_> = pipeline
+                        .touches()
+                        .iter()
+                        .map(|t| {
+                            json!({
+                                "x": t.touch.centre[0] * k,
+                                "y": t.touch.centre[1] * k,
+                                "peak": t.touch.peak,
+                                "unit": t.unit.map(|u| u + 1),
+                                "area": t.area.map(|a| a + 1),
+                                "force": t.force.map(|f| f.newtons),
+                                "saturated": t.force.map(|f| f.saturated),
+                            })
+                        })
+                        .collect();
+                    let status = match status {
+                        Status::Referencing { .. } => "referencing",
+                        Status::Processed => "ok",
+                    };
+                    json!({"seq": seq, "t": t, "status": status, "touches": touches,
+                           "counters": {"frames": frames, "bad": bad}})
+                }
+            },
+        };
+        // A closed stdout (the reader went away) ends the run.
+        if writeln!(out, "{line}").and_then(|()| out.flush()).is_err() {
+            break;
+        }
+    }
+    drop(out);
+    match acquisition.join() {
+        Ok(result) => result,
+        Err(_) => bail!("the acquisition thread panicked"),
+    }
+}
+
+/// Starts the acquisition thread for `args.source`.
+fn start_source(
+    args: &Args,
+    spec: &SensorSpec,
+    tx: mpsc::Sender<Acquired>,
+) -> Result<std::thread::JoinHandle<Result<()>>> {
+    let limit = args.frames.unwrap_or(u64::MAX);
+    let clock = (args.rate > 0.0).then(|| Duration::from_secs_f64(1.0 / args.rate));
+    let period = clock.filter(|_| !args.fast);
+    let measurements = spec.protocol()?.len();
+    if args.source == "sim" || args.source.starts_with("sim:") {
+        let script = match args.source.strip_prefix("sim:") {
+            Some(path) => {
+                let text = std::fs::read_to_string(path).with_context(|| format!("reading {path}"))?;
+                Script::parse(&text, spec.length_unit.metres()).with_context(|| path.to_string())?
+            }
+            None => Script::random(&spec.outline, 2.0, 1800, args.seed),
+        };
+        let Some(clock) = clock else {
+            bail!("--rate must be positive for the virtual sensor (use --fast not to wait)")
+        };
+        let mut skin = VirtualSensor::new(spec, args.seed)?;
+        return Ok(std::thread::spawn(move || {
+            let start = Instant::now();
+            for seq in 0..limit {
+                let t = seq as f64 * clock.as_secs_f64();
+                skin.release();
+                for press in script.at(t) {
+                    skin.press(press.position, press.force);
+                }
+                let values = skin.frame()?;
+                if tx.send(Acquired::Frame { seq, t, values }).is_err() {
+                    break;
+                }
+                pace(start, period, seq + 1);
+            }
+            Ok(())
+        }));
+    }
+    if let Some(path) = args.source.strip_prefix("file:") {
+        let path = PathBuf::from(path);
+        let text = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        return Ok(std::thread::spawn(move || {
+            let mut decoder = LinesDecoder::new(measurements);
+            let mut events = Vec::new();
+            decoder.feed(&text, &mut events);
+            decoder.finish(&mut events);
+            let start = Instant::now();
+            let mut sent = 0u64;
+            for event in events {
+                if sent >= limit {
+                    break;
+                }
+                let item = match event {
+                    Event::Frame(f) => {
+                        let t = clock.map_or(start.elapsed().as_secs_f64(), |p| sent as f64 * p.as_secs_f64());
+                        sent += 1;
+                        pace(start, period, sent);
+                        Acquired::Frame { seq: f.seq, t, values: f.values }
+                    }
+                    Event::Bad(b) => Acquired::Bad { seq: b.seq(), reason: b.to_string() },
+                };
+                if tx.send(item).is_err() {
+                    break;
+                }
+            }
+            Ok(())
+        }));
+    }
+    bail!("--source {:?}: expected sim, sim:SCRIPT or file:PATH", args.source)
+}
+
+/// Sleeps until frame `next` is due at `period` per frame since `start` (no wait without a period).
+fn pace(start: Instant, period: Option<Duration>, next: u64) {
+    if let Some(p) = period {
+        let due = start + p.mul_f64(next as f64);
+        if let Some(wait) = due.checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        }
+    }
+}
