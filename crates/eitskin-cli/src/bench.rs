@@ -5,15 +5,18 @@
 //! L−1 current patterns), `measurements` (the protocol's values from the fields); then the
 //! imaging chain: `jacobian`, `reconstructor` (prior, the measurement-sized solve and the
 //! raster projection) and, per frame (median over many frames), `frame_image` and
-//! `frame_touches`.
+//! `frame_touches`; and `replay`: a file of 5,000 text frames through the lines decoder, the
+//! pipeline and the JSON line, as fast as possible (frames/s, median latency per frame).
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
 use eitskin::conductivity::{with_inclusions, Inclusion};
+use eitskin::pipeline::{Pipeline, PipelineParams};
 use eitskin::touch::{detect_into, TouchScratch};
 use eitskin::{Reconstructor, ReconstructorParams, TouchParams};
+use eitskin_io::codec::{Decoder, Event, LinesDecoder};
 
 use crate::load;
 
@@ -47,6 +50,37 @@ fn time<T>(runs: usize, mut f: impl FnMut() -> Result<T>) -> Result<(f64, T)> {
     let median = times[times.len() / 2];
     // `runs.max(1)` iterations ran, so `last` is set.
     Ok((median, last.ok_or_else(|| anyhow::anyhow!("no run"))?))
+}
+
+/// Replays text lines as fast as possible through the lines decoder, the pipeline (reference of
+/// 10 frames, image, touches) and the JSON line `eitskin run` prints: frames per second over the
+/// whole replay, and the median latency from a line's last byte to its JSON line, in s.
+fn replay(recon: &Reconstructor, rest: &[f64], pressed: &[f64]) -> Result<(f64, f64)> {
+    use std::io::Write;
+    let count = 5000;
+    let line = |v: &[f64]| v.iter().map(|x| format!("{x:.6e}")).collect::<Vec<_>>().join(",") + "\n";
+    let lines: Vec<String> = (0..count).map(|k| line(if k % 2 == 0 || k < 10 { rest } else { pressed })).collect();
+    let mut pipeline = Pipeline::new(recon.clone(), PipelineParams::default(), None);
+    let mut decoder = LinesDecoder::new(rest.len());
+    let (mut events, mut sink) = (Vec::with_capacity(4), Vec::with_capacity(4096));
+    let mut latencies = Vec::with_capacity(count);
+    let start = Instant::now();
+    for text in &lines {
+        let t0 = Instant::now();
+        events.clear();
+        decoder.feed(text.as_bytes(), &mut events);
+        for event in events.drain(..) {
+            if let Event::Frame(f) = event {
+                let status = pipeline.process(&f.values)?;
+                sink.clear();
+                writeln!(sink, "{}", crate::run::frame_json(f.seq, 0.0, status, &pipeline, 1e3, [f.seq, 0]))?;
+            }
+        }
+        latencies.push(t0.elapsed().as_secs_f64());
+    }
+    let fps = count as f64 / start.elapsed().as_secs_f64();
+    latencies.sort_by(f64::total_cmp);
+    Ok((fps, latencies[latencies.len() / 2]))
 }
 
 /// Runs `eitskin bench`.
@@ -85,6 +119,7 @@ pub fn run(args: Args) -> Result<()> {
         detect_into(&image, &touch_params, &mut scratch, &mut touches);
         Ok(())
     })?;
+    let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
     let stages = [
         ("mesh", t_mesh),
         ("model", t_model),
@@ -96,6 +131,7 @@ pub fn run(args: Args) -> Result<()> {
         ("reconstructor", t_recon),
         ("frame_image", t_image),
         ("frame_touches", t_touches),
+        ("replay_latency", replay_latency),
     ];
     let total: f64 = stages[..6].iter().map(|s| s.1).sum();
     if args.json {
@@ -108,6 +144,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         out.insert("total".into(), total.into());
         out.insert("frame".into(), (t_image + t_touches).into());
+        out.insert("replay_frames_per_second".into(), replay_fps.into());
         println!("{}", serde_json::Value::Object(out));
     } else {
         println!(
@@ -127,6 +164,7 @@ pub fn run(args: Args) -> Result<()> {
         for (name, t) in &stages[8..] {
             println!("  {name:<14} {:>10.3} µs", t * 1e6);
         }
+        println!("file replay through decoder, pipeline and JSON line: {replay_fps:.0} frames/s on one thread");
     }
     Ok(())
 }

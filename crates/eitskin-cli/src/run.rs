@@ -99,27 +99,7 @@ pub fn run(args: Args) -> Result<()> {
                 }
                 Ok(status) => {
                     frames += 1;
-                    let touches: Vec<_> = pipeline
-                        .touches()
-                        .iter()
-                        .map(|t| {
-                            json!({
-                                "x": t.touch.centre[0] * k,
-                                "y": t.touch.centre[1] * k,
-                                "peak": t.touch.peak,
-                                "unit": t.unit.map(|u| u + 1),
-                                "area": t.area.map(|a| a + 1),
-                                "force": t.force.map(|f| f.newtons),
-                                "saturated": t.force.map(|f| f.saturated),
-                            })
-                        })
-                        .collect();
-                    let status = match status {
-                        Status::Referencing { .. } => "referencing",
-                        Status::Processed => "ok",
-                    };
-                    json!({"seq": seq, "t": t, "status": status, "touches": touches,
-                           "counters": {"frames": frames, "bad": bad}})
+                    frame_json(seq, t, status, &pipeline, k, [frames, bad])
                 }
             },
         };
@@ -133,6 +113,39 @@ pub fn run(args: Args) -> Result<()> {
         Ok(result) => result,
         Err(_) => bail!("the acquisition thread panicked"),
     }
+}
+
+/// The JSON line of a processed frame: touches (positions times `k`, i.e. in the spec's units;
+/// unit and area counted from 1; force in N) and the counters `[frames, bad]`.
+pub fn frame_json(
+    seq: u64,
+    t: f64,
+    status: Status,
+    pipeline: &Pipeline,
+    k: f64,
+    counters: [u64; 2],
+) -> serde_json::Value {
+    let touches: Vec<_> = pipeline
+        .touches()
+        .iter()
+        .map(|t| {
+            json!({
+                "x": t.touch.centre[0] * k,
+                "y": t.touch.centre[1] * k,
+                "peak": t.touch.peak,
+                "unit": t.unit.map(|u| u + 1),
+                "area": t.area.map(|a| a + 1),
+                "force": t.force.map(|f| f.newtons),
+                "saturated": t.force.map(|f| f.saturated),
+            })
+        })
+        .collect();
+    let status = match status {
+        Status::Referencing { .. } => "referencing",
+        Status::Processed => "ok",
+    };
+    json!({"seq": seq, "t": t, "status": status, "touches": touches,
+           "counters": {"frames": counters[0], "bad": counters[1]}})
 }
 
 /// Starts the acquisition thread for `args.source`.
