@@ -13,7 +13,10 @@ use anyhow::{bail, Context, Result};
 use eitskin::pipeline::{Pipeline, PipelineParams, Status};
 use eitskin::sim::{Script, VirtualSensor};
 use eitskin::{ReconstructorParams, SensorSpec};
-use eitskin_io::codec::{Decoder, Event, LinesDecoder};
+use eitskin_io::codec::{BinaryDecoder, Decoder, Event, LinesDecoder};
+use eitskin_io::recorder::{Header, Recorder};
+use eitskin_io::replay::{read_recording, Pace, Speed};
+use eitskin_io::source::serial::{parse_serial_spec, SerialSource, SourceEvent};
 use serde_json::json;
 
 use crate::load;
@@ -23,7 +26,8 @@ use crate::load;
 pub struct Args {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
-    /// Where frames come from: `sim[:SCRIPT]`, `file:PATH`.
+    /// Where frames come from: `sim[:SCRIPT]`, `file:PATH` (a recording, or one frame per text
+    /// line), `serial:PATH[@BAUD]` (115200 8N1 unless told).
     #[arg(long, default_value = "sim")]
     source: String,
     /// Frames per second of the virtual sensor, or of a file without timestamps (0: as fast as possible).
@@ -50,12 +54,28 @@ pub struct Args {
     /// Seed of the virtual sensor's noise and random presses.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// How a serial board sends frames: `lines` (text) or `binary` (framed, with counter and CRC).
+    #[arg(long, value_enum, default_value_t = Codec::Lines)]
+    codec: Codec,
+    /// Record every frame and its touches to this file (append-only JSON lines, crash-safe).
+    #[arg(long)]
+    record: Option<PathBuf>,
+}
+
+/// The frame codec of a serial source.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum Codec {
+    /// One frame per text line of numbers.
+    Lines,
+    /// Sync bytes, counter, count, f32 values, CRC-16 (see the README).
+    Binary,
 }
 
 /// One thing the acquisition thread saw.
 enum Acquired {
     Frame { seq: u64, t: f64, values: Vec<f64> },
     Bad { seq: Option<u64>, reason: String },
+    Port { event: &'static str, detail: String },
 }
 
 /// Runs `eitskin run`.
@@ -80,8 +100,14 @@ pub fn run(args: Args) -> Result<()> {
         ..PipelineParams::default()
     };
     let mut pipeline = Pipeline::new(recon, params, calibration);
+    let protocol = spec.protocol()?;
+    let mut recorder = match &args.record {
+        Some(path) => Some(Recorder::create(path, &Header::now(protocol.len(), protocol.description()))?),
+        None => None,
+    };
     let (tx, rx) = mpsc::channel();
     let acquisition = start_source(&args, &spec, tx)?;
+    eprintln!("eitskin run: reading {}", args.source);
     let k = 1.0 / spec.length_unit.metres();
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
@@ -92,6 +118,7 @@ pub fn run(args: Args) -> Result<()> {
                 bad += 1;
                 json!({"event": "bad", "seq": seq, "reason": reason})
             }
+            Acquired::Port { event, detail } => json!({"event": event, "detail": detail}),
             Acquired::Frame { seq, t, values } => match pipeline.process(&values) {
                 Err(e) => {
                     bad += 1;
@@ -99,7 +126,14 @@ pub fn run(args: Args) -> Result<()> {
                 }
                 Ok(status) => {
                     frames += 1;
-                    frame_json(seq, t, status, &pipeline, k, [frames, bad])
+                    let mut line = frame_json(seq, t, status, &pipeline, k, [frames, bad]);
+                    if let Some(recorder) = recorder.as_mut() {
+                        // Written and flushed before the line is printed: what is printed as
+                        // recorded survives a crash of this process.
+                        recorder.record(seq, t, &values, Some(&line["touches"]))?;
+                        line["recorded"] = true.into();
+                    }
+                    line
                 }
             },
         };
@@ -190,6 +224,28 @@ fn start_source(
     if let Some(path) = args.source.strip_prefix("file:") {
         let path = PathBuf::from(path);
         let text = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        if text.starts_with(br#"{"format":"eitskin-recording""#) {
+            let recording = read_recording(&path)?;
+            if let Some(line) = recording.skipped.torn_tail {
+                eprintln!("{}: the last record (line {line}) is torn and skipped", path.display());
+            }
+            for c in &recording.skipped.corrupt {
+                eprintln!("{}: line {} is damaged and skipped: {:?}", path.display(), c.line, c.damage);
+            }
+            let speed = if args.fast || args.rate <= 0.0 { Speed::AsFastAsPossible } else { Speed::Recorded };
+            return Ok(std::thread::spawn(move || {
+                let mut pace = Pace::new(speed);
+                let start = Instant::now();
+                for record in recording.records.into_iter().take(limit.min(usize::MAX as u64) as usize) {
+                    std::thread::sleep(pace.delay(record.t_s, start.elapsed()));
+                    let item = Acquired::Frame { seq: record.seq, t: record.t_s, values: record.values };
+                    if tx.send(item).is_err() {
+                        break;
+                    }
+                }
+                Ok(())
+            }));
+        }
         return Ok(std::thread::spawn(move || {
             let mut decoder = LinesDecoder::new(measurements);
             let mut events = Vec::new();
@@ -217,7 +273,49 @@ fn start_source(
             Ok(())
         }));
     }
-    bail!("--source {:?}: expected sim, sim:SCRIPT or file:PATH", args.source)
+    if args.source.starts_with("serial:") {
+        let (path, baud) = parse_serial_spec(&args.source)?;
+        let codec = args.codec;
+        let decoder = move || -> Box<dyn Decoder + Send> {
+            match codec {
+                Codec::Lines => Box::new(LinesDecoder::new(measurements)),
+                Codec::Binary => Box::new(BinaryDecoder::new(measurements)),
+            }
+        };
+        let mut port = SerialSource::open(&path, baud, decoder)?;
+        return Ok(std::thread::spawn(move || {
+            let start = Instant::now();
+            let mut events = Vec::new();
+            let mut sent = 0u64;
+            while sent < limit {
+                events.clear();
+                port.poll(&mut events);
+                for event in events.drain(..) {
+                    let item = match event {
+                        SourceEvent::Frame { frame, received } => {
+                            sent += 1;
+                            let t = received.saturating_duration_since(start).as_secs_f64();
+                            Acquired::Frame { seq: frame.seq, t, values: frame.values }
+                        }
+                        SourceEvent::Bad(b) => Acquired::Bad { seq: b.seq(), reason: b.to_string() },
+                        SourceEvent::Disconnected { path, error } => Acquired::Port {
+                            event: "disconnected",
+                            detail: format!("{} disconnected ({error}); reopening", path.display()),
+                        },
+                        SourceEvent::Reconnected { path, outage } => Acquired::Port {
+                            event: "reconnected",
+                            detail: format!("{} is back after {:.2} s", path.display(), outage.as_secs_f64()),
+                        },
+                    };
+                    if tx.send(item).is_err() {
+                        return Ok(());
+                    }
+                }
+            }
+            Ok(())
+        }));
+    }
+    bail!("--source {:?}: expected sim, sim:SCRIPT, file:PATH or serial:PATH[@BAUD]", args.source)
 }
 
 /// Sleeps until frame `next` is due at `period` per frame since `start` (no wait without a period).

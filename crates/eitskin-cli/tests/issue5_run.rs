@@ -75,3 +75,125 @@ fn a_file_with_bad_lines_reports_each_and_goes_on() {
     assert!(events[1]["reason"].as_str().unwrap().contains("not a finite number"), "{:?}", events[1]);
     assert_eq!(frames[3]["counters"]["bad"], 2);
 }
+
+#[test]
+fn a_recording_replays_to_the_same_touches() {
+    let dir = scratch("replay");
+    let script = dir.join("script.txt");
+    std::fs::write(&script, "0.6 1.2 30 -60 10\n").unwrap();
+    let record = dir.join("run.jsonl");
+    let source = format!("sim:{}", script.display());
+    let live = lines(eitskin(&[
+        "run",
+        "--source",
+        &source,
+        "--frames",
+        "30",
+        "--fast",
+        "--triangles",
+        "1500",
+        "--record",
+        record.to_str().unwrap(),
+    ]));
+    assert!(live.iter().all(|l| l["recorded"] == true));
+    let replay_source = format!("file:{}", record.display());
+    let replayed = lines(eitskin(&["run", "--source", &replay_source, "--fast", "--triangles", "1500"]));
+    assert_eq!(replayed.len(), live.len());
+    for (a, b) in live.iter().zip(&replayed) {
+        assert_eq!((&a["seq"], &a["touches"]), (&b["seq"], &b["touches"]), "replay differs");
+    }
+    assert!(live.iter().any(|l| !l["touches"].as_array().unwrap().is_empty()), "the press was seen");
+}
+
+#[cfg(unix)]
+#[test]
+fn every_frame_reported_recorded_before_a_sigkill_is_in_the_file() {
+    use std::io::BufRead;
+    let dir = scratch("kill");
+    let record = dir.join("killed.jsonl");
+    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
+        .args(["run", "--source", "sim", "--rate", "200", "--triangles", "800", "--record", record.to_str().unwrap()])
+        .env("EITSKIN_CACHE", cache)
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    let mut reported = Vec::new();
+    while reported.len() < 40 && std::time::Instant::now() < deadline {
+        if let Ok(line) = rx.recv_timeout(std::time::Duration::from_millis(100)) {
+            let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+            if v["recorded"] == true {
+                reported.push(v["seq"].as_u64().unwrap());
+            }
+        }
+    }
+    child.kill().unwrap(); // SIGKILL on Unix
+    child.wait().unwrap();
+    assert!(reported.len() >= 40, "only {} frames reported before the deadline", reported.len());
+    let recording = eitskin_io::replay::read_recording(&record).unwrap();
+    let seqs: Vec<u64> = recording.records.iter().map(|r| r.seq).collect();
+    for seq in &reported {
+        assert!(seqs.contains(seq), "frame {seq} was reported recorded but is not in the file");
+    }
+    assert!(recording.skipped.corrupt.is_empty(), "{:?}", recording.skipped);
+}
+
+#[cfg(unix)]
+#[test]
+fn frames_from_a_real_pseudo_terminal_come_out_in_order_with_bad_ones_named() {
+    use serialport::SerialPort;
+    use std::io::{BufRead, Write};
+    let (mut master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
+    let path = slave.name().expect("the slave has a name");
+    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
+    let source = format!("serial:{path}");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
+        .args(["run", "--source", &source, "--frames", "8", "--reference-frames", "2", "--triangles", "800"])
+        .env("EITSKIN_CACHE", cache)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Write once the port is open: `run` says so on stderr.
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut said = String::new();
+    while !said.contains("reading serial:") {
+        said.clear();
+        assert!(stderr.read_line(&mut said).unwrap() > 0, "eitskin run ended before opening the port");
+    }
+    let good = |k: usize| vec![format!("{}", 150.0 + k as f64 * 1e-3); 120].join(",") + "\r\n";
+    let mut text = String::new();
+    for k in 0..4 {
+        text += &good(k);
+    }
+    text += "magnitudes: 1, 2, 3\r\n";
+    for k in 4..8 {
+        text += &good(k);
+    }
+    let bytes = text.into_bytes();
+    for chunk in bytes.chunks(333) {
+        master.write_all(chunk).unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let out: Vec<serde_json::Value> =
+        stdout.lines().map_while(Result::ok).map(|l| serde_json::from_str(&l).unwrap()).collect();
+    assert!(child.wait().unwrap().success());
+    let seqs: Vec<u64> = out.iter().filter(|l| l.get("event").is_none()).map(|l| l["seq"].as_u64().unwrap()).collect();
+    assert_eq!(seqs, vec![0, 1, 2, 3, 5, 6, 7, 8], "{out:?}");
+    let bad: Vec<&serde_json::Value> = out.iter().filter(|l| l["event"] == "bad").collect();
+    assert_eq!(bad.len(), 1);
+    assert_eq!(bad[0]["seq"], 4);
+    assert!(bad[0]["reason"].as_str().unwrap().contains("has 3 values, expected 120"));
+    drop(slave);
+}

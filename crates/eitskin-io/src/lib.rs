@@ -36,7 +36,10 @@ mod frame_file;
 mod mesh_file;
 mod protocol_file;
 mod reconstructor_file;
+pub mod recorder;
+pub mod replay;
 mod samples_file;
+pub mod source;
 mod spec_file;
 
 use std::path::{Path, PathBuf};
