@@ -93,6 +93,17 @@ impl Decoder for LinesDecoder {
     fn finish(&mut self, out: &mut Vec<Event>) {
         self.end_line(out);
     }
+
+    /// Reports a pending partial line as torn instead of decoding it.
+    fn abandon(&mut self, out: &mut Vec<Event>) {
+        if !self.line.iter().all(u8::is_ascii_whitespace) || self.length > self.line.len() {
+            out.push(Event::Bad(BadFrame::Torn { seq: self.seq, bytes: self.length }));
+            self.seq += 1;
+        }
+        self.line.clear();
+        self.length = 0;
+        self.cr = false;
+    }
 }
 
 /// Whether a byte separates two values.
@@ -140,6 +151,20 @@ mod tests {
 
     fn frame(seq: u64, values: &[f64]) -> Event {
         Event::Frame(Frame { seq, values: values.to_vec() })
+    }
+
+    #[test]
+    fn an_abandoned_line_is_torn_not_decoded() {
+        let mut decoder = LinesDecoder::new(2);
+        let mut out = Vec::new();
+        decoder.feed(b"1,2\n3,4", &mut out);
+        decoder.abandon(&mut out);
+        decoder.feed(b"5,6\n", &mut out);
+        assert_eq!(out.len(), 3);
+        assert_eq!(out[1], Event::Bad(BadFrame::Torn { seq: 1, bytes: 3 }));
+        assert!(matches!(&out[2], Event::Frame(f) if f.seq == 2 && f.values == [5.0, 6.0]));
+        decoder.abandon(&mut out);
+        assert_eq!(out.len(), 3, "nothing pending, nothing reported");
     }
 
     #[test]

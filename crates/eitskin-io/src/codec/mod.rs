@@ -112,6 +112,14 @@ pub enum BadFrame {
         /// How many frames were lost before this one.
         missing: u64,
     },
+    /// A frame cut short when the link went away (never decoded: its end is unknown).
+    #[error("frame {seq} was cut off after {bytes} bytes when the link went away, and is dropped")]
+    Torn {
+        /// Where in the stream it was.
+        seq: u64,
+        /// How many of its bytes had arrived.
+        bytes: usize,
+    },
     /// Bytes that belong to no frame.
     #[error(
         "{bytes} bytes were skipped while looking for the start of a frame; check the baud rate and the frame format"
@@ -131,7 +139,8 @@ impl BadFrame {
             | BadFrame::NotFinite { seq, .. }
             | BadFrame::TooLong { seq, .. }
             | BadFrame::Crc { seq, .. }
-            | BadFrame::Gap { seq, .. } => Some(*seq),
+            | BadFrame::Gap { seq, .. }
+            | BadFrame::Torn { seq, .. } => Some(*seq),
             BadFrame::Garbage { .. } => None,
         }
     }
@@ -146,6 +155,13 @@ pub trait Decoder {
     /// line ending, a torn binary frame). Does nothing by default.
     fn finish(&mut self, out: &mut Vec<Event>) {
         let _ = out;
+    }
+
+    /// The link broke: reports what is pending as cut off, never decoding it (a line cut
+    /// mid-number may still hold the right count of numbers). Defaults to [`Decoder::finish`],
+    /// right for decoders that never accept a partial frame.
+    fn abandon(&mut self, out: &mut Vec<Event>) {
+        self.finish(out);
     }
 }
 

@@ -314,7 +314,7 @@ impl SerialSource {
     /// the first attempt to reopen.
     fn disconnect(&mut self, error: String, out: &mut Vec<SourceEvent>) {
         let now = Instant::now();
-        self.decoder.finish(&mut self.decoded);
+        self.decoder.abandon(&mut self.decoded);
         hand_out(&mut self.decoded, now, out);
         self.decoder = (self.make_decoder)();
         self.link = Link::Down {
