@@ -137,13 +137,25 @@ pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScrat
     // The press direction as a sign, so the two passes below stay in f32 and vectorise.
     let sign = params.polarity.intensity(1.0) as f32;
 
-    // 1. The peak over the inside pixels, at least 0 (`f32::max` skips NaN).
-    let peak = image
-        .values
-        .iter()
-        .zip(&image.inside)
-        .fold(0.0_f32, |m, (&v, &inside)| if inside { m.max(sign * v) } else { m });
-    let peak = f64::from(peak);
+    // 1. The peak over the inside pixels, at least 0 (NaN never wins a comparison). Eight
+    //    independent running maxima, so the comparisons do not wait on each other.
+    let mut lanes = [0.0_f32; 8];
+    let values = image.values.chunks_exact(8).zip(image.inside.chunks_exact(8));
+    for (v, inside) in values {
+        for k in 0..8 {
+            let x = if inside[k] { sign * v[k] } else { 0.0 };
+            if x > lanes[k] {
+                lanes[k] = x;
+            }
+        }
+    }
+    let tail = image.values.len() - image.values.len() % 8;
+    for (&v, &inside) in image.values[tail..].iter().zip(&image.inside[tail..]) {
+        if inside && sign * v > lanes[0] {
+            lanes[0] = sign * v;
+        }
+    }
+    let peak = f64::from(lanes.iter().fold(0.0_f32, |m, &x| if x > m { x } else { m }));
     if peak <= 0.0 || peak < params.min_peak {
         return;
     }
@@ -153,7 +165,8 @@ pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScrat
     let cutoff = (params.threshold * peak) as f32;
     scratch.pending.clear();
     scratch.pending.extend(
-        image.values.iter().zip(&image.inside).map(|(&v, &inside)| inside && sign * v >= cutoff && sign * v > 0.0),
+        // `&`, not `&&`: no branches, so the pass vectorises.
+        image.values.iter().zip(&image.inside).map(|(&v, &inside)| inside & (sign * v >= cutoff) & (sign * v > 0.0)),
     );
     scratch.stack.clear();
     scratch.stack.reserve(n); // each pixel is pushed at most once, so the stack never grows past n
