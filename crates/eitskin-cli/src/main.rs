@@ -13,6 +13,7 @@ mod report;
 mod run;
 mod sensitivity;
 mod study;
+mod viewer;
 
 use std::path::PathBuf;
 

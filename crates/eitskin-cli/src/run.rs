@@ -3,14 +3,18 @@
 //!
 //! Acquisition runs on its own thread and hands frames over an unbounded channel, so a slow
 //! consumer never stalls it; processing writes every frame to the recorder before it prints.
+//! With `--viewer`, processing also offers each frame to the web viewer without waiting (see
+//! [`crate::viewer`]) and takes its commands (re-take the reference) between frames.
 
 use std::io::Write;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use eitskin::pipeline::{Pipeline, PipelineParams, Status};
+use eitskin::pseudo_array::PseudoArray;
 use eitskin::sim::{Script, VirtualSensor};
 use eitskin::{ReconstructorParams, SensorSpec};
 use eitskin_io::codec::{BinaryDecoder, Decoder, Event, LinesDecoder};
@@ -20,6 +24,7 @@ use eitskin_io::source::serial::{parse_serial_spec, SerialSource, SourceEvent};
 use serde_json::json;
 
 use crate::load;
+use crate::viewer::{self, Viewer};
 
 /// Flags of `eitskin run`.
 #[derive(Debug, clap::Args)]
@@ -60,6 +65,11 @@ pub struct Args {
     /// Record every frame and its touches to this file (append-only JSON lines, crash-safe).
     #[arg(long)]
     record: Option<PathBuf>,
+    /// Serve a live web page (image, 3-D view, touches, forces, counters) at ADDR (`HOST:PORT` or
+    /// `PORT`; port 0: any free one); 127.0.0.1:8765 without a value.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = viewer::DEFAULT_ADDR,
+          value_parser = viewer::parse_addr)]
+    viewer: Option<SocketAddr>,
 }
 
 /// The frame codec of a serial source.
@@ -105,14 +115,33 @@ pub fn run(args: Args) -> Result<()> {
         Some(path) => Some(Recorder::create(path, &Header::now(protocol.len(), protocol.description()))?),
         None => None,
     };
+    let k = 1.0 / spec.length_unit.metres();
+    let viewer = match args.viewer {
+        Some(addr) => {
+            let viewer = Viewer::start(addr, &viewer_setup(&spec, &pipeline, k)?)?;
+            eprintln!("eitskin run: viewer at http://{}/", viewer.addr());
+            Some(viewer)
+        }
+        None => None,
+    };
     let (tx, rx) = mpsc::channel();
     let acquisition = start_source(&args, &spec, tx)?;
     eprintln!("eitskin run: reading {}", args.source);
-    let k = 1.0 / spec.length_unit.metres();
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     let (mut frames, mut bad) = (0u64, 0u64);
     for item in rx {
+        for command in viewer.iter().flat_map(Viewer::commands) {
+            let line = match command {
+                viewer::Command::RetakeReference => {
+                    pipeline.retake_reference();
+                    json!({"event": "reference", "detail": "re-taking the reference, as the viewer asked"})
+                }
+            };
+            // A closed stdout is noticed, and ends the run, when the frame's line is printed.
+            let _ = writeln!(out, "{line}");
+            viewer.iter().for_each(|v| v.offer_event(&line));
+        }
         let line = match item {
             Acquired::Bad { seq, reason } => {
                 bad += 1;
@@ -127,6 +156,23 @@ pub fn run(args: Args) -> Result<()> {
                 Ok(status) => {
                     frames += 1;
                     let mut line = frame_json(seq, t, status, &pipeline, k, [frames, bad]);
+                    if let Some(viewer) = &viewer {
+                        let counters = viewer::Counters { frames, bad, viewer_dropped: viewer.dropped() };
+                        line["counters"]["viewer_dropped"] = counters.viewer_dropped.into();
+                        let referencing = match status {
+                            Status::Referencing { collected, needed } => Some([collected, needed]),
+                            Status::Processed => None,
+                        };
+                        viewer.offer_frame(&viewer::Frame {
+                            seq,
+                            t,
+                            status: line["status"].as_str().unwrap_or_default(),
+                            referencing,
+                            touches: &line["touches"],
+                            counters,
+                            image: &pipeline.image().values,
+                        });
+                    }
                     if let Some(recorder) = recorder.as_mut() {
                         // Written and flushed before the line is printed: what is printed as
                         // recorded survives a crash of this process.
@@ -137,6 +183,9 @@ pub fn run(args: Args) -> Result<()> {
                 }
             },
         };
+        if let (Some(viewer), Some(_)) = (&viewer, line.get("event")) {
+            viewer.offer_event(&line);
+        }
         // A closed stdout (the reader went away) ends the run.
         if writeln!(out, "{line}").and_then(|()| out.flush()).is_err() {
             break;
@@ -180,6 +229,35 @@ pub fn frame_json(
     };
     json!({"seq": seq, "t": t, "status": status, "touches": touches,
            "counters": {"frames": counters[0], "bad": counters[1]}})
+}
+
+/// What the viewer's page needs to draw frames, in the spec's units: the calibration's
+/// pseudo-array, or 5 × 5 units over the outline's box without one.
+fn viewer_setup(spec: &SensorSpec, pipeline: &Pipeline, k: f64) -> Result<viewer::Setup> {
+    let scale = |p: [f64; 2]| [p[0] * k, p[1] * k];
+    let default_array;
+    let array = match pipeline.pseudo_array() {
+        Some(array) => array,
+        None => {
+            default_array = PseudoArray::one_area_per_unit(spec.outline.bounds(), [5, 5])?;
+            &default_array
+        }
+    };
+    let image = pipeline.image();
+    let [lo, hi] = image.bounds;
+    let [glo, ghi] = array.bounds();
+    Ok(viewer::Setup {
+        unit: spec.length_unit.symbol(),
+        image_size: image.size,
+        image_bounds: [scale(lo), scale(hi)],
+        inside: image.inside.clone(),
+        outline: spec.outline.corners().into_iter().map(scale).collect(),
+        electrodes: spec.electrode_positions()?.iter().map(|e| scale(spec.outline.point_at(e.centre))).collect(),
+        grid: array.grid(),
+        grid_bounds: [scale(glo), scale(ghi)],
+        areas: (0..array.unit_count()).map(|u| array.area_of(u) + 1).collect(),
+        calibrated: pipeline.pseudo_array().is_some(),
+    })
 }
 
 /// Starts the acquisition thread for `args.source`.
