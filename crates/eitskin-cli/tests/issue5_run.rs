@@ -197,3 +197,102 @@ fn frames_from_a_real_pseudo_terminal_come_out_in_order_with_bad_ones_named() {
     assert!(bad[0]["reason"].as_str().unwrap().contains("has 3 values, expected 120"));
     drop(slave);
 }
+
+#[cfg(unix)]
+#[test]
+fn every_kind_of_bad_line_and_an_unplug_are_reported_and_the_stream_goes_on() {
+    use serialport::SerialPort;
+    use std::io::{BufRead, Write};
+    use std::time::{Duration, Instant};
+    let (master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
+    // serialport opens the pair without close-on-exec: keep the child from inheriting them, or
+    // it would hold the line up after the test pulls the board out.
+    for fd in [std::os::fd::AsRawFd::as_raw_fd(&master), std::os::fd::AsRawFd::as_raw_fd(&slave)] {
+        // SAFETY: fcntl on file descriptors this test owns.
+        unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
+    }
+    let (mut master, mut slave) = (Some(master), Some(slave));
+    let path = slave.as_ref().and_then(|s| s.name()).expect("the slave has a name");
+    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
+    let source = format!("serial:{path}");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
+        .args(["run", "--source", &source, "--reference-frames", "2", "--triangles", "800"])
+        .env("EITSKIN_CACHE", cache)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut said = String::new();
+    while !said.contains("reading serial:") {
+        said.clear();
+        assert!(stderr.read_line(&mut said).unwrap() > 0, "eitskin run ended before opening the port");
+    }
+    let (tx, rx) = std::sync::mpsc::channel();
+    let stdout = child.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let good = |k: usize| vec![format!("{}", 150.0 + k as f64 * 1e-3); 120].join(",");
+    let mut with = |k: usize, field: &str| {
+        let mut v: Vec<String> = good(k).split(',').map(String::from).collect();
+        v[7] = field.to_string();
+        v.join(",")
+    };
+    let lines = [
+        good(0),             // seq 0: reference
+        good(1),             // 1: reference
+        good(2),             // 2: imaged
+        "1,2,3".to_string(), // 3: wrong count
+        with(3, "x"),        // 4: not a number
+        with(4, "NaN"),      // 5: not finite
+        "1,".repeat(40_000), // 6: over-long (80 kB)
+    ];
+    let port = master.as_mut().unwrap();
+    for line in &lines {
+        port.write_all(line.as_bytes()).unwrap();
+        port.write_all(b"\r\n").unwrap();
+    }
+    let torn = good(5); // 7: arrives in two writes, must come out whole
+    port.write_all(&torn.as_bytes()[..100]).unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+    port.write_all(&torn.as_bytes()[100..]).unwrap();
+    port.write_all(b"\n").unwrap();
+
+    let mut out: Vec<serde_json::Value> = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let mut unplugged = false;
+    while Instant::now() < deadline && !out.iter().any(|l| l["event"] == "disconnected") {
+        if let Ok(line) = rx.recv_timeout(Duration::from_millis(100)) {
+            out.push(serde_json::from_str(&line).unwrap());
+        }
+        if !unplugged && out.iter().any(|l| l["seq"] == 7 && l.get("event").is_none()) {
+            std::thread::sleep(Duration::from_millis(100)); // let the last bytes be read
+            unplugged = true;
+            (master, slave) = (None, None); // the board is pulled out
+        }
+    }
+    child.kill().ok();
+    child.wait().ok();
+    assert!(master.is_none() && slave.is_none(), "the unplug happened");
+    let frames: Vec<u64> =
+        out.iter().filter(|l| l.get("event").is_none()).map(|l| l["seq"].as_u64().unwrap()).collect();
+    assert_eq!(frames, vec![0, 1, 2, 7], "{out:?}");
+    let reasons: Vec<(u64, String)> = out
+        .iter()
+        .filter(|l| l["event"] == "bad")
+        .map(|l| (l["seq"].as_u64().unwrap(), l["reason"].as_str().unwrap().to_string()))
+        .collect();
+    let expect = [(3, "has 3 values, expected 120"), (4, "\"x\""), (5, "not a finite number"), (6, "bytes long")];
+    assert_eq!(reasons.len(), expect.len(), "{reasons:?}");
+    for ((seq, reason), (want_seq, want)) in reasons.iter().zip(expect) {
+        assert_eq!(*seq, want_seq);
+        assert!(reason.contains(want), "seq {seq}: {reason:?} does not say {want:?}");
+    }
+    assert!(out.iter().any(|l| l["event"] == "disconnected"), "the unplug was not reported: {out:?}");
+    assert_eq!(out.iter().filter(|l| l.get("event").is_none()).last().unwrap()["counters"]["bad"], 4);
+}
