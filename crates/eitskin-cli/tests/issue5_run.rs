@@ -238,7 +238,7 @@ fn every_kind_of_bad_line_and_an_unplug_are_reported_and_the_stream_goes_on() {
         }
     });
     let good = |k: usize| vec![format!("{}", 150.0 + k as f64 * 1e-3); 120].join(",");
-    let mut with = |k: usize, field: &str| {
+    let with = |k: usize, field: &str| {
         let mut v: Vec<String> = good(k).split(',').map(String::from).collect();
         v[7] = field.to_string();
         v.join(",")
@@ -294,5 +294,5 @@ fn every_kind_of_bad_line_and_an_unplug_are_reported_and_the_stream_goes_on() {
         assert!(reason.contains(want), "seq {seq}: {reason:?} does not say {want:?}");
     }
     assert!(out.iter().any(|l| l["event"] == "disconnected"), "the unplug was not reported: {out:?}");
-    assert_eq!(out.iter().filter(|l| l.get("event").is_none()).last().unwrap()["counters"]["bad"], 4);
+    assert_eq!(out.iter().filter(|l| l.get("event").is_none()).next_back().unwrap()["counters"]["bad"], 4);
 }
