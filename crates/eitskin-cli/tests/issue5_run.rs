@@ -294,5 +294,5 @@ fn every_kind_of_bad_line_and_an_unplug_are_reported_and_the_stream_goes_on() {
         assert!(reason.contains(want), "seq {seq}: {reason:?} does not say {want:?}");
     }
     assert!(out.iter().any(|l| l["event"] == "disconnected"), "the unplug was not reported: {out:?}");
-    assert_eq!(out.iter().filter(|l| l.get("event").is_none()).next_back().unwrap()["counters"]["bad"], 4);
+    assert_eq!(out.iter().rfind(|l| l.get("event").is_none()).unwrap()["counters"]["bad"], 4);
 }
