@@ -200,21 +200,28 @@ fn frames_from_a_real_pseudo_terminal_come_out_in_order_with_bad_ones_named() {
 
 #[cfg(unix)]
 #[test]
-fn every_kind_of_bad_line_and_an_unplug_are_reported_and_the_stream_goes_on() {
+fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goes_on() {
     use serialport::SerialPort;
     use std::io::{BufRead, Write};
     use std::time::{Duration, Instant};
     let (master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
     // serialport opens the pair without close-on-exec: keep the child from inheriting them, or
     // it would hold the line up after the test pulls the board out.
-    for fd in [std::os::fd::AsRawFd::as_raw_fd(&master), std::os::fd::AsRawFd::as_raw_fd(&slave)] {
-        // SAFETY: fcntl on file descriptors this test owns.
-        unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
-    }
+    let close_on_exec = |port: &serialport::TTYPort| {
+        // SAFETY: fcntl on a file descriptor this test owns.
+        unsafe { libc::fcntl(std::os::fd::AsRawFd::as_raw_fd(port), libc::F_SETFD, libc::FD_CLOEXEC) };
+    };
+    close_on_exec(&master);
+    close_on_exec(&slave);
     let (mut master, mut slave) = (Some(master), Some(slave));
     let path = slave.as_ref().and_then(|s| s.name()).expect("the slave has a name");
     let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
-    let source = format!("serial:{path}");
+    // The port by a stable name, as udev's /dev/serial/by-id links: a new board comes back under it.
+    let dir = scratch("pty");
+    let link = dir.join("ttyEIT");
+    std::fs::remove_file(&link).ok();
+    std::os::unix::fs::symlink(&path, &link).unwrap();
+    let source = format!("serial:{}", link.display());
     let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
         .args(["run", "--source", &source, "--reference-frames", "2", "--triangles", "800"])
         .env("EITSKIN_CACHE", cache)
@@ -265,8 +272,9 @@ fn every_kind_of_bad_line_and_an_unplug_are_reported_and_the_stream_goes_on() {
 
     let mut out: Vec<serde_json::Value> = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(30);
-    let mut unplugged = false;
-    while Instant::now() < deadline && !out.iter().any(|l| l["event"] == "disconnected") {
+    let (mut unplugged, mut replugged) = (false, None);
+    let done = |out: &[serde_json::Value]| out.iter().filter(|l| l.get("event").is_none()).count() >= 6;
+    while Instant::now() < deadline && !done(&out) {
         if let Ok(line) = rx.recv_timeout(Duration::from_millis(100)) {
             out.push(serde_json::from_str(&line).unwrap());
         }
@@ -274,6 +282,16 @@ fn every_kind_of_bad_line_and_an_unplug_are_reported_and_the_stream_goes_on() {
             std::thread::sleep(Duration::from_millis(100)); // let the last bytes be read
             unplugged = true;
             (master, slave) = (None, None); // the board is pulled out
+            std::fs::remove_file(&link).unwrap();
+        }
+        if unplugged && replugged.is_none() && out.iter().any(|l| l["event"] == "disconnected") {
+            // A board is plugged back in under the same name and sends two frames.
+            let (mut board, port) = serialport::TTYPort::pair().unwrap();
+            close_on_exec(&board);
+            close_on_exec(&port);
+            std::os::unix::fs::symlink(port.name().unwrap(), &link).unwrap();
+            board.write_all(format!("{}\n{}\n", good(8), good(9)).as_bytes()).unwrap();
+            replugged = Some((board, port));
         }
     }
     child.kill().ok();
@@ -281,7 +299,11 @@ fn every_kind_of_bad_line_and_an_unplug_are_reported_and_the_stream_goes_on() {
     assert!(master.is_none() && slave.is_none(), "the unplug happened");
     let frames: Vec<u64> =
         out.iter().filter(|l| l.get("event").is_none()).map(|l| l["seq"].as_u64().unwrap()).collect();
-    assert_eq!(frames, vec![0, 1, 2, 7], "{out:?}");
+    // A new connection starts a new line count: the board's frames after the return are 0 and 1.
+    assert_eq!(frames, vec![0, 1, 2, 7, 0, 1], "{out:?}");
+    let reconnected = out.iter().position(|l| l["event"] == "reconnected").expect("the return is reported");
+    assert!(out.iter().position(|l| l["event"] == "disconnected").unwrap() < reconnected);
+    drop(replugged);
     let reasons: Vec<(u64, String)> = out
         .iter()
         .filter(|l| l["event"] == "bad")
@@ -295,4 +317,5 @@ fn every_kind_of_bad_line_and_an_unplug_are_reported_and_the_stream_goes_on() {
     }
     assert!(out.iter().any(|l| l["event"] == "disconnected"), "the unplug was not reported: {out:?}");
     assert_eq!(out.iter().rfind(|l| l.get("event").is_none()).unwrap()["counters"]["bad"], 4);
+    std::fs::remove_file(&link).ok();
 }
