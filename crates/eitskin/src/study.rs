@@ -17,7 +17,9 @@
 //!    inclusion, mapped over the sheet at setup) and one curve is fitted to peak ÷ S(centre);
 //!    and the contrast map, its extension to the image's nonlinearity: at every map point the
 //!    forward model gives the peak for a ladder of conductivity drops, a touch's peak is read
-//!    back as the drop d̂ that explains it at its centre, and one curve d̂(F) is fitted.
+//!    back as the drop d̂ that explains it at its centre, and one curve d̂(F) is fitted; read
+//!    from the touch's peak, from its volume (less noisy, smoother over the mesh), and from the
+//!    mean of the two.
 
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -199,6 +201,9 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     methods.push(continuous("continuous", &|peak, _, at| peak / map.sensitivity(at))?);
     methods.push(continuous("contrast map", &|peak, _, at| map.drop(peak, at, false))?);
     methods.push(continuous("contrast map (volume)", &|_, volume, at| map.drop(volume, at, true))?);
+    methods.push(continuous("contrast map (peak and volume)", &|peak, volume, at| {
+        0.5 * (map.drop(peak, at, false) + map.drop(volume, at, true))
+    })?);
 
     let found: Vec<(&Press, &Touch)> =
         validation.iter().zip(&validation_touches).filter_map(|(p, t)| t.as_ref().map(|t| (p, t))).collect();
