@@ -155,22 +155,8 @@ fn frames_from_a_real_pseudo_terminal_come_out_in_order_with_bad_ones_named() {
     use std::io::{BufRead, Write};
     let (mut master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
     let path = slave.name().expect("the slave has a name");
-    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
     let source = format!("serial:{path}");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
-        .args(["run", "--source", &source, "--frames", "8", "--reference-frames", "2", "--triangles", "800"])
-        .env("EITSKIN_CACHE", cache)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Write once the port is open: `run` says so on stderr.
-    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut said = String::new();
-    while !said.contains("reading serial:") {
-        said.clear();
-        assert!(stderr.read_line(&mut said).unwrap() > 0, "eitskin run ended before opening the port");
-    }
+    let (mut child, _stderr) = run_on_port(&source, &["--frames", "8"]);
     let good = |k: usize| vec![format!("{}", 150.0 + k as f64 * 1e-3); 120].join(",") + "\r\n";
     let mut text = String::new();
     for k in 0..4 {
@@ -215,26 +201,13 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
     close_on_exec(&slave);
     let (mut master, mut slave) = (Some(master), Some(slave));
     let path = slave.as_ref().and_then(|s| s.name()).expect("the slave has a name");
-    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
     // The port by a stable name, as udev's /dev/serial/by-id links: a new board comes back under it.
     let dir = scratch("pty");
     let link = dir.join("ttyEIT");
     std::fs::remove_file(&link).ok();
     std::os::unix::fs::symlink(&path, &link).unwrap();
     let source = format!("serial:{}", link.display());
-    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
-        .args(["run", "--source", &source, "--reference-frames", "2", "--triangles", "800"])
-        .env("EITSKIN_CACHE", cache)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut said = String::new();
-    while !said.contains("reading serial:") {
-        said.clear();
-        assert!(stderr.read_line(&mut said).unwrap() > 0, "eitskin run ended before opening the port");
-    }
+    let (mut child, _stderr) = run_on_port(&source, &[]);
     let (tx, rx) = std::sync::mpsc::channel();
     let stdout = child.stdout.take().unwrap();
     std::thread::spawn(move || {
@@ -318,4 +291,27 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
     assert!(out.iter().any(|l| l["event"] == "disconnected"), "the unplug was not reported: {out:?}");
     assert_eq!(out.iter().rfind(|l| l.get("event").is_none()).unwrap()["counters"]["bad"], 4);
     std::fs::remove_file(&link).ok();
+}
+
+/// Starts `eitskin run --source SOURCE` (reference of 2 frames, 800 triangles) and returns once
+/// it has opened the port, which it says on stderr; the stderr reader is kept open for it.
+#[cfg(unix)]
+fn run_on_port(source: &str, extra: &[&str]) -> (std::process::Child, std::io::BufReader<std::process::ChildStderr>) {
+    use std::io::BufRead;
+    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
+        .args(["run", "--source", source, "--reference-frames", "2", "--triangles", "800"])
+        .args(extra)
+        .env("EITSKIN_CACHE", cache)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut said = String::new();
+    while !said.contains("reading serial:") {
+        said.clear();
+        assert!(stderr.read_line(&mut said).unwrap() > 0, "eitskin run ended before opening the port");
+    }
+    (child, stderr)
 }

@@ -34,7 +34,7 @@ struct CalibrationJson {
     curves: Vec<CurveJson>,
 }
 
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CurveJson {
     a: f64,
@@ -43,6 +43,20 @@ struct CurveJson {
     r_squared: f64,
     force_range: [f64; 2],
     samples: usize,
+}
+
+impl From<&Curve> for CurveJson {
+    fn from(c: &Curve) -> CurveJson {
+        let Curve { a, b, c, r_squared, force_range, samples } = *c;
+        CurveJson { a, b, c, r_squared, force_range, samples }
+    }
+}
+
+impl From<&CurveJson> for Curve {
+    fn from(c: &CurveJson) -> Curve {
+        let CurveJson { a, b, c, r_squared, force_range, samples } = *c;
+        Curve { a, b, c, r_squared, force_range, samples }
+    }
 }
 
 /// A hex SHA-256 of what a calibration depends on: the spec (outline, electrodes, protocol).
@@ -63,18 +77,7 @@ pub fn calibration_to_json(spec: &SensorSpec, array: &PseudoArray, calibration: 
         spec_key: spec_key(spec)?,
         grid: array.grid(),
         areas: (0..array.unit_count()).map(|u| array.area_of(u) + 1).collect(),
-        curves: calibration
-            .curves
-            .iter()
-            .map(|c| CurveJson {
-                a: c.a,
-                b: c.b,
-                c: c.c,
-                r_squared: c.r_squared,
-                force_range: c.force_range,
-                samples: c.samples,
-            })
-            .collect(),
+        curves: calibration.curves.iter().map(CurveJson::from).collect(),
     };
     serde_json::to_string_pretty(&file).map_err(|e| Error::Json { path: None, message: e.to_string() })
 }
@@ -117,18 +120,7 @@ pub fn parse_calibration(text: &str, spec: &SensorSpec) -> Result<(PseudoArray, 
     if file.curves.len() != array.area_count() {
         return refuse("curves", format!("has {} curves for {} areas", file.curves.len(), array.area_count()));
     }
-    let curves = file
-        .curves
-        .iter()
-        .map(|c| Curve {
-            a: c.a,
-            b: c.b,
-            c: c.c,
-            r_squared: c.r_squared,
-            force_range: c.force_range,
-            samples: c.samples,
-        })
-        .collect();
+    let curves = file.curves.iter().map(Curve::from).collect();
     Ok((array, Calibration { curves }))
 }
 
