@@ -26,6 +26,7 @@ pub fn json(study: &StudyReport, params: &StudyParams, seconds: f64) -> Value {
         "validation_presses": study.validation.len(),
         "touches_found": study.validation_touches.iter().filter(|t| t.is_some()).count(),
         "mean_position_error_m": study.mean_position_error,
+        "mean_fit_position_error_m": study.mean_fit_position_error,
         "share_in_right_unit": study.right_unit,
         "methods": study.methods.iter().map(|m| json!({
             "name": m.name,
@@ -66,14 +67,17 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
         study.simulated_fits.iter().map(|c| c.r_squared).sum::<f64>() / study.simulated_fits.len().max(1) as f64;
     s += &format!("\nMean R² {mean_r2:.3} (paper: 0.99).\n\n");
     s += "## Calibration (Table 2)\n\nOurs: peak(F) = a·e^(−F/b) + c with the peak a positive magnitude, so our b > 0 where the paper's (signed conductivity) b < 0.\n\n";
-    s += "| area | a | b [N] | c | R² | forces [N] | samples | paper a | paper b | paper c | paper R² |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+    s += "The column R² (fitted press) is the same per-area fit on the drop of the press fitted to Δv (`eitskin::press_fit`) instead of the image's peak.\n\n";
+    s += "| area | a | b [N] | c | R² | R² (fitted press) | forces [N] | samples | paper a | paper b | paper c | paper R² |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    let fitted = study.methods.iter().find(|m| m.name.ends_with("(fitted press)"));
     if let Some(m) = study.methods.first() {
         for (i, c) in m.curves.iter().enumerate() {
+            let r2 = fitted.and_then(|f| f.curves.get(i)).map_or(String::new(), |f| format!("{:.3}", f.r_squared));
             let paper = PAPER_TABLE_2
                 .get(i)
                 .map_or("| | | | ".to_string(), |p| format!("| {} | {} | {:e} | {} ", p.0, p.1, p.2, p.3));
             s += &format!(
-                "| {} | {:.4e} | {:.3} | {:.4e} | {:.3} | {:.0}–{:.0} | {} {paper}|\n",
+                "| {} | {:.4e} | {:.3} | {:.4e} | {:.3} | {r2} | {:.0}–{:.0} | {} {paper}|\n",
                 i + 1,
                 c.a,
                 c.b,
@@ -88,10 +92,11 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
     s += "\n## Force and position on the validation presses (Fig. 12)\n\n";
     let found = study.validation_touches.iter().filter(|t| t.is_some()).count();
     s += &format!(
-        "{found} of {} validation presses gave a touch. Mean position error **{:.1} {u}** on a {:.0} {u} sheet; **{:.1} %** of touches in the pressed unit.\n\n",
+        "{found} of {} validation presses gave a touch. Mean position error **{:.1} {u}** on a {:.0} {u} sheet (of the fitted press: **{:.1} {u}**); **{:.1} %** of touches in the pressed unit.\n\n",
         study.validation.len(),
         study.mean_position_error * k,
         0.2 * k,
+        study.mean_fit_position_error * k,
         100.0 * study.right_unit
     );
     s += "| method | calibration samples | RMS error [N] | RMS [% of max force] | correlation | mean abs. error [N] |\n|---|---|---|---|---|---|\n";

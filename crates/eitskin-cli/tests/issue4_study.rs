@@ -65,8 +65,21 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
             rms(0)
         );
     }
+    // The R² bar, on the fitted press's drop: every area ≥ 0.95. (On the image peak
+    // the centre area falls short at this noise; the report shows both.)
+    let by_name = |name: &str| methods.iter().find(|m| m["name"] == name).unwrap_or_else(|| panic!("no {name}"));
+    for curve in by_name("pseudo-array 5×5 (fitted press)")["curves"].as_array().unwrap() {
+        assert!(curve["r_squared"].as_f64().unwrap() >= 0.95, "{curve}");
+    }
+    // The fitted press recovers the virtual gel's own law, drop = 0.9·(1 − e^(−F/5.54 N)).
+    let gel = &by_name("fitted press")["curves"][0];
+    let (a, b, c) = (gel["a"].as_f64().unwrap(), gel["b_newton"].as_f64().unwrap(), gel["c"].as_f64().unwrap());
+    assert!((a + 0.9).abs() < 0.05 && (c - 0.9).abs() < 0.05 && (b / 5.54 - 1.0).abs() < 0.05, "{gel}");
+    let fitted_position = json["mean_fit_position_error_m"].as_f64().unwrap();
+    assert!(fitted_position < 0.5 * position, "fitted {fitted_position} m, image {position} m");
     // The bar: a continuous calibration at most half the pseudo-array's RMS error.
-    let best = (2..methods.len()).map(rms).fold(f64::INFINITY, f64::min);
+    let continuous = (0..methods.len()).filter(|&k| !methods[k]["name"].as_str().unwrap().starts_with("pseudo-array"));
+    let best = continuous.map(rms).fold(f64::INFINITY, f64::min);
     assert!(best <= 0.5 * rms(0), "best continuous method {best} N against pseudo-array {} N", rms(0));
 
     // calibrate + evaluate on the samples the study wrote give the study's 5×5 result.

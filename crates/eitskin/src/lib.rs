@@ -45,6 +45,7 @@ pub mod image;
 pub mod inverse;
 pub mod mesh;
 pub mod pipeline;
+pub mod press_fit;
 pub mod protocol;
 pub mod pseudo_array;
 pub mod sensitivity;

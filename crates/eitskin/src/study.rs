@@ -27,6 +27,7 @@ use rand::{RngExt, SeedableRng};
 use crate::calibration::{force_errors, Calibration, Curve, ForceErrors, Sample};
 use crate::conductivity::Inclusion;
 use crate::inverse::{Reconstructor, ReconstructorParams};
+use crate::press_fit::{PressFit, PressModel, PressModelParams, PressScratch};
 use crate::pseudo_array::PseudoArray;
 use crate::sensitivity::{along_x, peaks, strongest_touches};
 use crate::sim::{Press, SimParams, VirtualSensor};
@@ -97,8 +98,12 @@ pub struct StudyReport {
     pub validation: Vec<Press>,
     /// The strongest touch of each validation frame, if any.
     pub validation_touches: Vec<Option<Touch>>,
+    /// The press fitted to each validation frame from its strongest touch, if any.
+    pub validation_fits: Vec<Option<PressFit>>,
     /// Mean distance from touch centre to press centre, in m.
     pub mean_position_error: f64,
+    /// Mean distance from fitted press centre to press centre, in m.
+    pub mean_fit_position_error: f64,
     /// Share of validation touches placed in the unit of the press (0–1).
     pub right_unit: f64,
     /// The force methods, the faithful pseudo-array first.
@@ -125,7 +130,12 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     let fine = PseudoArray::by_symmetry(&spec.outline, &electrodes, [params.fine_grid; 2])?;
     let [lo, hi] = spec.outline.bounds();
     let side = hi[0] - lo[0];
-    let mut chain = Chain::new(&recon, &mut skin, params.repeats)?;
+    let press_model = PressModel::new(
+        &model,
+        spec.conductivity,
+        &PressModelParams { radius: params.sim.hydrogel.indenter_radius, ..PressModelParams::default() },
+    )?;
+    let mut chain = Chain::new(&recon, &press_model, &mut skin, params.repeats)?;
 
     progress("location dependence (Fig. 3c)", 0, 1);
     let (radius, half) = (0.05 * side, 0.5 * spec.conductivity);
@@ -164,24 +174,38 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
             Press { position, force: rng.random_range(0.0..params.max_force) }
         })
         .collect();
-    let validation_touches = chain.validation(&validation, progress)?;
+    let (validation_touches, validation_fits) = chain.validation(&validation, progress)?;
 
     progress("continuous calibration: sensitivity and contrast maps", 0, 1);
     let map = ContrastMap::new(spec, &model, &recon, params.sensitivity_map)?;
 
     let truth: Vec<f64> = validation.iter().map(|p| p.force).collect();
     let mut methods = Vec::new();
-    for (name, division, samples) in [
-        (format!("pseudo-array {0}×{0}", params.grid), &array, &coarse_samples),
-        (format!("pseudo-array {0}×{0}", params.fine_grid), &fine, &fine_samples),
+    // Each validation press as (centre, strength) by the image's peak, or by the fitted press.
+    let by_peak: Vec<Option<([f64; 2], f64)>> =
+        validation_touches.iter().map(|t| t.map(|t| (t.centre, t.peak))).collect();
+    let by_fit: Vec<Option<([f64; 2], f64)>> = validation_touches
+        .iter()
+        .zip(&validation_fits)
+        .map(|(t, f)| t.map(|t| (f.map_or(t.centre, |f| f.centre), fitted_drop(*f))))
+        .collect();
+    for (name, division, samples, fitted) in [
+        (format!("pseudo-array {0}×{0}", params.grid), &array, &coarse_samples, false),
+        (format!("pseudo-array {0}×{0}", params.fine_grid), &fine, &fine_samples, false),
+        (format!("pseudo-array {0}×{0} (fitted press)", params.grid), &array, &coarse_samples, true),
     ] {
-        let per_area: Vec<Sample> =
-            samples.iter().map(|s| Sample { area: division.area_of(s.unit), force: s.force, peak: s.peak }).collect();
-        let calibration = Calibration::fit(&per_area, division.area_count())?;
-        let predicted: Vec<f64> = validation_touches
+        let per_area: Vec<Sample> = samples
             .iter()
-            .map(|t| match t.and_then(|t| division.unit_at(t.centre).map(|u| (u, t.peak))) {
-                Some((unit, peak)) => calibration.force(division.area_of(unit), peak).map_or(f64::NAN, |f| f.newtons),
+            .map(|s| {
+                let peak = if fitted { fitted_drop(s.fit) } else { s.peak };
+                Sample { area: division.area_of(s.unit), force: s.force, peak }
+            })
+            .collect();
+        let calibration = Calibration::fit(&per_area, division.area_count())?;
+        let predicted: Vec<f64> = if fitted { &by_fit } else { &by_peak }
+            .iter()
+            .map(|r| match r.and_then(|(centre, strength)| division.unit_at(centre).map(|u| (u, strength))) {
+                Some((unit, x)) => calibration.force(division.area_of(unit), x).map_or(f64::NAN, |f| f.newtons),
                 None => f64::NAN,
             })
             .collect();
@@ -204,6 +228,16 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     methods.push(continuous("contrast map (peak and volume)", &|peak, volume, at| {
         0.5 * (map.drop(peak, at, false) + map.drop(volume, at, true))
     })?);
+    // The fitted press: its drop is an estimate of the gel's own, the same anywhere, so one curve.
+    let forces: Vec<f64> = coarse_samples.iter().map(|s| s.force).collect();
+    let drops: Vec<f64> = coarse_samples.iter().map(|s| fitted_drop(s.fit)).collect();
+    let curve = Curve::fit(0, &forces, &drops)?;
+    let predicted = validation_touches
+        .iter()
+        .zip(&validation_fits)
+        .map(|(t, f)| t.map_or(f64::NAN, |_| curve.force(fitted_drop(*f)).newtons))
+        .collect();
+    methods.push(method("fitted press".into(), vec![curve], forces.len(), predicted, &truth));
 
     let found: Vec<(&Press, &Touch)> =
         validation.iter().zip(&validation_touches).filter_map(|(p, t)| t.as_ref().map(|t| (p, t))).collect();
@@ -211,17 +245,30 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     let mean_position_error = found.iter().map(|(p, t)| distance(p, t)).sum::<f64>() / found.len().max(1) as f64;
     let right = found.iter().filter(|(p, t)| array.unit_at(p.position) == array.unit_at(t.centre)).count();
     let right_unit = right as f64 / found.len().max(1) as f64;
+    let fitted: Vec<f64> = validation
+        .iter()
+        .zip(&validation_fits)
+        .filter_map(|(p, f)| f.map(|f| (f.centre[0] - p.position[0]).hypot(f.centre[1] - p.position[1])))
+        .collect();
+    let mean_fit_position_error = fitted.iter().sum::<f64>() / fitted.len().max(1) as f64;
     Ok(StudyReport {
         profile,
         simulated_curves,
         simulated_fits,
         validation,
         validation_touches,
+        validation_fits,
         mean_position_error,
+        mean_fit_position_error,
         right_unit,
         methods,
         calibration: coarse_samples,
     })
+}
+
+/// The fitted drop; 0 where a touch was found but nothing in Δv looks like a press.
+fn fitted_drop(fit: Option<PressFit>) -> f64 {
+    fit.map_or(0.0, |f| f.drop)
 }
 
 fn method(name: String, curves: Vec<Curve>, samples: usize, predicted: Vec<f64>, truth: &[f64]) -> MethodResult {
@@ -271,11 +318,20 @@ pub struct StudySample {
     pub volume: f64,
     /// Centre of gravity of that touch, in m.
     pub centre: [f64; 2],
+    /// The press fitted to the frame from that touch, if any.
+    pub fit: Option<PressFit>,
 }
+
+/// Per validation press: the strongest touch, and the press fitted from it.
+type Readings = (Vec<Option<Touch>>, Vec<Option<PressFit>>);
 
 /// The measuring chain: virtual sensor → reference → image → strongest touch.
 struct Chain<'a> {
     recon: &'a Reconstructor,
+    press_model: &'a PressModel,
+    press_scratch: PressScratch,
+    fits: Vec<PressFit>,
+    difference: Vec<f64>,
     skin: &'a mut VirtualSensor,
     reference: Vec<f64>,
     image: crate::image::Image,
@@ -285,7 +341,12 @@ struct Chain<'a> {
 
 impl<'a> Chain<'a> {
     /// The chain with its reference: the mean of `frames` noisy frames of the untouched sheet.
-    fn new(recon: &'a Reconstructor, skin: &'a mut VirtualSensor, frames: usize) -> Result<Chain<'a>, SpecError> {
+    fn new(
+        recon: &'a Reconstructor,
+        press_model: &'a PressModel,
+        skin: &'a mut VirtualSensor,
+        frames: usize,
+    ) -> Result<Chain<'a>, SpecError> {
         skin.release();
         let clean = skin.clean_frame()?;
         let mut reference = vec![0.0; clean.len()];
@@ -296,14 +357,28 @@ impl<'a> Chain<'a> {
         }
         let image = recon.blank_image();
         let scratch = TouchScratch::new(image.size);
-        Ok(Chain { recon, skin, reference, image, scratch, touches: Vec::with_capacity(16) })
+        Ok(Chain {
+            recon,
+            press_model,
+            press_scratch: PressScratch::default(),
+            fits: Vec::with_capacity(1),
+            difference: vec![0.0; reference.len()],
+            skin,
+            reference,
+            image,
+            scratch,
+            touches: Vec::with_capacity(16),
+        })
     }
 
-    /// The strongest touch in a frame.
-    fn strongest(&mut self, frame: &[f64]) -> Result<Option<Touch>, SpecError> {
+    /// The strongest touch in a frame, and the press fitted from it.
+    fn strongest(&mut self, frame: &[f64]) -> Result<Option<(Touch, Option<PressFit>)>, SpecError> {
         self.recon.image_into(&self.reference, frame, &mut self.image)?;
         detect_into(&self.image, &TouchParams::default(), &mut self.scratch, &mut self.touches);
-        Ok(self.touches.first().copied())
+        let Some(touch) = self.touches.first().copied() else { return Ok(None) };
+        self.difference.iter_mut().zip(frame.iter().zip(&self.reference)).for_each(|(d, (v, r))| *d = v - r);
+        self.press_model.fit_into(&self.difference, &[touch.centre], &mut self.press_scratch, &mut self.fits);
+        Ok(Some((touch, self.fits.first().copied())))
     }
 
     /// Presses one unit per area of `division` (the first met in its lower-left 3×3 block) at
@@ -333,27 +408,29 @@ impl<'a> Chain<'a> {
             for _ in 0..repeats.max(1) {
                 let mut v = clean.clone();
                 self.skin.add_noise(&mut v);
-                if let Some(t) = self.strongest(&v)? {
-                    samples.push(StudySample { unit, force, peak: t.peak, volume: t.volume, centre: t.centre });
+                if let Some((t, fit)) = self.strongest(&v)? {
+                    samples.push(StudySample { unit, force, peak: t.peak, volume: t.volume, centre: t.centre, fit });
                 }
             }
         }
         Ok(samples)
     }
 
-    /// One noisy frame per validation press; the strongest touch of each.
-    fn validation(&mut self, presses: &[Press], progress: Progress<'_>) -> Result<Vec<Option<Touch>>, SpecError> {
+    /// One noisy frame per validation press; the strongest touch of each and its fitted press.
+    fn validation(&mut self, presses: &[Press], progress: Progress<'_>) -> Result<Readings, SpecError> {
         let cases: Vec<Vec<Press>> = presses.iter().map(|p| vec![*p]).collect();
-        let mut out = Vec::with_capacity(presses.len());
+        let (mut touches, mut fits) = (Vec::with_capacity(presses.len()), Vec::with_capacity(presses.len()));
         for (chunk, batch) in cases.chunks(50).enumerate() {
             let frames = self.skin.clean_frames(batch)?;
             for mut v in frames {
                 self.skin.add_noise(&mut v);
-                out.push(self.strongest(&v)?);
+                let found = self.strongest(&v)?;
+                touches.push(found.map(|(t, _)| t));
+                fits.push(found.and_then(|(_, f)| f));
             }
             progress("validation presses", (chunk * 50 + batch.len()).min(presses.len()), presses.len());
         }
-        Ok(out)
+        Ok((touches, fits))
     }
 }
 
