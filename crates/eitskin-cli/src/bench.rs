@@ -14,6 +14,7 @@ use std::time::Instant;
 use anyhow::Result;
 use eitskin::conductivity::{with_inclusions, Inclusion};
 use eitskin::pipeline::{Pipeline, PipelineParams};
+use eitskin::press_fit::{PressModel, PressModelParams, PressScratch};
 use eitskin::touch::{detect_into, TouchScratch};
 use eitskin::{Reconstructor, ReconstructorParams, TouchParams};
 use eitskin_io::codec::{Decoder, Event, LinesDecoder};
@@ -119,6 +120,16 @@ pub fn run(args: Args) -> Result<()> {
         detect_into(&image, &touch_params, &mut scratch, &mut touches);
         Ok(())
     })?;
+    let press_params = PressModelParams::default();
+    let (t_press_model, press_model) =
+        time(n.min(3), || Ok(PressModel::new(&model, background, &press_params).map_err(eitskin::SpecError::from)?))?;
+    let dv: Vec<f64> = frame.iter().zip(&values).map(|(v, r)| v - r).collect();
+    let starts: Vec<[f64; 2]> = touches.iter().map(|t| t.centre).collect();
+    let (mut press_scratch, mut fits) = (PressScratch::default(), Vec::with_capacity(16));
+    let (t_fit, ()) = time(frames, || {
+        press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits);
+        Ok(())
+    })?;
     let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
     let stages = [
         ("mesh", t_mesh),
@@ -129,8 +140,10 @@ pub fn run(args: Args) -> Result<()> {
         ("measurements", t_measure),
         ("jacobian", t_jacobian),
         ("reconstructor", t_recon),
+        ("press_model", t_press_model),
         ("frame_image", t_image),
         ("frame_touches", t_touches),
+        ("frame_press_fit", t_fit),
         ("replay_latency", replay_latency),
     ];
     let total: f64 = stages[..6].iter().map(|s| s.1).sum();
@@ -157,11 +170,11 @@ pub fn run(args: Args) -> Result<()> {
             println!("  {name:<14} {:>10.3} ms", t * 1e3);
         }
         println!("  {:<14} {:>10.3} ms  (forward setup chain)", "total", total * 1e3);
-        for (name, t) in &stages[6..8] {
+        for (name, t) in &stages[6..9] {
             println!("  {name:<14} {:>10.3} ms", t * 1e3);
         }
         println!("per frame, median of {frames} ({} pixels, {} touch):", image.values.len(), touches.len());
-        for (name, t) in &stages[8..] {
+        for (name, t) in &stages[9..] {
             println!("  {name:<14} {:>10.3} µs", t * 1e6);
         }
         println!("file replay through decoder, pipeline and JSON line: {replay_fps:.0} frames/s on one thread");
