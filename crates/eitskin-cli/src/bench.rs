@@ -127,8 +127,7 @@ pub fn run(args: Args) -> Result<()> {
     let starts: Vec<[f64; 2]> = touches.iter().map(|t| t.centre).collect();
     let (mut press_scratch, mut fits) = (PressScratch::default(), Vec::with_capacity(16));
     let (t_fit, ()) = time(frames, || {
-        press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits);
-        Ok(())
+        Ok(press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits).map_err(eitskin::SpecError::from)?)
     })?;
     let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
     let stages = [

@@ -287,22 +287,31 @@ impl PressModel {
         total > 0.0
     }
 
-    /// The best single press near `start` (m) for the difference `dv` (V), or `None` if
-    /// nothing there looks like a press.
-    pub fn fit(&self, dv: &[f64], start: [f64; 2]) -> Option<PressFit> {
+    /// The best single press near `start` (m) for the difference `dv` (V), `None` if nothing
+    /// there looks like a press; an error if `dv` has the wrong length.
+    pub fn fit(&self, dv: &[f64], start: [f64; 2]) -> Result<Option<PressFit>, InverseError> {
         let mut scratch = PressScratch::default();
         let mut out = Vec::with_capacity(1);
-        self.fit_into(dv, &[start], &mut scratch, &mut out);
-        out.first().copied()
+        self.fit_into(dv, &[start], &mut scratch, &mut out)?;
+        Ok(out.first().copied())
     }
 
     /// Fits one press per starting point (m, at most 16) to `dv` (V), each searched near its
     /// start, into `out` (cleared; starts where nothing looks like a press are left out).
-    /// Allocates nothing once `scratch` and `out` have grown.
-    pub fn fit_into(&self, dv: &[f64], starts: &[[f64; 2]], scratch: &mut PressScratch, out: &mut Vec<PressFit>) {
+    /// Allocates nothing once `scratch` and `out` have grown. Non-finite values in `dv` find
+    /// no press; a `dv` of the wrong length is an error.
+    pub fn fit_into(
+        &self,
+        dv: &[f64],
+        starts: &[[f64; 2]],
+        scratch: &mut PressScratch,
+        out: &mut Vec<PressFit>,
+    ) -> Result<(), InverseError> {
         out.clear();
         let m = self.measurements;
-        assert_eq!(dv.len(), m, "Δv must have one value per measurement");
+        if dv.len() != m {
+            return Err(InverseError::FrameLength { expected: m, got: dv.len() });
+        }
         let k = starts.len();
         scratch.residual.resize(m, 0.0);
         scratch.response.resize(m, 0.0);
@@ -330,6 +339,7 @@ impl PressModel {
             }
         }
         out.extend(fits.iter().take(k).flatten());
+        Ok(())
     }
 
     /// The score (gᵀΔv)² / gᵀg of grid point `j` for a press (gᵀΔv > 0), or `None`.
@@ -430,12 +440,12 @@ mod tests {
         for centre in [[0.0, 0.0], [0.05, -0.03], [-0.07, 0.06]] {
             // Small drop: the linear model holds, contrast = drop.
             let start = [centre[0] + 0.01, centre[1] - 0.008];
-            let fit = model.fit(&dv(&[(centre, 0.05)]), start).unwrap();
+            let fit = model.fit(&dv(&[(centre, 0.05)]), start).unwrap().unwrap();
             assert!(distance(fit.centre, centre) < 2e-3, "{centre:?}: found at {:?}", fit.centre);
             assert!((fit.contrast / 0.05 - 1.0).abs() < 0.1, "{centre:?}: contrast {}", fit.contrast);
             assert!((fit.drop / 0.05 - 1.0).abs() < 0.1, "{centre:?}: drop {}", fit.drop);
             // Strong drop: the response saturates, the contrast overshoots, the ladder undoes it.
-            let fit = model.fit(&dv(&[(centre, 0.8)]), start).unwrap();
+            let fit = model.fit(&dv(&[(centre, 0.8)]), start).unwrap().unwrap();
             assert!(distance(fit.centre, centre) < 3e-3, "{centre:?}: found at {:?}", fit.centre);
             assert!(fit.contrast > 1.2 * 0.8, "{centre:?}: contrast {}", fit.contrast);
             assert!((fit.drop - 0.8).abs() < 0.05, "{centre:?}: drop {}", fit.drop);
@@ -448,7 +458,7 @@ mod tests {
         let presses = [([-0.05, -0.05], 0.5), ([0.05, 0.04], 0.3)];
         let starts = [[-0.042, -0.055], [0.045, 0.048]];
         let mut out = Vec::new();
-        model.fit_into(&dv(&presses), &starts, &mut PressScratch::default(), &mut out);
+        model.fit_into(&dv(&presses), &starts, &mut PressScratch::default(), &mut out).unwrap();
         assert_eq!(out.len(), 2);
         // Far-apart presses superpose: what is left is the linear model's, not the physics'.
         let (a, b, ab) = (dv(&presses[..1]), dv(&presses[1..]), dv(&presses));
@@ -464,7 +474,15 @@ mod tests {
         }
         // Nothing but a rise in conductivity: no press.
         let rise: Vec<f64> = dv(&[([0.0, 0.0], 0.5)]).iter().map(|x| -x).collect();
-        assert_eq!(model.fit(&rise, [0.0, 0.0]), None);
+        assert_eq!(model.fit(&rise, [0.0, 0.0]), Ok(None));
+        // A wrong length is an error, a NaN finds nothing.
+        assert!(matches!(
+            model.fit(&rise[1..], [0.0, 0.0]),
+            Err(InverseError::FrameLength { expected: 120, got: 119 })
+        ));
+        let mut nan = dv(&presses);
+        nan[3] = f64::NAN;
+        assert_eq!(model.fit(&nan, [0.0, 0.0]), Ok(None));
     }
 
     #[test]
@@ -484,7 +502,7 @@ mod tests {
             skin.add_noise(&mut v);
             let touch = detect(&recon.image(&v_ref, &v).unwrap(), &TouchParams::default())[0];
             let dv: Vec<f64> = v.iter().zip(&v_ref).map(|(v, r)| v - r).collect();
-            drops.push(press_model.fit(&dv, touch.centre).unwrap().drop);
+            drops.push(press_model.fit(&dv, touch.centre).unwrap().unwrap().drop);
             peaks.push(touch.peak);
         }
         let spread = |x: &[f64]| {

@@ -377,7 +377,7 @@ impl<'a> Chain<'a> {
         detect_into(&self.image, &TouchParams::default(), &mut self.scratch, &mut self.touches);
         let Some(touch) = self.touches.first().copied() else { return Ok(None) };
         self.difference.iter_mut().zip(frame.iter().zip(&self.reference)).for_each(|(d, (v, r))| *d = v - r);
-        self.press_model.fit_into(&self.difference, &[touch.centre], &mut self.press_scratch, &mut self.fits);
+        self.press_model.fit_into(&self.difference, &[touch.centre], &mut self.press_scratch, &mut self.fits)?;
         Ok(Some((touch, self.fits.first().copied())))
     }
 
