@@ -19,12 +19,17 @@ const FORMAT: u32 = 1;
 
 /// The cache key: SHA-256 of the spec, protocol patterns, mesh settings and parameters.
 pub fn cache_key(spec: &SensorSpec, params: &ReconstructorParams) -> Result<[u8; 32], Error> {
+    key_of(spec, &format!("{params:?}"))
+}
+
+/// SHA-256 of this crate's version, the spec, its protocol patterns, its mesh settings and `extra`.
+pub(crate) fn key_of(spec: &SensorSpec, extra: &str) -> Result<[u8; 32], Error> {
     let mut hash = Sha256::new();
     hash.update(env!("CARGO_PKG_VERSION"));
     hash.update(crate::spec_to_toml(spec));
     // Custom protocols are not in the TOML: hash the patterns themselves.
     hash.update(format!("{:?}", spec.protocol()?));
-    hash.update(format!("{:?} {:?}", spec.mesh, params));
+    hash.update(format!("{:?} {extra}", spec.mesh));
     Ok(hash.finalize().into())
 }
 
@@ -112,18 +117,19 @@ pub fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<Reconstructor> {
     Reconstructor::from_parts(params, Image::new(size, bounds, inside), matrix)
 }
 
-struct Reader<'a>(&'a [u8]);
+/// Reads little-endian values off the front of a byte slice; `None` once it runs out.
+pub(crate) struct Reader<'a>(pub(crate) &'a [u8]);
 
 impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+    pub(crate) fn take(&mut self, n: usize) -> Option<&'a [u8]> {
         let (head, tail) = self.0.split_at_checked(n)?;
         self.0 = tail;
         Some(head)
     }
-    fn u32(&mut self) -> Option<u32> {
+    pub(crate) fn u32(&mut self) -> Option<u32> {
         self.take(4)?.try_into().ok().map(u32::from_le_bytes)
     }
-    fn f64(&mut self) -> Option<f64> {
+    pub(crate) fn f64(&mut self) -> Option<f64> {
         self.take(8)?.try_into().ok().map(f64::from_le_bytes)
     }
 }

@@ -101,6 +101,31 @@ pub struct PressModel {
     ladder: Vec<[f64; LADDER.len()]>,
 }
 
+/// A [`PressModel`] as plain data, for saving and loading it (`eitskin-io` caches it).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PressTable {
+    /// First grid point `[x, y]`, in m.
+    pub lo: [f64; 2],
+    /// Spacing of the response grid, in m.
+    pub spacing: f64,
+    /// Points of the response grid `[nx, ny]`, row-major from `lo`.
+    pub dims: [usize; 2],
+    /// Values per response.
+    pub measurements: usize,
+    /// Indenter radius, in m.
+    pub radius: f64,
+    /// Search distance from a starting point, in m.
+    pub search: f64,
+    /// Responses (V), `measurements` per grid point; zero outside the outline.
+    pub responses: Vec<f64>,
+    /// Spacing of the ladder's coarse grid (same `lo`), in m.
+    pub coarse_spacing: f64,
+    /// Points of the coarse grid `[nx, ny]`.
+    pub coarse_dims: [usize; 2],
+    /// Per coarse point, the contrast fitted to each drop of [`PressModel::LADDER`]; NaN outside.
+    pub ladder: Vec<[f64; 9]>,
+}
+
 /// One fitted press.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PressFit {
@@ -143,6 +168,54 @@ pub struct PressScratch {
 const SWEEPS: usize = 3;
 
 impl PressModel {
+    /// The conductivity drops (fractions of the background) of the ladder.
+    pub const LADDER: [f64; 9] = LADDER;
+
+    /// The model as plain data.
+    pub fn table(&self) -> PressTable {
+        PressTable {
+            lo: self.grid.lo,
+            spacing: self.grid.spacing,
+            dims: self.grid.dims,
+            measurements: self.measurements,
+            radius: self.radius,
+            search: self.search,
+            responses: self.responses.clone(),
+            coarse_spacing: self.coarse.spacing,
+            coarse_dims: self.coarse.dims,
+            ladder: self.ladder.clone(),
+        }
+    }
+
+    /// The model from its plain data; `None` if the sizes disagree or a length is not positive.
+    pub fn from_table(table: PressTable) -> Option<PressModel> {
+        let PressTable {
+            lo,
+            spacing,
+            dims,
+            measurements,
+            radius,
+            search,
+            responses,
+            coarse_spacing,
+            coarse_dims,
+            ladder,
+        } = table;
+        let grid = Grid { lo, spacing, dims };
+        let coarse = Grid { lo, spacing: coarse_spacing, dims: coarse_dims };
+        let positive = [spacing, radius, search, coarse_spacing].iter().all(|x| *x > 0.0 && x.is_finite());
+        let consistent = positive
+            && dims.iter().chain(&coarse_dims).all(|&n| n >= 2)
+            && measurements > 0
+            && responses.len() == grid.len().checked_mul(measurements)?
+            && ladder.len() == coarse.len();
+        if !consistent {
+            return None;
+        }
+        let norms = responses.chunks_exact(measurements).map(|g| g.iter().map(|x| x * x).sum()).collect();
+        Some(PressModel { grid, measurements, radius, search, responses, norms, coarse, ladder })
+    }
+
     /// Tabulates the responses of `model` linearised at the homogeneous `background` (S/m).
     pub fn new(model: &ForwardModel, background: f64, params: &PressModelParams) -> Result<PressModel, InverseError> {
         if !(params.radius > 0.0 && params.radius.is_finite()) {
@@ -450,6 +523,24 @@ mod tests {
             assert!(fit.contrast > 1.2 * 0.8, "{centre:?}: contrast {}", fit.contrast);
             assert!((fit.drop - 0.8).abs() < 0.05, "{centre:?}: drop {}", fit.drop);
         }
+    }
+
+    #[test]
+    fn a_model_survives_its_table() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let model = PressModel::new(&spec.forward_model().unwrap(), 1.0, &PressModelParams::default()).unwrap();
+        let back = PressModel::from_table(model.table()).unwrap();
+        // The ladder holds NaN outside the outline, so compare bits.
+        let bits = |m: &PressModel| m.ladder.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(
+            (&back.responses, &back.norms, back.grid, back.coarse),
+            (&model.responses, &model.norms, model.grid, model.coarse)
+        );
+        assert_eq!(bits(&back), bits(&model));
+        let mut torn = model.table();
+        torn.responses.pop();
+        assert_eq!(PressModel::from_table(torn), None);
     }
 
     #[test]

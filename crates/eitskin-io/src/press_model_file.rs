@@ -1,0 +1,121 @@
+//! The press-model cache: a built [`PressModel`] (its response table and ladder, seconds of
+//! forward solves) saved to a file named by a hash of the spec, protocol, mesh settings, the
+//! model's parameters and this crate's version, so a second start loads it.
+//!
+//! File layout (little-endian): `EITSKINP`, format version (u32), the 32-byte key, lo (2 × f64),
+//! spacing (f64), dims (2 × u32), measurements (u32), radius, search (f64), the responses
+//! (points × measurements f64), coarse spacing (f64), coarse dims (2 × u32), the ladder
+//! (coarse points × 9 f64). A file that does not match is rebuilt.
+
+use std::path::{Path, PathBuf};
+
+use eitskin::press_fit::{PressModel, PressModelParams, PressTable};
+use eitskin::SensorSpec;
+
+use crate::reconstructor_file::{key_of, Reader};
+use crate::Error;
+
+const MAGIC: &[u8; 8] = b"EITSKINP";
+const FORMAT: u32 = 1;
+
+/// The file a press model for `spec` and `params` is cached in, under `dir`.
+pub fn press_model_path(dir: &Path, spec: &SensorSpec, params: &PressModelParams) -> Result<PathBuf, Error> {
+    let key = key_of(spec, &format!("press model {params:?}"))?;
+    let hex: String = key[..12].iter().map(|b| format!("{b:02x}")).collect();
+    Ok(dir.join(format!("press-model-{hex}.bin")))
+}
+
+/// The cached press model if `dir` holds a valid one, else builds it, saves it (best effort)
+/// and returns it; the flag says whether it came from the cache.
+pub fn load_or_build_press_model(
+    dir: &Path,
+    spec: &SensorSpec,
+    params: &PressModelParams,
+) -> Result<(PressModel, bool), Error> {
+    let key = key_of(spec, &format!("press model {params:?}"))?;
+    let path = press_model_path(dir, spec, params)?;
+    if let Some(model) = std::fs::read(&path).ok().and_then(|bytes| decode_press_model(&bytes, &key)) {
+        return Ok((model, true));
+    }
+    let model = PressModel::new(&spec.forward_model()?, spec.conductivity, params).map_err(eitskin::SpecError::from)?;
+    // A cache that cannot be written costs time, not correctness.
+    let _ = std::fs::create_dir_all(dir).and_then(|()| std::fs::write(&path, encode_press_model(&model, &key)));
+    Ok((model, false))
+}
+
+/// The bytes of a cache file.
+pub fn encode_press_model(model: &PressModel, key: &[u8; 32]) -> Vec<u8> {
+    let t = model.table();
+    let mut out = Vec::with_capacity(256 + 8 * (t.responses.len() + 9 * t.ladder.len()));
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&FORMAT.to_le_bytes());
+    out.extend_from_slice(key);
+    let f64s = |out: &mut Vec<u8>, xs: &[f64]| xs.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+    let u32s =
+        |out: &mut Vec<u8>, ns: &[usize]| ns.iter().for_each(|&n| out.extend_from_slice(&(n as u32).to_le_bytes()));
+    f64s(&mut out, &[t.lo[0], t.lo[1], t.spacing]);
+    u32s(&mut out, &[t.dims[0], t.dims[1], t.measurements]);
+    f64s(&mut out, &[t.radius, t.search]);
+    f64s(&mut out, &t.responses);
+    f64s(&mut out, &[t.coarse_spacing]);
+    u32s(&mut out, &t.coarse_dims);
+    t.ladder.iter().for_each(|rungs| f64s(&mut out, rungs));
+    out
+}
+
+/// A press model from cache bytes, or `None` if they are not a complete file for `key`.
+pub fn decode_press_model(bytes: &[u8], key: &[u8; 32]) -> Option<PressModel> {
+    let mut r = Reader(bytes);
+    if r.take(8)? != MAGIC || r.u32()? != FORMAT || r.take(32)? != key {
+        return None;
+    }
+    let (lo, spacing) = ([r.f64()?, r.f64()?], r.f64()?);
+    let (dims, measurements) = ([r.u32()? as usize, r.u32()? as usize], r.u32()? as usize);
+    let (radius, search) = (r.f64()?, r.f64()?);
+    let values = dims[0].checked_mul(dims[1])?.checked_mul(measurements)?;
+    let responses = read_f64s(&mut r, values)?;
+    let coarse_spacing = r.f64()?;
+    let coarse_dims = [r.u32()? as usize, r.u32()? as usize];
+    let rungs = read_f64s(&mut r, coarse_dims[0].checked_mul(coarse_dims[1])?.checked_mul(9)?)?;
+    if !r.0.is_empty() {
+        return None;
+    }
+    let ladder = rungs.chunks_exact(9).map(|c| std::array::from_fn(|k| c[k])).collect();
+    let table =
+        PressTable { lo, spacing, dims, measurements, radius, search, responses, coarse_spacing, coarse_dims, ladder };
+    PressModel::from_table(table)
+}
+
+fn read_f64s(r: &mut Reader<'_>, n: usize) -> Option<Vec<f64>> {
+    let raw = r.take(n.checked_mul(8)?)?;
+    Some(raw.chunks_exact(8).map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]])).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_saved_press_model_loads_back_and_a_torn_one_is_rebuilt() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let params = PressModelParams::default();
+        let dir = std::env::temp_dir().join(format!("eitskin-press-cache-{}", std::process::id()));
+        let (built, hit) = load_or_build_press_model(&dir, &spec, &params).unwrap();
+        assert!(!hit);
+        let (loaded, hit) = load_or_build_press_model(&dir, &spec, &params).unwrap();
+        assert!(hit, "the second start must come from the cache");
+        assert_eq!(loaded.table().responses, built.table().responses);
+        let dv: Vec<f64> = built.table().responses[..120].to_vec();
+        assert_eq!(loaded.fit(&dv, [0.0, 0.0]), built.fit(&dv, [0.0, 0.0]));
+
+        let path = press_model_path(&dir, &spec, &params).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() - 3]).unwrap();
+        let (_, hit) = load_or_build_press_model(&dir, &spec, &params).unwrap();
+        assert!(!hit, "a torn file is rebuilt");
+        let other = PressModelParams { radius: 0.005, ..params };
+        assert_ne!(press_model_path(&dir, &spec, &params).unwrap(), press_model_path(&dir, &spec, &other).unwrap());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
