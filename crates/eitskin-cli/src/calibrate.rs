@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use eitskin::calibration::{force_errors, Calibration, Sample};
+use eitskin::calibration::{force_errors, Calibration, Sample, Strength};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::touch::detect;
 use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
@@ -29,6 +29,19 @@ pub struct CalibrateArgs {
     /// Reference (no-touch) frame, needed when the samples hold raw frames.
     #[arg(long)]
     reference: Option<PathBuf>,
+    /// What the curves take as the touch's strength: the image's `peak`, or the `fitted-drop`
+    /// of the press fitted to Δv (needs raw frames).
+    #[arg(long, value_enum, default_value_t = StrengthArg::Peak)]
+    strength: StrengthArg,
+}
+
+/// `--strength` of `eitskin calibrate`.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum StrengthArg {
+    /// The peak of the touch's image (S/m), as the paper.
+    Peak,
+    /// The conductivity drop of the press fitted to Δv (fraction of the background).
+    FittedDrop,
 }
 
 /// Flags of `eitskin evaluate`.
@@ -51,14 +64,28 @@ pub struct EvaluateArgs {
 pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [args.grid; 2])?;
-    let samples = samples(&spec, &array, &args.samples, args.reference.as_deref())?;
-    let calibration = Calibration::fit(&samples, array.area_count())?;
+    let strength = match args.strength {
+        StrengthArg::Peak => Strength::Peak,
+        StrengthArg::FittedDrop => Strength::FittedDrop,
+    };
+    let samples = samples(&spec, &array, &args.samples, args.reference.as_deref(), strength)?;
+    let calibration = Calibration::fit_strength(&samples, array.area_count(), strength)?;
     std::fs::write(&args.out, eitskin_io::calibration_to_json(&spec, &array, &calibration)?)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    println!("{} samples, {} areas; peak(F) = a·e^(−F/b) + c:", samples.len(), array.area_count());
+    let (name, unit) = match strength {
+        Strength::Peak => ("peak", "[S/m]"),
+        Strength::FittedDrop => ("drop", "[1]"),
+    };
+    println!("{} samples, {} areas; {name}(F) = a·e^(−F/b) + c:", samples.len(), array.area_count());
     println!(
         "{:>5} {:>12} {:>10} {:>12} {:>7} {:>10} {:>8}",
-        "area", "a [S/m]", "b [N]", "c [S/m]", "R²", "F [N]", "samples"
+        "area",
+        format!("a {unit}"),
+        "b [N]",
+        format!("c {unit}"),
+        "R²",
+        "F [N]",
+        "samples"
     );
     for (k, c) in calibration.curves.iter().enumerate() {
         println!(
@@ -81,7 +108,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
 pub fn evaluate(args: EvaluateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
     let (array, calibration) = eitskin_io::read_calibration(&args.calibration, &spec)?;
-    let samples = samples(&spec, &array, &args.samples, args.reference.as_deref())?;
+    let samples = samples(&spec, &array, &args.samples, args.reference.as_deref(), calibration.strength)?;
     let mut saturated = 0;
     let mut predicted = Vec::with_capacity(samples.len());
     for s in &samples {
@@ -99,10 +126,24 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
     Ok(())
 }
 
-/// Each row as an area, force and peak: frames are imaged against the reference first.
-fn samples(spec: &SensorSpec, array: &PseudoArray, path: &Path, reference: Option<&Path>) -> Result<Vec<Sample>> {
+/// Each row as an area, force and strength: frames are imaged against the reference first (and
+/// for the fitted drop, a press is fitted from the strongest touch; none found is a drop of 0).
+fn samples(
+    spec: &SensorSpec,
+    array: &PseudoArray,
+    path: &Path,
+    reference: Option<&Path>,
+    strength: Strength,
+) -> Result<Vec<Sample>> {
     let rows = eitskin_io::read_samples(path, spec.length_unit.metres())?;
     let needs_frames = rows.iter().any(|r| matches!(r.measured, Measured::Frame(_)));
+    if strength == Strength::FittedDrop && rows.iter().any(|r| matches!(r.measured, Measured::Peak(_))) {
+        bail!("{}: a fitted-drop calibration needs each sample's raw frame, not its peak", path.display());
+    }
+    let press_model = match strength {
+        Strength::FittedDrop => Some(load::press_model(spec)?),
+        Strength::Peak => None,
+    };
     let imaging = if needs_frames {
         let Some(reference) = reference else { bail!("{} holds raw frames: give --reference FILE", path.display()) };
         let v_ref = eitskin_io::read_frame(reference)?;
@@ -133,7 +174,18 @@ fn samples(spec: &SensorSpec, array: &PseudoArray, path: &Path, reference: Optio
                 (Measured::Peak(p), _) => *p,
                 (Measured::Frame(v), Some((v_ref, recon))) => {
                     let image = recon.image(v_ref, v).with_context(|| format!("sample {}", k + 1))?;
-                    detect(&image, &TouchParams::default()).first().map_or(0.0, |t| t.peak)
+                    let touch = detect(&image, &TouchParams::default()).first().copied();
+                    match (&press_model, touch) {
+                        (None, touch) => touch.map_or(0.0, |t| t.peak),
+                        (Some(_), None) => 0.0,
+                        (Some(model), Some(t)) => {
+                            let dv: Vec<f64> = v.iter().zip(v_ref).map(|(v, r)| v - r).collect();
+                            model
+                                .fit(&dv, t.centre)
+                                .with_context(|| format!("sample {}", k + 1))?
+                                .map_or(0.0, |p| p.drop)
+                        }
+                    }
                 }
                 (Measured::Frame(_), None) => bail!("sample {} holds a raw frame: give --reference FILE", k + 1),
             };

@@ -32,7 +32,16 @@ pub fn inclusion(text: &str, spec: &SensorSpec) -> Result<Inclusion> {
     Ok(Inclusion { centre: [x * k, y * k], radius: r * k, conductivity: sigma })
 }
 
-/// Where precomputed reconstructors are cached: `$EITSKIN_CACHE`, else `$XDG_CACHE_HOME/eitskin`,
+/// The press model of `spec` (default indenter), from the cache when there is one.
+pub fn press_model(spec: &SensorSpec) -> anyhow::Result<eitskin::press_fit::PressModel> {
+    let params = eitskin::press_fit::PressModelParams::default();
+    Ok(match cache_dir() {
+        Some(dir) => eitskin_io::load_or_build_press_model(&dir, spec, &params)?.0,
+        None => eitskin::press_fit::PressModel::new(&spec.forward_model()?, spec.conductivity, &params)?,
+    })
+}
+
+/// Where precomputed reconstructors and press models are cached: `$EITSKIN_CACHE`, else `$XDG_CACHE_HOME/eitskin`,
 /// else `~/.cache/eitskin`; `None` when none of these is set.
 pub fn cache_dir() -> Option<std::path::PathBuf> {
     let var = |name| std::env::var_os(name).filter(|v| !v.is_empty()).map(std::path::PathBuf::from);

@@ -13,6 +13,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
+use eitskin::calibration::Strength;
 use eitskin::pipeline::{Pipeline, PipelineParams, Status};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::sim::{Script, VirtualSensor};
@@ -56,6 +57,10 @@ pub struct Args {
     /// A calibration (JSON, from `eitskin calibrate`): forces in N per touch.
     #[arg(long)]
     calibration: Option<PathBuf>,
+    /// Fit a press to Δv from each touch: its centre and conductivity drop (on by itself with a
+    /// fitted-drop calibration).
+    #[arg(long)]
+    fit: bool,
     /// Seed of the virtual sensor's noise and random presses.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -109,7 +114,11 @@ pub fn run(args: Args) -> Result<()> {
         baseline_rate: args.baseline_rate,
         ..PipelineParams::default()
     };
+    let fit = args.fit || calibration.as_ref().is_some_and(|(_, c)| c.strength == Strength::FittedDrop);
     let mut pipeline = Pipeline::new(recon, params, calibration);
+    if fit {
+        pipeline = pipeline.with_press_model(load::press_model(&spec)?);
+    }
     let protocol = spec.protocol()?;
     let mut recorder = match &args.record {
         Some(path) => Some(Recorder::create(path, &Header::now(protocol.len(), protocol.description()))?),
@@ -199,7 +208,8 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// The JSON line of a processed frame: touches (positions times `k`, i.e. in the spec's units;
-/// unit and area counted from 1; force in N) and the counters `[frames, bad]`.
+/// unit and area counted from 1; force in N; the fitted press's centre and drop, or null) and
+/// the counters `[frames, bad]`.
 pub fn frame_json(
     seq: u64,
     t: f64,
@@ -220,6 +230,7 @@ pub fn frame_json(
                 "area": t.area.map(|a| a + 1),
                 "force": t.force.map(|f| f.newtons),
                 "saturated": t.force.map(|f| f.saturated),
+                "press": t.press.map(|p| json!({"x": p.centre[0] * k, "y": p.centre[1] * k, "drop": p.drop})),
             })
         })
         .collect();

@@ -2,17 +2,19 @@
 //! to the sensor spec they were made for.
 //!
 //! ```json
-//! { "format": "eitskin-calibration", "version": 1, "spec_key": "…", "grid": [5, 5],
-//!   "areas": [6, 5, 3, …], "curves": [{ "a": …, "b": …, "c": …, "r_squared": …,
-//!   "force_range": [0, 15], "samples": 240 }, …] }
+//! { "format": "eitskin-calibration", "version": 2, "spec_key": "…", "strength": "peak",
+//!   "grid": [5, 5], "areas": [6, 5, 3, …], "curves": [{ "a": …, "b": …, "c": …,
+//!   "r_squared": …, "force_range": [0, 15], "samples": 240 }, …] }
 //! ```
 //! `areas` gives each unit's area, counting both from 1, units row-major from the bottom-left;
-//! curve k is area k + 1, peak(F) = a·e^(−F/b) + c with F in N and the peak in S/m. A file made
-//! for another spec (another `spec_key`) is refused.
+//! curve k is area k + 1, s(F) = a·e^(−F/b) + c with F in N and the strength s either the
+//! image's `"peak"` in S/m or the `"fitted drop"` of the press fitted to Δv (a fraction of the
+//! background). Version 1 files (no `strength`) are read as peak. A file made for another spec
+//! (another `spec_key`) is refused.
 
 use std::path::Path;
 
-use eitskin::calibration::{Calibration, Curve};
+use eitskin::calibration::{Calibration, Curve, Strength};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::SensorSpec;
 use serde::{Deserialize, Serialize};
@@ -21,7 +23,7 @@ use sha2::{Digest, Sha256};
 use crate::Error;
 
 const FORMAT: &str = "eitskin-calibration";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -29,6 +31,8 @@ struct CalibrationJson {
     format: String,
     version: u32,
     spec_key: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    strength: Option<String>,
     grid: [usize; 2],
     areas: Vec<usize>,
     curves: Vec<CurveJson>,
@@ -75,6 +79,7 @@ pub fn calibration_to_json(spec: &SensorSpec, array: &PseudoArray, calibration: 
         format: FORMAT.into(),
         version: VERSION,
         spec_key: spec_key(spec)?,
+        strength: Some(strength_name(calibration.strength).into()),
         grid: array.grid(),
         areas: (0..array.unit_count()).map(|u| array.area_of(u) + 1).collect(),
         curves: calibration.curves.iter().map(CurveJson::from).collect(),
@@ -95,9 +100,14 @@ pub fn parse_calibration(text: &str, spec: &SensorSpec) -> Result<(PseudoArray, 
     if file.format != FORMAT {
         return refuse("format", format!("is \"{}\", not \"{FORMAT}\": this is not a calibration file", file.format));
     }
-    if file.version != VERSION {
-        return refuse("version", format!("is {}, but this eitskin reads version {VERSION}", file.version));
+    if !(1..=VERSION).contains(&file.version) {
+        return refuse("version", format!("is {}, but this eitskin reads versions 1 to {VERSION}", file.version));
     }
+    let strength = match file.strength.as_deref() {
+        None | Some("peak") => Strength::Peak,
+        Some("fitted drop") => Strength::FittedDrop,
+        Some(other) => return refuse("strength", format!("is \"{other}\"; use \"peak\" or \"fitted drop\"")),
+    };
     let key = spec_key(spec)?;
     if file.spec_key != key {
         return refuse(
@@ -121,7 +131,15 @@ pub fn parse_calibration(text: &str, spec: &SensorSpec) -> Result<(PseudoArray, 
         return refuse("curves", format!("has {} curves for {} areas", file.curves.len(), array.area_count()));
     }
     let curves = file.curves.iter().map(Curve::from).collect();
-    Ok((array, Calibration { curves }))
+    Ok((array, Calibration { curves, strength }))
+}
+
+/// The file's name for a kind of strength.
+pub fn strength_name(strength: Strength) -> &'static str {
+    match strength {
+        Strength::Peak => "peak",
+        Strength::FittedDrop => "fitted drop",
+    }
 }
 
 #[cfg(test)]
@@ -158,7 +176,16 @@ mod tests {
         let mut denser = spec.clone();
         denser.mesh.triangles = 9000;
         assert!(parse_calibration(&text, &denser).is_ok(), "the mesh density is not part of the sensor");
-        let err = parse_calibration(&text.replace("\"version\": 1", "\"version\": 7"), &spec).unwrap_err();
-        assert!(err.to_string().contains("reads version 1"), "{err}");
+        let err = parse_calibration(&text.replace("\"version\": 2", "\"version\": 7"), &spec).unwrap_err();
+        assert!(err.to_string().contains("reads versions 1 to 2"), "{err}");
+        // Version 1 had no strength: its curves are of the peak.
+        let v1 = text.replace("\"version\": 2", "\"version\": 1").replace("\"strength\": \"peak\",", "");
+        assert_eq!(parse_calibration(&v1, &spec).unwrap().1, calibration);
+        // A fitted-drop calibration keeps its kind; an unknown kind is refused by name.
+        let drop = Calibration { strength: Strength::FittedDrop, ..calibration.clone() };
+        let text = calibration_to_json(&spec, &array, &drop).unwrap();
+        assert_eq!(parse_calibration(&text, &spec).unwrap().1.strength, Strength::FittedDrop);
+        let err = parse_calibration(&text.replace("fitted drop", "volume"), &spec).unwrap_err().to_string();
+        assert!(err.contains("strength") && err.contains("\"volume\""), "{err}");
     }
 }

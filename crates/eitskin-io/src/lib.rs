@@ -45,7 +45,7 @@ mod spec_file;
 
 use std::path::{Path, PathBuf};
 
-pub use calibration_file::{calibration_to_json, parse_calibration, read_calibration, spec_key};
+pub use calibration_file::{calibration_to_json, parse_calibration, read_calibration, spec_key, strength_name};
 pub use frame_file::{parse_frame, read_frame};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
 pub use press_model_file::{decode_press_model, encode_press_model, load_or_build_press_model, press_model_path};

@@ -276,8 +276,19 @@ pub struct Sample {
     pub area: usize,
     /// Applied force, in N.
     pub force: f64,
-    /// Peak of the touch, in S/m.
+    /// Strength of the touch: its image peak in S/m, or with [`Strength::FittedDrop`] the
+    /// fitted press's drop.
     pub peak: f64,
+}
+
+/// What a calibration's curves take as the touch's strength.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Strength {
+    /// The peak of the touch's image, in S/m (the paper's).
+    #[default]
+    Peak,
+    /// The drop of the press fitted to Δv ([`crate::press_fit`]), a fraction of the background.
+    FittedDrop,
 }
 
 /// A per-area calibration: one curve per area, indexed by the 0-based area.
@@ -285,11 +296,19 @@ pub struct Sample {
 pub struct Calibration {
     /// The curve of each area, in area order.
     pub curves: Vec<Curve>,
+    /// What the curves take as the strength (the samples' `peak`).
+    pub strength: Strength,
 }
 
 impl Calibration {
-    /// Fits one curve per area 0..areas from the samples (every area needs ≥ 3 distinct forces).
+    /// Fits one curve per area 0..areas from the samples (every area needs ≥ 3 distinct forces),
+    /// taking their `peak` as the image peak.
     pub fn fit(samples: &[Sample], areas: usize) -> Result<Calibration, CalibrationError> {
+        Calibration::fit_strength(samples, areas, Strength::Peak)
+    }
+
+    /// [`Calibration::fit`] with the samples' `peak` holding the given kind of strength.
+    pub fn fit_strength(samples: &[Sample], areas: usize, strength: Strength) -> Result<Calibration, CalibrationError> {
         if areas == 0 {
             return Err(CalibrationError::NoAreas);
         }
@@ -315,7 +334,7 @@ impl Calibration {
                 Curve::fit(area, &forces[area], &peaks[area])
             })
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(Calibration { curves })
+        Ok(Calibration { curves, strength })
     }
 
     /// The force (N) for a touch in `area` (0-based) with `peak` (S/m).
@@ -778,7 +797,7 @@ mod tests {
         samples[2].force = 1.0; // forces 0, 1 and 1 N: 2 distinct
         let error = Calibration::fit(&samples, 1).unwrap_err();
         assert_eq!(error, CalibrationError::TooFewForces { area: 1, distinct: 2 });
-        let calibration = Calibration { curves: vec![exact_curve(); 6] };
+        let calibration = Calibration { curves: vec![exact_curve(); 6], strength: Strength::Peak };
         assert_eq!(calibration.force(6, 0.01).unwrap_err(), CalibrationError::NoSuchArea { area: 7, areas: 6 });
         assert_eq!(calibration.force(2, f64::NAN).unwrap_err(), CalibrationError::PeakNotANumber { area: 3 });
     }

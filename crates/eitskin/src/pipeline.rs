@@ -5,15 +5,18 @@
 //! the peak of each reference frame's image against the mean; with [`NoiseFloor::Auto`] a touch
 //! needs a peak above a multiple of that. An optional slow baseline update, while no touch is
 //! present, follows drift: v_ref ← (1 − α)·v_ref + α·v. Each later frame goes through the
-//! precomputed reconstructor, touch extraction and, when given, the calibration.
+//! precomputed reconstructor, touch extraction, when given a [`PressModel`] the press fitted
+//! to Δv from each touch, and when given a calibration the force (from the image peak, or from
+//! the fitted press's drop, as the calibration says).
 //!
 //! Plain data and no threads or I/O: the caller feeds frames (from a port, a file, the virtual
 //! sensor) and reads the results. After the reference is taken, [`Pipeline::process`]
 //! allocates nothing.
 
-use crate::calibration::{Calibration, ForceEstimate};
+use crate::calibration::{Calibration, ForceEstimate, Strength};
 use crate::image::Image;
 use crate::inverse::{InverseError, Reconstructor};
+use crate::press_fit::{PressFit, PressModel, PressScratch};
 use crate::pseudo_array::PseudoArray;
 use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
 
@@ -58,7 +61,10 @@ impl Default for PipelineParams {
 pub struct TouchForce {
     /// The touch (centre in m, peak in S/m …).
     pub touch: Touch,
-    /// The pseudo-array unit holding its centre (0-based), with a calibration.
+    /// The press fitted to Δv from it, with a press model (centre in m, drop).
+    pub press: Option<PressFit>,
+    /// The pseudo-array unit holding its centre (the fitted press's, for a fitted-drop
+    /// calibration; 0-based), with a calibration.
     pub unit: Option<usize>,
     /// That unit's area (0-based), with a calibration.
     pub area: Option<usize>,
@@ -93,6 +99,11 @@ pub struct Pipeline {
     scratch: TouchScratch,
     found: Vec<Touch>,
     touches: Vec<TouchForce>,
+    press_model: Option<PressModel>,
+    difference: Vec<f64>,
+    starts: Vec<[f64; 2]>,
+    press_scratch: PressScratch,
+    fits: Vec<Option<PressFit>>,
 }
 
 impl Pipeline {
@@ -115,7 +126,20 @@ impl Pipeline {
             scratch,
             found: Vec::with_capacity(16),
             touches: Vec::with_capacity(16),
+            press_model: None,
+            difference: Vec::new(),
+            starts: Vec::with_capacity(16),
+            press_scratch: PressScratch::default(),
+            fits: Vec::with_capacity(16),
         }
+    }
+
+    /// The same pipeline, fitting a press to Δv from each touch (needed by a fitted-drop
+    /// calibration, which gives no force without it).
+    pub fn with_press_model(mut self, model: PressModel) -> Pipeline {
+        self.difference = vec![0.0; model.measurements()];
+        self.press_model = Some(model);
+        self
     }
 
     /// Forgets the reference; the next frames build a new one.
@@ -170,19 +194,28 @@ impl Pipeline {
         };
         let params = TouchParams { min_peak: self.params.touch.min_peak.max(floor), ..self.params.touch };
         detect_into(&self.image, &params, &mut self.scratch, &mut self.found);
+        self.fits.clear();
+        if let Some(model) = &self.press_model {
+            self.difference.iter_mut().zip(frame.iter().zip(&self.reference)).for_each(|(d, (v, r))| *d = v - r);
+            self.starts.clear();
+            self.starts.extend(self.found.iter().take(16).map(|t| t.centre));
+            model.fit_into(&self.difference, &self.starts, &mut self.press_scratch, &mut self.fits)?;
+        }
         self.touches.clear();
-        for touch in &self.found {
-            let (unit, area, force) = match &self.calibration {
-                Some((array, calibration)) => match array.unit_at(touch.centre) {
-                    Some(unit) => {
-                        let area = array.area_of(unit);
-                        (Some(unit), Some(area), calibration.force(area, touch.peak).ok())
-                    }
-                    None => (None, None, None),
-                },
-                None => (None, None, None),
-            };
-            self.touches.push(TouchForce { touch: *touch, unit, area, force });
+        for (k, touch) in self.found.iter().enumerate() {
+            let press = self.fits.get(k).copied().flatten();
+            let (mut unit, mut area, mut force) = (None, None, None);
+            if let Some((array, calibration)) = &self.calibration {
+                let (at, strength) = match calibration.strength {
+                    Strength::Peak => (Some(touch.centre), Some(touch.peak)),
+                    Strength::FittedDrop => (press.map(|p| p.centre), press.map(|p| p.drop)),
+                };
+                if let Some(u) = at.and_then(|c| array.unit_at(c)) {
+                    (unit, area) = (Some(u), Some(array.area_of(u)));
+                    force = strength.and_then(|s| calibration.force(array.area_of(u), s).ok());
+                }
+            }
+            self.touches.push(TouchForce { touch: *touch, press, unit, area, force });
         }
         let alpha = self.params.baseline_rate;
         if alpha > 0.0 && self.touches.is_empty() {
@@ -244,6 +277,41 @@ mod tests {
         skin.release();
         pipeline.process(&skin.frame().unwrap()).unwrap();
         assert!(pipeline.touches().is_empty());
+    }
+
+    #[test]
+    fn a_fitted_drop_calibration_gives_the_force_through_the_gels_own_law() {
+        use crate::calibration::Curve;
+        use crate::press_fit::PressModelParams;
+        let spec = SensorSpec::square_hydrogel();
+        let model = spec.forward_model().unwrap();
+        let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
+        let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
+        // One area for the whole sheet, its curve the virtual gel's law drop = 0.9·(1 − e^(−F/5.54 N)),
+        // written down rather than fitted: the fitted drop must be the physical one.
+        let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
+        let gel = Curve { a: -0.9, b: 5.54, c: 0.9, r_squared: 1.0, force_range: [0.0, 16.0], samples: 0 };
+        let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
+        let mut pipeline =
+            Pipeline::new(recon, PipelineParams::default(), Some((array, calibration))).with_press_model(press_model);
+        let mut skin = VirtualSensor::new(&spec, 5).unwrap();
+        for _ in 0..10 {
+            pipeline.process(&skin.frame().unwrap()).unwrap();
+        }
+        for (at, force) in [([0.02, -0.03], 5.0), ([-0.05, 0.04], 9.0)] {
+            skin.release();
+            skin.press(at, force);
+            pipeline.process(&skin.frame().unwrap()).unwrap();
+            let found = pipeline.touches()[0];
+            let press = found.press.unwrap();
+            assert!((press.centre[0] - at[0]).hypot(press.centre[1] - at[1]) < 3e-3, "{at:?}: {press:?}");
+            let drop = crate::sim::Hydrogel::default().drop(force);
+            assert!((press.drop - drop).abs() < 0.03, "{at:?}: drop {} for {drop}", press.drop);
+            // Near saturation a small drop error is a larger force error (dF/dd = 5.54 N/(0.9 − d)).
+            let newtons = found.force.unwrap().newtons;
+            assert!((newtons - force).abs() < 0.1 * force, "{at:?}: {newtons} N for {force} N");
+            assert_eq!((found.unit, found.area), (Some(0), Some(0)));
+        }
     }
 
     #[test]

@@ -366,11 +366,11 @@ impl PressModel {
         let mut scratch = PressScratch::default();
         let mut out = Vec::with_capacity(1);
         self.fit_into(dv, &[start], &mut scratch, &mut out)?;
-        Ok(out.first().copied())
+        Ok(out.first().copied().flatten())
     }
 
     /// Fits one press per starting point (m, at most 16) to `dv` (V), each searched near its
-    /// start, into `out` (cleared; starts where nothing looks like a press are left out).
+    /// start, into `out` (cleared; one entry per start, `None` where nothing looks like a press).
     /// Allocates nothing once `scratch` and `out` have grown. Non-finite values in `dv` find
     /// no press; a `dv` of the wrong length is an error.
     pub fn fit_into(
@@ -378,7 +378,7 @@ impl PressModel {
         dv: &[f64],
         starts: &[[f64; 2]],
         scratch: &mut PressScratch,
-        out: &mut Vec<PressFit>,
+        out: &mut Vec<Option<PressFit>>,
     ) -> Result<(), InverseError> {
         out.clear();
         let m = self.measurements;
@@ -411,7 +411,7 @@ impl PressModel {
                 }
             }
         }
-        out.extend(fits.iter().take(k).flatten());
+        out.extend(fits.iter().take(k));
         Ok(())
     }
 
@@ -559,7 +559,7 @@ mod tests {
         assert!(superposition < 1e-2, "{superposition}");
         // Each press's shape differs a little from the linear response the other is fitted with,
         // which moves both: about 3 mm and 0.05 in drop here (alone: 0.2 mm, 0.02).
-        for (fit, (centre, drop)) in out.iter().zip(presses) {
+        for (fit, (centre, drop)) in out.iter().flatten().zip(presses) {
             assert!(distance(fit.centre, centre) < 4e-3, "{centre:?}: found at {:?}", fit.centre);
             assert!((fit.drop - drop).abs() < 0.06, "{centre:?}: drop {} for {drop}", fit.drop);
         }

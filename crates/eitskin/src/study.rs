@@ -330,7 +330,7 @@ struct Chain<'a> {
     recon: &'a Reconstructor,
     press_model: &'a PressModel,
     press_scratch: PressScratch,
-    fits: Vec<PressFit>,
+    fits: Vec<Option<PressFit>>,
     difference: Vec<f64>,
     skin: &'a mut VirtualSensor,
     reference: Vec<f64>,
@@ -378,7 +378,7 @@ impl<'a> Chain<'a> {
         let Some(touch) = self.touches.first().copied() else { return Ok(None) };
         self.difference.iter_mut().zip(frame.iter().zip(&self.reference)).for_each(|(d, (v, r))| *d = v - r);
         self.press_model.fit_into(&self.difference, &[touch.centre], &mut self.press_scratch, &mut self.fits)?;
-        Ok(Some((touch, self.fits.first().copied())))
+        Ok(Some((touch, self.fits.first().copied().flatten())))
     }
 
     /// Presses one unit per area of `division` (the first met in its lower-left 3×3 block) at

@@ -1,0 +1,162 @@
+//! Issue 4, past the paper, through the real binary: a calibration on the drop of the press
+//! fitted to Δv (`--strength fitted-drop`, one curve for the sheet) from raw frames of the
+//! virtual sensor, against the paper's per-area peak calibration from the same frames; then
+//! `eitskin run` on a file of frames gives forces and fitted presses with it.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::process::{Command, Output};
+
+use eitskin::sim::{Press, VirtualSensor};
+use eitskin::SensorSpec;
+use rand::{RngExt, SeedableRng};
+
+fn eitskin(args: &[&str]) -> Output {
+    let cache = std::env::temp_dir().join(format!("eitskin-fitted-{}-cache", std::process::id()));
+    Command::new(env!("CARGO_BIN_EXE_eitskin"))
+        .args(args)
+        .env("EITSKIN_CACHE", cache)
+        .output()
+        .expect("the binary runs")
+}
+
+fn ok(out: Output) -> String {
+    assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout).expect("UTF-8")
+}
+
+fn rms_of(text: &str) -> f64 {
+    let after = text.split("RMS error ").nth(1).unwrap_or_else(|| panic!("no RMS in {text}"));
+    after.split(' ').next().unwrap().parse().unwrap()
+}
+
+/// Frames of presses as a samples CSV (x, y in the spec's unit; force; the frame's values).
+fn write_samples(path: &Path, presses: &[Press], frames: &[Vec<f64>], per_metre: f64) {
+    let mut csv = String::from("x,y,force");
+    (1..=frames[0].len()).for_each(|m| write!(csv, ",v{m}").unwrap());
+    for (p, v) in presses.iter().zip(frames) {
+        write!(csv, "\n{},{},{}", p.position[0] * per_metre, p.position[1] * per_metre, p.force).unwrap();
+        v.iter().for_each(|x| write!(csv, ",{x:e}").unwrap());
+    }
+    std::fs::write(path, csv).unwrap();
+}
+
+#[test]
+fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
+    let dir = std::env::temp_dir().join(format!("eitskin-fitted-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = SensorSpec::square_hydrogel();
+    let per_metre = 1.0 / spec.length_unit.metres();
+    let mut skin = VirtualSensor::new(&spec, 11).unwrap();
+    let noisy = |skin: &mut VirtualSensor, clean: Vec<Vec<f64>>| -> Vec<Vec<f64>> {
+        clean
+            .into_iter()
+            .map(|mut v| {
+                skin.add_noise(&mut v);
+                v
+            })
+            .collect()
+    };
+    // Reference: the mean of 15 noisy frames of the untouched sheet.
+    let blank = skin.clean_frame().unwrap();
+    let reference: Vec<f64> = noisy(&mut skin, vec![blank.clone(); 15])
+        .iter()
+        .fold(vec![0.0; blank.len()], |acc, v| acc.iter().zip(v).map(|(a, x)| a + x / 15.0).collect());
+    std::fs::write(dir.join("reference.txt"), reference.iter().map(|x| format!("{x:e}")).collect::<Vec<_>>().join(" "))
+        .unwrap();
+
+    // Calibration: the centres of the lower-left 3×3 units of the 5×5 grid, 0–12 N, twice each.
+    let centres: Vec<[f64; 2]> =
+        (0..3).flat_map(|r| (0..3).map(move |c| [-0.08 + 0.04 * c as f64, -0.08 + 0.04 * r as f64])).collect();
+    let calibration: Vec<Press> = centres
+        .iter()
+        .flat_map(|&position| (0..=12).flat_map(move |f| [Press { position, force: f as f64 }; 2]))
+        .collect();
+    let frames = skin.clean_frames(&calibration.iter().map(|p| vec![*p]).collect::<Vec<_>>()).unwrap();
+    write_samples(&dir.join("calibration.csv"), &calibration, &noisy(&mut skin, frames), per_metre);
+    // Validation: random positions in the right half (units never calibrated), random 0–12 N.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let validation: Vec<Press> = (0..60)
+        .map(|_| Press {
+            position: [rng.random_range(0.0..0.1), rng.random_range(-0.1..0.1)],
+            force: rng.random_range(0.0..12.0),
+        })
+        .collect();
+    let frames = skin.clean_frames(&validation.iter().map(|p| vec![*p]).collect::<Vec<_>>()).unwrap();
+    let validation_frames = noisy(&mut skin, frames);
+    write_samples(&dir.join("validation.csv"), &validation, &validation_frames, per_metre);
+
+    let path = |name: &str| -> String { dir.join(name).to_str().unwrap().to_string() };
+    let mut rms = Vec::new();
+    for (strength, grid) in [("peak", "5"), ("fitted-drop", "1")] {
+        let cal = path(&format!("{strength}.json"));
+        let table = ok(eitskin(&[
+            "calibrate",
+            "--samples",
+            &path("calibration.csv"),
+            "--reference",
+            &path("reference.txt"),
+            "--strength",
+            strength,
+            "--grid",
+            grid,
+            "--out",
+            &cal,
+        ]));
+        assert!(table.contains(if strength == "peak" { "peak(F)" } else { "drop(F)" }), "{table}");
+        let text = ok(eitskin(&[
+            "evaluate",
+            "--calibration",
+            &cal,
+            "--samples",
+            &path("validation.csv"),
+            "--reference",
+            &path("reference.txt"),
+        ]));
+        rms.push(rms_of(&text));
+    }
+    assert!(rms[1] < 0.6 * rms[0], "fitted drop {} N against peak {} N", rms[1], rms[0]);
+    // A fitted-drop calibration cannot be made from peaks alone.
+    std::fs::write(dir.join("peaks.csv"), "unit,force,peak\n1,0,0.01\n1,5,0.1\n1,10,0.2\n").unwrap();
+    let out =
+        eitskin(&["calibrate", "--samples", &path("peaks.csv"), "--strength", "fitted-drop", "--out", &path("x.json")]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("needs each sample's raw frame"));
+
+    // Live: 10 reference frames, then the validation frames, through `eitskin run`.
+    let mut lines = String::new();
+    let blanks = noisy(&mut skin, vec![blank; 10]);
+    for v in blanks.iter().chain(&validation_frames) {
+        lines += &v.iter().map(|x| format!("{x:e}")).collect::<Vec<_>>().join(",");
+        lines.push('\n');
+    }
+    std::fs::write(dir.join("frames.txt"), lines).unwrap();
+    let out = ok(eitskin(&[
+        "run",
+        "--source",
+        &format!("file:{}", path("frames.txt")),
+        "--rate",
+        "0",
+        "--calibration",
+        &path("fitted-drop.json"),
+    ]));
+    let processed: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|j| j["status"] == "ok")
+        .collect();
+    assert_eq!(processed.len(), validation.len());
+    let (mut sum, mut count) = (0.0, 0);
+    for (line, press) in processed.iter().zip(&validation) {
+        let Some(touch) = line["touches"].as_array().and_then(|t| t.first()) else { continue };
+        let fitted = &touch["press"];
+        let (x, y) = (fitted["x"].as_f64().unwrap() / per_metre, fitted["y"].as_f64().unwrap() / per_metre);
+        assert!((x - press.position[0]).hypot(y - press.position[1]) < 0.015, "{touch} for {press:?}");
+        sum += (touch["force"].as_f64().unwrap() - press.force).powi(2);
+        count += 1;
+    }
+    let live = (sum / count as f64).sqrt();
+    eprintln!("RMS error: peak per area {} N, fitted drop {} N; live {live} N over {count} touches", rms[0], rms[1]);
+    assert!(count >= validation.len() * 3 / 4, "{count} of {} presses gave a touch", validation.len());
+    assert!(live < rms[0], "live RMS {live} N over {count} touches, peak calibration {} N", rms[0]);
+    std::fs::remove_dir_all(&dir).ok();
+}
