@@ -1,0 +1,83 @@
+//! The frame path allocates nothing once warm: reference taken, buffers grown. Counted with a
+//! global allocator that tallies every allocation while a flag is up.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use eitskin::calibration::{Calibration, Curve, Strength};
+use eitskin::pipeline::{Pipeline, PipelineParams};
+use eitskin::press_fit::{PressModel, PressModelParams};
+use eitskin::pseudo_array::PseudoArray;
+use eitskin::sim::VirtualSensor;
+use eitskin::{Reconstructor, ReconstructorParams, SensorSpec};
+
+struct Counting;
+
+static COUNTING: AtomicBool = AtomicBool::new(false);
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: every call is passed on to the system allocator unchanged.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        // SAFETY: the caller's contract is the system allocator's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: as above.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        // SAFETY: as above.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+#[test]
+fn a_frame_with_touches_fitted_presses_and_forces_allocates_nothing() {
+    let mut spec = SensorSpec::square_hydrogel();
+    spec.mesh.triangles = 1200;
+    let model = spec.forward_model().unwrap();
+    let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
+    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
+    let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
+    let gel = Curve { a: -0.9, b: 5.54, c: 0.9, r_squared: 1.0, force_range: [0.0, 16.0], samples: 0 };
+    let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
+    let mut pipeline =
+        Pipeline::new(recon, PipelineParams::default(), Some((array, calibration))).with_press_model(press_model);
+    let mut skin = VirtualSensor::new(&spec, 2).unwrap();
+    let mut frames = Vec::new();
+    for _ in 0..10 {
+        frames.push(skin.frame().unwrap());
+    }
+    skin.press([-0.05, -0.04], 8.0);
+    skin.press([0.05, 0.05], 10.0);
+    for _ in 0..5 {
+        frames.push(skin.frame().unwrap());
+    }
+    // The counter counts: a reference frame is copied into the pipeline.
+    COUNTING.store(true, Ordering::Relaxed);
+    pipeline.process(&frames[0]).unwrap();
+    COUNTING.store(false, Ordering::Relaxed);
+    assert!(ALLOCATIONS.swap(0, Ordering::Relaxed) > 0);
+    for frame in &frames[1..11] {
+        pipeline.process(frame).unwrap(); // the rest of the reference, then one warm-up frame
+    }
+    COUNTING.store(true, Ordering::Relaxed);
+    for frame in &frames[11..] {
+        pipeline.process(frame).unwrap();
+    }
+    COUNTING.store(false, Ordering::Relaxed);
+    let touches = pipeline.touches();
+    assert_eq!(touches.len(), 2, "{touches:?}");
+    assert!(touches.iter().all(|t| t.press.is_some() && t.force.is_some()), "{touches:?}");
+    assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in 4 frames");
+}
