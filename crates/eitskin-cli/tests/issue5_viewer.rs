@@ -229,7 +229,7 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
     let source = format!("sim:{}", script.display());
     let mut run = Command::new(bin())
         .args(["run", "--source", &source, "--viewer", "127.0.0.1:0", "--triangles", "1500", "--rate", "10"])
-        .args(["--frames", "3000", "--calibration", calibration.to_str().unwrap()])
+        .args(["--frames", "3000", "--calibration", calibration.to_str().unwrap(), "--fit"])
         .env("EITSKIN_CACHE", cache())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -338,6 +338,8 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
     assert!(printed_force > 2.0, "a hard press gives {printed_force} N");
     let row = &pressed["shown"][0];
     assert_eq!(row[3], printed["unit"].to_string(), "unit shown: {row}");
+    let printed_drop = printed["press"]["drop"].as_f64().expect("a fitted press, with --fit");
+    assert_eq!(row[7], format!("{printed_drop:.3}"), "drop shown: {row}");
     let shown_force: f64 = row[6].as_str().unwrap().split(' ').next().unwrap().parse().unwrap();
     assert!(
         (shown_force - printed_force).abs() <= 0.005 + 1e-9,
