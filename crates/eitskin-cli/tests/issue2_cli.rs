@@ -1,30 +1,17 @@
 //! Issue 2, through the real binary: `eitskin mesh`, `forward` (with EIDORS' mesh loaded),
 //! `bench --json`, `spec`, and clear failures for bad input.
 
+mod binary;
+
 #[path = "../../eitskin-io/tests/common/mod.rs"]
 mod common;
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
-
-fn eitskin(args: &[&str]) -> Output {
-    let cache = std::env::temp_dir().join(format!("eitskin-cli-{}-cache", std::process::id()));
-    Command::new(env!("CARGO_BIN_EXE_eitskin"))
-        .args(args)
-        .env("EITSKIN_CACHE", cache)
-        .output()
-        .expect("the binary runs")
-}
+use binary::{eitskin, scratch};
+use std::process::Output;
 
 fn stdout_json(out: &Output) -> serde_json::Value {
     assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
     serde_json::from_slice(&out.stdout).expect("JSON on stdout")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("eitskin-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// EIDORS' 2×2 square as a spec: metres, unit depth, 0.2 m electrodes, z = 0.01 Ω·m².

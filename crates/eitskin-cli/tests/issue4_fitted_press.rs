@@ -3,27 +3,15 @@
 //! virtual sensor, against the paper's per-area peak calibration from the same frames; then
 //! `eitskin run` on a file of frames gives forces and fitted presses with it.
 
+mod binary;
+
+use binary::{eitskin, ok};
 use std::fmt::Write as _;
 use std::path::Path;
-use std::process::{Command, Output};
 
 use eitskin::sim::{Press, VirtualSensor};
 use eitskin::SensorSpec;
 use rand::{RngExt, SeedableRng};
-
-fn eitskin(args: &[&str]) -> Output {
-    let cache = std::env::temp_dir().join(format!("eitskin-fitted-{}-cache", std::process::id()));
-    Command::new(env!("CARGO_BIN_EXE_eitskin"))
-        .args(args)
-        .env("EITSKIN_CACHE", cache)
-        .output()
-        .expect("the binary runs")
-}
-
-fn ok(out: Output) -> String {
-    assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8(out.stdout).expect("UTF-8")
-}
 
 fn rms_of(text: &str) -> f64 {
     let after = text.split("RMS error ").nth(1).unwrap_or_else(|| panic!("no RMS in {text}"));

@@ -2,28 +2,9 @@
 //! numbers and report; `calibrate` and `evaluate` reproduce the study's pseudo-array from the
 //! samples it wrote; a calibration made for another spec is refused.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod binary;
 
-fn eitskin(args: &[&str]) -> Output {
-    let cache = std::env::temp_dir().join(format!("eitskin-study-{}-cache", std::process::id()));
-    Command::new(env!("CARGO_BIN_EXE_eitskin"))
-        .args(args)
-        .env("EITSKIN_CACHE", cache)
-        .output()
-        .expect("the binary runs")
-}
-
-fn ok(out: Output) -> String {
-    assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8(out.stdout).expect("UTF-8")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("eitskin-study-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use binary::{eitskin, ok, scratch};
 
 #[test]
 fn study_on_the_default_sensor_meets_the_papers_bars() {

@@ -2,26 +2,14 @@
 //! JSON line per frame, in order, with touches where the presses are, and every bad frame as an
 //! event with its reason; the stream goes on after it.
 
-use std::process::{Command, Output};
+mod binary;
 
-fn eitskin(args: &[&str]) -> Output {
-    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
-    Command::new(env!("CARGO_BIN_EXE_eitskin"))
-        .args(args)
-        .env("EITSKIN_CACHE", cache)
-        .output()
-        .expect("the binary runs")
-}
+use binary::{eitskin, scratch};
+use std::process::{Command, Output};
 
 fn lines(out: Output) -> Vec<serde_json::Value> {
     assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
     String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).expect("a JSON line")).collect()
-}
-
-fn scratch(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("eitskin-run-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 #[test]

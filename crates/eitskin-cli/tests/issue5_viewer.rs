@@ -8,6 +8,9 @@
 //! Needs `chromium` and `chromedriver` on the PATH (Debian: `apt-get install chromium
 //! chromium-driver`; `.ci/run` installs them); without them the test fails and says so.
 
+mod binary;
+
+use binary::{cache, scratch};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
@@ -25,16 +28,6 @@ const PRESS_START: f64 = 8.0;
 
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_eitskin")
-}
-
-fn cache() -> PathBuf {
-    std::env::temp_dir().join(format!("eitskin-viewer-{}-cache", std::process::id()))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("eitskin-viewer-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// The first of `names` found on the PATH, or a failure that says how to install it.
