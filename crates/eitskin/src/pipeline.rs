@@ -281,8 +281,8 @@ mod tests {
 
     #[test]
     fn a_fitted_drop_calibration_gives_the_force_through_the_gels_own_law() {
-        use crate::calibration::Curve;
         use crate::press_fit::PressModelParams;
+        use crate::sim::Hydrogel;
         let spec = SensorSpec::square_hydrogel();
         let model = spec.forward_model().unwrap();
         let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
@@ -290,7 +290,7 @@ mod tests {
         // One area for the whole sheet, its curve the virtual gel's law drop = 0.9·(1 − e^(−F/5.54 N)),
         // written down rather than fitted: the fitted drop must be the physical one.
         let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
-        let gel = Curve { a: -0.9, b: 5.54, c: 0.9, r_squared: 1.0, force_range: [0.0, 16.0], samples: 0 };
+        let gel = Hydrogel::default().drop_curve(16.0);
         let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
         let mut pipeline =
             Pipeline::new(recon, PipelineParams::default(), Some((array, calibration))).with_press_model(press_model);
@@ -305,7 +305,7 @@ mod tests {
             let found = pipeline.touches()[0];
             let press = found.press.unwrap();
             assert!((press.centre[0] - at[0]).hypot(press.centre[1] - at[1]) < 3e-3, "{at:?}: {press:?}");
-            let drop = crate::sim::Hydrogel::default().drop(force);
+            let drop = Hydrogel::default().drop(force);
             assert!((press.drop - drop).abs() < 0.03, "{at:?}: drop {} for {drop}", press.drop);
             // Near saturation a small drop error is a larger force error (dF/dd = 5.54 N/(0.9 − d)).
             let newtons = found.force.unwrap().newtons;

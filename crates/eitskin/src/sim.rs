@@ -51,6 +51,13 @@ impl Hydrogel {
     pub fn drop(&self, force: f64) -> f64 {
         self.max_drop * (1.0 - (-force.max(0.0) / self.force_scale).exp())
     }
+
+    /// [`Hydrogel::drop`] as a calibration curve of the drop against force up to `max_force`
+    /// (N): what a fitted-drop calibration of this gel should find.
+    pub fn drop_curve(&self, max_force: f64) -> crate::calibration::Curve {
+        let (a, b, c) = (-self.max_drop, self.force_scale, self.max_drop);
+        crate::calibration::Curve { a, b, c, r_squared: 1.0, force_range: [0.0, max_force], samples: 0 }
+    }
 }
 
 /// One press: where, how hard.

@@ -4,11 +4,11 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-use eitskin::calibration::{Calibration, Curve, Strength};
+use eitskin::calibration::{Calibration, Strength};
 use eitskin::pipeline::{Pipeline, PipelineParams};
 use eitskin::press_fit::{PressModel, PressModelParams};
 use eitskin::pseudo_array::PseudoArray;
-use eitskin::sim::VirtualSensor;
+use eitskin::sim::{Hydrogel, VirtualSensor};
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec};
 
 struct Counting;
@@ -49,7 +49,7 @@ fn a_frame_with_touches_fitted_presses_and_forces_allocates_nothing() {
     let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
     let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
-    let gel = Curve { a: -0.9, b: 5.54, c: 0.9, r_squared: 1.0, force_range: [0.0, 16.0], samples: 0 };
+    let gel = Hydrogel::default().drop_curve(16.0);
     let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
     let mut pipeline =
         Pipeline::new(recon, PipelineParams::default(), Some((array, calibration))).with_press_model(press_model);
