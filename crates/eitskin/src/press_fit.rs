@@ -499,9 +499,13 @@ mod tests {
     /// Presses as (centre in m, drop).
     type Presses<'a> = &'a [([f64; 2], f64)];
 
-    /// The press model on a coarse mesh, and Δv of presses simulated on a finer, different one.
+    /// The press model of the paper's sensor on a coarse mesh, and Δv of presses simulated on a
+    /// finer, different one.
     fn setup() -> (PressModel, impl Fn(Presses<'_>) -> Vec<f64>) {
-        let mut spec = SensorSpec::square_hydrogel();
+        setup_on(SensorSpec::square_hydrogel())
+    }
+
+    fn setup_on(mut spec: SensorSpec) -> (PressModel, impl Fn(Presses<'_>) -> Vec<f64>) {
         spec.mesh.triangles = 1500;
         let press_model = PressModel::new(&spec.forward_model().unwrap(), 1.0, &PressModelParams::default()).unwrap();
         let mut fine = spec.clone();
@@ -557,6 +561,20 @@ mod tests {
         let mut torn = model.table();
         torn.responses.pop();
         assert_eq!(PressModel::from_table(torn), None);
+    }
+
+    #[test]
+    fn presses_on_a_disk_sensor_are_found_too() {
+        use crate::spec::{ElectrodeSpec, Placement};
+        use crate::Outline;
+        let square = SensorSpec::square_hydrogel();
+        let electrodes = ElectrodeSpec { placement: Placement::Equal { start_angle_deg: 0.0 }, ..square.electrodes };
+        let (model, dv) = setup_on(SensorSpec { outline: Outline::Circle { radius: 0.1 }, electrodes, ..square });
+        for (centre, drop) in [([0.03, -0.02], 0.6), ([0.0, 0.07], 0.4), ([-0.05, -0.04], 0.2)] {
+            let fit = model.fit(&dv(&[(centre, drop)]), [centre[0] - 0.008, centre[1] + 0.006]).unwrap().unwrap();
+            assert!(distance(fit.centre, centre) < 3e-3, "{centre:?}: found at {:?}", fit.centre);
+            assert!((fit.drop - drop).abs() < 0.05, "{centre:?}: drop {} for {drop}", fit.drop);
+        }
     }
 
     #[test]
