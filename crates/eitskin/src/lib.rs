@@ -3,8 +3,9 @@
 //! Electrical impedance tomography for tactile skins. The chain is spec → mesh → forward model
 //! (P1 FEM with the complete electrode model, one sparse Cholesky factorisation, L−1 solves)
 //! → Jacobian → one-step Gauss–Newton reconstructor (NOSER prior, λ = 0.1, projected once onto
-//! a raster) → image → touches. Everything is in SI units (m, S/m, Ω·m², A, V); no I/O
-//! happens here (see `eitskin-io`).
+//! a raster) → image → touches → presses fitted to Δv ([`press_fit`]) → forces through a
+//! calibration ([`calibration`], [`pseudo_array`]). Everything is in SI units (m, S/m, Ω·m²,
+//! A, V); no I/O happens here (see `eitskin-io`).
 //!
 //! ```
 //! use eitskin::conductivity::{with_inclusions, Inclusion};

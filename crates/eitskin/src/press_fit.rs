@@ -88,7 +88,7 @@ const SOLVED: [f64; 2] = [0.5, 0.9];
 
 /// The response table of presses: Δv of a full-depth press (σ = 0 under the indenter) at
 /// each point of a grid over the sheet, linearised at the background; and, on a second grid,
-/// the contrast the linear fit gives for each drop of [`LADDER`], from full forward solves.
+/// the contrast the linear fit gives for each drop of [`PressModel::LADDER`], from full forward solves.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PressModel {
     grid: Grid,
@@ -102,7 +102,7 @@ pub struct PressModel {
     norms: Vec<f64>,
     /// The coarse grid of the ladder (spacing half a radius).
     coarse: Grid,
-    /// Per coarse point, the contrast fitted to a press of each drop of [`LADDER`] there; NaN
+    /// Per coarse point, the contrast fitted to a press of each drop of [`PressModel::LADDER`] there; NaN
     /// outside the outline.
     ladder: Vec<[f64; LADDER.len()]>,
 }
@@ -281,7 +281,7 @@ impl PressModel {
     }
 
     /// The contrast fitted, at its own centre, to a full forward solve of a press of each drop
-    /// of [`LADDER`] at each coarse grid point (in parallel).
+    /// of [`PressModel::LADDER`] at each coarse grid point (in parallel).
     fn ladder(
         &self,
         model: &ForwardModel,
