@@ -115,8 +115,13 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
     if let Some(c) = study.methods.iter().find(|m| m.name == "fitted press").and_then(|m| m.curves.first()) {
         let gel = params.sim.hydrogel;
         s += &format!(
-            "\nThe fitted press's one curve, from the calibration presses alone: drop(F) = {:.3} {:+.3}·e^(−F/{:.2} N); the virtual gel's own law: {:.3}·(1 − e^(−F/{:.2} N)).\n",
-            c.c, c.a, c.b, gel.max_drop, gel.force_scale
+            "\nThe fitted press's one curve, from the calibration presses alone: drop(F) = {:.3} {} {:.3}·e^(−F/{:.2} N); the virtual gel's own law: {:.3}·(1 − e^(−F/{:.2} N)).\n",
+            c.c,
+            if c.a < 0.0 { "−" } else { "+" },
+            c.a.abs(),
+            c.b,
+            gel.max_drop,
+            gel.force_scale
         );
     }
     for (i, m) in study.methods.iter().enumerate() {
