@@ -13,21 +13,21 @@
 //! best centre maximises (gᵀΔv)² / gᵀg: a matched filter. On the paper's sensor at 80 dB it
 //! leaves about 1/25 of the image peak's noise relative to the signal.
 //!
-//! α is the drop the linear model needs, a fraction of σ₀: it equals the true drop for small
-//! drops and grows more slowly for large ones (the response of a strong inclusion saturates),
-//! which the force calibration absorbs. It is position-normalised by construction: the same
-//! drop gives about the same α anywhere on the sheet.
+//! α is the drop the linear model needs, a fraction of σ₀. It equals the true drop for small
+//! drops and runs ahead of it for large ones (a strong inclusion's response is more than
+//! proportional), differently near the edges; a ladder of full forward solves at each point of
+//! a second grid maps it back to the true drop, [`PressFit::drop`], which is then the same
+//! function of force anywhere on the sheet.
 //!
 //! g is tabulated once on a square grid (spacing a quarter of the indenter's radius by default)
-//! and read bilinearly; the search scans the grid near a starting point (the image's touch
-//! centre) at twice the spacing, then the neighbours of the best point, then places the centre
-//! at the vertex of a parabola through the scores. Several presses are fitted in turn, each
-//! against Δv less the others' fitted responses, for a few sweeps.
+//! and read bilinearly; the ladder on a grid of half the radius. The search scans the grid near
+//! a starting point (the image's touch centre) at twice the spacing, then the neighbours of the
+//! best point, then places the centre at the vertex of a parabola through the scores.
 //!
-//! Several presses are each fitted with the linear response of the others subtracted; since a
-//! strong press's response differs a little in shape from the linear one, each biases the
-//! others (two presses of drop 0.5 and 0.3, 140 mm apart: about 3 mm and 0.05 in drop, against
-//! 0.2 mm and 0.02 alone; test `two_presses_are_fitted_together`).
+//! Several presses are fitted in turn, each against Δv less the others' linear responses, for a
+//! few sweeps. Since a strong press's response differs a little in shape from the linear one,
+//! each biases the others (two presses of drop 0.5 and 0.3, 140 mm apart: about 3 mm and 0.05
+//! in drop, against 0.2 mm and 0.02 alone; test `two_presses_are_fitted_together`).
 //!
 //! Not for: presses much larger than the indenter, or touches closer together than about two
 //! indenter radii (their responses are then nearly the same vector).
@@ -225,7 +225,7 @@ impl PressModel {
     /// Tabulates the responses of `model` linearised at the homogeneous `background` (S/m).
     pub fn new(model: &ForwardModel, background: f64, params: &PressModelParams) -> Result<PressModel, InverseError> {
         if !(params.radius > 0.0 && params.radius.is_finite()) {
-            return Err(InverseError::Hyperparameter(params.radius));
+            return Err(InverseError::IndenterRadius(params.radius));
         }
         let mesh = model.mesh();
         let sigma = vec![background; mesh.triangles().len()];
@@ -239,16 +239,21 @@ impl PressModel {
         let locator = PointLocator::new(mesh);
         let inside: Vec<bool> = (0..points).map(|j| locator.locate(point(j)).is_some()).collect();
         let mut responses = vec![0.0; points * measurements];
-        let reach = (params.radius / spacing).ceil() as isize + 1;
         for t in 0..mesh.triangles().len() {
             let corners = mesh.corners(t);
             let area = mesh.area(t);
             let column = jacobian.col(t);
-            let centroid = mesh.centroid(t);
-            let (ci, cj) = (((centroid[0] - lo[0]) / spacing) as isize, ((centroid[1] - lo[1]) / spacing) as isize);
-            for gj in (cj - reach - 1).max(0)..=(cj + reach + 1).min(dims[1] as isize - 1) {
-                for gi in (ci - reach - 1).max(0)..=(ci + reach + 1).min(dims[0] as isize - 1) {
-                    let j = gj as usize * dims[0] + gi as usize;
+            // The grid points whose disk can reach the triangle's bounding box.
+            let range = |k: usize| {
+                let (min, max) =
+                    corners.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| (a.min(c[k]), b.max(c[k])));
+                let first = ((min - params.radius - lo[k]) / spacing).floor().max(0.0) as usize;
+                let last = (((max + params.radius - lo[k]) / spacing).ceil() as usize).min(dims[k] - 1);
+                first..=last
+            };
+            for gj in range(1) {
+                for gi in range(0) {
+                    let j = gj * dims[0] + gi;
                     if !inside[j] {
                         continue;
                     }

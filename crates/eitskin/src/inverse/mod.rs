@@ -31,6 +31,9 @@ pub enum InverseError {
     /// The hyperparameter must be positive and finite.
     #[error("the hyperparameter λ must be positive and finite, got {0}")]
     Hyperparameter(f64),
+    /// The indenter radius of a press model must be positive and finite.
+    #[error("the indenter radius must be positive and finite, got {0} m")]
+    IndenterRadius(f64),
     /// The system (JR⁻¹Jᵀ + λ²I or JᵀJ + λ²R) could not be factored.
     #[error("the regularised system is not positive definite; raise the hyperparameter or check the prior")]
     NotPositiveDefinite,
