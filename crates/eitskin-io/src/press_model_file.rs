@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use eitskin::press_fit::{PressModel, PressModelParams, PressTable};
 use eitskin::SensorSpec;
 
-use crate::reconstructor_file::{key_of, Reader};
+use crate::reconstructor_file::{cache_file, cached, key_of, Reader};
 use crate::Error;
 
 const MAGIC: &[u8; 8] = b"EITSKINP";
@@ -20,9 +20,11 @@ const FORMAT: u32 = 1;
 
 /// The file a press model for `spec` and `params` is cached in, under `dir`.
 pub fn press_model_path(dir: &Path, spec: &SensorSpec, params: &PressModelParams) -> Result<PathBuf, Error> {
-    let key = key_of(spec, &format!("press model {params:?}"))?;
-    let hex: String = key[..12].iter().map(|b| format!("{b:02x}")).collect();
-    Ok(dir.join(format!("press-model-{hex}.bin")))
+    Ok(cache_file(dir, "press-model", &press_model_key(spec, params)?))
+}
+
+fn press_model_key(spec: &SensorSpec, params: &PressModelParams) -> Result<[u8; 32], Error> {
+    key_of(spec, &format!("press model {params:?}"))
 }
 
 /// The cached press model if `dir` holds a valid one, else builds it, saves it (best effort)
@@ -32,15 +34,12 @@ pub fn load_or_build_press_model(
     spec: &SensorSpec,
     params: &PressModelParams,
 ) -> Result<(PressModel, bool), Error> {
-    let key = key_of(spec, &format!("press model {params:?}"))?;
-    let path = press_model_path(dir, spec, params)?;
-    if let Some(model) = std::fs::read(&path).ok().and_then(|bytes| decode_press_model(&bytes, &key)) {
-        return Ok((model, true));
-    }
-    let model = PressModel::new(&spec.forward_model()?, spec.conductivity, params).map_err(eitskin::SpecError::from)?;
-    // A cache that cannot be written costs time, not correctness.
-    let _ = std::fs::create_dir_all(dir).and_then(|()| std::fs::write(&path, encode_press_model(&model, &key)));
-    Ok((model, false))
+    let key = press_model_key(spec, params)?;
+    let build = || {
+        let model = spec.forward_model()?;
+        Ok(PressModel::new(&model, spec.conductivity, params).map_err(eitskin::SpecError::from)?)
+    };
+    cached(&cache_file(dir, "press-model", &key), &key, decode_press_model, build, encode_press_model)
 }
 
 /// The bytes of a cache file.

@@ -35,9 +35,7 @@ pub(crate) fn key_of(spec: &SensorSpec, extra: &str) -> Result<[u8; 32], Error> 
 
 /// The file a reconstructor for `spec` and `params` is cached in, under `dir`.
 pub fn cache_path(dir: &Path, spec: &SensorSpec, params: &ReconstructorParams) -> Result<PathBuf, Error> {
-    let key = cache_key(spec, params)?;
-    let hex: String = key[..12].iter().map(|b| format!("{b:02x}")).collect();
-    Ok(dir.join(format!("reconstructor-{hex}.bin")))
+    Ok(cache_file(dir, "reconstructor", &cache_key(spec, params)?))
 }
 
 /// The cached reconstructor if `dir` holds a valid one, else builds it, saves it (best effort)
@@ -48,15 +46,36 @@ pub fn load_or_build(
     params: &ReconstructorParams,
 ) -> Result<(Reconstructor, bool), Error> {
     let key = cache_key(spec, params)?;
-    let path = cache_path(dir, spec, params)?;
-    if let Some(recon) = std::fs::read(&path).ok().and_then(|bytes| decode(&bytes, &key)) {
-        return Ok((recon, true));
+    let build = || {
+        let model = spec.forward_model()?;
+        Ok(Reconstructor::new(&model, spec.conductivity, params).map_err(eitskin::SpecError::from)?)
+    };
+    cached(&cache_file(dir, "reconstructor", &key), &key, decode, build, encode)
+}
+
+/// The cache file `STEM-KEY.bin` under `dir` (the key's first 12 bytes in hex).
+pub(crate) fn cache_file(dir: &Path, stem: &str, key: &[u8; 32]) -> PathBuf {
+    let hex: String = key[..12].iter().map(|b| format!("{b:02x}")).collect();
+    dir.join(format!("{stem}-{hex}.bin"))
+}
+
+/// What `path` holds for `key` if it decodes, else what `build` makes, saved there (best
+/// effort); the flag says whether it came from the file.
+pub(crate) fn cached<T>(
+    path: &Path,
+    key: &[u8; 32],
+    decode: impl Fn(&[u8], &[u8; 32]) -> Option<T>,
+    build: impl FnOnce() -> Result<T, Error>,
+    encode: impl Fn(&T, &[u8; 32]) -> Vec<u8>,
+) -> Result<(T, bool), Error> {
+    if let Some(value) = std::fs::read(path).ok().and_then(|bytes| decode(&bytes, key)) {
+        return Ok((value, true));
     }
-    let model = spec.forward_model()?;
-    let recon = Reconstructor::new(&model, spec.conductivity, params).map_err(eitskin::SpecError::from)?;
+    let value = build()?;
     // A cache that cannot be written costs time, not correctness.
-    let _ = std::fs::create_dir_all(dir).and_then(|()| std::fs::write(&path, encode(&recon, &key)));
-    Ok((recon, false))
+    let _ =
+        path.parent().map_or(Ok(()), std::fs::create_dir_all).and_then(|()| std::fs::write(path, encode(&value, key)));
+    Ok((value, false))
 }
 
 /// The bytes of a cache file.
