@@ -147,12 +147,7 @@ fn samples(
     let imaging = if needs_frames {
         let Some(reference) = reference else { bail!("{} holds raw frames: give --reference FILE", path.display()) };
         let v_ref = eitskin_io::read_frame(reference)?;
-        let recon = match load::cache_dir() {
-            Some(dir) => eitskin_io::load_or_build(&dir, spec, &ReconstructorParams::default())?.0,
-            None => {
-                eitskin::Reconstructor::new(&spec.forward_model()?, spec.conductivity, &ReconstructorParams::default())?
-            }
-        };
+        let recon = load::reconstructor(spec, &ReconstructorParams::default(), true)?;
         Some((v_ref, recon))
     } else {
         None

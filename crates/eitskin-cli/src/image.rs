@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use eitskin::touch::detect;
-use eitskin::{Reconstructor, ReconstructorParams, TouchParams};
+use eitskin::{ReconstructorParams, TouchParams};
 use serde::Serialize;
 
 use crate::{load, plot};
@@ -66,10 +66,7 @@ pub fn run(args: Args) -> Result<()> {
     let v_ref = eitskin_io::read_frame(&args.reference)?;
     let v = eitskin_io::read_frame(&args.frame)?;
     let params = ReconstructorParams { hyperparameter: args.hyperparameter, ..ReconstructorParams::default() };
-    let recon = match (args.no_cache, load::cache_dir()) {
-        (false, Some(dir)) => eitskin_io::load_or_build(&dir, &spec, &params)?.0,
-        _ => Reconstructor::new(&spec.forward_model()?, spec.conductivity, &params)?,
-    };
+    let recon = load::reconstructor(&spec, &params, !args.no_cache)?;
     let image = recon.image(&v_ref, &v).with_context(|| format!("imaging {}", args.frame.display()))?;
     let touches = detect(&image, &TouchParams { threshold: args.threshold, ..TouchParams::default() });
     let k = 1.0 / spec.length_unit.metres();

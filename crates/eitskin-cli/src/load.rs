@@ -4,7 +4,7 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 use eitskin::conductivity::Inclusion;
-use eitskin::SensorSpec;
+use eitskin::{Reconstructor, ReconstructorParams, SensorSpec};
 
 /// The spec in `path`, or the built-in paper sensor.
 pub fn spec(path: Option<&Path>) -> Result<SensorSpec> {
@@ -30,6 +30,14 @@ pub fn inclusion(text: &str, spec: &SensorSpec) -> Result<Inclusion> {
     }
     let k = spec.length_unit.metres();
     Ok(Inclusion { centre: [x * k, y * k], radius: r * k, conductivity: sigma })
+}
+
+/// The reconstructor of `spec` with `params`, from the cache when there is one (and `use_cache`).
+pub fn reconstructor(spec: &SensorSpec, params: &ReconstructorParams, use_cache: bool) -> Result<Reconstructor> {
+    Ok(match cache_dir().filter(|_| use_cache) {
+        Some(dir) => eitskin_io::load_or_build(&dir, spec, params)?.0,
+        None => Reconstructor::new(&spec.forward_model()?, spec.conductivity, params)?,
+    })
 }
 
 /// The press model of `spec` (default indenter), from the cache when there is one.

@@ -99,12 +99,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(n) = args.triangles {
         spec.mesh.triangles = n;
     }
-    let recon = match load::cache_dir() {
-        Some(dir) => eitskin_io::load_or_build(&dir, &spec, &ReconstructorParams::default())?.0,
-        None => {
-            eitskin::Reconstructor::new(&spec.forward_model()?, spec.conductivity, &ReconstructorParams::default())?
-        }
-    };
+    let recon = load::reconstructor(&spec, &ReconstructorParams::default(), true)?;
     let calibration = match &args.calibration {
         Some(path) => Some(eitskin_io::read_calibration(path, &spec)?),
         None => None,
