@@ -12,6 +12,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
+use eitskin::chain::Chain;
 use eitskin::conductivity::{with_inclusions, Inclusion};
 use eitskin::pipeline::{Pipeline, PipelineParams};
 use eitskin::press_fit::{PressModel, PressModelParams, PressScratch};
@@ -61,7 +62,7 @@ fn replay(recon: &Reconstructor, rest: &[f64], pressed: &[f64]) -> Result<(f64, 
     let count = 5000;
     let line = |v: &[f64]| v.iter().map(|x| format!("{x:.6e}")).collect::<Vec<_>>().join(",") + "\n";
     let lines: Vec<String> = (0..count).map(|k| line(if k % 2 == 0 || k < 10 { rest } else { pressed })).collect();
-    let mut pipeline = Pipeline::new(recon.clone(), PipelineParams::default(), None);
+    let mut pipeline = Pipeline::new(Chain::new(recon.clone(), TouchParams::default()), PipelineParams::default());
     let mut decoder = LinesDecoder::new(rest.len());
     let (mut events, mut sink) = (Vec::with_capacity(4), Vec::with_capacity(4096));
     let mut latencies = Vec::with_capacity(count);
@@ -121,14 +122,11 @@ pub fn run(args: Args) -> Result<()> {
         Ok(())
     })?;
     let press_params = PressModelParams::default();
-    let (t_press_model, press_model) =
-        time(n.min(3), || Ok(PressModel::new(&model, background, &press_params).map_err(eitskin::SpecError::from)?))?;
+    let (t_press_model, press_model) = time(n.min(3), || Ok(PressModel::new(&model, background, &press_params)?))?;
     let dv: Vec<f64> = frame.iter().zip(&values).map(|(v, r)| v - r).collect();
     let starts: Vec<[f64; 2]> = touches.iter().map(|t| t.centre).collect();
     let (mut press_scratch, mut fits) = (PressScratch::default(), Vec::with_capacity(16));
-    let (t_fit, ()) = time(frames, || {
-        Ok(press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits).map_err(eitskin::SpecError::from)?)
-    })?;
+    let (t_fit, ()) = time(frames, || Ok(press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits)?))?;
     let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
     let stages = [
         ("mesh", t_mesh),

@@ -4,10 +4,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use eitskin::calibration::{force_errors, Calibration, Sample, Strength};
+use eitskin::calibration::{force_errors, Calibration, ForceEstimate, Sample};
+use eitskin::chain::LabelledFrame;
 use eitskin::pseudo_array::PseudoArray;
-use eitskin::touch::detect;
-use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
+use eitskin::strength::Strength;
+use eitskin::SensorSpec;
 use eitskin_io::{Location, Measured, SampleRow};
 
 use crate::load;
@@ -29,19 +30,41 @@ pub struct CalibrateArgs {
     /// Reference (no-touch) frame, needed when the samples hold raw frames.
     #[arg(long)]
     reference: Option<PathBuf>,
-    /// What the curves take as the touch's strength: the image's `peak`, or the `fitted-drop`
-    /// of the press fitted to Δv (needs raw frames).
+    /// What the curves take as the touch's strength: the image's `peak` (the paper's), the
+    /// `fitted-drop` of the press fitted to Δv, or a reading of the forward model's contrast map
+    /// (all but `peak` need raw frames).
     #[arg(long, value_enum, default_value_t = StrengthArg::Peak)]
     strength: StrengthArg,
 }
 
-/// `--strength` of `eitskin calibrate`.
+/// `--strength` of `eitskin calibrate`: what the curves take as a touch's strength.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum StrengthArg {
     /// The peak of the touch's image (S/m), as the paper.
     Peak,
     /// The conductivity drop of the press fitted to Δv (fraction of the background).
     FittedDrop,
+    /// The peak divided by the forward model's sensitivity at the touch's centre.
+    Sensitivity,
+    /// The drop that explains the peak at the touch's centre, from the forward model's contrast map.
+    ContrastPeak,
+    /// The drop that explains the touch's volume, from the contrast map.
+    ContrastVolume,
+    /// The mean of the contrast map's drops from the peak and from the volume.
+    ContrastPeakAndVolume,
+}
+
+impl From<StrengthArg> for Strength {
+    fn from(arg: StrengthArg) -> Strength {
+        match arg {
+            StrengthArg::Peak => Strength::Peak,
+            StrengthArg::FittedDrop => Strength::FittedDrop,
+            StrengthArg::Sensitivity => Strength::Sensitivity,
+            StrengthArg::ContrastPeak => Strength::ContrastPeak,
+            StrengthArg::ContrastVolume => Strength::ContrastVolume,
+            StrengthArg::ContrastPeakAndVolume => Strength::ContrastPeakAndVolume,
+        }
+    }
 }
 
 /// Flags of `eitskin evaluate`.
@@ -64,19 +87,32 @@ pub struct EvaluateArgs {
 pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [args.grid; 2])?;
-    let strength = match args.strength {
-        StrengthArg::Peak => Strength::Peak,
-        StrengthArg::FittedDrop => Strength::FittedDrop,
+    let strength = Strength::from(args.strength);
+    let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
+    let samples = match Labelled::of(&spec, &array, &args.samples, rows)? {
+        Labelled::Peaks(peaks) if strength == Strength::Peak => peaks,
+        Labelled::Peaks(_) => {
+            bail!(
+                "{}: a \"{strength}\" calibration needs each sample's raw frame, not its peak",
+                args.samples.display()
+            )
+        }
+        Labelled::Frames(frames) => {
+            let reference = reference(args.reference.as_deref(), &args.samples)?;
+            let mut chain = load::chain(&spec, strength, false)?;
+            let samples = chain.samples(&reference, &array, &frames)?;
+            let missed = samples.iter().filter(|s| s.is_none()).count();
+            if missed > 0 {
+                eprintln!("{missed} of {} frames show no touch and are left out", samples.len());
+            }
+            samples.into_iter().flatten().collect()
+        }
     };
-    let samples = samples(&spec, &array, &args.samples, args.reference.as_deref(), strength)?;
     let calibration = Calibration::fit_strength(&samples, array.area_count(), strength)?;
     std::fs::write(&args.out, eitskin_io::calibration_to_json(&spec, &array, &calibration)?)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    let (name, unit) = match strength {
-        Strength::Peak => ("peak", "[S/m]"),
-        Strength::FittedDrop => ("drop", "[1]"),
-    };
-    println!("{} samples, {} areas; {name}(F) = a·e^(−F/b) + c:", samples.len(), array.area_count());
+    let unit = format!("[{}]", strength.unit());
+    println!("{} samples, {} areas; {strength}(F) = a·e^(−F/b) + c:", samples.len(), array.area_count());
     println!(
         "{:>5} {:>12} {:>10} {:>12} {:>7} {:>10} {:>8}",
         "area",
@@ -104,21 +140,44 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     Ok(())
 }
 
-/// Runs `eitskin evaluate`.
+/// Runs `eitskin evaluate`: with raw frames, each through the same chain as `eitskin run`
+/// (the strongest touch's force, its unit where the chain places it); with peaks, at the
+/// sample's own unit.
 pub fn evaluate(args: EvaluateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
     let (array, calibration) = eitskin_io::read_calibration(&args.calibration, &spec)?;
-    let samples = samples(&spec, &array, &args.samples, args.reference.as_deref(), calibration.strength)?;
-    let mut saturated = 0;
-    let mut predicted = Vec::with_capacity(samples.len());
-    for s in &samples {
-        let f = calibration.force(s.area, s.peak)?;
-        saturated += usize::from(f.saturated);
-        predicted.push(f.newtons);
+    let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
+    let (mut truth, mut predicted, mut saturated, mut missed) = (Vec::new(), Vec::new(), 0, 0);
+    let mut add = |force: f64, estimate: Option<ForceEstimate>| match estimate {
+        Some(f) => {
+            saturated += usize::from(f.saturated);
+            truth.push(force);
+            predicted.push(f.newtons);
+        }
+        None => missed += 1,
+    };
+    match Labelled::of(&spec, &array, &args.samples, rows)? {
+        Labelled::Peaks(peaks) if calibration.strength == Strength::Peak => {
+            for s in &peaks {
+                add(s.force, Some(calibration.force(s.area, s.peak)?));
+            }
+        }
+        Labelled::Peaks(_) => bail!(
+            "{}: the calibration reads the \"{}\", which needs each sample's raw frame, not its peak",
+            args.samples.display(),
+            calibration.strength
+        ),
+        Labelled::Frames(frames) => {
+            let reference = reference(args.reference.as_deref(), &args.samples)?;
+            let mut chain = load::chain(&spec, calibration.strength, false)?.with_calibration(array, calibration)?;
+            for (k, f) in frames.iter().enumerate() {
+                let touches = chain.process(&reference, &f.frame).with_context(|| format!("sample {}", k + 1))?;
+                add(f.force, touches.first().and_then(|t| t.force));
+            }
+        }
     }
-    let truth: Vec<f64> = samples.iter().map(|s| s.force).collect();
     let e = force_errors(&truth, &predicted);
-    println!("{} samples ({saturated} saturated)", e.count);
+    println!("{} samples ({saturated} saturated, {missed} without a touch on the pseudo-array, left out)", e.count);
     println!(
         "RMS error {:.3} N ({:.2} % of the largest force), correlation {:.3}, mean absolute error {:.3} N",
         e.rms, e.rms_percent_of_max, e.correlation, e.mean_absolute
@@ -126,65 +185,56 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
     Ok(())
 }
 
-/// Each row as an area, force and strength: frames are imaged against the reference first (and
-/// for the fitted drop, a press is fitted from the strongest touch; none found is a drop of 0).
-fn samples(
-    spec: &SensorSpec,
-    array: &PseudoArray,
-    path: &Path,
-    reference: Option<&Path>,
-    strength: Strength,
-) -> Result<Vec<Sample>> {
-    let rows = eitskin_io::read_samples(path, spec.length_unit.metres())?;
-    let needs_frames = rows.iter().any(|r| matches!(r.measured, Measured::Frame(_)));
-    if strength == Strength::FittedDrop && rows.iter().any(|r| matches!(r.measured, Measured::Peak(_))) {
-        bail!("{}: a fitted-drop calibration needs each sample's raw frame, not its peak", path.display());
+/// The reference frame of a samples file of raw frames.
+fn reference(path: Option<&Path>, samples: &Path) -> Result<Vec<f64>> {
+    let Some(path) = path else { bail!("{} holds raw frames: give --reference FILE", samples.display()) };
+    Ok(eitskin_io::read_frame(path)?)
+}
+
+/// A samples file's rows, all peaks or all raw frames.
+enum Labelled {
+    /// Each row's area, force and peak (S/m).
+    Peaks(Vec<Sample>),
+    /// Each row's press (its unit's centre for a `unit` column) and frame.
+    Frames(Vec<LabelledFrame>),
+}
+
+impl Labelled {
+    /// The rows of `path` placed on `array`; a unit or point off the array is an error naming the row.
+    fn of(spec: &SensorSpec, array: &PseudoArray, path: &Path, rows: Vec<SampleRow>) -> Result<Labelled> {
+        let per_unit = 1.0 / spec.length_unit.metres();
+        let u = spec.length_unit.symbol();
+        let mut peaks = Vec::new();
+        let mut frames = Vec::new();
+        for (k, SampleRow { location, force, measured }) in rows.into_iter().enumerate() {
+            let position = match location {
+                Location::Unit(unit) if unit < array.unit_count() => array.unit_centre(unit),
+                Location::Unit(unit) => {
+                    bail!(
+                        "{}: sample {}: unit {} does not exist ({} units)",
+                        path.display(),
+                        k + 1,
+                        unit + 1,
+                        array.unit_count()
+                    )
+                }
+                Location::Point(p) => p,
+            };
+            let Some(unit) = array.unit_at(position) else {
+                let [x, y] = position.map(|c| c * per_unit);
+                bail!("{}: sample {}: ({x}, {y}) {u} is off the sheet", path.display(), k + 1);
+            };
+            match measured {
+                Measured::Peak(peak) => peaks.push(Sample { area: array.area_of(unit), force, peak }),
+                Measured::Frame(frame) => frames.push(LabelledFrame { position, force, frame }),
+            }
+        }
+        match (peaks.is_empty(), frames.is_empty()) {
+            (false, false) => {
+                bail!("{}: some samples hold a peak and others a raw frame; give one kind", path.display())
+            }
+            (true, false) => Ok(Labelled::Frames(frames)),
+            _ => Ok(Labelled::Peaks(peaks)),
+        }
     }
-    let press_model = match strength {
-        Strength::FittedDrop => Some(load::press_model(spec)?),
-        Strength::Peak => None,
-    };
-    let imaging = if needs_frames {
-        let Some(reference) = reference else { bail!("{} holds raw frames: give --reference FILE", path.display()) };
-        let v_ref = eitskin_io::read_frame(reference)?;
-        let recon = load::reconstructor(spec, &ReconstructorParams::default(), true)?;
-        Some((v_ref, recon))
-    } else {
-        None
-    };
-    rows.iter()
-        .enumerate()
-        .map(|(k, row)| {
-            let SampleRow { location, force, measured } = row;
-            let unit = match *location {
-                Location::Unit(u) if u < array.unit_count() => u,
-                Location::Unit(u) => {
-                    bail!("sample {}: unit {} does not exist ({} units)", k + 1, u + 1, array.unit_count())
-                }
-                Location::Point(p) => {
-                    array.unit_at(p).with_context(|| format!("sample {}: {p:?} m is off the sheet", k + 1))?
-                }
-            };
-            let peak = match (measured, &imaging) {
-                (Measured::Peak(p), _) => *p,
-                (Measured::Frame(v), Some((v_ref, recon))) => {
-                    let image = recon.image(v_ref, v).with_context(|| format!("sample {}", k + 1))?;
-                    let touch = detect(&image, &TouchParams::default()).first().copied();
-                    match (&press_model, touch) {
-                        (None, touch) => touch.map_or(0.0, |t| t.peak),
-                        (Some(_), None) => 0.0,
-                        (Some(model), Some(t)) => {
-                            let dv: Vec<f64> = v.iter().zip(v_ref).map(|(v, r)| v - r).collect();
-                            model
-                                .fit(&dv, t.centre)
-                                .with_context(|| format!("sample {}", k + 1))?
-                                .map_or(0.0, |p| p.drop)
-                        }
-                    }
-                }
-                (Measured::Frame(_), None) => bail!("sample {} holds a raw frame: give --reference FILE", k + 1),
-            };
-            Ok(Sample { area: array.area_of(unit), force: *force, peak })
-        })
-        .collect()
 }

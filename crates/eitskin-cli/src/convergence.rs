@@ -4,8 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
-use eitskin::conductivity::Inclusion;
-use eitskin::convergence::{disk_values, levels, observed_order, relative_error, richardson, Level};
+use eitskin::convergence::{default_inclusion, study};
 use serde::Serialize;
 
 use crate::load;
@@ -58,44 +57,29 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.protocol {
         spec.protocol = eitskin_io::protocol_by_name(p, std::path::Path::new("."))?;
     }
-    if args.triangles.len() < 3 {
-        bail!("--triangles needs at least 3 levels to estimate an order");
-    }
     let inclusion = match &args.inclusion {
         Some(text) => load::inclusion(text, &spec)?,
-        None => {
-            let [lo, hi] = spec.outline.bounds();
-            let width = hi[0] - lo[0];
-            Inclusion { centre: [0.25 * width, 0.0], radius: 0.05 * width, conductivity: 0.5 * spec.conductivity }
-        }
+        None => default_inclusion(&spec),
     };
-    let levels = levels(&spec, &args.triangles, &[inclusion])?;
-    let n = levels.len();
-    let tri = |k: usize| levels[k].triangles;
-    let order_of = |f: fn(&Level) -> &[f64]| {
-        observed_order([f(&levels[n - 3]), f(&levels[n - 2]), f(&levels[n - 1])], [tri(n - 3), tri(n - 2), tri(n - 1)])
+    let Some(found) = study(&spec, &args.triangles, inclusion)? else {
+        bail!("--triangles needs at least 3 levels to estimate an order, got {}", args.triangles.len());
     };
-    let value_order = order_of(|l| &l.values);
-    let difference_order = order_of(|l| &l.difference);
-    let extrapolate = |f: fn(&Level) -> &[f64], order: Option<f64>| {
-        let ratio = (tri(n - 1) as f64 / tri(n - 2) as f64).sqrt();
-        richardson(f(&levels[n - 2]), f(&levels[n - 1]), ratio, order.unwrap_or(1.0).max(0.5))
-    };
-    let (reference, value_truth) = match disk_values(&spec)? {
-        Some(v) => ("analytic (Fourier series) for values, Richardson for differences", v),
-        None => ("Richardson extrapolation of the two finest levels", extrapolate(|l| &l.values, value_order)),
-    };
-    let difference_truth = extrapolate(|l| &l.difference, difference_order);
-    let rows: Vec<Row> = levels
+    let levels = found
+        .levels
         .iter()
         .map(|l| Row {
             triangles: l.triangles,
             setup_seconds: l.setup_seconds,
-            value_error: relative_error(&l.values, &value_truth),
-            difference_error: relative_error(&l.difference, &difference_truth),
+            value_error: l.value_error,
+            difference_error: l.difference_error,
         })
         .collect();
-    let report = Report { reference, value_order, difference_order, levels: rows };
+    let report = Report {
+        reference: found.reference,
+        value_order: found.value_order,
+        difference_order: found.difference_order,
+        levels,
+    };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
@@ -112,7 +96,7 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     let show = |o: Option<f64>| o.map_or("none (not converging)".to_string(), |p| format!("{p:.2}"));
-    println!("observed order in h: values {}, differences {}", show(value_order), show(difference_order));
+    println!("observed order in h: values {}, differences {}", show(report.value_order), show(report.difference_order));
     for target in [1e-2, 1e-3] {
         let first = |f: fn(&Row) -> f64| report.levels.iter().find(|r| f(r) <= target);
         for (what, hit) in [("values", first(|r| r.value_error)), ("differences", first(|r| r.difference_error))] {

@@ -3,8 +3,11 @@
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
+use eitskin::chain::Chain;
 use eitskin::conductivity::Inclusion;
-use eitskin::{Reconstructor, ReconstructorParams, SensorSpec};
+use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
+use eitskin::strength::Strength;
+use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 
 /// The spec in `path`, or the built-in paper sensor.
 pub fn spec(path: Option<&Path>) -> Result<SensorSpec> {
@@ -38,6 +41,33 @@ pub fn reconstructor(spec: &SensorSpec, params: &ReconstructorParams, use_cache:
         Some(dir) => eitskin_io::load_or_build(&dir, spec, params)?.0,
         None => Reconstructor::new(&spec.forward_model()?, spec.conductivity, params)?,
     })
+}
+
+/// The frame chain of `spec` reading each touch's strength as `strength`: the reconstructor
+/// (from the cache), the paper's touch settings, the press model when the strength needs it or
+/// `fit` asks for it, the contrast map when the strength reads it.
+pub fn chain(spec: &SensorSpec, strength: Strength, fit: bool) -> Result<Chain> {
+    let params = ReconstructorParams::default();
+    let recon = reconstructor(spec, &params, true)?;
+    let map = if strength.needs_contrast_map() {
+        let map_params = ContrastMapParams::default();
+        Some(match cache_dir() {
+            Some(dir) => eitskin_io::load_or_build_contrast_map(&dir, spec, &params, &map_params)?.0,
+            None => {
+                ContrastMap::new(&spec.forward_model()?, spec.conductivity, &recon, spec.outline.bounds(), &map_params)?
+            }
+        })
+    } else {
+        None
+    };
+    let mut chain = Chain::new(recon, TouchParams::default());
+    if fit || strength.needs_press_model() {
+        chain = chain.with_press_model(press_model(spec)?);
+    }
+    if let Some(map) = map {
+        chain = chain.with_contrast_map(map);
+    }
+    Ok(chain.with_strength(strength)?)
 }
 
 /// The press model of `spec` (default indenter), from the cache when there is one.

@@ -1,6 +1,7 @@
 //! The study's numbers as JSON and as a Markdown report beside the paper's.
 
-use eitskin::study::{StudyParams, StudyReport};
+use eitskin::strength::Strength;
+use eitskin::study::{ForceMethod, StudyParams, StudyReport};
 use eitskin::LengthUnit;
 use serde_json::{json, Value};
 
@@ -29,7 +30,9 @@ pub fn json(study: &StudyReport, params: &StudyParams, seconds: f64) -> Value {
         "mean_fit_position_error_m": study.mean_fit_position_error,
         "share_in_right_unit": study.right_unit,
         "methods": study.methods.iter().map(|m| json!({
-            "name": m.name,
+            "name": m.method.name(),
+            "grid": m.method.grid,
+            "strength": m.method.strength.name(),
             "calibration_samples": m.calibration_samples,
             "curves": m.curves.iter().map(curve).collect::<Vec<_>>(),
             "rms_newton": m.errors.rms,
@@ -69,7 +72,8 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
     s += "## Calibration (Table 2)\n\nOurs: peak(F) = a·e^(−F/b) + c with the peak a positive magnitude, so our b > 0 where the paper's (signed conductivity) b < 0.\n\n";
     s += "The column R² (fitted press) is the same per-area fit on the drop of the press fitted to Δv (`eitskin::press_fit`) instead of the image's peak.\n\n";
     s += "| area | a | b [N] | c | R² | R² (fitted press) | forces [N] | samples | paper a | paper b | paper c | paper R² |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-    let fitted = study.methods.iter().find(|m| m.name.ends_with("(fitted press)"));
+    let by = |grid, strength| study.methods.iter().find(|m| m.method == ForceMethod { grid, strength });
+    let fitted = by(params.grid, Strength::FittedDrop);
     if let Some(m) = study.methods.first() {
         for (i, c) in m.curves.iter().enumerate() {
             let r2 = fitted.and_then(|f| f.curves.get(i)).map_or(String::new(), |f| format!("{:.3}", f.r_squared));
@@ -104,7 +108,7 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
     for m in &study.methods {
         s += &format!(
             "| {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |\n",
-            m.name,
+            m.method.name(),
             m.calibration_samples,
             m.errors.rms,
             m.errors.rms_percent_of_max,
@@ -112,7 +116,7 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
             m.errors.mean_absolute
         );
     }
-    if let Some(c) = study.methods.iter().find(|m| m.name == "fitted press").and_then(|m| m.curves.first()) {
+    if let Some(c) = by(1, Strength::FittedDrop).and_then(|m| m.curves.first()) {
         let gel = params.sim.hydrogel;
         s += &format!(
             "\nThe fitted press's one curve, from the calibration presses alone: drop(F) = {:.3} {} {:.3}·e^(−F/{:.2} N); the virtual gel's own law: {:.3}·(1 − e^(−F/{:.2} N)).\n",
@@ -125,7 +129,7 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
         );
     }
     for (i, m) in study.methods.iter().enumerate() {
-        s += &format!("\n![{}](fig12_{}.png)\n", m.name, i + 1);
+        s += &format!("\n![{}](fig12_{}.png)\n", m.method.name(), i + 1);
     }
     s
 }

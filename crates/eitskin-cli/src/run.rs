@@ -17,7 +17,7 @@ use eitskin::calibration::Strength;
 use eitskin::pipeline::{Pipeline, PipelineParams, Status};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::sim::{Script, VirtualSensor};
-use eitskin::{ReconstructorParams, SensorSpec};
+use eitskin::SensorSpec;
 use eitskin_io::codec::{BinaryDecoder, Decoder, Event, LinesDecoder};
 use eitskin_io::recorder::{Header, Recorder};
 use eitskin_io::replay::{read_recording, Pace, Speed};
@@ -99,21 +99,19 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(n) = args.triangles {
         spec.mesh.triangles = n;
     }
-    let recon = load::reconstructor(&spec, &ReconstructorParams::default(), true)?;
-    let calibration = match &args.calibration {
-        Some(path) => Some(eitskin_io::read_calibration(path, &spec)?),
-        None => None,
+    let chain = match &args.calibration {
+        Some(path) => {
+            let (array, calibration) = eitskin_io::read_calibration(path, &spec)?;
+            load::chain(&spec, calibration.strength, args.fit)?.with_calibration(array, calibration)?
+        }
+        None => load::chain(&spec, Strength::Peak, args.fit)?,
     };
     let params = PipelineParams {
         reference_frames: args.reference_frames,
         baseline_rate: args.baseline_rate,
         ..PipelineParams::default()
     };
-    let fit = args.fit || calibration.as_ref().is_some_and(|(_, c)| c.strength == Strength::FittedDrop);
-    let mut pipeline = Pipeline::new(recon, params, calibration);
-    if fit {
-        pipeline = pipeline.with_press_model(load::press_model(&spec)?);
-    }
+    let mut pipeline = Pipeline::new(chain, params);
     let protocol = spec.protocol()?;
     let mut recorder = match &args.record {
         Some(path) => Some(Recorder::create(path, &Header::now(protocol.len(), protocol.description()))?),

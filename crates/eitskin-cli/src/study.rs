@@ -1,5 +1,6 @@
 //! `eitskin study`: the paper's simulation and in-silico experiment rerun on the virtual sensor,
-//! every force method side by side; figures (PNG), numbers (JSON) and `report.md`.
+//! every force method side by side; figures (PNG), numbers (JSON), `report.md`, and the frames
+//! it measured (CSV) for `eitskin calibrate` and `evaluate`.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -58,7 +59,7 @@ pub fn run(args: Args) -> Result<()> {
     write_figures(&study, &args)?;
     let json = report::json(&study, &params, seconds);
     std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
-    write_samples(&study, &args, spec.length_unit.metres())?;
+    write_frames(&study, &args, spec.length_unit.metres())?;
     let markdown = report::markdown(&study, &params, spec.length_unit, seconds);
     std::fs::write(args.out.join("report.md"), &markdown)?;
     println!("{markdown}");
@@ -66,21 +67,25 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// The calibration samples (`unit,force,peak`) and validation samples (`x,y,force,peak`, the
-/// touch's centre in the spec's units) as CSV, for `eitskin calibrate` and `evaluate`.
-fn write_samples(study: &StudyReport, args: &Args, metres: f64) -> Result<()> {
-    let mut csv = String::from("unit,force,peak\n");
-    for s in &study.calibration {
-        csv += &format!("{},{},{:e}\n", s.unit + 1, s.force, s.peak);
-    }
-    std::fs::write(args.out.join("calibration_samples.csv"), csv)?;
-    let mut csv = String::from("x,y,force,peak\n");
-    for (press, touch) in study.validation.iter().zip(&study.validation_touches) {
-        if let Some(t) = touch {
-            csv += &format!("{},{},{},{:e}\n", t.centre[0] / metres, t.centre[1] / metres, press.force, t.peak);
+/// The frames the study measured, for `eitskin calibrate` and `evaluate` to reproduce its
+/// numbers: `reference.csv` (one frame), `calibration_frames.csv` and `validation_frames.csv`
+/// (`x,y,force,v1…`: the press's centre in the spec's units, its force, its noisy frame).
+fn write_frames(study: &StudyReport, args: &Args, metres: f64) -> Result<()> {
+    let values = |csv: &mut String, frame: &[f64]| frame.iter().for_each(|v| csv.push_str(&format!(",{v:e}")));
+    let reference: Vec<String> = study.reference.iter().map(|v| format!("{v:e}")).collect();
+    std::fs::write(args.out.join("reference.csv"), reference.join("\n") + "\n")?;
+    for (name, frames) in
+        [("calibration_frames.csv", &study.calibration), ("validation_frames.csv", &study.validation_frames)]
+    {
+        let mut csv = String::from("x,y,force");
+        (1..=study.reference.len()).for_each(|m| csv.push_str(&format!(",v{m}")));
+        for f in frames {
+            csv.push_str(&format!("\n{},{},{}", f.position[0] / metres, f.position[1] / metres, f.force));
+            values(&mut csv, &f.frame);
         }
+        csv.push('\n');
+        std::fs::write(args.out.join(name), csv)?;
     }
-    std::fs::write(args.out.join("validation_samples.csv"), csv)?;
     Ok(())
 }
 
@@ -118,10 +123,10 @@ fn write_figures(study: &StudyReport, args: &Args) -> Result<()> {
             .map(|(t, p)| (t.force, *p))
             .collect();
         let diagonal = plot::Series { name: "ideal".into(), points: vec![(0.0, 0.0), (16.0, 16.0)], line: true };
-        let dots = plot::Series { name: method.name.clone(), points, line: false };
+        let dots = plot::Series { name: method.method.name(), points, line: false };
         plot::chart(
             &args.out.join(format!("fig12_{}.png", k + 1)),
-            &format!("Fig. 12: true against predicted force, {}", method.name),
+            &format!("Fig. 12: true against predicted force, {}", method.method.name()),
             ("true force [N]", "predicted force [N]"),
             &[diagonal, dots],
         )?;

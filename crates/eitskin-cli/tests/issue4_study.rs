@@ -1,6 +1,6 @@
-//! Issue 4, through the real binary: `eitskin study` on the default sensor writes its figures,
-//! numbers and report; `calibrate` and `evaluate` reproduce the study's pseudo-array from the
-//! samples it wrote; a calibration made for another spec is refused.
+//! Through the real binary: `eitskin study` on the default sensor writes its figures, numbers
+//! and report; `calibrate` and `evaluate` on the frames it wrote reproduce its force methods
+//! exactly (one chain); a calibration made for another spec is refused.
 
 mod binary;
 
@@ -48,38 +48,67 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
     }
     // The issue's R² bar, on the fitted press's drop: every area ≥ 0.95. (On the image peak
     // the centre area falls short at this noise; the report shows both.)
-    let by_name = |name: &str| methods.iter().find(|m| m["name"] == name).unwrap_or_else(|| panic!("no {name}"));
-    for curve in by_name("pseudo-array 5×5 (fitted press)")["curves"].as_array().unwrap() {
+    let by = |grid: u64, strength: &str| {
+        methods
+            .iter()
+            .find(|m| m["grid"] == grid && m["strength"] == strength)
+            .unwrap_or_else(|| panic!("no {grid}×{grid} {strength}"))
+    };
+    for curve in by(5, "fitted drop")["curves"].as_array().unwrap() {
         assert!(curve["r_squared"].as_f64().unwrap() >= 0.95, "{curve}");
     }
     // The fitted press recovers the virtual gel's own law, drop = 0.9·(1 − e^(−F/5.54 N)).
-    let gel = &by_name("fitted press")["curves"][0];
+    let gel = &by(1, "fitted drop")["curves"][0];
     let (a, b, c) = (gel["a"].as_f64().unwrap(), gel["b_newton"].as_f64().unwrap(), gel["c"].as_f64().unwrap());
     assert!((a + 0.9).abs() < 0.05 && (c - 0.9).abs() < 0.05 && (b / 5.54 - 1.0).abs() < 0.05, "{gel}");
     let fitted_position = json["mean_fit_position_error_m"].as_f64().unwrap();
     assert!(fitted_position < 0.5 * position, "fitted {fitted_position} m, image {position} m");
     // The issue's bar: a continuous calibration at most half the pseudo-array's RMS error.
-    let continuous = (0..methods.len()).filter(|&k| !methods[k]["name"].as_str().unwrap().starts_with("pseudo-array"));
+    let continuous = (0..methods.len()).filter(|&k| methods[k]["grid"] == 1);
     let best = continuous.map(rms).fold(f64::INFINITY, f64::min);
     assert!(best <= 0.5 * rms(0), "best continuous method {best} N against pseudo-array {} N", rms(0));
 
-    // calibrate + evaluate on the samples the study wrote give the study's 5×5 result.
+    // calibrate + evaluate on the frames the study wrote give the study's curves and errors,
+    // bit for bit: the paper's method, one continuous and the fitted press.
+    let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
     let cal = dir.join("cal.json");
-    ok(eitskin(&[
-        "calibrate",
-        "--samples",
-        dir.join("calibration_samples.csv").to_str().unwrap(),
-        "--out",
-        cal.to_str().unwrap(),
-    ]));
-    let text = ok(eitskin(&[
-        "evaluate",
-        "--calibration",
-        cal.to_str().unwrap(),
-        "--samples",
-        dir.join("validation_samples.csv").to_str().unwrap(),
-    ]));
-    assert!(text.contains(&format!("RMS error {:.3} N", rms(0))), "{text} vs {}", rms(0));
+    for (grid, strength, flag) in [
+        (5, "peak", "peak"),
+        (1, "contrast map (peak and volume)", "contrast-peak-and-volume"),
+        (1, "fitted drop", "fitted-drop"),
+    ] {
+        let study = by(grid, strength);
+        ok(eitskin(&[
+            "calibrate",
+            "--samples",
+            &path("calibration_frames.csv"),
+            "--reference",
+            &path("reference.csv"),
+            "--grid",
+            &grid.to_string(),
+            "--strength",
+            flag,
+            "--out",
+            cal.to_str().unwrap(),
+        ]));
+        let file: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap();
+        assert_eq!(file["strength"], strength);
+        for (ours, theirs) in file["curves"].as_array().unwrap().iter().zip(study["curves"].as_array().unwrap()) {
+            assert_eq!((&ours["a"], &ours["b"], &ours["c"]), (&theirs["a"], &theirs["b_newton"], &theirs["c"]));
+        }
+        let text = ok(eitskin(&[
+            "evaluate",
+            "--calibration",
+            cal.to_str().unwrap(),
+            "--samples",
+            &path("validation_frames.csv"),
+            "--reference",
+            &path("reference.csv"),
+        ]));
+        let rms = study["rms_newton"].as_f64().unwrap();
+        assert!(text.contains(&format!("{} samples", study["count"])), "{strength}: {text}");
+        assert!(text.contains(&format!("RMS error {rms:.3} N")), "{strength}: {text} vs {rms}");
+    }
 
     // The same calibration is refused for a sensor with other electrodes.
     let spec = dir.join("other.toml");
@@ -91,7 +120,9 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
         "--calibration",
         cal.to_str().unwrap(),
         "--samples",
-        dir.join("validation_samples.csv").to_str().unwrap(),
+        &path("validation_frames.csv"),
+        "--reference",
+        &path("reference.csv"),
     ]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("made for another sensor spec"));

@@ -178,9 +178,12 @@ fn calibration(dir: &Path) -> PathBuf {
         .unwrap();
     assert!(status.success(), "eitskin study failed");
     let file = dir.join("calibration.json");
-    let samples = study.join("calibration_samples.csv");
+    let samples = study.join("calibration_frames.csv");
+    let reference = study.join("reference.csv");
     let status = Command::new(bin())
-        .args(["calibrate", "--samples", samples.to_str().unwrap(), "--out", file.to_str().unwrap()])
+        .args(["calibrate", "--samples", samples.to_str().unwrap(), "--reference", reference.to_str().unwrap()])
+        .args(["--out", file.to_str().unwrap()])
+        .env("EITSKIN_CACHE", cache())
         .stdout(Stdio::null())
         .status()
         .unwrap();

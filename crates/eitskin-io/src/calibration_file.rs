@@ -1,29 +1,39 @@
 //! Calibration files (JSON, versioned): the pseudo-array's areas and one curve per area, tied
-//! to the sensor spec they were made for.
+//! to the sensor they were made for.
 //!
 //! ```json
-//! { "format": "eitskin-calibration", "version": 2, "spec_key": "…", "strength": "peak",
+//! { "format": "eitskin-calibration", "version": 3, "spec_key": "…", "strength": "peak",
 //!   "grid": [5, 5], "areas": [6, 5, 3, …], "curves": [{ "a": …, "b": …, "c": …,
 //!   "r_squared": …, "force_range": [0, 15], "samples": 240 }, …] }
 //! ```
 //! `areas` gives each unit's area, counting both from 1, units row-major from the bottom-left;
-//! curve k is area k + 1, s(F) = a·e^(−F/b) + c with F in N and the strength s either the
-//! image's `"peak"` in S/m or the `"fitted drop"` of the press fitted to Δv (a fraction of the
-//! background). Version 1 files (no `strength`) are read as peak. A file made for another spec
-//! (another `spec_key`) is refused.
+//! curve k is area k + 1, s(F) = a·e^(−F/b) + c with F in N and the strength s named as in
+//! [`Strength::name`]: the image's `"peak"` in S/m, the `"fitted drop"` of the press fitted to
+//! Δv (a fraction of the background), or one of the contrast map's readings. Version 1 files (no
+//! `strength`) are read as peak. A file made for another sensor (another `spec_key`) is refused.
+//!
+//! The key ([`spec_key`]) is a SHA-256 of the sensor's canonical values, serialised as JSON: a
+//! key version; thickness and background conductivity; the outline's kind and lengths; the
+//! electrode model, width, contact impedance and each electrode's centre (m); the protocol's
+//! stimulation currents and measurement weights. The mesh density and the spec's length unit
+//! are not part of it, nor how the electrodes were placed (only where they are). Files of
+//! versions 1 and 2 carry an older key (the spec file's TOML and the protocol's debug text),
+//! which is still accepted for them.
 
 use std::path::Path;
 
 use eitskin::calibration::{Calibration, Curve, Strength};
 use eitskin::pseudo_array::PseudoArray;
-use eitskin::SensorSpec;
+use eitskin::{Outline, SensorSpec};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::Error;
 
 const FORMAT: &str = "eitskin-calibration";
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
+/// The version of the canonical sensor values hashed into the key.
+const KEY_VERSION: u32 = 1;
 
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -63,14 +73,79 @@ impl From<&CurveJson> for Curve {
     }
 }
 
-/// A hex SHA-256 of what a calibration depends on: the spec (outline, electrodes, protocol).
+/// The canonical values of a sensor, hashed into [`spec_key`].
+#[derive(Serialize)]
+struct SensorValues<'a> {
+    key_version: u32,
+    thickness_m: f64,
+    conductivity_s_per_m: f64,
+    outline: &'static str,
+    outline_values_m: Vec<f64>,
+    point_electrodes: bool,
+    electrode_width_m: f64,
+    contact_impedance_ohm_m2: f64,
+    electrode_centres_m: Vec<[f64; 2]>,
+    stimulations: &'a [Vec<f64>],
+    measurements: Vec<(usize, &'a [f64])>,
+}
+
+/// A hex SHA-256 of the sensor a calibration depends on: its canonical values (see the module doc).
 pub fn spec_key(spec: &SensorSpec) -> Result<String, Error> {
-    let mut hash = Sha256::new();
+    let protocol = spec.protocol()?;
+    let (outline, outline_values_m) = match &spec.outline {
+        Outline::Rectangle { width, height } => ("rectangle", vec![*width, *height]),
+        Outline::Circle { radius } => ("circle", vec![*radius]),
+        Outline::Polygon { points } => ("polygon", points.iter().flatten().copied().collect()),
+    };
+    let values = SensorValues {
+        key_version: KEY_VERSION,
+        thickness_m: spec.thickness,
+        conductivity_s_per_m: spec.conductivity,
+        outline,
+        outline_values_m,
+        point_electrodes: spec.electrodes.point,
+        electrode_width_m: if spec.electrodes.point { 0.0 } else { spec.electrodes.width },
+        contact_impedance_ohm_m2: if spec.electrodes.point { 0.0 } else { spec.electrodes.contact_impedance },
+        // Derived by arithmetic, so rounded to a nanometre: the same electrodes placed another way match.
+        electrode_centres_m: spec
+            .electrode_positions()?
+            .iter()
+            .map(|e| spec.outline.point_at(e.centre).map(|c| (c * 1e9).round() / 1e9))
+            .collect(),
+        stimulations: protocol.stimulations(),
+        measurements: protocol.measurements().iter().map(|m| (m.stimulation, m.weights.as_slice())).collect(),
+    };
+    let json = serde_json::to_string(&values).map_err(|e| Error::Json { path: None, message: e.to_string() })?;
+    Ok(hex(&Sha256::digest(json)))
+}
+
+/// The key of files of versions 1 and 2: a SHA-256 of the spec file's TOML (mesh settings left
+/// at their defaults) and the protocol's text as `{:?}` printed it then, written out here so
+/// that a change to the protocol type cannot move it.
+fn legacy_spec_key(spec: &SensorSpec) -> Result<String, Error> {
+    let protocol = spec.protocol()?;
     let mut geometry = spec.clone();
-    geometry.mesh = eitskin::MeshParams::default(); // the mesh density does not change the sensor
+    geometry.mesh = eitskin::MeshParams::default();
+    let measurements: Vec<String> = protocol
+        .measurements()
+        .iter()
+        .map(|m| format!("Measurement {{ stimulation: {}, weights: {:?} }}", m.stimulation, m.weights))
+        .collect();
+    let text = format!(
+        "Protocol {{ description: {:?}, electrode_count: {}, stimulations: {:?}, measurements: [{}] }}",
+        protocol.description(),
+        protocol.electrode_count(),
+        protocol.stimulations(),
+        measurements.join(", ")
+    );
+    let mut hash = Sha256::new();
     hash.update(crate::spec_to_toml(&geometry));
-    hash.update(format!("{:?}", spec.protocol()?));
-    Ok(hash.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    hash.update(text);
+    Ok(hex(&hash.finalize()))
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// The calibration as JSON, for `spec` with its pseudo-array.
@@ -79,7 +154,7 @@ pub fn calibration_to_json(spec: &SensorSpec, array: &PseudoArray, calibration: 
         format: FORMAT.into(),
         version: VERSION,
         spec_key: spec_key(spec)?,
-        strength: Some(strength_name(calibration.strength).into()),
+        strength: Some(calibration.strength.name().into()),
         grid: array.grid(),
         areas: (0..array.unit_count()).map(|u| array.area_of(u) + 1).collect(),
         curves: calibration.curves.iter().map(CurveJson::from).collect(),
@@ -104,11 +179,16 @@ pub fn parse_calibration(text: &str, spec: &SensorSpec) -> Result<(PseudoArray, 
         return refuse("version", format!("is {}, but this eitskin reads versions 1 to {VERSION}", file.version));
     }
     let strength = match file.strength.as_deref() {
-        None | Some("peak") => Strength::Peak,
-        Some("fitted drop") => Strength::FittedDrop,
-        Some(other) => return refuse("strength", format!("is \"{other}\"; use \"peak\" or \"fitted drop\"")),
+        None => Strength::Peak,
+        Some(name) => match Strength::from_name(name) {
+            Some(strength) => strength,
+            None => {
+                let names: Vec<String> = Strength::ALL.iter().map(|s| format!("\"{s}\"")).collect();
+                return refuse("strength", format!("is \"{name}\"; use one of {}", names.join(", ")));
+            }
+        },
     };
-    let key = spec_key(spec)?;
+    let key = if file.version >= 3 { spec_key(spec)? } else { legacy_spec_key(spec)? };
     if file.spec_key != key {
         return refuse(
             "spec_key",
@@ -132,14 +212,6 @@ pub fn parse_calibration(text: &str, spec: &SensorSpec) -> Result<(PseudoArray, 
     }
     let curves = file.curves.iter().map(Curve::from).collect();
     Ok((array, Calibration { curves, strength }))
-}
-
-/// The file's name for a kind of strength.
-pub fn strength_name(strength: Strength) -> &'static str {
-    match strength {
-        Strength::Peak => "peak",
-        Strength::FittedDrop => "fitted drop",
-    }
 }
 
 #[cfg(test)]
@@ -176,16 +248,44 @@ mod tests {
         let mut denser = spec.clone();
         denser.mesh.triangles = 9000;
         assert!(parse_calibration(&text, &denser).is_ok(), "the mesh density is not part of the sensor");
-        let err = parse_calibration(&text.replace("\"version\": 2", "\"version\": 7"), &spec).unwrap_err();
-        assert!(err.to_string().contains("reads versions 1 to 2"), "{err}");
-        // Version 1 had no strength: its curves are of the peak.
-        let v1 = text.replace("\"version\": 2", "\"version\": 1").replace("\"strength\": \"peak\",", "");
-        assert_eq!(parse_calibration(&v1, &spec).unwrap().1, calibration);
+        let err = parse_calibration(&text.replace("\"version\": 3", "\"version\": 7"), &spec).unwrap_err();
+        assert!(err.to_string().contains("reads versions 1 to 3"), "{err}");
         // A fitted-drop calibration keeps its kind; an unknown kind is refused by name.
         let drop = Calibration { strength: Strength::FittedDrop, ..calibration.clone() };
         let text = calibration_to_json(&spec, &array, &drop).unwrap();
         assert_eq!(parse_calibration(&text, &spec).unwrap().1.strength, Strength::FittedDrop);
         let err = parse_calibration(&text.replace("fitted drop", "volume"), &spec).unwrap_err().to_string();
         assert!(err.contains("strength") && err.contains("\"volume\""), "{err}");
+        for strength in Strength::ALL {
+            let file = calibration_to_json(&spec, &array, &Calibration { strength, ..calibration.clone() }).unwrap();
+            assert_eq!(parse_calibration(&file, &spec).unwrap().1.strength, strength);
+        }
     }
+
+    /// The keys of the paper's sensor as files of each version carry them: version 2's was
+    /// written by eitskin before the canonical key (so old files still read), version 3's pins
+    /// the canonical values.
+    #[test]
+    fn keys_of_the_paper_sensor_are_stable() {
+        let spec = SensorSpec::square_hydrogel();
+        assert_eq!(legacy_spec_key(&spec).unwrap(), LEGACY_KEY);
+        assert_eq!(spec_key(&spec).unwrap(), CANONICAL_KEY);
+        let (array, calibration) = fitted(&spec);
+        let v3 = calibration_to_json(&spec, &array, &calibration).unwrap();
+        let v2 = v3.replace("\"version\": 3", "\"version\": 2").replace(CANONICAL_KEY, LEGACY_KEY);
+        assert_eq!(parse_calibration(&v2, &spec).unwrap().1, calibration);
+        // Version 1 had no strength: its curves are of the peak.
+        let v1 = v2.replace("\"version\": 2", "\"version\": 1").replace("\"strength\": \"peak\",", "");
+        assert_eq!(parse_calibration(&v1, &spec).unwrap().1, calibration);
+        // A version-2 file with the new key, or the other way round, is another sensor's.
+        assert!(parse_calibration(&v3.replace("\"version\": 3", "\"version\": 2"), &spec).is_err());
+        // Placing the same electrodes another way is the same sensor.
+        let mut explicit = spec.clone();
+        let centres = spec.electrode_positions().unwrap().iter().map(|e| spec.outline.point_at(e.centre)).collect();
+        explicit.electrodes.placement = eitskin::Placement::Explicit { positions: centres };
+        assert_eq!(spec_key(&explicit).unwrap(), CANONICAL_KEY);
+    }
+
+    const LEGACY_KEY: &str = "1c07185805c58b979be4cbecb34bb4bf0addff2e8f475fa606149629e0cb9614";
+    const CANONICAL_KEY: &str = "a9e8171de3d65eb23cba5eda2c7f07d9f615f9d878d95e856d19e18cf0ea301b";
 }

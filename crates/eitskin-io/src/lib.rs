@@ -1,8 +1,12 @@
 //! # eitskin-io
 //!
-//! File formats for [`eitskin`]: sensor specs (TOML), meshes and custom protocols (JSON),
-//! single frames (JSON or CSV).
-//! Every reader checks what it reads and says which file and which key is at fault.
+//! Everything that crosses the edge of [`eitskin`]: file formats (sensor specs in TOML, meshes
+//! and custom protocols in JSON, single frames, calibration samples in CSV, calibration files
+//! tied to their sensor), the on-disk caches of precomputed models (reconstructor, press model,
+//! contrast map), frame codecs for acquisition boards ([`codec`]: text lines, binary with CRC),
+//! frame sources ([`source`]: a serial port that survives unplugging), the crash-safe
+//! [`recorder`] and its [`replay`]. Every reader checks what it reads and says which file, line
+//! or key is at fault.
 //!
 //! ```
 //! use std::path::Path;
@@ -32,6 +36,7 @@
 
 mod calibration_file;
 pub mod codec;
+mod contrast_map_file;
 mod frame_file;
 mod mesh_file;
 mod press_model_file;
@@ -45,23 +50,24 @@ mod spec_file;
 
 use std::path::{Path, PathBuf};
 
-pub use calibration_file::{calibration_to_json, parse_calibration, read_calibration, spec_key, strength_name};
+pub use calibration_file::{calibration_to_json, parse_calibration, read_calibration, spec_key};
+pub use contrast_map_file::{contrast_map_path, decode_contrast_map, encode_contrast_map, load_or_build_contrast_map};
 pub use frame_file::{parse_frame, read_frame};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
 pub use press_model_file::{decode_press_model, encode_press_model, load_or_build_press_model, press_model_path};
 pub use protocol_file::{parse_protocol, read_protocol};
-pub use reconstructor_file::{cache_key, cache_path, decode, encode, load_or_build};
+pub use reconstructor_file::{cache_key, cache_path, decode_reconstructor, encode_reconstructor, load_or_build};
 pub use samples_file::{parse_samples, read_samples, Location, Measured, SampleRow};
 pub use spec_file::{parse_spec, protocol_by_name, protocol_kind, read_spec, spec_to_toml};
 
-use eitskin::{MeshError, ProtocolError, SpecError};
+use eitskin::{InverseError, MeshError, ProtocolError, SpecError};
 use thiserror::Error;
 
 /// What went wrong reading a file; `path` names the file when there is one.
 #[derive(Debug, Error)]
 pub enum Error {
     /// The file could not be read.
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}", path.display())]
     Read {
         /// The file.
         path: PathBuf,
@@ -95,7 +101,7 @@ pub enum Error {
         reason: String,
     },
     /// The spec's values do not make a sensor.
-    #[error("{}{source}", at(path))]
+    #[error("{}the spec does not make a sensor", at(path))]
     Spec {
         /// The file, if any.
         path: Option<PathBuf>,
@@ -103,7 +109,7 @@ pub enum Error {
         source: SpecError,
     },
     /// The mesh is not a valid mesh.
-    #[error("{}{source}", at(path))]
+    #[error("{}the mesh is not valid", at(path))]
     Mesh {
         /// The file, if any.
         path: Option<PathBuf>,
@@ -111,13 +117,16 @@ pub enum Error {
         source: MeshError,
     },
     /// The protocol is not a valid protocol.
-    #[error("{}{source}", at(path))]
+    #[error("{}the protocol is not valid", at(path))]
     Protocol {
         /// The file, if any.
         path: Option<PathBuf>,
         /// What is wrong.
         source: ProtocolError,
     },
+    /// A precomputed model (reconstructor, press model) could not be built.
+    #[error("the inverse model could not be built")]
+    Inverse(#[from] InverseError),
 }
 
 fn at(path: &Option<PathBuf>) -> String {
@@ -128,7 +137,7 @@ impl Error {
     /// The same error, naming `file` if it names no file yet.
     fn in_file(mut self, file: &Path) -> Error {
         match &mut self {
-            Error::Read { .. } => {}
+            Error::Read { .. } | Error::Inverse(_) => {}
             Error::Toml { path, .. }
             | Error::Json { path, .. }
             | Error::Key { path, .. }
@@ -160,6 +169,18 @@ impl From<ProtocolError> for Error {
     fn from(source: ProtocolError) -> Error {
         Error::Protocol { path: None, source }
     }
+}
+
+/// An error and its causes, one after the other: the whole message once, as the CLI prints it.
+#[cfg(test)]
+pub(crate) fn full_message(error: &dyn std::error::Error) -> String {
+    let mut text = error.to_string();
+    let mut cause = error.source();
+    while let Some(e) = cause {
+        text += &format!(": {e}");
+        cause = e.source();
+    }
+    text
 }
 
 fn read_text(path: &Path) -> Result<String, Error> {

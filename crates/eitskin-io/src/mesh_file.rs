@@ -104,7 +104,10 @@ mod tests {
     fn bad_mesh_says_where() {
         let text = r#"{"nodes": [[0,0],[1,0],[0,1]], "elems": [[0,1,3]], "electrodes": []}"#;
         let err = parse_mesh(text).unwrap_err();
-        assert_eq!(err.to_string(), "triangle 0 names node 3, but the mesh has 3 nodes");
+        assert_eq!(
+            crate::full_message(&err),
+            "the mesh is not valid: triangle 0 names node 3, but the mesh has 3 nodes"
+        );
         let err = parse_mesh(r#"{"nodes": [], "elems": []}"#).unwrap_err();
         assert!(err.to_string().contains("missing field `electrodes`"), "{err}");
     }

@@ -37,7 +37,7 @@ pub fn load_or_build_press_model(
     let key = press_model_key(spec, params)?;
     let build = || {
         let model = spec.forward_model()?;
-        Ok(PressModel::new(&model, spec.conductivity, params).map_err(eitskin::SpecError::from)?)
+        Ok(PressModel::new(&model, spec.conductivity, params)?)
     };
     cached(&cache_file(dir, "press-model", &key), &key, decode_press_model, build, encode_press_model)
 }
@@ -72,10 +72,10 @@ pub fn decode_press_model(bytes: &[u8], key: &[u8; 32]) -> Option<PressModel> {
     let (dims, measurements) = ([r.u32()? as usize, r.u32()? as usize], r.u32()? as usize);
     let (radius, search) = (r.f64()?, r.f64()?);
     let values = dims[0].checked_mul(dims[1])?.checked_mul(measurements)?;
-    let responses = read_f64s(&mut r, values)?;
+    let responses = r.f64s(values)?;
     let coarse_spacing = r.f64()?;
     let coarse_dims = [r.u32()? as usize, r.u32()? as usize];
-    let rungs = read_f64s(&mut r, coarse_dims[0].checked_mul(coarse_dims[1])?.checked_mul(9)?)?;
+    let rungs = r.f64s(coarse_dims[0].checked_mul(coarse_dims[1])?.checked_mul(9)?)?;
     if !r.0.is_empty() {
         return None;
     }
@@ -83,11 +83,6 @@ pub fn decode_press_model(bytes: &[u8], key: &[u8; 32]) -> Option<PressModel> {
     let table =
         PressTable { lo, spacing, dims, measurements, radius, search, responses, coarse_spacing, coarse_dims, ladder };
     PressModel::from_table(table)
-}
-
-fn read_f64s(r: &mut Reader<'_>, n: usize) -> Option<Vec<f64>> {
-    let raw = r.take(n.checked_mul(8)?)?;
-    Some(raw.chunks_exact(8).map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]])).collect())
 }
 
 #[cfg(test)]

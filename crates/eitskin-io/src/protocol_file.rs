@@ -113,7 +113,10 @@ mod tests {
     #[test]
     fn bad_files_say_what() {
         let err = parse_protocol(r#"{"electrodes": 16, "quads": [[1,2,3,17]]}"#, "x").unwrap_err();
-        assert_eq!(err.to_string(), "row 1 names electrode 17, but electrodes are numbered 1 to 16");
+        assert_eq!(
+            crate::full_message(&err),
+            "the protocol is not valid: row 1 names electrode 17, but electrodes are numbered 1 to 16"
+        );
         let err = parse_protocol(r#"{"electrodes": 16}"#, "x").unwrap_err();
         assert!(err.to_string().contains("give either `quads`"), "{err}");
     }

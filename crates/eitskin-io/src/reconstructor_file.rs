@@ -48,9 +48,9 @@ pub fn load_or_build(
     let key = cache_key(spec, params)?;
     let build = || {
         let model = spec.forward_model()?;
-        Ok(Reconstructor::new(&model, spec.conductivity, params).map_err(eitskin::SpecError::from)?)
+        Ok(Reconstructor::new(&model, spec.conductivity, params)?)
     };
-    cached(&cache_file(dir, "reconstructor", &key), &key, decode, build, encode)
+    cached(&cache_file(dir, "reconstructor", &key), &key, decode_reconstructor, build, encode_reconstructor)
 }
 
 /// The cache file `STEM-KEY.bin` under `dir` (the key's first 12 bytes in hex).
@@ -79,7 +79,7 @@ pub(crate) fn cached<T>(
 }
 
 /// The bytes of a cache file.
-pub fn encode(recon: &Reconstructor, key: &[u8; 32]) -> Vec<u8> {
+pub fn encode_reconstructor(recon: &Reconstructor, key: &[u8; 32]) -> Vec<u8> {
     let p = recon.params();
     let image = recon.blank_image();
     let (tag, exponent) = match p.prior {
@@ -110,7 +110,7 @@ pub fn encode(recon: &Reconstructor, key: &[u8; 32]) -> Vec<u8> {
 }
 
 /// A reconstructor from cache bytes, or `None` if they are not a complete file for `key`.
-pub fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<Reconstructor> {
+pub fn decode_reconstructor(bytes: &[u8], key: &[u8; 32]) -> Option<Reconstructor> {
     let mut r = Reader(bytes);
     if r.take(8)? != MAGIC || r.u32()? != FORMAT || r.take(32)? != key {
         return None;
@@ -151,6 +151,12 @@ impl<'a> Reader<'a> {
     pub(crate) fn f64(&mut self) -> Option<f64> {
         self.take(8)?.try_into().ok().map(f64::from_le_bytes)
     }
+    pub(crate) fn f64s(&mut self, n: usize) -> Option<Vec<f64>> {
+        let raw = self.take(n.checked_mul(8)?)?;
+        Some(
+            raw.chunks_exact(8).map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]])).collect(),
+        )
+    }
 }
 
 #[cfg(test)]
@@ -182,9 +188,9 @@ mod tests {
             &params,
         )
         .unwrap();
-        let bytes = encode(&built, &key);
-        assert!(decode(&bytes[..bytes.len() - 1], &key).is_none(), "a torn file is not loaded");
-        assert!(decode(&bytes, &[0; 32]).is_none(), "another key is not loaded");
+        let bytes = encode_reconstructor(&built, &key);
+        assert!(decode_reconstructor(&bytes[..bytes.len() - 1], &key).is_none(), "a torn file is not loaded");
+        assert!(decode_reconstructor(&bytes, &[0; 32]).is_none(), "another key is not loaded");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -1,4 +1,4 @@
-//! Issue 2: every kind of invalid spec is refused with a message naming the key and the reason.
+//! Every kind of invalid spec is refused with a message naming the key and the reason.
 
 use std::path::Path;
 
@@ -30,16 +30,28 @@ triangles = 4000
 fn message(text: &str) -> String {
     match parse_spec(text, Path::new(".")) {
         Ok(_) => panic!("the spec was accepted:\n{text}"),
-        Err(e) => e.to_string(),
+        Err(e) => full_message(&e),
     }
 }
 
-fn assert_says(text: &str, parts: &[&str]) {
-    let msg = message(text);
-    for p in parts {
-        assert!(msg.contains(p), "message {msg:?} does not say {p:?}");
+/// The error and its causes as the CLI prints them: each once, joined by ": ".
+fn full_message(error: &dyn std::error::Error) -> String {
+    let mut text = error.to_string();
+    let mut cause = error.source();
+    while let Some(e) = cause {
+        text += &format!(": {e}");
+        cause = e.source();
     }
+    text
 }
+
+/// The spec is refused with exactly `expected`: every part of the message once.
+#[track_caller]
+fn assert_refused(text: &str, expected: &str) {
+    assert_eq!(message(text), expected);
+}
+
+const SPEC: &str = "the spec does not make a sensor: ";
 
 #[test]
 fn the_paper_spec_is_accepted() {
@@ -49,9 +61,21 @@ fn the_paper_spec_is_accepted() {
 
 #[test]
 fn unknown_key_is_named() {
-    assert_says(&PAPER.replace("count = 16", "count = 16\ncolour = \"red\""), &["unknown field `colour`", "line 13"]);
-    assert_says(&format!("{PAPER}\nfoo = 1"), &["unknown field `foo`"]);
-    assert_says(&PAPER.replace("height = 200.0", "height = 200.0\nradius = 3.0"), &["unknown field `radius`"]);
+    assert_refused(
+        &PAPER.replace("count = 16", "count = 16\ncolour = \"red\""),
+        "TOML parse error at line 13, column 1\n   |\n13 | colour = \"red\"\n   | ^^^^^^\nunknown field `colour`, \
+         expected one of `count`, `model`, `width`, `contact_impedance`, `placement`, `start_angle_deg`, `positions`\n",
+    );
+    assert_refused(
+        &format!("{PAPER}\nfoo = 1"),
+        "TOML parse error at line 23, column 1\n   |\n23 | foo = 1\n   | ^^^\nunknown field `foo`, \
+         expected one of `triangles`, `max_element_size`, `grading`, `min_angle_deg`\n",
+    );
+    assert_refused(
+        &PAPER.replace("height = 200.0", "height = 200.0\nradius = 3.0"),
+        "TOML parse error at line 6, column 1\n  |\n6 | [outline]\n  | ^^^^^^^^^\nunknown field `radius`, \
+         expected `width` or `height`\n",
+    );
 }
 
 #[test]
@@ -61,7 +85,13 @@ fn self_crossing_polygon_is_refused() {
         "kind = \"polygon\"\npoints = [[0, 0], [100, 100], [100, 0], [0, 100]]",
     );
     let bow = bow.replace("placement = \"per-side\"", "placement = \"explicit\"\npositions = []");
-    assert_says(&bow, &["`outline.points`", "edge 1 crosses edge 3", "simple polygon"]);
+    assert_refused(
+        &bow,
+        &format!(
+            "{SPEC}`outline.points`: edge 1 crosses edge 3 (edge k joins point k to point k+1, counting from 1); \
+             the outline must be a simple polygon"
+        ),
+    );
 }
 
 #[test]
@@ -70,7 +100,7 @@ fn clockwise_polygon_is_refused() {
         "kind = \"rectangle\"\nwidth = 200.0\nheight = 200.0",
         "kind = \"polygon\"\npoints = [[0, 0], [0, 100], [100, 100], [100, 0]]",
     );
-    assert_says(&cw, &["`outline.points`", "clockwise"]);
+    assert_refused(&cw, &format!("{SPEC}`outline.points` run clockwise; list them counter-clockwise"));
 }
 
 #[test]
@@ -79,44 +109,77 @@ fn overlapping_electrodes_are_refused() {
         .replace("kind = \"rectangle\"\nwidth = 200.0\nheight = 200.0", "kind = \"circle\"\nradius = 20.0")
         .replace("placement = \"per-side\"", "placement = \"equal\"");
     // 16 electrodes 10 mm wide on a 125.7 mm circumference: centres 7.85 mm apart.
-    assert_says(&circle, &["electrodes 1 and 2 overlap", "`electrodes.width` is 0.01 m"]);
+    assert_refused(
+        &circle,
+        &format!(
+            "{SPEC}electrodes 1 and 2 overlap: their centres are 0.007853981633974483 m apart along the boundary \
+             but `electrodes.width` is 0.01 m"
+        ),
+    );
 }
 
 #[test]
 fn electrode_wider_than_its_side_is_refused() {
     let wide = PAPER.replace("height = 200.0", "height = 8.0");
-    assert_says(&wide, &["`electrodes.width` = 0.01 m is wider than side 2"]);
+    assert_refused(
+        &wide,
+        &format!("{SPEC}`electrodes.width` = 0.01 m is wider than side 2 (0.008 m) of the rectangle"),
+    );
 }
 
 #[test]
 fn non_positive_values_are_refused() {
-    assert_says(
+    assert_refused(
         &PAPER.replace("conductivity = 1.0", "conductivity = 0.0"),
-        &["`conductivity` must be a positive number"],
+        &format!("{SPEC}`conductivity` must be a positive number, got 0"),
     );
-    assert_says(
+    assert_refused(
         &PAPER.replace("contact_impedance = 1e-4", "contact_impedance = -1e-4"),
-        &["`electrodes.contact_impedance` must be a positive number", "-0.0001"],
+        &format!("{SPEC}`electrodes.contact_impedance` must be a positive number, got -0.0001"),
     );
-    assert_says(&PAPER.replace("thickness = 10.0", "thickness = -1.0"), &["`thickness` must be a positive number"]);
-    assert_says(&PAPER.replace("width = 200.0", "width = 0.0"), &["`outline.width` must be a positive number"]);
+    assert_refused(
+        &PAPER.replace("thickness = 10.0", "thickness = -1.0"),
+        &format!("{SPEC}`thickness` must be a positive number, got -0.001"),
+    );
+    assert_refused(
+        &PAPER.replace("width = 200.0", "width = 0.0"),
+        &format!("{SPEC}`outline.width` must be a positive number, got 0"),
+    );
 }
 
 #[test]
 fn misplaced_and_missing_keys_are_named() {
-    assert_says(
+    assert_refused(
         &PAPER.replace("placement = \"per-side\"", "placement = \"equal\""),
-        &["`electrodes.placement` = \"equal\" does not fit a rectangle outline"],
+        &format!(
+            "{SPEC}`electrodes.placement` = \"equal\" does not fit a rectangle outline; equal spacing is for \
+             circles; use \"explicit\" positions"
+        ),
     );
-    assert_says(
+    assert_refused(
         &PAPER.replace("placement = \"per-side\"", "placement = \"per-side\"\nstart_angle_deg = 3.0"),
-        &["`electrodes.start_angle_deg` applies only to placement = \"equal\""],
+        "`electrodes.start_angle_deg` applies only to placement = \"equal\", not \"per-side\"",
     );
-    assert_says(&PAPER.replace("contact_impedance = 1e-4\n", ""), &["`electrodes.contact_impedance` is required"]);
-    assert_says(&PAPER.replace("count = 16", "count = 14"), &["`electrodes.count` = 14", "multiple of 4"]);
-    assert_says(&PAPER.replace("kind = \"two-terminal\"", "kind = \"four-terminal\""), &["`protocol.kind` must be"]);
-    assert_says(&PAPER.replace("units = \"mm\"", "units = \"inch\""), &["`units` must be \"mm\" or \"m\""]);
-    assert_says(&PAPER.replace("thickness = 10.0\n", ""), &["missing field `thickness`"]);
+    assert_refused(
+        &PAPER.replace("contact_impedance = 1e-4\n", ""),
+        "`electrodes.contact_impedance` is required for complete electrodes",
+    );
+    assert_refused(
+        &PAPER.replace("count = 16", "count = 14"),
+        &format!("{SPEC}`electrodes.count` = 14: per-side placement needs a multiple of 4"),
+    );
+    assert_refused(
+        &PAPER.replace("kind = \"two-terminal\"", "kind = \"four-terminal\""),
+        "`protocol.kind` must be two-terminal, adjacent, adjacent-all, opposite or custom, got \"four-terminal\"",
+    );
+    assert_refused(
+        &PAPER.replace("units = \"mm\"", "units = \"inch\""),
+        "`units` must be \"mm\" or \"m\", got \"inch\"",
+    );
+    assert_refused(
+        &PAPER.replace("thickness = 10.0\n", ""),
+        "TOML parse error at line 1, column 1\n  |\n1 | \n  | ^\nmissing field `thickness`\n",
+    );
 }
 
 #[test]
@@ -129,7 +192,12 @@ fn a_custom_protocol_file_is_read_relative_to_the_spec() {
     let spec = eitskin_io::read_spec(&dir.join("s.toml")).unwrap();
     assert_eq!(spec.protocol().unwrap().len(), 2);
     std::fs::write(dir.join("p.json"), r#"{"electrodes": 16, "quads": [[1, 9, 1, 99]]}"#).unwrap();
-    let err = eitskin_io::read_spec(&dir.join("s.toml")).unwrap_err().to_string();
-    assert!(err.contains("p.json") && err.contains("electrode 99"), "{err}");
+    let err = full_message(&eitskin_io::read_spec(&dir.join("s.toml")).unwrap_err());
+    let file = dir.join("p.json");
+    let expected = format!(
+        "{}: the protocol is not valid: row 1 names electrode 99, but electrodes are numbered 1 to 16",
+        file.display()
+    );
+    assert_eq!(err, expected);
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -47,6 +47,10 @@
 
 use thiserror::Error;
 
+use crate::pseudo_array::PseudoArray;
+use crate::strength::Reading;
+pub use crate::strength::Strength;
+
 /// Largest |b| a fit may reach, as a multiple of the force span (b → ∞ for linear data).
 const MAX_DECAY_PER_SPAN: f64 = 1e6;
 /// Most Levenberg–Marquardt iterations (Jacobian evaluations) per start.
@@ -269,26 +273,16 @@ impl Curve {
     }
 }
 
-/// One calibration sample: the area (0-based) of the touch, the applied force (N) and the peak (S/m).
+/// One calibration sample: the area (0-based) of the touch, the applied force (N) and its strength.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
     /// Area of the touch, 0-based.
     pub area: usize,
     /// Applied force, in N.
     pub force: f64,
-    /// Strength of the touch: its image peak in S/m, or with [`Strength::FittedDrop`] the
-    /// fitted press's drop.
+    /// Strength of the touch, in the unit of the calibration's [`Strength`] (the image's peak
+    /// in S/m, the fitted press's drop as a fraction of the background, …).
     pub peak: f64,
-}
-
-/// What a calibration's curves take as the touch's strength.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Strength {
-    /// The peak of the touch's image, in S/m (the paper's).
-    #[default]
-    Peak,
-    /// The drop of the press fitted to Δv ([`crate::press_fit`]), a fraction of the background.
-    FittedDrop,
 }
 
 /// A per-area calibration: one curve per area, indexed by the 0-based area.
@@ -337,7 +331,16 @@ impl Calibration {
         Ok(Calibration { curves, strength })
     }
 
-    /// The force (N) for a touch in `area` (0-based) with `peak` (S/m).
+    /// The unit and area of `reading` on `array`, and the force its area's curve gives (`None`
+    /// for a NaN strength); `None` off the array.
+    pub fn locate(&self, array: &PseudoArray, reading: Reading) -> Option<Located> {
+        let unit = array.unit_at(reading.centre)?;
+        let area = array.area_of(unit);
+        Some(Located { unit, area, force: self.force(area, reading.value).ok() })
+    }
+
+    /// The force (N) for a touch in `area` (0-based) with strength `peak` (in the unit of
+    /// [`Calibration::strength`]).
     pub fn force(&self, area: usize, peak: f64) -> Result<ForceEstimate, CalibrationError> {
         let curve =
             self.curves.get(area).ok_or(CalibrationError::NoSuchArea { area: area + 1, areas: self.curves.len() })?;
@@ -346,6 +349,17 @@ impl Calibration {
         }
         Ok(curve.force(peak))
     }
+}
+
+/// A reading placed on a pseudo-array, with its force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Located {
+    /// The unit holding the reading's centre, 0-based.
+    pub unit: usize,
+    /// That unit's area, 0-based.
+    pub area: usize,
+    /// The force, `None` for a strength that is not a number.
+    pub force: Option<ForceEstimate>,
 }
 
 /// Error metrics of predicted against true forces; not finite where undefined (no pairs, no variance).

@@ -16,6 +16,77 @@ use crate::geometry::Outline;
 use crate::protocol::Protocol;
 use crate::spec::{SensorSpec, SpecError};
 
+/// What a convergence study found: the errors of each level against the converged answer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Convergence {
+    /// Where the converged answer came from, in words.
+    pub reference: &'static str,
+    /// Order in h observed over the three finest levels for the values, if they converge.
+    pub value_order: Option<f64>,
+    /// The same for the difference signals.
+    pub difference_order: Option<f64>,
+    /// Per level, coarse to fine: triangles, setup time (s), relative errors of values and differences.
+    pub levels: Vec<LevelError>,
+}
+
+/// One level's errors against the converged answer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LevelError {
+    /// Triangles in the mesh.
+    pub triangles: usize,
+    /// The whole setup chain, in s.
+    pub setup_seconds: f64,
+    /// Relative error of the values (see the module doc), dimensionless.
+    pub value_error: f64,
+    /// Relative error of the difference signals, dimensionless.
+    pub difference_error: f64,
+}
+
+/// The inclusion of a study when none is given: radius 5 % of the width, a quarter of the width
+/// right of the centre, half the background conductivity.
+pub fn default_inclusion(spec: &SensorSpec) -> Inclusion {
+    let [lo, hi] = spec.outline.bounds();
+    let width = hi[0] - lo[0];
+    Inclusion { centre: [0.25 * width, 0.0], radius: 0.05 * width, conductivity: 0.5 * spec.conductivity }
+}
+
+/// Meshes `spec` at each count of `triangles` (coarse to fine, at least 3), measures it with and
+/// without `inclusion`, and gives each level's error against the analytic answer where there is
+/// one and the Richardson extrapolation of the two finest levels otherwise, with the orders
+/// observed over the three finest; `None` with fewer than 3 levels.
+pub fn study(spec: &SensorSpec, triangles: &[usize], inclusion: Inclusion) -> Result<Option<Convergence>, SpecError> {
+    if triangles.len() < 3 {
+        return Ok(None);
+    }
+    let levels = levels(spec, triangles, &[inclusion])?;
+    let n = levels.len();
+    let tri = |k: usize| levels[k].triangles;
+    let order_of = |f: fn(&Level) -> &[f64]| {
+        observed_order([f(&levels[n - 3]), f(&levels[n - 2]), f(&levels[n - 1])], [tri(n - 3), tri(n - 2), tri(n - 1)])
+    };
+    let value_order = order_of(|l| &l.values);
+    let difference_order = order_of(|l| &l.difference);
+    let extrapolate = |f: fn(&Level) -> &[f64], order: Option<f64>| {
+        let ratio = (tri(n - 1) as f64 / tri(n - 2) as f64).sqrt();
+        richardson(f(&levels[n - 2]), f(&levels[n - 1]), ratio, order.unwrap_or(1.0).max(0.5))
+    };
+    let (reference, value_truth) = match disk_values(spec)? {
+        Some(v) => ("analytic (Fourier series) for values, Richardson for differences", v),
+        None => ("Richardson extrapolation of the two finest levels", extrapolate(|l| &l.values, value_order)),
+    };
+    let difference_truth = extrapolate(|l| &l.difference, difference_order);
+    let levels = levels
+        .iter()
+        .map(|l| LevelError {
+            triangles: l.triangles,
+            setup_seconds: l.setup_seconds,
+            value_error: relative_error(&l.values, &value_truth),
+            difference_error: relative_error(&l.difference, &difference_truth),
+        })
+        .collect();
+    Ok(Some(Convergence { reference, value_order, difference_order, levels }))
+}
+
 /// One refinement level: its mesh size, setup time and results.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Level {

@@ -38,7 +38,9 @@ pub use faer;
 
 pub mod analytic;
 pub mod calibration;
+pub mod chain;
 pub mod conductivity;
+pub mod contrast_map;
 pub mod convergence;
 pub mod forward;
 pub mod geometry;
@@ -52,6 +54,7 @@ pub mod pseudo_array;
 pub mod sensitivity;
 pub mod sim;
 pub mod spec;
+pub mod strength;
 pub mod study;
 pub mod touch;
 

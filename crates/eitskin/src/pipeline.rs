@@ -1,24 +1,22 @@
-//! The real-time frame path: reference, drift compensation, image, touches, forces.
+//! The real-time frame path: reference, drift compensation, then the [`Chain`] (image,
+//! touches, fitted presses, forces) on every frame.
 //!
 //! The reference (no-touch) frame is the mean of the first N frames (and again after
 //! [`Pipeline::retake_reference`]). While referencing, the pipeline also measures its own noise:
 //! the peak of each reference frame's image against the mean; with [`NoiseFloor::Auto`] a touch
 //! needs a peak above a multiple of that. An optional slow baseline update, while no touch is
 //! present, follows drift: v_ref ← (1 − α)·v_ref + α·v. Each later frame goes through the
-//! precomputed reconstructor, touch extraction, when given a [`PressModel`] the press fitted
-//! to Δv from each touch, and when given a calibration the force (from the image peak, or from
-//! the fitted press's drop, as the calibration says).
+//! chain against the reference.
 //!
 //! Plain data and no threads or I/O: the caller feeds frames (from a port, a file, the virtual
 //! sensor) and reads the results. After the reference is taken, [`Pipeline::process`]
 //! allocates nothing.
 
-use crate::calibration::{Calibration, ForceEstimate, Strength};
+use crate::chain::Chain;
+pub use crate::chain::TouchForce;
 use crate::image::Image;
-use crate::inverse::{InverseError, Reconstructor};
-use crate::press_fit::{PressFit, PressModel, PressScratch};
+use crate::inverse::InverseError;
 use crate::pseudo_array::PseudoArray;
-use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
 
 /// How touches are told from noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,37 +37,14 @@ pub struct PipelineParams {
     pub reference_frames: usize,
     /// Baseline update weight α per frame without a touch (0 = off), dimensionless.
     pub baseline_rate: f64,
-    /// Touch extraction (threshold, centre of gravity, polarity).
-    pub touch: TouchParams,
-    /// How touches are told from noise.
+    /// How touches are told from noise (on top of the chain's own [`TouchParams::min_peak`](crate::TouchParams::min_peak)).
     pub noise_floor: NoiseFloor,
 }
 
 impl Default for PipelineParams {
     fn default() -> Self {
-        PipelineParams {
-            reference_frames: 10,
-            baseline_rate: 0.0,
-            touch: TouchParams::default(),
-            noise_floor: NoiseFloor::Auto { factor: 2.0 },
-        }
+        PipelineParams { reference_frames: 10, baseline_rate: 0.0, noise_floor: NoiseFloor::Auto { factor: 2.0 } }
     }
-}
-
-/// A touch with where it is on the pseudo-array and, with a calibration, its force.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TouchForce {
-    /// The touch (centre in m, peak in S/m …).
-    pub touch: Touch,
-    /// The press fitted to Δv from it, with a press model (centre in m, drop).
-    pub press: Option<PressFit>,
-    /// The pseudo-array unit holding its centre (the fitted press's, for a fitted-drop
-    /// calibration; 0-based), with a calibration.
-    pub unit: Option<usize>,
-    /// That unit's area (0-based), with a calibration.
-    pub area: Option<usize>,
-    /// The force, with a calibration.
-    pub force: Option<ForceEstimate>,
 }
 
 /// What [`Pipeline::process`] did with a frame.
@@ -86,67 +61,35 @@ pub enum Status {
     Processed,
 }
 
-/// The frame path of one sensor: reconstructor, reference, buffers and the optional calibration.
+/// The frame path of one sensor: the [`Chain`], its reference and the noise it measured.
 #[derive(Debug, Clone)]
 pub struct Pipeline {
-    recon: Reconstructor,
+    chain: Chain,
     params: PipelineParams,
-    calibration: Option<(PseudoArray, Calibration)>,
+    /// The chain's own minimum peak, under the noise floor (S/m).
+    min_peak: f64,
     reference: Vec<f64>,
     collected: Vec<Vec<f64>>,
     noise_peak: f64,
-    image: Image,
-    scratch: TouchScratch,
-    found: Vec<Touch>,
-    touches: Vec<TouchForce>,
-    press_model: Option<PressModel>,
-    difference: Vec<f64>,
-    starts: Vec<[f64; 2]>,
-    press_scratch: PressScratch,
-    fits: Vec<Option<PressFit>>,
 }
 
 impl Pipeline {
-    /// A pipeline that starts by taking its reference.
-    pub fn new(
-        recon: Reconstructor,
-        params: PipelineParams,
-        calibration: Option<(PseudoArray, Calibration)>,
-    ) -> Pipeline {
-        let image = recon.blank_image();
-        let scratch = TouchScratch::new(image.size);
+    /// A pipeline running `chain` that starts by taking its reference.
+    pub fn new(chain: Chain, params: PipelineParams) -> Pipeline {
         Pipeline {
-            recon,
+            min_peak: chain.touch_params().min_peak,
+            chain,
             params,
-            calibration,
             reference: Vec::new(),
             collected: Vec::with_capacity(params.reference_frames.max(1)),
             noise_peak: 0.0,
-            image,
-            scratch,
-            found: Vec::with_capacity(16),
-            touches: Vec::with_capacity(16),
-            press_model: None,
-            difference: Vec::new(),
-            starts: Vec::with_capacity(16),
-            press_scratch: PressScratch::default(),
-            fits: Vec::with_capacity(16),
         }
-    }
-
-    /// The same pipeline, fitting a press to Δv from each touch (needed by a fitted-drop
-    /// calibration, which gives no force without it).
-    pub fn with_press_model(mut self, model: PressModel) -> Pipeline {
-        self.difference = vec![0.0; model.measurements()];
-        self.press_model = Some(model);
-        self
     }
 
     /// Forgets the reference; the next frames build a new one.
     pub fn retake_reference(&mut self) {
         self.reference.clear();
         self.collected.clear();
-        self.touches.clear();
     }
 
     /// The reference frame, once taken.
@@ -159,19 +102,28 @@ impl Pipeline {
         self.noise_peak
     }
 
-    /// The image of the last processed frame (Δσ, S/m).
-    pub fn image(&self) -> &Image {
-        &self.image
+    /// The chain it runs.
+    pub fn chain(&self) -> &Chain {
+        &self.chain
     }
 
-    /// The touches of the last processed frame, strongest first.
+    /// The image of the last processed frame (Δσ, S/m).
+    pub fn image(&self) -> &Image {
+        self.chain.image()
+    }
+
+    /// The touches of the last processed frame, strongest first (none while referencing).
     pub fn touches(&self) -> &[TouchForce] {
-        &self.touches
+        if self.reference.is_empty() {
+            &[]
+        } else {
+            self.chain.touches()
+        }
     }
 
     /// The pseudo-array of the calibration, if one was given.
     pub fn pseudo_array(&self) -> Option<&PseudoArray> {
-        self.calibration.as_ref().map(|c| &c.0)
+        self.chain.pseudo_array()
     }
 
     /// Feeds one frame (protocol order); a bad frame (wrong length, NaN) is refused and changes nothing.
@@ -179,7 +131,7 @@ impl Pipeline {
         let needed = self.params.reference_frames.max(1);
         if self.reference.is_empty() {
             // Check the frame as the reconstructor will, before it joins the reference.
-            self.recon.image_into(frame, frame, &mut self.image)?;
+            self.chain.image_only(frame, frame)?;
             self.collected.push(frame.to_vec());
             if self.collected.len() < needed {
                 return Ok(Status::Referencing { collected: self.collected.len(), needed });
@@ -187,38 +139,9 @@ impl Pipeline {
             self.take_reference();
             return Ok(Status::Referencing { collected: needed, needed });
         }
-        self.recon.image_into(&self.reference, frame, &mut self.image)?;
-        let floor = match self.params.noise_floor {
-            NoiseFloor::Auto { factor } => factor * self.noise_peak,
-            NoiseFloor::Fixed(value) => value,
-        };
-        let params = TouchParams { min_peak: self.params.touch.min_peak.max(floor), ..self.params.touch };
-        detect_into(&self.image, &params, &mut self.scratch, &mut self.found);
-        self.fits.clear();
-        if let Some(model) = &self.press_model {
-            self.difference.iter_mut().zip(frame.iter().zip(&self.reference)).for_each(|(d, (v, r))| *d = v - r);
-            self.starts.clear();
-            self.starts.extend(self.found.iter().take(16).map(|t| t.centre));
-            model.fit_into(&self.difference, &self.starts, &mut self.press_scratch, &mut self.fits)?;
-        }
-        self.touches.clear();
-        for (k, touch) in self.found.iter().enumerate() {
-            let press = self.fits.get(k).copied().flatten();
-            let (mut unit, mut area, mut force) = (None, None, None);
-            if let Some((array, calibration)) = &self.calibration {
-                let (at, strength) = match calibration.strength {
-                    Strength::Peak => (Some(touch.centre), Some(touch.peak)),
-                    Strength::FittedDrop => (press.map(|p| p.centre), press.map(|p| p.drop)),
-                };
-                if let Some(u) = at.and_then(|c| array.unit_at(c)) {
-                    (unit, area) = (Some(u), Some(array.area_of(u)));
-                    force = strength.and_then(|s| calibration.force(array.area_of(u), s).ok());
-                }
-            }
-            self.touches.push(TouchForce { touch: *touch, press, unit, area, force });
-        }
+        let touched = !self.chain.process(&self.reference, frame)?.is_empty();
         let alpha = self.params.baseline_rate;
-        if alpha > 0.0 && self.touches.is_empty() {
+        if alpha > 0.0 && !touched {
             for (r, v) in self.reference.iter_mut().zip(frame) {
                 *r += alpha * (v - *r);
             }
@@ -237,11 +160,16 @@ impl Pipeline {
         self.noise_peak = 0.0;
         for frame in &self.collected {
             // Frames were checked when collected, so imaging them cannot fail.
-            if self.recon.image_into(&self.reference, frame, &mut self.image).is_ok() {
-                let peak = self.image.peak().map_or(0.0, |(_, v)| f64::from(v.abs()));
+            if let Ok(image) = self.chain.image_only(&self.reference, frame) {
+                let peak = image.peak().map_or(0.0, |(_, v)| f64::from(v.abs()));
                 self.noise_peak = self.noise_peak.max(peak);
             }
         }
+        let floor = match self.params.noise_floor {
+            NoiseFloor::Auto { factor } => factor * self.noise_peak,
+            NoiseFloor::Fixed(value) => value,
+        };
+        self.chain.set_min_peak(self.min_peak.max(floor));
         self.collected.clear();
     }
 }
@@ -249,14 +177,17 @@ impl Pipeline {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::calibration::{Calibration, Strength};
+    use crate::press_fit::PressModel;
     use crate::sim::VirtualSensor;
-    use crate::{ReconstructorParams, SensorSpec};
+    use crate::{Reconstructor, ReconstructorParams, SensorSpec};
 
     fn setup() -> (Pipeline, VirtualSensor) {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 800;
         let recon = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &ReconstructorParams::default()).unwrap();
-        (Pipeline::new(recon, PipelineParams::default(), None), VirtualSensor::new(&spec, 3).unwrap())
+        let chain = Chain::new(recon, crate::TouchParams::default());
+        (Pipeline::new(chain, PipelineParams::default()), VirtualSensor::new(&spec, 3).unwrap())
     }
 
     #[test]
@@ -292,8 +223,11 @@ mod tests {
         let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
         let gel = Hydrogel::default().drop_curve(16.0);
         let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
-        let mut pipeline =
-            Pipeline::new(recon, PipelineParams::default(), Some((array, calibration))).with_press_model(press_model);
+        let chain = Chain::new(recon, crate::TouchParams::default())
+            .with_press_model(press_model)
+            .with_calibration(array, calibration)
+            .unwrap();
+        let mut pipeline = Pipeline::new(chain, PipelineParams::default());
         let mut skin = VirtualSensor::new(&spec, 5).unwrap();
         for _ in 0..10 {
             pipeline.process(&skin.frame().unwrap()).unwrap();
@@ -330,13 +264,8 @@ mod tests {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 800;
         let recon = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &ReconstructorParams::default()).unwrap();
-        let params = PipelineParams {
-            reference_frames: 3,
-            baseline_rate: 0.5,
-            noise_floor: NoiseFloor::Fixed(0.01),
-            ..PipelineParams::default()
-        };
-        let mut pipeline = Pipeline::new(recon, params, None);
+        let params = PipelineParams { reference_frames: 3, baseline_rate: 0.5, noise_floor: NoiseFloor::Fixed(0.01) };
+        let mut pipeline = Pipeline::new(Chain::new(recon, crate::TouchParams::default()), params);
         let sim = crate::sim::SimParams { drift_per_hour: 0.05, noise_relative: 0.0, ..Default::default() };
         let mut skin = VirtualSensor::with_params(&spec, sim, 1).unwrap();
         for _ in 0..3 {

@@ -8,8 +8,7 @@
 
 use crate::conductivity::{with_inclusions, Inclusion};
 use crate::forward::ForwardModel;
-use crate::inverse::Reconstructor;
-use crate::spec::SpecError;
+use crate::inverse::{InverseError, Reconstructor};
 use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
 
 /// Peak |Δσ| (S/m) of the image of each inclusion, simulated on `truth` with the `background`
@@ -19,7 +18,7 @@ pub fn peaks(
     background: f64,
     recon: &Reconstructor,
     inclusions: &[Inclusion],
-) -> Result<Vec<f64>, SpecError> {
+) -> Result<Vec<f64>, InverseError> {
     use rayon::prelude::*;
     let v_ref = truth.measure(&vec![background; truth.mesh().triangles().len()])?;
     inclusions
@@ -43,7 +42,7 @@ pub fn strongest_touches(
     background: f64,
     recon: &Reconstructor,
     inclusions: &[Inclusion],
-) -> Result<Vec<Option<Touch>>, SpecError> {
+) -> Result<Vec<Option<Touch>>, InverseError> {
     use rayon::prelude::*;
     let v_ref = truth.measure(&vec![background; truth.mesh().triangles().len()])?;
     inclusions

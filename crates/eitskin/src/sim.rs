@@ -26,7 +26,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
 use crate::conductivity::{with_inclusions, Inclusion};
-use crate::forward::ForwardModel;
+use crate::forward::{ForwardError, ForwardModel};
 use crate::spec::{SensorSpec, SpecError};
 
 /// How the gel answers a press: drop d(F) = `max_drop`·(1 − e^(−F/`force_scale`)).
@@ -176,19 +176,19 @@ impl VirtualSensor {
     }
 
     /// The noise-free frame now, in V at 1 A.
-    pub fn clean_frame(&self) -> Result<Vec<f64>, SpecError> {
-        Ok(self.model.measure(&self.conductivity())?)
+    pub fn clean_frame(&self) -> Result<Vec<f64>, ForwardError> {
+        self.model.measure(&self.conductivity())
     }
 
     /// Noise-free frames (V at 1 A) for several sets of presses, solved in parallel; the
     /// presses on the sheet are left as they are.
-    pub fn clean_frames(&self, cases: &[Vec<Press>]) -> Result<Vec<Vec<f64>>, SpecError> {
+    pub fn clean_frames(&self, cases: &[Vec<Press>]) -> Result<Vec<Vec<f64>>, ForwardError> {
         use rayon::prelude::*;
-        cases.par_iter().map(|presses| Ok(self.model.measure(&self.conductivity_with(presses))?)).collect()
+        cases.par_iter().map(|presses| self.model.measure(&self.conductivity_with(presses))).collect()
     }
 
     /// A frame now, with noise, in V at 1 A.
-    pub fn frame(&mut self) -> Result<Vec<f64>, SpecError> {
+    pub fn frame(&mut self) -> Result<Vec<f64>, ForwardError> {
         let mut v = self.clean_frame()?;
         self.add_noise(&mut v);
         Ok(v)

@@ -96,23 +96,14 @@ pub enum SpecError {
         width: f64,
     },
     /// The protocol could not be built.
-    #[error("`protocol`: {0}")]
+    #[error("`protocol` does not make a protocol")]
     Protocol(#[from] ProtocolError),
     /// Meshing failed.
-    #[error("meshing failed: {0}")]
+    #[error("the outline could not be meshed")]
     Mesh(#[from] MeshError),
     /// The forward model could not be built.
-    #[error("forward model: {0}")]
+    #[error("the forward model could not be built")]
     Forward(#[from] ForwardError),
-    /// A pseudo-array could not be made.
-    #[error("pseudo-array: {0}")]
-    PseudoArray(#[from] crate::pseudo_array::PseudoArrayError),
-    /// A calibration could not be fitted or used.
-    #[error("calibration: {0}")]
-    Calibration(#[from] crate::calibration::CalibrationError),
-    /// The inverse model could not be built, or a frame was refused.
-    #[error("inverse model: {0}")]
-    Inverse(#[from] crate::inverse::InverseError),
 }
 
 /// The unit that lengths in the spec file and in outputs are given in.

@@ -12,27 +12,56 @@
 //!    positions anywhere in the lower-right and upper-right 3×3 units with random forces
 //!    0–16 N (475 samples).
 //! 4. Beyond the pseudo-array, calibrated from presses laid out the same way and validated on
-//!    the same 475 presses: a finer n×n division; the continuous calibration, where the
-//!    forward model supplies the sensitivity S(x) (the reconstructed peak of a reference
-//!    inclusion, mapped over the sheet at setup) and one curve is fitted to peak ÷ S(centre);
-//!    and the contrast map, its extension to the image's nonlinearity: at every map point the
-//!    forward model gives the peak for a ladder of conductivity drops, a touch's peak is read
-//!    back as the drop d̂ that explains it at its centre, and one curve d̂(F) is fitted; read
-//!    from the touch's peak, from its volume (less noisy, smoother over the mesh), and from the
-//!    mean of the two.
+//!    the same 475 presses: a finer n×n division; the pseudo-array on the fitted press's drop;
+//!    and one curve for the whole sheet on each strength that is meant to be the same anywhere
+//!    (peak ÷ sensitivity, the contrast map's drop from the peak, the volume and both, the
+//!    fitted drop; see [`crate::strength`] and [`crate::contrast_map`]).
+//!
+//! Every method is a [`ForceMethod`] — a division and a [`Strength`] — and runs through the one
+//! [`Chain`]: its samples are the chain's readings of the calibration frames, and its forces
+//! the chain's, with the fitted calibration, on the validation frames. `eitskin calibrate` and
+//! `evaluate` on the frames the study writes give the same numbers.
 
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
+use thiserror::Error;
 
-use crate::calibration::{force_errors, Calibration, Curve, ForceErrors, Sample};
+use crate::calibration::{force_errors, Calibration, CalibrationError, Curve, ForceErrors};
+use crate::chain::{Chain, ChainError, LabelledFrame};
 use crate::conductivity::Inclusion;
-use crate::inverse::{Reconstructor, ReconstructorParams};
-use crate::press_fit::{PressFit, PressModel, PressModelParams, PressScratch};
-use crate::pseudo_array::PseudoArray;
-use crate::sensitivity::{along_x, peaks, strongest_touches};
+use crate::contrast_map::{ContrastMap, ContrastMapParams};
+use crate::forward::ForwardError;
+use crate::inverse::{InverseError, Reconstructor, ReconstructorParams};
+use crate::press_fit::{PressFit, PressModel, PressModelParams};
+use crate::pseudo_array::{PseudoArray, PseudoArrayError};
+use crate::sensitivity::{along_x, peaks};
 use crate::sim::{Press, SimParams, VirtualSensor};
 use crate::spec::{SensorSpec, SpecError};
-use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
+use crate::strength::Strength;
+use crate::touch::{Touch, TouchParams};
+
+/// What stopped the study; each stage keeps its own error as the cause.
+#[derive(Debug, Error, PartialEq)]
+pub enum StudyError {
+    /// The spec does not make a sensor.
+    #[error("the sensor spec does not make a sensor")]
+    Spec(#[from] SpecError),
+    /// The virtual sensor's forward model could not be solved.
+    #[error("the virtual sensor could not simulate a frame")]
+    Forward(#[from] ForwardError),
+    /// A reconstructor, press model or contrast map could not be built, or a frame was refused.
+    #[error("the inverse model failed")]
+    Inverse(#[from] InverseError),
+    /// A pseudo-array could not be made.
+    #[error("the pseudo-array could not be made")]
+    PseudoArray(#[from] PseudoArrayError),
+    /// A calibration could not be fitted.
+    #[error("a calibration could not be fitted")]
+    Calibration(#[from] CalibrationError),
+    /// A chain lacked what a method needs.
+    #[error("the frame chain could not be set up")]
+    Chain(#[from] ChainError),
+}
 
 /// How to run the study; `Default` is the paper's design.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,7 +70,7 @@ pub struct StudyParams {
     pub sim: SimParams,
     /// Seed of the noise and of the validation positions and forces.
     pub seed: u64,
-    /// Noisy frames per calibration press (15 in the paper).
+    /// Noisy frames per calibration press (15 in the paper), ≥ 1.
     pub repeats: usize,
     /// Validation presses (475 in the paper).
     pub validation: usize,
@@ -49,7 +78,7 @@ pub struct StudyParams {
     pub grid: usize,
     /// Units per side of the finer division (10).
     pub fine_grid: usize,
-    /// Positions per side of the continuous calibration's sensitivity map.
+    /// Positions per side of the contrast map (the continuous strengths).
     pub sensitivity_map: usize,
     /// Largest validation force, in N (16 in the paper).
     pub max_force: f64,
@@ -64,8 +93,27 @@ impl Default for StudyParams {
             validation: 475,
             grid: 5,
             fine_grid: 10,
-            sensitivity_map: 41,
+            sensitivity_map: ContrastMapParams::default().points,
             max_force: 16.0,
+        }
+    }
+}
+
+/// A force method: a division of the sheet into units and areas, and the strength its curves take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ForceMethod {
+    /// Units per side of its pseudo-array (1: one curve for the whole sheet).
+    pub grid: usize,
+    /// What its curves take as the touch's strength.
+    pub strength: Strength,
+}
+
+impl ForceMethod {
+    /// Its name, e.g. "pseudo-array 5×5, peak" or "one curve, fitted drop".
+    pub fn name(&self) -> String {
+        match self.grid {
+            1 => format!("one curve, {}", self.strength),
+            n => format!("pseudo-array {n}×{n}, {}", self.strength),
         }
     }
 }
@@ -73,9 +121,9 @@ impl Default for StudyParams {
 /// One force method's calibration and its validation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MethodResult {
-    /// Its name, e.g. "pseudo-array 5×5".
-    pub name: String,
-    /// The fitted curves (one per area; one for the continuous method).
+    /// The method.
+    pub method: ForceMethod,
+    /// The fitted curves (one per area).
     pub curves: Vec<Curve>,
     /// Calibration samples used.
     pub calibration_samples: usize,
@@ -108,8 +156,12 @@ pub struct StudyReport {
     pub right_unit: f64,
     /// The force methods, the faithful pseudo-array first.
     pub methods: Vec<MethodResult>,
-    /// The calibration samples of the faithful pseudo-array (units of its grid).
-    pub calibration: Vec<StudySample>,
+    /// The reference frame all frames are imaged against (mean of `repeats` noisy frames), V at 1 A.
+    pub reference: Vec<f64>,
+    /// The calibration presses of the faithful pseudo-array, with their noisy frames.
+    pub calibration: Vec<LabelledFrame>,
+    /// The validation presses with their noisy frames.
+    pub validation_frames: Vec<LabelledFrame>,
 }
 
 /// Progress: a stage name, work done, work in all.
@@ -119,28 +171,41 @@ pub type Progress<'a> = &'a mut dyn FnMut(&str, usize, usize);
 /// past the sixth (finer divisions) take the range of the 5×5 area their unit centre lies in.
 const PAPER_RANGES: [f64; 6] = [15.0, 15.0, 12.0, 15.0, 11.0, 9.0];
 
+/// The study's force methods for grids `grid` and `fine`, in report order.
+pub fn methods(grid: usize, fine: usize) -> Vec<ForceMethod> {
+    let m = |grid, strength| ForceMethod { grid, strength };
+    vec![
+        m(grid, Strength::Peak),
+        m(fine, Strength::Peak),
+        m(grid, Strength::FittedDrop),
+        m(1, Strength::Sensitivity),
+        m(1, Strength::ContrastPeak),
+        m(1, Strength::ContrastVolume),
+        m(1, Strength::ContrastPeakAndVolume),
+        m(1, Strength::FittedDrop),
+    ]
+}
+
 /// Runs the whole study on `spec`'s sensor.
-pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> Result<StudyReport, SpecError> {
+pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> Result<StudyReport, StudyError> {
     progress("setting up the sensor and the reconstructor", 0, 1);
     let model = spec.forward_model()?;
     let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
     let mut skin = VirtualSensor::with_params(spec, params.sim, params.seed)?;
     let electrodes = spec.electrode_positions()?;
-    let array = PseudoArray::by_symmetry(&spec.outline, &electrodes, [params.grid; 2])?;
-    let fine = PseudoArray::by_symmetry(&spec.outline, &electrodes, [params.fine_grid; 2])?;
+    let division = |n: usize| PseudoArray::by_symmetry(&spec.outline, &electrodes, [n; 2]);
+    let array = division(params.grid)?;
+    let fine = division(params.fine_grid)?;
     let [lo, hi] = spec.outline.bounds();
     let side = hi[0] - lo[0];
-    let press_model = PressModel::new(
-        &model,
-        spec.conductivity,
-        &PressModelParams { radius: params.sim.hydrogel.indenter_radius, ..PressModelParams::default() },
-    )?;
-    let mut chain = Chain::new(&recon, &press_model, &mut skin, params.repeats)?;
+    let radius = params.sim.hydrogel.indenter_radius;
+    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams { radius, ..Default::default() })?;
+    let reference = reference_frame(&mut skin, params.repeats)?;
 
     progress("location dependence (Fig. 3c)", 0, 1);
-    let (radius, half) = (0.05 * side, 0.5 * spec.conductivity);
-    let line = along_x(side / 2.0, 0.05 * side, radius, half, 0.25 * radius);
-    let line_peaks = peaks(chain.skin.model(), chain.skin.background(), &recon, &line)?;
+    let (inclusion_radius, half) = (0.05 * side, 0.5 * spec.conductivity);
+    let line = along_x(side / 2.0, 0.05 * side, inclusion_radius, half, 0.25 * inclusion_radius);
+    let line_peaks = peaks(skin.model(), skin.background(), &recon, &line)?;
     let profile = line.iter().zip(line_peaks).map(|(i, p)| (i.centre, p)).collect();
 
     progress("per-area curves in simulation (Fig. 4b)", 0, 1);
@@ -151,16 +216,16 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
         let centre = array.unit_centre(unit);
         let inclusions: Vec<Inclusion> = drops
             .iter()
-            .map(|d| Inclusion { centre, radius: 0.05 * side, conductivity: spec.conductivity * (1.0 - d) })
+            .map(|d| Inclusion { centre, radius: inclusion_radius, conductivity: spec.conductivity * (1.0 - d) })
             .collect();
-        let p = peaks(chain.skin.model(), chain.skin.background(), &recon, &inclusions)?;
+        let p = peaks(skin.model(), skin.background(), &recon, &inclusions)?;
         simulated_fits.push(Curve::fit(array.area_of(unit), &drops, &p)?);
         simulated_curves.push((drops.clone(), p));
     }
 
     progress("calibration presses", 0, 1);
-    let coarse_samples = chain.calibration(&array, &array, params.repeats, progress)?;
-    let fine_samples = chain.calibration(&fine, &array, params.repeats, progress)?;
+    let coarse_frames = calibration_frames(&mut skin, &array, &array, params.repeats, progress)?;
+    let fine_frames = calibration_frames(&mut skin, &fine, &array, params.repeats, progress)?;
 
     progress("validation presses", 0, 1);
     let mut rng = StdRng::seed_from_u64(params.seed ^ 0x5eed);
@@ -174,70 +239,43 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
             Press { position, force: rng.random_range(0.0..params.max_force) }
         })
         .collect();
-    let (validation_touches, validation_fits) = chain.validation(&validation, progress)?;
+    let validation_frames = validation_frames(&mut skin, &validation, progress)?;
 
-    progress("continuous calibration: sensitivity and contrast maps", 0, 1);
-    let map = ContrastMap::new(spec, &model, &recon, params.sensitivity_map)?;
+    progress("continuous calibration: contrast map", 0, 1);
+    let map_params = ContrastMapParams { points: params.sensitivity_map, ..ContrastMapParams::default() };
+    let map = ContrastMap::new(&model, spec.conductivity, &recon, spec.outline.bounds(), &map_params)?;
+    let mut chain = Chain::new(recon, TouchParams::default()).with_press_model(press_model).with_contrast_map(map);
+
+    // Where the strongest touch and its fitted press put each validation press.
+    let (mut validation_touches, mut validation_fits) = (Vec::new(), Vec::new());
+    for frame in &validation_frames {
+        let strongest = chain.process(&reference, &frame.frame)?.first();
+        validation_touches.push(strongest.map(|t| t.touch));
+        validation_fits.push(strongest.and_then(|t| t.press));
+    }
 
     let truth: Vec<f64> = validation.iter().map(|p| p.force).collect();
-    let mut methods = Vec::new();
-    // Each validation press as (centre, strength) by the image's peak, or by the fitted press.
-    let by_peak: Vec<Option<([f64; 2], f64)>> =
-        validation_touches.iter().map(|t| t.map(|t| (t.centre, t.peak))).collect();
-    let by_fit: Vec<Option<([f64; 2], f64)>> = validation_touches
-        .iter()
-        .zip(&validation_fits)
-        .map(|(t, f)| t.map(|t| (f.map_or(t.centre, |f| f.centre), fitted_drop(*f))))
-        .collect();
-    for (name, division, samples, fitted) in [
-        (format!("pseudo-array {0}×{0}", params.grid), &array, &coarse_samples, false),
-        (format!("pseudo-array {0}×{0}", params.fine_grid), &fine, &fine_samples, false),
-        (format!("pseudo-array {0}×{0} (fitted press)", params.grid), &array, &coarse_samples, true),
-    ] {
-        let per_area: Vec<Sample> = samples
-            .iter()
-            .map(|s| {
-                let peak = if fitted { fitted_drop(s.fit) } else { s.peak };
-                Sample { area: division.area_of(s.unit), force: s.force, peak }
-            })
-            .collect();
-        let calibration = Calibration::fit(&per_area, division.area_count())?;
-        let predicted: Vec<f64> = if fitted { &by_fit } else { &by_peak }
-            .iter()
-            .map(|r| match r.and_then(|(centre, strength)| division.unit_at(centre).map(|u| (u, strength))) {
-                Some((unit, x)) => calibration.force(division.area_of(unit), x).map_or(f64::NAN, |f| f.newtons),
-                None => f64::NAN,
-            })
-            .collect();
-        methods.push(method(name, calibration.curves, per_area.len(), predicted, &truth));
+    let mut results = Vec::new();
+    let methods = methods(params.grid, params.fine_grid);
+    for (k, &method) in methods.iter().enumerate() {
+        progress("force methods", k, methods.len());
+        let division = if method.grid == params.grid { array.clone() } else { division(method.grid)? };
+        let frames = if method.grid == params.fine_grid { &fine_frames } else { &coarse_frames };
+        let mut chain = chain.clone().with_strength(method.strength)?;
+        let samples: Vec<_> = chain.samples(&reference, &division, frames)?.into_iter().flatten().collect();
+        let calibration = Calibration::fit_strength(&samples, division.area_count(), method.strength)?;
+        let curves = calibration.curves.clone();
+        let mut chain = chain.with_calibration(division, calibration)?;
+        let mut predicted = Vec::with_capacity(validation_frames.len());
+        for frame in &validation_frames {
+            let force = chain.process(&reference, &frame.frame)?.first().and_then(|t| t.force);
+            predicted.push(force.map_or(f64::NAN, |f| f.newtons));
+        }
+        let (t, p): (Vec<f64>, Vec<f64>) =
+            truth.iter().zip(&predicted).filter(|(_, p)| p.is_finite()).map(|(t, p)| (*t, *p)).unzip();
+        let errors = force_errors(&t, &p);
+        results.push(MethodResult { method, curves, calibration_samples: samples.len(), predicted, errors });
     }
-    // One curve of a per-position normalised peak against force, for the whole sheet.
-    let continuous = |name: &str, normalise: &dyn Fn(f64, f64, [f64; 2]) -> f64| -> Result<MethodResult, SpecError> {
-        let forces: Vec<f64> = coarse_samples.iter().map(|s| s.force).collect();
-        let values: Vec<f64> = coarse_samples.iter().map(|s| normalise(s.peak, s.volume, s.centre)).collect();
-        let curve = Curve::fit(0, &forces, &values)?;
-        let predicted = validation_touches
-            .iter()
-            .map(|t| t.map_or(f64::NAN, |t| curve.force(normalise(t.peak, t.volume, t.centre)).newtons))
-            .collect();
-        Ok(method(name.into(), vec![curve], forces.len(), predicted, &truth))
-    };
-    methods.push(continuous("continuous", &|peak, _, at| peak / map.sensitivity(at))?);
-    methods.push(continuous("contrast map", &|peak, _, at| map.drop(peak, at, false))?);
-    methods.push(continuous("contrast map (volume)", &|_, volume, at| map.drop(volume, at, true))?);
-    methods.push(continuous("contrast map (peak and volume)", &|peak, volume, at| {
-        0.5 * (map.drop(peak, at, false) + map.drop(volume, at, true))
-    })?);
-    // The fitted press: its drop is an estimate of the gel's own, the same anywhere, so one curve.
-    let forces: Vec<f64> = coarse_samples.iter().map(|s| s.force).collect();
-    let drops: Vec<f64> = coarse_samples.iter().map(|s| fitted_drop(s.fit)).collect();
-    let curve = Curve::fit(0, &forces, &drops)?;
-    let predicted = validation_touches
-        .iter()
-        .zip(&validation_fits)
-        .map(|(t, f)| t.map_or(f64::NAN, |_| curve.force(fitted_drop(*f)).newtons))
-        .collect();
-    methods.push(method("fitted press".into(), vec![curve], forces.len(), predicted, &truth));
 
     let found: Vec<(&Press, &Touch)> =
         validation.iter().zip(&validation_touches).filter_map(|(p, t)| t.as_ref().map(|t| (p, t))).collect();
@@ -261,20 +299,74 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
         mean_position_error,
         mean_fit_position_error,
         right_unit,
-        methods,
-        calibration: coarse_samples,
+        methods: results,
+        reference,
+        calibration: coarse_frames,
+        validation_frames,
     })
 }
 
-/// The fitted drop; 0 where a touch was found but nothing in Δv looks like a press.
-fn fitted_drop(fit: Option<PressFit>) -> f64 {
-    fit.map_or(0.0, |f| f.drop)
+/// The reference: the mean of `frames` noisy frames of the untouched sheet.
+fn reference_frame(skin: &mut VirtualSensor, frames: usize) -> Result<Vec<f64>, ForwardError> {
+    skin.release();
+    let clean = skin.clean_frame()?;
+    let mut reference = vec![0.0; clean.len()];
+    for _ in 0..frames.max(1) {
+        let mut v = clean.clone();
+        skin.add_noise(&mut v);
+        reference.iter_mut().zip(&v).for_each(|(r, x)| *r += x / frames.max(1) as f64);
+    }
+    Ok(reference)
 }
 
-fn method(name: String, curves: Vec<Curve>, samples: usize, predicted: Vec<f64>, truth: &[f64]) -> MethodResult {
-    let (t, p): (Vec<f64>, Vec<f64>) =
-        truth.iter().zip(&predicted).filter(|(_, p)| p.is_finite()).map(|(t, p)| (*t, *p)).unzip();
-    MethodResult { name, curves, calibration_samples: samples, errors: force_errors(&t, &p), predicted }
+/// Presses one unit per area of `division` (the first met in its lower-left 3×3 block) at its
+/// centre, at 1 N steps up to the paper's range for the area of `paper` holding it, `repeats`
+/// noisy frames each.
+fn calibration_frames(
+    skin: &mut VirtualSensor,
+    division: &PseudoArray,
+    paper: &PseudoArray,
+    repeats: usize,
+    progress: Progress<'_>,
+) -> Result<Vec<LabelledFrame>, ForwardError> {
+    let mut cases = Vec::new();
+    for unit in representatives(division) {
+        let centre = division.unit_centre(unit);
+        let range = paper.unit_at(centre).map_or(15.0, |u| PAPER_RANGES.get(paper.area_of(u)).copied().unwrap_or(15.0));
+        for f in 0..=(range as usize) {
+            cases.push(Press { position: centre, force: f as f64 });
+        }
+    }
+    let presses: Vec<Vec<Press>> = cases.iter().map(|p| vec![*p]).collect();
+    let clean = skin.clean_frames(&presses)?;
+    let mut frames = Vec::with_capacity(cases.len() * repeats);
+    for (k, (press, clean)) in cases.iter().zip(&clean).enumerate() {
+        progress("calibration presses", k + 1, cases.len());
+        for _ in 0..repeats.max(1) {
+            let mut frame = clean.clone();
+            skin.add_noise(&mut frame);
+            frames.push(LabelledFrame { position: press.position, force: press.force, frame });
+        }
+    }
+    Ok(frames)
+}
+
+/// One noisy frame per validation press.
+fn validation_frames(
+    skin: &mut VirtualSensor,
+    presses: &[Press],
+    progress: Progress<'_>,
+) -> Result<Vec<LabelledFrame>, ForwardError> {
+    let mut frames = Vec::with_capacity(presses.len());
+    for (chunk, batch) in presses.chunks(50).enumerate() {
+        let cases: Vec<Vec<Press>> = batch.iter().map(|p| vec![*p]).collect();
+        for (press, mut frame) in batch.iter().zip(skin.clean_frames(&cases)?) {
+            skin.add_noise(&mut frame);
+            frames.push(LabelledFrame { position: press.position, force: press.force, frame });
+        }
+        progress("validation presses", (chunk * 50 + batch.len()).min(presses.len()), presses.len());
+    }
+    Ok(frames)
 }
 
 /// The first unit of each area met when scanning the lower-left block of [`units_block`]
@@ -305,237 +397,33 @@ fn units_block(array: &PseudoArray, col: usize, row: usize) -> Vec<usize> {
     units
 }
 
-/// A calibration sample before it is assigned to an area.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StudySample {
-    /// The pressed unit of the division it was taken for (0-based).
-    pub unit: usize,
-    /// Applied force, in N.
-    pub force: f64,
-    /// Peak of the strongest touch, in S/m.
-    pub peak: f64,
-    /// Volume of the strongest touch (change summed over its pixels × pixel area), in S/m·m².
-    pub volume: f64,
-    /// Centre of gravity of that touch, in m.
-    pub centre: [f64; 2],
-    /// The press fitted to the frame from that touch, if any.
-    pub fit: Option<PressFit>,
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// Per validation press: the strongest touch, and the press fitted from it.
-type Readings = (Vec<Option<Touch>>, Vec<Option<PressFit>>);
-
-/// The measuring chain: virtual sensor → reference → image → strongest touch.
-struct Chain<'a> {
-    recon: &'a Reconstructor,
-    press_model: &'a PressModel,
-    press_scratch: PressScratch,
-    fits: Vec<Option<PressFit>>,
-    difference: Vec<f64>,
-    skin: &'a mut VirtualSensor,
-    reference: Vec<f64>,
-    image: crate::image::Image,
-    scratch: TouchScratch,
-    touches: Vec<Touch>,
-}
-
-impl<'a> Chain<'a> {
-    /// The chain with its reference: the mean of `frames` noisy frames of the untouched sheet.
-    fn new(
-        recon: &'a Reconstructor,
-        press_model: &'a PressModel,
-        skin: &'a mut VirtualSensor,
-        frames: usize,
-    ) -> Result<Chain<'a>, SpecError> {
-        skin.release();
-        let clean = skin.clean_frame()?;
-        let mut reference = vec![0.0; clean.len()];
-        for _ in 0..frames.max(1) {
-            let mut v = clean.clone();
-            skin.add_noise(&mut v);
-            reference.iter_mut().zip(&v).for_each(|(r, x)| *r += x / frames.max(1) as f64);
+    /// The whole study on a coarse sensor with few presses: every method runs through the one
+    /// chain, and the fitted press's single curve beats the paper's per-area peak.
+    #[test]
+    fn the_study_runs_every_method_on_a_coarse_sensor() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 1000;
+        let params = StudyParams { repeats: 2, validation: 60, sensitivity_map: 11, ..StudyParams::default() };
+        let report = run(&spec, &params, &mut |_, _, _| {}).unwrap();
+        let expected = methods(5, 10);
+        assert_eq!(report.methods.iter().map(|m| m.method).collect::<Vec<_>>(), expected);
+        // 6 areas: forces 0–15, 0–15, 0–12, 0–15, 0–11, 0–9 N, 2 frames each.
+        assert_eq!(report.calibration.len(), 2 * (16 + 16 + 13 + 16 + 12 + 10));
+        assert_eq!(report.validation_frames.len(), 60);
+        for m in &report.methods {
+            let areas = if m.method.grid == 1 { 1 } else { m.curves.len() };
+            assert!(m.curves.len() == areas && m.errors.rms.is_finite(), "{}: {:?}", m.method.name(), m.errors);
+            assert!(m.calibration_samples <= report.calibration.len() || m.method.grid == 10);
         }
-        let image = recon.blank_image();
-        let scratch = TouchScratch::new(image.size);
-        Ok(Chain {
-            recon,
-            press_model,
-            press_scratch: PressScratch::default(),
-            fits: Vec::with_capacity(1),
-            difference: vec![0.0; reference.len()],
-            skin,
-            reference,
-            image,
-            scratch,
-            touches: Vec::with_capacity(16),
-        })
-    }
-
-    /// The strongest touch in a frame, and the press fitted from it.
-    fn strongest(&mut self, frame: &[f64]) -> Result<Option<(Touch, Option<PressFit>)>, SpecError> {
-        self.recon.image_into(&self.reference, frame, &mut self.image)?;
-        detect_into(&self.image, &TouchParams::default(), &mut self.scratch, &mut self.touches);
-        let Some(touch) = self.touches.first().copied() else { return Ok(None) };
-        self.difference.iter_mut().zip(frame.iter().zip(&self.reference)).for_each(|(d, (v, r))| *d = v - r);
-        self.press_model.fit_into(&self.difference, &[touch.centre], &mut self.press_scratch, &mut self.fits)?;
-        Ok(Some((touch, self.fits.first().copied().flatten())))
-    }
-
-    /// Presses one unit per area of `division` (the first met in its lower-left 3×3 block) at
-    /// 1 N steps up to the paper's range for the area of `paper` holding it, `repeats` frames each.
-    fn calibration(
-        &mut self,
-        division: &PseudoArray,
-        paper: &PseudoArray,
-        repeats: usize,
-        progress: Progress<'_>,
-    ) -> Result<Vec<StudySample>, SpecError> {
-        let mut cases = Vec::new();
-        for unit in representatives(division) {
-            let centre = division.unit_centre(unit);
-            let range =
-                paper.unit_at(centre).map_or(15.0, |u| PAPER_RANGES.get(paper.area_of(u)).copied().unwrap_or(15.0));
-            for f in 0..=(range as usize) {
-                cases.push((unit, f as f64, centre));
-            }
-        }
-        let presses: Vec<Vec<Press>> =
-            cases.iter().map(|&(_, force, position)| vec![Press { position, force }]).collect();
-        let frames = self.skin.clean_frames(&presses)?;
-        let mut samples = Vec::with_capacity(cases.len() * repeats);
-        for (k, (&(unit, force, _), clean)) in cases.iter().zip(&frames).enumerate() {
-            progress("calibration presses", k + 1, cases.len());
-            for _ in 0..repeats.max(1) {
-                let mut v = clean.clone();
-                self.skin.add_noise(&mut v);
-                if let Some((t, fit)) = self.strongest(&v)? {
-                    samples.push(StudySample { unit, force, peak: t.peak, volume: t.volume, centre: t.centre, fit });
-                }
-            }
-        }
-        Ok(samples)
-    }
-
-    /// One noisy frame per validation press; the strongest touch of each and its fitted press.
-    fn validation(&mut self, presses: &[Press], progress: Progress<'_>) -> Result<Readings, SpecError> {
-        let cases: Vec<Vec<Press>> = presses.iter().map(|p| vec![*p]).collect();
-        let (mut touches, mut fits) = (Vec::with_capacity(presses.len()), Vec::with_capacity(presses.len()));
-        for (chunk, batch) in cases.chunks(50).enumerate() {
-            let frames = self.skin.clean_frames(batch)?;
-            for mut v in frames {
-                self.skin.add_noise(&mut v);
-                let found = self.strongest(&v)?;
-                touches.push(found.map(|(t, _)| t));
-                fits.push(found.and_then(|(_, f)| f));
-            }
-            progress("validation presses", (chunk * 50 + batch.len()).min(presses.len()), presses.len());
-        }
-        Ok((touches, fits))
-    }
-}
-
-/// The forward model's view of the sheet for the continuous calibrations: at each point of an
-/// n×n grid of touch centres (inset by the indenter's radius), the reconstructed peak of an
-/// inclusion of the indenter's size for conductivity drops 0.1, 0.2 … 0.9, simulated on the
-/// reconstruction model itself (no knowledge of the virtual sensor); read bilinearly.
-struct ContrastMap {
-    lo: [f64; 2],
-    step: [f64; 2],
-    n: usize,
-    drops: Vec<f64>,
-    /// `peaks[k][j]`: peak (S/m) at grid point j for drop k.
-    peaks: Vec<Vec<f64>>,
-    /// `volumes[k][j]`: volume (S/m·m²) at grid point j for drop k.
-    volumes: Vec<Vec<f64>>,
-}
-
-/// The drop whose peak is the sensitivity S(x) of the plain continuous calibration.
-const REFERENCE_DROP: usize = 4; // 0.5
-
-/// Fixed-point steps that move map inclusions so their images' centres land on the grid.
-const MAP_ITERATIONS: usize = 2;
-
-impl ContrastMap {
-    fn new(
-        spec: &SensorSpec,
-        model: &crate::forward::ForwardModel,
-        recon: &Reconstructor,
-        n: usize,
-    ) -> Result<ContrastMap, SpecError> {
-        let n = n.max(2);
-        let radius = SimParams::default().hydrogel.indenter_radius;
-        let [lo, hi] = spec.outline.bounds();
-        let lo = [lo[0] + radius, lo[1] + radius];
-        let step = [(hi[0] - radius - lo[0]) / (n - 1) as f64, (hi[1] - radius - lo[1]) / (n - 1) as f64];
-        let drops: Vec<f64> = (1..=9).map(|k| 0.1 * k as f64).collect();
-        let grid: Vec<[f64; 2]> =
-            (0..n * n).map(|k| [lo[0] + (k % n) as f64 * step[0], lo[1] + (k / n) as f64 * step[1]]).collect();
-        let at = |centres: &[[f64; 2]], drop: f64| -> Result<Vec<Option<Touch>>, SpecError> {
-            let inclusions: Vec<Inclusion> = centres
-                .iter()
-                .map(|&centre| Inclusion { centre, radius, conductivity: (1.0 - drop) * spec.conductivity })
-                .collect();
-            strongest_touches(model, spec.conductivity, recon, &inclusions)
+        let rms = |grid, strength| {
+            report.methods.iter().find(|m| m.method == ForceMethod { grid, strength }).unwrap().errors.rms
         };
-        // Touches are looked up by their centre of gravity, which is pulled away from the
-        // press near the edges: move each map inclusion until its image's centre of gravity
-        // sits on the grid point, so the map is indexed the way it is read.
-        let mut centres = grid.clone();
-        for _ in 0..MAP_ITERATIONS {
-            let touches = at(&centres, drops[REFERENCE_DROP])?;
-            for ((c, g), t) in centres.iter_mut().zip(&grid).zip(touches) {
-                if let Some(t) = t {
-                    for k in 0..2 {
-                        c[k] = (c[k] + g[k] - t.centre[k]).clamp(lo[k], hi[k] - radius);
-                    }
-                }
-            }
-        }
-        let ladder: Vec<Vec<Option<Touch>>> = drops.iter().map(|&d| at(&centres, d)).collect::<Result<_, _>>()?;
-        let of = |f: fn(&Touch) -> f64| -> Vec<Vec<f64>> {
-            ladder.iter().map(|row| row.iter().map(|t| t.as_ref().map_or(0.0, f)).collect()).collect()
-        };
-        Ok(ContrastMap { lo, step, n, peaks: of(|t| t.peak), volumes: of(|t| t.volume), drops })
-    }
-
-    /// Bilinear weights and grid indices at `p` (m), clamped to the grid.
-    fn corners(&self, p: [f64; 2]) -> [(usize, f64); 4] {
-        let coord = |k: usize| ((p[k] - self.lo[k]) / self.step[k]).clamp(0.0, (self.n - 1) as f64);
-        let (x, y) = (coord(0), coord(1));
-        let (i, j) = ((x as usize).min(self.n - 2), (y as usize).min(self.n - 2));
-        let (fx, fy) = (x - i as f64, y - j as f64);
-        let at = |a: usize, b: usize| b * self.n + a;
-        [
-            (at(i, j), (1.0 - fx) * (1.0 - fy)),
-            (at(i + 1, j), fx * (1.0 - fy)),
-            (at(i, j + 1), (1.0 - fx) * fy),
-            (at(i + 1, j + 1), fx * fy),
-        ]
-    }
-
-    /// The peak (S/m), or with `volume` the volume (S/m·m²), of drop number `k` at `p` (m).
-    fn strength(&self, k: usize, p: [f64; 2], volume: bool) -> f64 {
-        let table = if volume { &self.volumes } else { &self.peaks };
-        self.corners(p).iter().map(|&(j, w)| w * table[k][j]).sum()
-    }
-
-    /// S(x): the peak of the reference drop at `p`, in S/m.
-    fn sensitivity(&self, p: [f64; 2]) -> f64 {
-        self.strength(REFERENCE_DROP, p, false)
-    }
-
-    /// The drop (fraction of the background) whose peak at `p` is `peak`: piecewise linear
-    /// through (0, 0) and the ladder, extended past its ends along the nearest segment.
-    fn drop(&self, peak: f64, p: [f64; 2], volume: bool) -> f64 {
-        let ladder: Vec<(f64, f64)> = std::iter::once((0.0, 0.0))
-            .chain(self.drops.iter().enumerate().map(|(k, &d)| (self.strength(k, p, volume), d)))
-            .collect();
-        let segment = ladder.windows(2).position(|w| peak <= w[1].0).unwrap_or(ladder.len() - 2);
-        let ((p0, d0), (p1, d1)) = (ladder[segment], ladder[segment + 1]);
-        if p1 > p0 {
-            d0 + (peak - p0) * (d1 - d0) / (p1 - p0)
-        } else {
-            d0
-        }
+        let (paper, fitted) = (rms(5, Strength::Peak), rms(1, Strength::FittedDrop));
+        assert!(fitted < paper, "fitted drop {fitted} N against the paper's peak {paper} N");
+        assert!(report.mean_fit_position_error < report.mean_position_error);
     }
 }

@@ -5,11 +5,12 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use eitskin::calibration::{Calibration, Strength};
+use eitskin::chain::Chain;
 use eitskin::pipeline::{Pipeline, PipelineParams};
 use eitskin::press_fit::{PressModel, PressModelParams};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::sim::{Hydrogel, VirtualSensor};
-use eitskin::{Reconstructor, ReconstructorParams, SensorSpec};
+use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 
 struct Counting;
 
@@ -51,8 +52,11 @@ fn a_frame_with_touches_fitted_presses_and_forces_allocates_nothing() {
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
     let gel = Hydrogel::default().drop_curve(16.0);
     let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
-    let mut pipeline =
-        Pipeline::new(recon, PipelineParams::default(), Some((array, calibration))).with_press_model(press_model);
+    let chain = Chain::new(recon, TouchParams::default())
+        .with_press_model(press_model)
+        .with_calibration(array, calibration)
+        .unwrap();
+    let mut pipeline = Pipeline::new(chain, PipelineParams::default());
     let mut skin = VirtualSensor::new(&spec, 2).unwrap();
     let mut frames = Vec::new();
     for _ in 0..10 {

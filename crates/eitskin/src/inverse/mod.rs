@@ -34,6 +34,9 @@ pub enum InverseError {
     /// The indenter radius of a press model must be positive and finite.
     #[error("the indenter radius must be positive and finite, got {0} m")]
     IndenterRadius(f64),
+    /// The forward model could not be solved (at the background, or with an inclusion).
+    #[error("the forward model could not be solved")]
+    Forward(#[from] crate::forward::ForwardError),
     /// The system (JR⁻¹Jᵀ + λ²I or JᵀJ + λ²R) could not be factored.
     #[error("the regularised system is not positive definite; raise the hyperparameter or check the prior")]
     NotPositiveDefinite,

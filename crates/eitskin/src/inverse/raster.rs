@@ -54,7 +54,7 @@ impl Reconstructor {
     ) -> Result<Reconstructor, InverseError> {
         let sigma = vec![background; model.mesh().triangles().len()];
         // The background is positive and the count right: the forward model accepts it.
-        let solution = model.solve(&sigma).map_err(|_| InverseError::NotPositiveDefinite)?;
+        let solution = model.solve(&sigma)?;
         let mut jacobian = model.jacobian(&solution);
         if params.normalized {
             normalize_jacobian(&mut jacobian, &solution.measurements(model.protocol()))?;

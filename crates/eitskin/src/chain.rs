@@ -1,0 +1,308 @@
+//! The frame chain, written once: a frame against a reference → image → touches → presses
+//! fitted to Δv → each touch's strength → its unit, area and force.
+//!
+//! [`Chain`] is what [`Pipeline`](crate::pipeline::Pipeline) runs on every frame, what the study
+//! runs on its calibration and validation presses, and what `eitskin calibrate` and `evaluate`
+//! run on recorded samples: a calibration fitted by one is applied by the others unchanged.
+//!
+//! 1. image Δσ = H·(v − v_ref) ([`Reconstructor::image_into`]);
+//! 2. touches by the paper's threshold and components ([`touch::detect_into`](crate::touch::detect_into)),
+//!    strongest first;
+//! 3. with a [`PressModel`], one press fitted to Δv from each touch's centre (at most 16, jointly);
+//! 4. the strength of each touch ([`Strength::read`]: the peak, the fitted drop, or a reading
+//!    of the [`ContrastMap`]);
+//! 5. with a calibration, the unit and area its reading falls in and the force
+//!    ([`Calibration::locate`]).
+//!
+//! ```
+//! use eitskin::chain::Chain;
+//! use eitskin::conductivity::{with_inclusions, Inclusion};
+//! use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
+//! let mut spec = SensorSpec::square_hydrogel();
+//! spec.mesh.triangles = 800;
+//! let model = spec.forward_model()?;
+//! let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default())?;
+//! let mut chain = Chain::new(recon, TouchParams::default());
+//! let v_ref = model.measure(&vec![1.0; model.mesh().triangles().len()])?;
+//! let press = Inclusion { centre: [0.05, 0.05], radius: 0.01, conductivity: 0.5 };
+//! let touches = chain.process(&v_ref, &model.measure(&with_inclusions(model.mesh(), 1.0, &[press]))?)?;
+//! let [x, y] = touches[0].touch.centre;                 // metres from the sheet's centre
+//! assert!((x - 0.05).hypot(y - 0.05) < 0.01 && touches[0].reading.is_some());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! Not for: taking the reference, following drift or telling touches from noise over time
+//! (that is [`Pipeline`](crate::pipeline::Pipeline)). After it has grown, [`Chain::process`]
+//! allocates nothing.
+
+use thiserror::Error;
+
+use crate::calibration::{Calibration, ForceEstimate, Sample};
+use crate::contrast_map::ContrastMap;
+use crate::image::Image;
+use crate::inverse::{InverseError, Reconstructor};
+use crate::press_fit::{PressFit, PressModel, PressScratch};
+use crate::pseudo_array::PseudoArray;
+use crate::strength::{Reading, Strength};
+use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
+
+/// The most touches whose presses are fitted per frame.
+pub const MAX_FITTED: usize = 16;
+
+/// What a chain lacks for the strength or calibration it was given.
+#[derive(Debug, Error, PartialEq)]
+pub enum ChainError {
+    /// The strength needs the press fitted to Δv, and the chain has no press model.
+    #[error("the strength \"{strength}\" needs the press fitted to Δv, but the chain has no press model")]
+    NeedsPressModel {
+        /// The strength asked for.
+        strength: Strength,
+    },
+    /// The strength needs the forward model's contrast map, and the chain has none.
+    #[error("the strength \"{strength}\" needs the contrast map, but the chain has none")]
+    NeedsContrastMap {
+        /// The strength asked for.
+        strength: Strength,
+    },
+    /// A labelled frame could not be imaged.
+    #[error("sample {sample}: its frame cannot be imaged")]
+    Frame {
+        /// 1-based sample.
+        sample: usize,
+        /// Why.
+        source: InverseError,
+    },
+    /// A labelled press off the pseudo-array.
+    #[error("sample {sample} at ({x}, {y}) m is off the pseudo-array")]
+    OffArray {
+        /// 1-based sample.
+        sample: usize,
+        /// Its x, in m.
+        x: f64,
+        /// Its y, in m.
+        y: f64,
+    },
+    /// A calibration whose curve count is not its pseudo-array's area count.
+    #[error("the calibration has {curves} curves but its pseudo-array has {areas} areas")]
+    CurveCount {
+        /// Curves in the calibration.
+        curves: usize,
+        /// Areas of the pseudo-array.
+        areas: usize,
+    },
+}
+
+/// A press with a known place and force, and the frame measured under it (for calibrating
+/// and validating).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabelledFrame {
+    /// Where the press was, in m from the outline's centre.
+    pub position: [f64; 2],
+    /// Its force, in N.
+    pub force: f64,
+    /// The frame, in protocol order.
+    pub frame: Vec<f64>,
+}
+
+/// A touch with what the chain found from it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TouchForce {
+    /// The touch (centre in m, peak in S/m …).
+    pub touch: Touch,
+    /// The press fitted to Δv from it, with a press model (centre in m, drop).
+    pub press: Option<PressFit>,
+    /// Its strength by the chain's [`Strength`], and where its unit is looked up.
+    pub reading: Option<Reading>,
+    /// The pseudo-array unit holding the reading's centre (0-based), with a calibration.
+    pub unit: Option<usize>,
+    /// That unit's area (0-based), with a calibration.
+    pub area: Option<usize>,
+    /// The force, with a calibration.
+    pub force: Option<ForceEstimate>,
+}
+
+/// The frame chain of one sensor: reconstructor, touch settings, optional press model,
+/// contrast map and calibration, and the buffers of the frame path.
+#[derive(Debug, Clone)]
+pub struct Chain {
+    recon: Reconstructor,
+    touch: TouchParams,
+    strength: Strength,
+    press_model: Option<PressModel>,
+    contrast_map: Option<ContrastMap>,
+    calibration: Option<(PseudoArray, Calibration)>,
+    image: Image,
+    scratch: TouchScratch,
+    found: Vec<Touch>,
+    difference: Vec<f64>,
+    starts: Vec<[f64; 2]>,
+    press_scratch: PressScratch,
+    fits: Vec<Option<PressFit>>,
+    touches: Vec<TouchForce>,
+}
+
+impl Chain {
+    /// The chain of `recon` finding touches by `touch`; strength: the peak; no calibration.
+    pub fn new(recon: Reconstructor, touch: TouchParams) -> Chain {
+        let image = recon.blank_image();
+        let scratch = TouchScratch::new(image.size);
+        Chain {
+            difference: vec![0.0; recon.measurements()],
+            recon,
+            touch,
+            strength: Strength::Peak,
+            press_model: None,
+            contrast_map: None,
+            calibration: None,
+            image,
+            scratch,
+            found: Vec::with_capacity(MAX_FITTED),
+            starts: Vec::with_capacity(MAX_FITTED),
+            press_scratch: PressScratch::default(),
+            fits: Vec::with_capacity(MAX_FITTED),
+            touches: Vec::with_capacity(MAX_FITTED),
+        }
+    }
+
+    /// The same chain, fitting a press to Δv from each touch.
+    pub fn with_press_model(mut self, model: PressModel) -> Chain {
+        self.press_model = Some(model);
+        self
+    }
+
+    /// The same chain, with the contrast map the continuous strengths read.
+    pub fn with_contrast_map(mut self, map: ContrastMap) -> Chain {
+        self.contrast_map = Some(map);
+        self
+    }
+
+    /// The same chain, reading each touch's strength as `strength`; an error if it lacks the
+    /// press model or contrast map that strength needs (give those first).
+    pub fn with_strength(mut self, strength: Strength) -> Result<Chain, ChainError> {
+        if strength.needs_press_model() && self.press_model.is_none() {
+            return Err(ChainError::NeedsPressModel { strength });
+        }
+        if strength.needs_contrast_map() && self.contrast_map.is_none() {
+            return Err(ChainError::NeedsContrastMap { strength });
+        }
+        self.strength = strength;
+        Ok(self)
+    }
+
+    /// The same chain, giving forces through `calibration` on `array` (its strength becomes
+    /// the chain's); an error as for [`Chain::with_strength`], or if the two do not match.
+    pub fn with_calibration(self, array: PseudoArray, calibration: Calibration) -> Result<Chain, ChainError> {
+        if calibration.curves.len() != array.area_count() {
+            return Err(ChainError::CurveCount { curves: calibration.curves.len(), areas: array.area_count() });
+        }
+        let mut chain = self.with_strength(calibration.strength)?;
+        chain.calibration = Some((array, calibration));
+        Ok(chain)
+    }
+
+    /// The reconstructor.
+    pub fn reconstructor(&self) -> &Reconstructor {
+        &self.recon
+    }
+
+    /// How touches are found.
+    pub fn touch_params(&self) -> &TouchParams {
+        &self.touch
+    }
+
+    /// The smallest peak that is a touch, in S/m (the noise floor; see [`TouchParams::min_peak`]).
+    pub fn set_min_peak(&mut self, min_peak: f64) {
+        self.touch.min_peak = min_peak;
+    }
+
+    /// What each touch's strength is.
+    pub fn strength(&self) -> Strength {
+        self.strength
+    }
+
+    /// The pseudo-array of the calibration, if one was given.
+    pub fn pseudo_array(&self) -> Option<&PseudoArray> {
+        self.calibration.as_ref().map(|c| &c.0)
+    }
+
+    /// The press model, if one was given.
+    pub fn press_model(&self) -> Option<&PressModel> {
+        self.press_model.as_ref()
+    }
+
+    /// The image of the last frame (Δσ, S/m).
+    pub fn image(&self) -> &Image {
+        &self.image
+    }
+
+    /// The touches of the last processed frame, strongest first.
+    pub fn touches(&self) -> &[TouchForce] {
+        &self.touches
+    }
+
+    /// Images `frame` against `reference` only (no touches), checking both as the
+    /// reconstructor does; the image is then [`Chain::image`].
+    pub fn image_only(&mut self, reference: &[f64], frame: &[f64]) -> Result<&Image, InverseError> {
+        self.recon.image_into(reference, frame, &mut self.image)?;
+        Ok(&self.image)
+    }
+
+    /// One calibration sample per labelled frame, against `reference`: the area of `array` that
+    /// holds the press, its force and the strength of the frame's strongest touch; `None` where
+    /// the frame has no touch.
+    pub fn samples(
+        &mut self,
+        reference: &[f64],
+        array: &PseudoArray,
+        frames: &[LabelledFrame],
+    ) -> Result<Vec<Option<Sample>>, ChainError> {
+        frames
+            .iter()
+            .enumerate()
+            .map(|(k, labelled)| {
+                let [x, y] = labelled.position;
+                let unit = array.unit_at(labelled.position).ok_or(ChainError::OffArray { sample: k + 1, x, y })?;
+                let touches = self
+                    .process(reference, &labelled.frame)
+                    .map_err(|source| ChainError::Frame { sample: k + 1, source })?;
+                Ok(touches.first().and_then(|t| t.reading).map(|reading| Sample {
+                    area: array.area_of(unit),
+                    force: labelled.force,
+                    peak: reading.value,
+                }))
+            })
+            .collect()
+    }
+
+    /// Runs the whole chain on `frame` against `reference` (both in protocol order); the
+    /// touches, strongest first. A bad frame (wrong length, NaN) is an error and leaves no touches.
+    pub fn process(&mut self, reference: &[f64], frame: &[f64]) -> Result<&[TouchForce], InverseError> {
+        self.touches.clear();
+        self.recon.image_into(reference, frame, &mut self.image)?;
+        detect_into(&self.image, &self.touch, &mut self.scratch, &mut self.found);
+        self.fits.clear();
+        if let Some(model) = &self.press_model {
+            self.difference.iter_mut().zip(frame.iter().zip(reference)).for_each(|(d, (v, r))| *d = v - r);
+            self.starts.clear();
+            self.starts.extend(self.found.iter().take(MAX_FITTED).map(|t| t.centre));
+            model.fit_into(&self.difference, &self.starts, &mut self.press_scratch, &mut self.fits)?;
+        }
+        for (k, touch) in self.found.iter().enumerate() {
+            let press = self.fits.get(k).copied().flatten();
+            let reading = self.strength.read(touch, press.as_ref(), self.contrast_map.as_ref());
+            let located = match (&self.calibration, reading) {
+                (Some((array, calibration)), Some(reading)) => calibration.locate(array, reading),
+                _ => None,
+            };
+            self.touches.push(TouchForce {
+                touch: *touch,
+                press,
+                reading,
+                unit: located.map(|l| l.unit),
+                area: located.map(|l| l.area),
+                force: located.and_then(|l| l.force),
+            });
+        }
+        Ok(&self.touches)
+    }
+}
