@@ -30,41 +30,27 @@ pub struct CalibrateArgs {
     /// Reference (no-touch) frame, needed when the samples hold raw frames.
     #[arg(long)]
     reference: Option<PathBuf>,
-    /// What the curves take as the touch's strength: the image's `peak` (the paper's), the
-    /// `fitted-drop` of the press fitted to Δv, or a reading of the forward model's contrast map
-    /// (all but `peak` need raw frames).
-    #[arg(long, value_enum, default_value_t = StrengthArg::Peak)]
-    strength: StrengthArg,
+    /// What the curves take as the touch's strength: `peak` (the image's, the paper's),
+    /// `fitted-drop` (of the press fitted to Δv), `peak-sensitivity` (peak ÷ the forward model's
+    /// sensitivity there), or the forward model's contrast map read from the peak, the volume or
+    /// both: `contrast-map-peak`, `contrast-map-volume`, `contrast-map-peak-and-volume`. All
+    /// but `peak` need raw frames.
+    #[arg(long, value_parser = parse_strength, default_value = "peak")]
+    strength: Strength,
 }
 
-/// `--strength` of `eitskin calibrate`: what the curves take as a touch's strength.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum StrengthArg {
-    /// The peak of the touch's image (S/m), as the paper.
-    Peak,
-    /// The conductivity drop of the press fitted to Δv (fraction of the background).
-    FittedDrop,
-    /// The peak divided by the forward model's sensitivity at the touch's centre.
-    Sensitivity,
-    /// The drop that explains the peak at the touch's centre, from the forward model's contrast map.
-    ContrastPeak,
-    /// The drop that explains the touch's volume, from the contrast map.
-    ContrastVolume,
-    /// The mean of the contrast map's drops from the peak and from the volume.
-    ContrastPeakAndVolume,
+/// A strength's name on the command line: its file name in kebab case (`fitted drop` →
+/// `fitted-drop`, `contrast map (peak)` → `contrast-map-peak`).
+fn strength_flag(strength: Strength) -> String {
+    strength.name().replace(" / ", " ").replace(['(', ')'], "").replace(' ', "-")
 }
 
-impl From<StrengthArg> for Strength {
-    fn from(arg: StrengthArg) -> Strength {
-        match arg {
-            StrengthArg::Peak => Strength::Peak,
-            StrengthArg::FittedDrop => Strength::FittedDrop,
-            StrengthArg::Sensitivity => Strength::Sensitivity,
-            StrengthArg::ContrastPeak => Strength::ContrastPeak,
-            StrengthArg::ContrastVolume => Strength::ContrastVolume,
-            StrengthArg::ContrastPeakAndVolume => Strength::ContrastPeakAndVolume,
-        }
-    }
+/// Parses `--strength`, naming every accepted value when it cannot.
+fn parse_strength(text: &str) -> Result<Strength, String> {
+    Strength::ALL.into_iter().find(|s| strength_flag(*s) == text).ok_or_else(|| {
+        let names: Vec<String> = Strength::ALL.into_iter().map(strength_flag).collect();
+        format!("expected one of {}", names.join(", "))
+    })
 }
 
 /// Flags of `eitskin evaluate`.
@@ -87,7 +73,7 @@ pub struct EvaluateArgs {
 pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [args.grid; 2])?;
-    let strength = Strength::from(args.strength);
+    let strength = args.strength;
     let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
     let samples = match Labelled::of(&spec, &array, &args.samples, rows)? {
         Labelled::Peaks(peaks) if strength == Strength::Peak => peaks,
@@ -236,5 +222,19 @@ impl Labelled {
             (true, false) => Ok(Labelled::Frames(frames)),
             _ => Ok(Labelled::Peaks(peaks)),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_strength_has_a_flag_that_parses_back() {
+        for strength in Strength::ALL {
+            assert_eq!(parse_strength(&strength_flag(strength)), Ok(strength));
+        }
+        assert_eq!(strength_flag(Strength::ContrastPeakAndVolume), "contrast-map-peak-and-volume");
+        assert!(parse_strength("volume").unwrap_err().contains("fitted-drop, peak-sensitivity"));
     }
 }

@@ -74,7 +74,7 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
     let cal = dir.join("cal.json");
     for (grid, strength, flag) in [
         (5, "peak", "peak"),
-        (1, "contrast map (peak and volume)", "contrast-peak-and-volume"),
+        (1, "contrast map (peak and volume)", "contrast-map-peak-and-volume"),
         (1, "fitted drop", "fitted-drop"),
     ] {
         let study = by(grid, strength);

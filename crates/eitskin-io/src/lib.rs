@@ -171,9 +171,9 @@ impl From<ProtocolError> for Error {
     }
 }
 
-/// An error and its causes, one after the other: the whole message once, as the CLI prints it.
-#[cfg(test)]
-pub(crate) fn full_message(error: &dyn std::error::Error) -> String {
+/// An error and its causes joined by ": ", each once: the whole message, as the CLI prints it
+/// (every error here keeps its cause as [`std::error::Error::source`] and does not repeat it).
+pub fn full_message(error: &dyn std::error::Error) -> String {
     let mut text = error.to_string();
     let mut cause = error.source();
     while let Some(e) = cause {

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use eitskin_io::parse_spec;
+use eitskin_io::{full_message, parse_spec};
 
 const PAPER: &str = r#"
 units = "mm"
@@ -32,17 +32,6 @@ fn message(text: &str) -> String {
         Ok(_) => panic!("the spec was accepted:\n{text}"),
         Err(e) => full_message(&e),
     }
-}
-
-/// The error and its causes as the CLI prints them: each once, joined by ": ".
-fn full_message(error: &dyn std::error::Error) -> String {
-    let mut text = error.to_string();
-    let mut cause = error.source();
-    while let Some(e) = cause {
-        text += &format!(": {e}");
-        cause = e.source();
-    }
-    text
 }
 
 /// The spec is refused with exactly `expected`: every part of the message once.
