@@ -123,7 +123,7 @@ pub enum Damage {
 /// read or its header is not that of a recording.
 ///
 /// It holds the whole recording in memory: to replay a long one, read it a record at a time with a
-/// [`RecordReader`].
+/// [`RecordReader`] (or [`Source`](crate::source::Source), which paces it too).
 pub fn read_recording(path: &Path) -> Result<Recording, Error> {
     let read_error = |source| Error::Read { path: path.to_path_buf(), source };
     let file = File::open(path).map_err(read_error)?;
