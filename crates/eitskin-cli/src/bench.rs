@@ -58,13 +58,13 @@ fn time<T>(runs: usize, mut f: impl FnMut() -> Result<T>) -> Result<(f64, T)> {
 /// 10 frames, image, touches) and the JSON line `eitskin run` prints: frames per second over the
 /// whole replay, and the median latency from a line's last byte to its JSON line, in s.
 fn replay(recon: &Reconstructor, rest: &[f64], pressed: &[f64]) -> Result<(f64, f64)> {
-    use std::io::Write;
     let count = 5000;
     let line = |v: &[f64]| v.iter().map(|x| format!("{x:.6e}")).collect::<Vec<_>>().join(",") + "\n";
     let lines: Vec<String> = (0..count).map(|k| line(if k % 2 == 0 || k < 10 { rest } else { pressed })).collect();
     let mut pipeline = Pipeline::new(Chain::new(recon.clone(), TouchParams::default()), PipelineParams::default());
     let mut decoder = LinesDecoder::new(rest.len());
     let (mut events, mut sink) = (Vec::with_capacity(4), Vec::with_capacity(4096));
+    let mut out = eitskin_io::stream::FrameLine::default();
     let mut latencies = Vec::with_capacity(count);
     let start = Instant::now();
     for text in &lines {
@@ -75,7 +75,9 @@ fn replay(recon: &Reconstructor, rest: &[f64], pressed: &[f64]) -> Result<(f64, 
             if let Event::Frame(f) = event {
                 let status = pipeline.process(&f.values)?;
                 sink.clear();
-                writeln!(sink, "{}", crate::run::frame_json(f.seq, 0.0, status, &pipeline, 1e3, [f.seq, 0]))?;
+                let counters = eitskin_io::stream::Counters { frames: f.seq, bad: 0, viewer_dropped: None };
+                crate::run::fill_frame_line(&mut out, f.seq, 0.0, status, &pipeline, 1e-3, counters);
+                eitskin_io::stream::write_line(&mut sink, &out)?;
             }
         }
         latencies.push(t0.elapsed().as_secs_f64());

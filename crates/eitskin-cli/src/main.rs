@@ -48,7 +48,7 @@ enum Command {
     Calibrate(calibrate::CalibrateArgs),
     /// Measure a calibration's force error on samples.
     Evaluate(calibrate::EvaluateArgs),
-    /// Run a sensor live: frames from the virtual sensor or a file, touches as JSON lines.
+    /// Run a sensor live: frames from the virtual sensor, a file or a serial port; touches and forces as JSON lines.
     Run(run::Args),
     /// Time each stage of the setup chain and print the medians.
     Bench(bench::Args),

@@ -27,6 +27,7 @@ use axum::extract::State;
 use axum::response::{Html, IntoResponse};
 use axum::routing::get;
 use axum::Router;
+use eitskin_io::stream::{Event, FrameLine};
 use serde::{Deserialize, Serialize};
 use tokio::sync::broadcast;
 
@@ -83,32 +84,14 @@ pub struct Setup {
     pub calibrated: bool,
 }
 
-/// The counters of a frame, as in the stdout line.
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct Counters {
-    /// Frames processed.
-    pub frames: u64,
-    /// Bad frames.
-    pub bad: u64,
-    /// Messages that did not reach a page ([`Viewer::dropped`]).
-    pub viewer_dropped: u64,
-}
-
 /// One frame for the page: the stdout line's fields plus the image.
 #[derive(Debug, Serialize)]
 pub struct Frame<'a> {
-    /// Frame number from the source.
-    pub seq: u64,
-    /// Time of the frame, in s.
-    pub t: f64,
-    /// "referencing" or "ok".
-    pub status: &'a str,
+    /// The frame's line, as printed (counters with `viewer_dropped`).
+    #[serde(flatten)]
+    pub line: &'a FrameLine,
     /// Reference frames collected and needed, while referencing.
     pub referencing: Option<[usize; 2]>,
-    /// The touches, exactly as in the stdout line.
-    pub touches: &'a serde_json::Value,
-    /// The counters.
-    pub counters: Counters,
     /// Δσ per pixel, in S/m, row-major from the top row (all 0 while referencing).
     pub image: &'a [f32],
 }
@@ -178,8 +161,8 @@ impl Viewer {
         self.offer("frame", frame);
     }
 
-    /// Hands an event line (bad frame, port) to the server, as [`Viewer::offer_frame`].
-    pub fn offer_event(&self, line: &serde_json::Value) {
+    /// Hands an event line (bad frame, port, reference) to the server, as [`Viewer::offer_frame`].
+    pub fn offer_event(&self, line: &Event) {
         self.offer("event", line);
     }
 
@@ -304,12 +287,9 @@ mod tests {
             commands,
             dropped: Arc::new(AtomicU64::new(0)),
         };
-        let touches = serde_json::json!([]);
-        let counters = Counters { frames: 0, bad: 0, viewer_dropped: 0 };
         for seq in 0..10 {
-            let frame =
-                Frame { seq, t: 0.0, status: "ok", referencing: None, touches: &touches, counters, image: &[0.5] };
-            viewer.offer_frame(&frame);
+            let line = FrameLine { seq, ..FrameLine::default() };
+            viewer.offer_frame(&Frame { line: &line, referencing: None, image: &[0.5] });
         }
         assert_eq!(viewer.dropped(), 10 - QUEUE_FRAMES as u64);
         for seq in 0..QUEUE_FRAMES as u64 {
@@ -320,5 +300,8 @@ mod tests {
             );
         }
         assert!(queue.try_recv().is_err(), "the dropped frames never reached the queue");
+        viewer.offer_event(&Event::Bad { seq: None, reason: "garbage".into() });
+        let message: serde_json::Value = serde_json::from_str(&queue.try_recv().unwrap()).unwrap();
+        assert_eq!(message, serde_json::json!({"type": "event", "event": "bad", "seq": null, "reason": "garbage"}));
     }
 }

@@ -5,11 +5,134 @@
 mod binary;
 
 use binary::{eitskin, scratch};
+use eitskin_io::stream::{self, Event, FrameLine, Line, Recorded, Start, Status};
 use std::process::{Command, Output};
 
+/// The lines after the start line.
 fn lines(out: Output) -> Vec<serde_json::Value> {
     assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).expect("a JSON line")).collect()
+    let mut lines: Vec<serde_json::Value> =
+        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).expect("a JSON line")).collect();
+    assert_eq!(lines[0]["event"], "start", "the stream starts with its start line: {:?}", lines[0]);
+    lines.remove(0);
+    lines
+}
+
+/// Every line of a run's standard output, read with the schema's types (which refuse unknown
+/// fields): the start line, then the rest.
+fn typed_lines(out: Output) -> (Start, Vec<Line>) {
+    assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut lines = text.lines().map(|l| Line::parse(l).unwrap_or_else(|e| panic!("{e}: {l}")));
+    let Some(Line::Event(Event::Start(start))) = lines.next() else { panic!("no start line first: {text}") };
+    (start, lines.collect())
+}
+
+fn frame_lines(lines: &[Line]) -> Vec<&FrameLine> {
+    lines
+        .iter()
+        .filter_map(|l| match l {
+            Line::Frame(f) => Some(f),
+            Line::Event(_) => None,
+        })
+        .collect()
+}
+
+#[test]
+fn the_stream_reads_back_with_its_schema_a_start_line_then_counted_frames_in_mm() {
+    let dir = scratch("schema");
+    let script = dir.join("script.txt");
+    std::fs::write(&script, "# start end x y force\n1.0 1.5 -50 40 9\n").unwrap();
+    let source = format!("sim:{}", script.display());
+    let (start, lines) =
+        typed_lines(eitskin(&["run", "--source", &source, "--fast", "--frames", "40", "--triangles", "1500"]));
+    assert_eq!((start.format.as_str(), start.version), (stream::FORMAT, stream::VERSION));
+    assert_eq!((start.source.as_str(), start.length_unit.as_str()), (source.as_str(), "mm"));
+    assert_eq!((start.measurements, start.reference_frames), (120, 10));
+    let frames = frame_lines(&lines);
+    assert_eq!(frames.len(), lines.len(), "no events from a scripted virtual sensor");
+    assert_eq!(frames.len(), 40);
+    for (k, frame) in frames.iter().enumerate() {
+        assert_eq!((frame.seq, frame.counters.frames, frame.counters.bad), (k as u64, k as u64 + 1, 0), "{frame:?}");
+        assert_eq!(frame.status, if k < 10 { Status::Referencing } else { Status::Ok }, "frame {k}");
+        assert!(!frame.recorded && frame.counters.viewer_dropped.is_none(), "{frame:?}");
+        assert!((frame.t - k as f64 * 0.05).abs() < 1e-9, "the virtual clock at 20 frames/s: {frame:?}");
+        let pressed = (1.0..1.5).contains(&frame.t);
+        assert_eq!(frame.touches.len(), usize::from(pressed), "{frame:?}");
+        for touch in &frame.touches {
+            // In mm: 50 mm from the centre, never 0.05 (m).
+            assert!((touch.x + 50.0).hypot(touch.y - 40.0) < 15.0, "{touch:?}");
+            assert!(touch.peak > 0.0 && touch.force.is_none() && touch.unit.is_none() && touch.press.is_none());
+        }
+    }
+
+    // A capture: frames and bad lines, each counted once.
+    let good = vec!["100"; 120].join(",");
+    let capture = dir.join("capture.csv");
+    std::fs::write(&capture, format!("{good}\n{good}\n1,2\n{good}\nx\n{good}\n")).unwrap();
+    let source = format!("file:{}", capture.display());
+    let (_, lines) =
+        typed_lines(eitskin(&["run", "--source", &source, "--fast", "--reference-frames", "2", "--triangles", "800"]));
+    let bad: Vec<Option<u64>> = lines
+        .iter()
+        .filter_map(|l| match l {
+            Line::Event(Event::Bad { seq, .. }) => Some(*seq),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(bad, [Some(2), Some(4)]);
+    let counted: Vec<(u64, u64, u64)> =
+        frame_lines(&lines).iter().map(|f| (f.seq, f.counters.frames, f.counters.bad)).collect();
+    assert_eq!(counted, [(0, 1, 0), (1, 2, 0), (3, 3, 1), (5, 4, 2)]);
+}
+
+#[test]
+fn a_damaged_record_is_skipped_as_an_event_and_the_recording_holds_the_touches() {
+    let dir = scratch("skipped");
+    let script = dir.join("script.txt");
+    std::fs::write(&script, "0.3 0.6 30 -60 10\n").unwrap();
+    let record = dir.join("run.jsonl");
+    std::fs::remove_file(&record).ok();
+    let source = format!("sim:{}", script.display());
+    let (_, live) = typed_lines(eitskin(&[
+        "run",
+        "--source",
+        &source,
+        "--frames",
+        "16",
+        "--fast",
+        "--triangles",
+        "1500",
+        "--reference-frames",
+        "4",
+        "--record",
+        record.to_str().unwrap(),
+    ]));
+    assert!(frame_lines(&live).iter().all(|f| f.recorded));
+    let recording = eitskin_io::replay::read_recording(&record).unwrap();
+    for (frame, r) in frame_lines(&live).iter().zip(&recording.records) {
+        let attached: Recorded<'static> = serde_json::from_value(r.result.clone().expect("touches attached")).unwrap();
+        assert_eq!((r.seq, attached.touches.as_ref()), (frame.seq, frame.touches.as_slice()));
+    }
+    // Frame 5 (line 7) loses a digit: its CRC no longer matches.
+    let text = std::fs::read_to_string(&record).unwrap();
+    let mut file: Vec<String> = text.lines().map(String::from).collect();
+    file[6] = file[6].replacen("\"seq\":5,", "\"seq\":50,", 1);
+    std::fs::write(&record, file.join("\n") + "\n").unwrap();
+    let replay = format!("file:{}", record.display());
+    let (_, replayed) =
+        typed_lines(eitskin(&["run", "--source", &replay, "--fast", "--triangles", "1500", "--reference-frames", "4"]));
+    let skipped: Vec<(usize, bool)> = replayed
+        .iter()
+        .filter_map(|l| match l {
+            Line::Event(Event::Skipped { line, torn, .. }) => Some((*line, *torn)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(skipped, [(7, false)]);
+    let frames = frame_lines(&replayed);
+    assert_eq!(frames.len(), 15);
+    assert!(frames.iter().all(|f| f.seq != 5 && f.counters.bad == u64::from(f.seq > 5)), "{frames:?}");
 }
 
 #[test]

@@ -47,6 +47,7 @@ pub mod replay;
 mod samples_file;
 pub mod source;
 mod spec_file;
+pub mod stream;
 
 use std::path::{Path, PathBuf};
 

@@ -181,6 +181,24 @@ impl Recorder {
         values: &[f64],
         result: Option<&serde_json::Value>,
     ) -> Result<(), Error> {
+        self.write(seq, t_s, values, result)
+    }
+
+    /// Appends one frame as [`record`](Recorder::record) does, with a typed `result` (for
+    /// `eitskin run`, its [`Recorded`](crate::stream::Recorded) touches) printed straight into the
+    /// line, without a [`serde_json::Value`] in between.
+    pub fn record_with(&mut self, seq: u64, t_s: f64, values: &[f64], result: &impl Serialize) -> Result<(), Error> {
+        self.write(seq, t_s, values, Some(result))
+    }
+
+    /// Appends one frame; see [`record`](Recorder::record).
+    fn write<R: Serialize + ?Sized>(
+        &mut self,
+        seq: u64,
+        t_s: f64,
+        values: &[f64],
+        result: Option<&R>,
+    ) -> Result<(), Error> {
         self.check(seq, t_s, values)?;
         self.line.clear();
         if self.open_line {
@@ -306,12 +324,12 @@ impl HeaderLine {
 }
 
 /// Appends a record without its crc field and closing brace to `line`.
-fn encode_record(
+fn encode_record<R: Serialize + ?Sized>(
     line: &mut Vec<u8>,
     seq: u64,
     t_s: f64,
     values: &[f64],
-    result: Option<&serde_json::Value>,
+    result: Option<&R>,
 ) -> serde_json::Result<()> {
     line.extend_from_slice(b"{\"seq\":");
     serde_json::to_writer(&mut *line, &seq)?;

@@ -5,6 +5,7 @@
 //!   torn last line (a crash while writing it: no new line, bad JSON or bad CRC) is skipped and reported as
 //!   [`Skipped::torn_tail`]; a damaged line before it is skipped and listed in [`Skipped::corrupt`], with its
 //!   line number counted from 1 (the header is line 1).
+//! * [`RecordReader`]: the same, one record at a time, for recordings too long to hold in memory.
 //! * [`replay_lines`]: a capture of one frame per text line (OpenEIT, CSV), through the
 //!   [`LinesDecoder`], events as a serial source would give them.
 //! * [`Pace`]: how long to wait before each frame to replay at the recorded speed, or not at all.
@@ -20,6 +21,8 @@
 //!
 //! Not for: repairing files (nothing is written), or checking that the values make physical sense.
 
+use std::fs::File;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::time::Duration;
 
@@ -118,34 +121,156 @@ pub enum Damage {
 
 /// Reads a recording; see the [module doc](self) for what is skipped. Fails only when the file cannot be
 /// read or its header is not that of a recording.
+///
+/// It holds the whole recording in memory: to replay a long one, read it a record at a time with a
+/// [`RecordReader`] (or [`Source`](crate::source::Source), which paces it too).
 pub fn read_recording(path: &Path) -> Result<Recording, Error> {
-    let bytes = std::fs::read(path).map_err(|source| Error::Read { path: path.to_path_buf(), source })?;
-    parse_recording(&bytes).map_err(|e| e.in_file(path))
+    let read_error = |source| Error::Read { path: path.to_path_buf(), source };
+    let file = File::open(path).map_err(read_error)?;
+    let records = RecordReader::new(BufReader::new(file)).map_err(|e| e.in_file(path))?;
+    collect(records).map_err(read_error)
 }
 
 /// Reads the bytes of a recording.
 pub(crate) fn parse_recording(bytes: &[u8]) -> Result<Recording, Error> {
-    let mut lines = bytes.split_inclusive(|&b| b == b'\n');
-    let Some(first) = lines.next() else {
-        return Err(Error::Key { path: None, key: "header", reason: "is missing: the file is empty".to_string() });
-    };
-    let header = parse_header(trim_line_end(first))?;
-    let rest: Vec<&[u8]> = lines.collect();
-    let last = rest.iter().rposition(|line| !is_blank(line));
-    let mut records = Vec::new();
-    let mut skipped = Skipped::default();
-    for (i, line) in rest.iter().enumerate() {
-        if is_blank(line) {
-            continue;
-        }
-        let number = i + 2;
-        match parse_record(line, header.measurements) {
-            Ok(record) => records.push(record),
-            Err(_) if Some(i) == last => skipped.torn_tail = Some(number),
-            Err(damage) => skipped.corrupt.push(Corrupt { line: number, damage }),
+    let records = RecordReader::new(bytes)?;
+    // Reading bytes in memory cannot fail; the error is mapped all the same rather than assumed away.
+    collect(records).map_err(|e| Error::Key { path: None, key: "record", reason: format!("cannot be read: {e}") })
+}
+
+/// Gathers what a reader reads into a [`Recording`].
+fn collect<R: BufRead>(mut records: RecordReader<R>) -> std::io::Result<Recording> {
+    let header = records.header().clone();
+    let mut recording = Recording { header, records: Vec::new(), skipped: Skipped::default() };
+    for entry in &mut records {
+        match entry? {
+            Entry::Record(record) => recording.records.push(record),
+            Entry::Corrupt(corrupt) => recording.skipped.corrupt.push(corrupt),
+            Entry::TornTail(corrupt) => recording.skipped.torn_tail = Some(corrupt.line),
         }
     }
-    Ok(Recording { header, records, skipped })
+    Ok(recording)
+}
+
+/// One line of a recording after its header, as a [`RecordReader`] reads it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Entry {
+    /// A record that read back whole.
+    Record(Record),
+    /// A damaged record before the last, skipped.
+    Corrupt(Corrupt),
+    /// The last record, damaged (torn by a crash while it was written), skipped.
+    TornTail(Corrupt),
+}
+
+/// Reads a recording one record at a time from a buffered reader (a file, bytes), so that memory does
+/// not grow with the recording's length; the same records and the same skips as [`read_recording`].
+///
+/// A damaged record is held back until the next non-blank line or the end of the input tells whether it
+/// was the last (a torn tail) or not (corrupt); otherwise nothing is read ahead.
+///
+/// ```
+/// use eitskin_io::replay::{Entry, RecordReader};
+/// let text = "{\"format\":\"eitskin-recording\",\"version\":1,\"measurements\":1,\"protocol\":\"p\",\"started_unix_s\":0}\n\
+///             {\"seq\":0,\"t_s\":0.0,\"values\":[1.5],\"result\":null,\"crc\":\"4acac573\"}\n\
+///             {\"seq\":1,\"t_s\":0.1,\"val";
+/// let mut records = RecordReader::new(text.as_bytes())?;
+/// assert_eq!(records.header().measurements, 1);
+/// assert!(matches!(records.next(), Some(Ok(Entry::Record(r))) if r.values == [1.5]));
+/// assert!(matches!(records.next(), Some(Ok(Entry::TornTail(c))) if c.line == 3));
+/// assert!(records.next().is_none());
+/// # Ok::<(), eitskin_io::Error>(())
+/// ```
+#[derive(Debug)]
+pub struct RecordReader<R> {
+    /// What is read.
+    input: R,
+    /// The recording's header.
+    header: Header,
+    /// The line being read, reused.
+    line: Vec<u8>,
+    /// The number of the last line read, from 1 (the header).
+    number: usize,
+    /// A damaged record whose place (last or not) is not known yet.
+    held: Option<Corrupt>,
+    /// A record read after a held damaged one, delivered next.
+    ready: Option<Record>,
+    /// Whether the input has ended (or failed).
+    ended: bool,
+}
+
+impl<R: BufRead> RecordReader<R> {
+    /// Reads and checks the header; an error if the input is empty or its first line is not the header
+    /// of a recording of this version.
+    pub fn new(mut input: R) -> Result<RecordReader<R>, Error> {
+        let mut line = Vec::new();
+        let read = input.read_until(b'\n', &mut line).map_err(|e| Error::Key {
+            path: None,
+            key: "header",
+            reason: format!("cannot be read: {e}"),
+        })?;
+        if read == 0 {
+            return Err(Error::Key { path: None, key: "header", reason: "is missing: the file is empty".to_string() });
+        }
+        let header = parse_header(trim_line_end(&line))?;
+        line.clear();
+        Ok(RecordReader { input, header, line, number: 1, held: None, ready: None, ended: false })
+    }
+
+    /// The recording's header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+}
+
+impl<R: BufRead> Iterator for RecordReader<R> {
+    type Item = std::io::Result<Entry>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if let Some(record) = self.ready.take() {
+            return Some(Ok(Entry::Record(record)));
+        }
+        loop {
+            if self.ended {
+                return self.held.take().map(|corrupt| Ok(Entry::TornTail(corrupt)));
+            }
+            self.line.clear();
+            match self.input.read_until(b'\n', &mut self.line) {
+                Ok(0) => {
+                    self.ended = true;
+                    continue;
+                }
+                Ok(_) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    self.ended = true;
+                    self.held = None;
+                    return Some(Err(e));
+                }
+            }
+            self.number += 1;
+            if is_blank(&self.line) {
+                continue;
+            }
+            // A line follows the held record: it was not the last.
+            let earlier = self.held.take().map(Entry::Corrupt);
+            match parse_record(&self.line, self.header.measurements) {
+                Ok(record) => match earlier {
+                    Some(corrupt) => {
+                        self.ready = Some(record);
+                        return Some(Ok(corrupt));
+                    }
+                    None => return Some(Ok(Entry::Record(record))),
+                },
+                Err(damage) => {
+                    self.held = Some(Corrupt { line: self.number, damage });
+                    if let Some(corrupt) = earlier {
+                        return Some(Ok(corrupt));
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Reads one record line, new line included, checking its CRC before anything else.

@@ -30,6 +30,7 @@
 //! Not for: files or network streams, or telling a silent board from an absent one (a port that
 //! stays open but sends nothing yields no events at all).
 
+use std::collections::VecDeque;
 use std::fmt;
 use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
@@ -37,6 +38,8 @@ use std::time::{Duration, Instant};
 
 use serialport::{DataBits, FlowControl, Parity, SerialPort, StopBits};
 
+pub use super::SourceError;
+use super::{Acquired, FrameSource};
 use crate::codec::{BadFrame, Decoder, Event, Frame};
 
 /// The baud rate used when none is given, in bit/s.
@@ -79,43 +82,6 @@ pub enum SourceEvent {
         path: PathBuf,
         /// How long the port was away, from the [`SourceEvent::Disconnected`] event to now.
         outage: Duration,
-    },
-}
-
-/// What can go wrong setting up a source.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum SourceError {
-    /// The port could not be opened the first time.
-    #[error(
-        "cannot open serial port {}: {reason}; is the board plugged in, and may this user open the port \
-         (on Linux, the `dialout` group)?",
-        path.display()
-    )]
-    Open {
-        /// The port's path.
-        path: PathBuf,
-        /// Why, as the operating system said it.
-        reason: String,
-    },
-    /// A source spec that does not start with `serial:`.
-    #[error("{spec:?} is not a serial source; write `serial:PATH` or `serial:PATH@BAUD`, e.g. `serial:/dev/ttyACM0`")]
-    NotSerial {
-        /// The spec as given.
-        spec: String,
-    },
-    /// A serial source spec without a path.
-    #[error("{spec:?} names no port; write `serial:PATH` or `serial:PATH@BAUD`, e.g. `serial:/dev/ttyUSB0@921600`")]
-    EmptyPath {
-        /// The spec as given.
-        spec: String,
-    },
-    /// A baud rate that is not a positive whole number.
-    #[error("{spec:?}: baud rate {baud:?} is not a positive whole number of bit/s, e.g. 115200 or 921600")]
-    BadBaud {
-        /// The spec as given.
-        spec: String,
-        /// The text after `@`.
-        baud: String,
     },
 }
 
@@ -186,6 +152,12 @@ pub struct SerialSource {
     decoded: Vec<Event>,
     /// The bytes read since the source was opened, over all connections.
     bytes_received: u64,
+    /// When the port was first opened: frames' times count from it.
+    opened: Instant,
+    /// Events polled and not yet handed out as [`Acquired`] items.
+    pending: VecDeque<SourceEvent>,
+    /// Events of one poll, reused.
+    polled: Vec<SourceEvent>,
 }
 
 /// The state of the connection.
@@ -227,6 +199,9 @@ impl SerialSource {
             buffer: vec![0; READ_BUFFER],
             decoded: Vec::new(),
             bytes_received: 0,
+            opened: Instant::now(),
+            pending: VecDeque::new(),
+            polled: Vec::new(),
         })
     }
 
@@ -323,6 +298,35 @@ impl SerialSource {
             delay: next_retry(self.first_retry, self.max_retry),
         };
         out.push(SourceEvent::Disconnected { path: self.path.clone(), error });
+    }
+}
+
+/// As a [`Source`](super::Source): polls until there is an event; never ends by itself. A frame's
+/// time is when the read that completed it returned, in s since the port was first opened.
+impl FrameSource for SerialSource {
+    fn acquire(&mut self) -> Option<Result<Acquired, SourceError>> {
+        loop {
+            if let Some(event) = self.pending.pop_front() {
+                return Some(Ok(match event {
+                    SourceEvent::Frame { frame, received } => {
+                        let t = received.saturating_duration_since(self.opened).as_secs_f64();
+                        Acquired::Frame { seq: frame.seq, t, values: frame.values }
+                    }
+                    SourceEvent::Bad(bad) => Acquired::Bad(bad),
+                    SourceEvent::Disconnected { path, error } => Acquired::Disconnected { path, error },
+                    SourceEvent::Reconnected { path, outage } => Acquired::Reconnected { path, outage },
+                }));
+            }
+            let mut polled = std::mem::take(&mut self.polled);
+            self.poll(&mut polled);
+            self.pending.extend(polled.drain(..));
+            self.polled = polled;
+        }
+    }
+
+    /// A port's input is lost when it is not read in time.
+    fn is_live(&self) -> bool {
+        true
     }
 }
 

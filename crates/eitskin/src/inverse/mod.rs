@@ -153,4 +153,23 @@ mod tests {
         let err = reconstruction_matrix(jacobian.as_ref(), &Prior::Tikhonov, 0.0, model.mesh()).unwrap_err();
         assert_eq!(err, InverseError::Hyperparameter(0.0));
     }
+
+    /// A background the forward model refuses is named as such, not blamed on the prior.
+    #[test]
+    fn a_bad_background_keeps_the_forward_models_reason() {
+        use crate::forward::ForwardError;
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let model = spec.forward_model().unwrap();
+        for background in [-1.0, f64::NAN] {
+            let err = Reconstructor::new(&model, background, &ReconstructorParams::default()).unwrap_err();
+            let InverseError::Forward(ForwardError::Conductivity { triangle: 0, value }) = err else {
+                panic!("{err:?}");
+            };
+            assert!(value.is_nan() || value == background);
+            let cause = std::error::Error::source(&err).map(ToString::to_string);
+            assert_eq!(err.to_string(), "the forward model could not be solved");
+            assert!(cause.is_some_and(|c| c.starts_with("triangle 0: conductivity must be positive and finite")));
+        }
+    }
 }

@@ -1,0 +1,462 @@
+//! The JSON-lines stream of `eitskin run`: one JSON object per line, what other programs read
+//! from its standard output, what the live viewer receives, and (the touches) what a recording
+//! made with `--record` attaches to each frame.
+//!
+//! # Version
+//!
+//! The stream says its version once, in its first line, the [`Start`] event: format
+//! `"eitskin-run"`, [`VERSION`] 1, with what a reader needs to understand the rest (the length
+//! unit, the number of measurements). One line at the start rather than a field in every line:
+//! frames stay short, and the unit, which the numbers cannot carry, is stated once. The version
+//! goes up whenever a field or an event is added, removed or changes meaning, so the types here,
+//! which refuse unknown fields, read exactly their version.
+//!
+//! # Lines
+//!
+//! A line with an `"event"` field is an [`Event`]; any other is a [`FrameLine`]. Frames come in
+//! order; events come where they happened, between frames.
+//!
+//! ```text
+//! {"event":"start","format":"eitskin-run","version":1,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10}
+//! {"seq":10,"t":0.5,"status":"ok","touches":[{"x":-49.1,"y":41.7,"peak":0.63,"unit":7,"area":2,"force":8.7,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41}}],"counters":{"frames":11,"bad":0},"recorded":true}
+//! {"event":"bad","seq":11,"reason":"frame 11 has 3 values, expected 120; …"}
+//! ```
+//!
+//! The frame line ([`FrameLine`]):
+//!
+//! | field       | meaning                                                                         |
+//! |-------------|---------------------------------------------------------------------------------|
+//! | `seq`       | the frame's sequence number from the source (board counter, line count, as recorded) |
+//! | `t`         | the frame's time, in s (the source's clock, as recorded, or since the port opened) |
+//! | `status`    | `"referencing"` (the frame went into the reference; no touches) or `"ok"` (imaged) |
+//! | `touches`   | the touches found, strongest first; each a [`Touch`], below                      |
+//! | `counters`  | `frames`: frames processed so far, this one included; `bad`: input skipped so far (bad frames, damaged records); `viewer_dropped`: messages that did not reach a viewer page, only when a viewer runs |
+//! | `recorded`  | `true` once the frame is in the recording; absent when not recording            |
+//!
+//! A touch ([`Touch`]): `x`, `y`, its centre of gravity in the spec's length unit (`length_unit`
+//! of the start line), relative to the outline's centre; `peak`, the strongest conductivity
+//! change, in S/m (positive for a press); `unit` and `area`, the pseudo-array unit holding the
+//! centre and its area, counted from 1, or `null` without a calibration; `force`, in N, and
+//! `saturated`, whether the force is at the end of the calibrated range, or `null` without a
+//! calibration; `press`, the press fitted to Δv, `{x, y, drop}` (centre in the length unit,
+//! conductivity drop under the indenter as a fraction of the background), or `null` without
+//! press fitting.
+//!
+//! The events ([`Event`]), by their `event` field:
+//!
+//! | `event`        | fields                                                                       |
+//! |----------------|------------------------------------------------------------------------------|
+//! | `start`        | `format` (`"eitskin-run"`), `version`, `source` (as given), `length_unit` (`"mm"` or `"m"`), `measurements` (values per frame), `reference_frames` (frames averaged into the reference) |
+//! | `bad`          | `seq` (where in the stream, or `null` for bytes that belong to no frame), `reason` (a sentence) |
+//! | `skipped`      | a damaged record of a recording: `line` (from 1, the header is line 1), `torn` (the last record, torn by a crash), `reason` |
+//! | `disconnected` | `path` (the port), `detail` (why, as the operating system said it)            |
+//! | `reconnected`  | `path`, `outage_s` (how long the port was away, in s), `detail`               |
+//! | `reference`    | the reference is taken again from the next frames; `detail` (who asked)       |
+//!
+//! Reading a stream back:
+//!
+//! ```
+//! use eitskin_io::stream::{Event, Line, Status};
+//! let text = r#"{"event":"start","format":"eitskin-run","version":1,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10}
+//! {"seq":0,"t":0.0,"status":"referencing","touches":[],"counters":{"frames":1,"bad":0}}"#;
+//! let lines: Vec<Line> = text.lines().map(Line::parse).collect::<Result<_, _>>()?;
+//! assert!(matches!(&lines[0], Line::Event(Event::Start(start)) if start.length_unit == "mm"));
+//! assert!(matches!(&lines[1], Line::Frame(frame) if frame.status == Status::Referencing));
+//! assert!(Line::parse(r#"{"seq":0,"t":0.0,"status":"ok","touches":[],"counters":{"frames":1,"bad":0},"x":1}"#).is_err());
+//! # Ok::<(), serde_json::Error>(())
+//! ```
+//!
+//! Writing reuses the caller's buffers: [`write_line`] prints straight into a writer, and a
+//! [`FrameLine`] kept from frame to frame refills its touches in place ([`FrameLine::set_touches`]).
+//!
+//! Not for: the recording format (that is [`recorder`](crate::recorder)), or the viewer's setup
+//! message.
+
+use std::borrow::Cow;
+use std::io::Write;
+
+use eitskin::pipeline::TouchForce;
+use serde::{Deserialize, Deserializer, Serialize};
+
+use crate::source::Acquired;
+
+/// The `format` of the start line.
+pub const FORMAT: &str = "eitskin-run";
+
+/// The version of the stream this crate writes and reads.
+pub const VERSION: u32 = 1;
+
+/// Any line of the stream, for readers: an event if it has an `event` field, else a frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Line {
+    /// A line with an `event` field.
+    Event(Event),
+    /// A processed frame.
+    Frame(FrameLine),
+}
+
+impl Line {
+    /// Reads one line of text.
+    pub fn parse(text: &str) -> serde_json::Result<Line> {
+        serde_json::from_str(text)
+    }
+}
+
+impl<'de> Deserialize<'de> for Line {
+    /// An event if the object has an `event` field, else a frame: the errors are those of the one
+    /// type it must be (an unknown field named), not "matches no variant".
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Line, D::Error> {
+        use serde::de::Error;
+        let value = serde_json::Value::deserialize(deserializer)?;
+        if value.get("event").is_some() {
+            Event::deserialize(value).map(Line::Event).map_err(D::Error::custom)
+        } else {
+            FrameLine::deserialize(value).map(Line::Frame).map_err(D::Error::custom)
+        }
+    }
+}
+
+/// A processed frame; see the [module doc](self) for every field.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameLine {
+    /// The frame's sequence number from the source.
+    pub seq: u64,
+    /// The frame's time, in s.
+    pub t: f64,
+    /// Whether the frame went into the reference or was imaged.
+    pub status: Status,
+    /// The touches found (none while referencing).
+    pub touches: Vec<Touch>,
+    /// Frames and bad input so far.
+    pub counters: Counters,
+    /// Whether the frame is in the recording (written only when true).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub recorded: bool,
+}
+
+impl FrameLine {
+    /// Replaces the touches by `touches` (positions in m) with positions in units of `metres` m,
+    /// reusing the list's memory.
+    pub fn set_touches(&mut self, touches: &[TouchForce], metres: f64) {
+        self.touches.clear();
+        self.touches.extend(touches.iter().map(|t| Touch::new(t, metres)));
+    }
+}
+
+/// The line as JSON text, without its new line (for printing one line now and then; a loop over
+/// frames writes with [`write_line`], which allocates nothing).
+impl std::fmt::Display for FrameLine {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&serde_json::to_string(self).map_err(|_| std::fmt::Error)?)
+    }
+}
+
+/// What became of a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    /// The frame went into the reference (`"referencing"`).
+    #[default]
+    Referencing,
+    /// The frame was imaged (`"ok"`).
+    Ok,
+}
+
+impl From<eitskin::pipeline::Status> for Status {
+    fn from(status: eitskin::pipeline::Status) -> Status {
+        match status {
+            eitskin::pipeline::Status::Referencing { .. } => Status::Referencing,
+            eitskin::pipeline::Status::Processed => Status::Ok,
+        }
+    }
+}
+
+/// A touch; lengths in the stream's length unit, relative to the outline's centre.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Touch {
+    /// Centre of gravity, x.
+    pub x: f64,
+    /// Centre of gravity, y.
+    pub y: f64,
+    /// The strongest conductivity change, in S/m (positive for a press).
+    pub peak: f64,
+    /// The pseudo-array unit holding the centre, from 1, with a calibration.
+    pub unit: Option<usize>,
+    /// That unit's area, from 1, with a calibration.
+    pub area: Option<usize>,
+    /// The force, in N, with a calibration.
+    pub force: Option<f64>,
+    /// Whether the force is at the end of the calibrated range, with a calibration.
+    pub saturated: Option<bool>,
+    /// The press fitted to Δv, with press fitting.
+    pub press: Option<Press>,
+}
+
+impl Touch {
+    /// The touch of the pipeline `t` (positions in m, unit and area from 0), positions in units of
+    /// `metres` m, unit and area from 1.
+    pub fn new(t: &TouchForce, metres: f64) -> Touch {
+        Touch {
+            x: t.touch.centre[0] / metres,
+            y: t.touch.centre[1] / metres,
+            peak: t.touch.peak,
+            unit: t.unit.map(|u| u + 1),
+            area: t.area.map(|a| a + 1),
+            force: t.force.map(|f| f.newtons),
+            saturated: t.force.map(|f| f.saturated),
+            press: t.press.map(|p| Press { x: p.centre[0] / metres, y: p.centre[1] / metres, drop: p.drop }),
+        }
+    }
+}
+
+/// A press fitted to Δv.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Press {
+    /// Centre of the indenter, x, in the length unit.
+    pub x: f64,
+    /// Centre of the indenter, y, in the length unit.
+    pub y: f64,
+    /// The conductivity drop under the indenter, as a fraction of the background.
+    pub drop: f64,
+}
+
+/// How many frames were processed and how much input was skipped, so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Counters {
+    /// Frames processed, this one included.
+    pub frames: u64,
+    /// Input skipped: bad frames, frames the pipeline refused, damaged records.
+    pub bad: u64,
+    /// Messages that did not reach a viewer page, when a viewer runs (written only then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viewer_dropped: Option<u64>,
+}
+
+/// A line that is not a frame; see the [module doc](self) for every field.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "event", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Event {
+    /// The first line: format, version and what the rest needs.
+    Start(Start),
+    /// Input that was skipped.
+    Bad {
+        /// Where in the stream, if it belongs to a frame.
+        seq: Option<u64>,
+        /// Why, as a sentence.
+        reason: String,
+    },
+    /// A damaged record of a recording, skipped.
+    Skipped {
+        /// Its line, from 1 (the header is line 1).
+        line: usize,
+        /// Whether it is the last record, torn by a crash while it was written.
+        torn: bool,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The serial port went away; it is being reopened.
+    Disconnected {
+        /// The port.
+        path: String,
+        /// What happened, as a sentence.
+        detail: String,
+    },
+    /// The serial port is back.
+    Reconnected {
+        /// The port.
+        path: String,
+        /// How long it was away, in s.
+        outage_s: f64,
+        /// What happened, as a sentence.
+        detail: String,
+    },
+    /// The reference is taken again from the next frames.
+    Reference {
+        /// Who asked, as a sentence.
+        detail: String,
+    },
+}
+
+impl Event {
+    /// The event line of an item of a source; `None` for a frame, which becomes a [`FrameLine`].
+    pub fn of(item: &Acquired) -> Option<Event> {
+        Some(match item {
+            Acquired::Frame { .. } => return None,
+            Acquired::Bad(bad) => Event::Bad { seq: bad.seq(), reason: bad.to_string() },
+            Acquired::Skipped { record, torn_tail } => {
+                Event::Skipped { line: record.line, torn: *torn_tail, reason: record.damage.to_string() }
+            }
+            Acquired::Disconnected { path, error } => Event::Disconnected {
+                path: path.display().to_string(),
+                detail: format!("{} disconnected ({error}); reopening", path.display()),
+            },
+            Acquired::Reconnected { path, outage } => Event::Reconnected {
+                path: path.display().to_string(),
+                outage_s: outage.as_secs_f64(),
+                detail: format!("{} is back after {:.2} s", path.display(), outage.as_secs_f64()),
+            },
+        })
+    }
+}
+
+/// The first line of the stream.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Start {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// The stream's version, [`VERSION`] for this crate.
+    pub version: u32,
+    /// Where the frames come from, as given (`sim`, `file:PATH`, `serial:PATH@BAUD`).
+    pub source: String,
+    /// The unit of every length in the stream, `"mm"` or `"m"`.
+    pub length_unit: String,
+    /// The number of values in a frame.
+    pub measurements: usize,
+    /// The number of frames averaged into the reference.
+    pub reference_frames: usize,
+}
+
+impl Start {
+    /// The start line of this crate's format and version.
+    pub fn new(source: String, length_unit: &str, measurements: usize, reference_frames: usize) -> Start {
+        Start {
+            format: FORMAT.to_owned(),
+            version: VERSION,
+            source,
+            length_unit: length_unit.to_owned(),
+            measurements,
+            reference_frames,
+        }
+    }
+}
+
+/// What `eitskin run --record` attaches to each record of a recording (its `result`): the frame's
+/// touches, as in its line.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Recorded<'a> {
+    /// The touches, as in the frame's line.
+    pub touches: Cow<'a, [Touch]>,
+}
+
+/// Writes `line` as one line of JSON (and its new line) straight into `out`.
+pub fn write_line(out: &mut impl Write, line: &impl Serialize) -> std::io::Result<()> {
+    serde_json::to_writer(&mut *out, line)?;
+    out.write_all(b"\n")
+}
+
+/// Whether a flag is off (for `skip_serializing_if`).
+fn is_false(flag: &bool) -> bool {
+    !flag
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame() -> FrameLine {
+        let touch = Touch {
+            x: -50.5,
+            y: 40.0,
+            peak: 0.6,
+            unit: Some(7),
+            area: Some(2),
+            force: Some(8.5),
+            saturated: Some(false),
+            press: Some(Press { x: -50.0, y: 41.0, drop: 0.4 }),
+        };
+        FrameLine {
+            seq: 12,
+            t: 0.6,
+            status: Status::Ok,
+            touches: vec![touch],
+            counters: Counters { frames: 13, bad: 1, viewer_dropped: None },
+            recorded: false,
+        }
+    }
+
+    fn text(line: &impl Serialize) -> String {
+        let mut out = Vec::new();
+        write_line(&mut out, line).unwrap();
+        String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn a_frame_line_keeps_the_field_names_consumers_read() {
+        let line = text(&frame());
+        assert_eq!(
+            line,
+            "{\"seq\":12,\"t\":0.6,\"status\":\"ok\",\"touches\":[{\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"unit\":7,\
+             \"area\":2,\"force\":8.5,\"saturated\":false,\"press\":{\"x\":-50.0,\"y\":41.0,\"drop\":0.4}}],\
+             \"counters\":{\"frames\":13,\"bad\":1}}\n"
+        );
+        assert_eq!(Line::parse(line.trim_end()).unwrap(), Line::Frame(frame()));
+        let mut recorded = FrameLine { recorded: true, ..frame() };
+        recorded.counters.viewer_dropped = Some(3);
+        let line = text(&recorded);
+        assert!(line.contains("\"viewer_dropped\":3}") && line.ends_with(",\"recorded\":true}\n"), "{line}");
+        assert_eq!(Line::parse(&line).unwrap(), Line::Frame(recorded));
+    }
+
+    #[test]
+    fn without_a_calibration_unit_area_force_and_press_are_null() {
+        let touch = Touch { unit: None, area: None, force: None, saturated: None, press: None, ..frame().touches[0] };
+        assert_eq!(
+            text(&touch),
+            "{\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"unit\":null,\"area\":null,\"force\":null,\"saturated\":null,\
+             \"press\":null}\n"
+        );
+    }
+
+    #[test]
+    fn events_are_tagged_and_read_back() {
+        let events = [
+            Event::Start(Start::new("sim".into(), "mm", 120, 10)),
+            Event::Bad { seq: None, reason: "12 bytes were skipped".into() },
+            Event::Skipped { line: 4, torn: true, reason: "cut".into() },
+            Event::Disconnected { path: "/dev/ttyACM0".into(), detail: "gone".into() },
+            Event::Reconnected { path: "/dev/ttyACM0".into(), outage_s: 0.25, detail: "back".into() },
+            Event::Reference { detail: "asked".into() },
+        ];
+        for event in events {
+            let line = text(&event);
+            let tag = line.split('"').nth(3).unwrap().to_owned();
+            assert!(line.starts_with("{\"event\":"), "{line}");
+            assert_eq!(Line::parse(&line).unwrap(), Line::Event(event), "{tag}");
+        }
+        assert_eq!(
+            text(&Event::Bad { seq: Some(3), reason: "r".into() }),
+            "{\"event\":\"bad\",\"seq\":3,\"reason\":\"r\"}\n"
+        );
+    }
+
+    #[test]
+    fn unknown_fields_and_events_are_refused_by_name() {
+        let error = Line::parse(r#"{"event":"bad","seq":1,"reason":"r","extra":2}"#).unwrap_err().to_string();
+        assert!(error.contains("extra"), "{error}");
+        let error = Line::parse(r#"{"event":"start","format":"eitskin-run","version":1,"source":"sim","length_unit":"mm","measurements":1,"reference_frames":1,"more":0}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("more"), "{error}");
+        assert!(Line::parse(r#"{"event":"party"}"#).unwrap_err().to_string().contains("party"));
+        let error = Line::parse(r#"{"seq":1,"t":0,"status":"ok","touches":[],"counters":{"frames":1,"bad":0,"x":1}}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("`x`"), "{error}");
+    }
+
+    #[test]
+    fn what_a_recording_attaches_is_the_touches() {
+        let line = frame();
+        let recorded = Recorded { touches: Cow::Borrowed(&line.touches) };
+        let value = serde_json::to_value(&recorded).unwrap();
+        let back: Recorded<'static> = serde_json::from_value(value).unwrap();
+        assert_eq!(back.touches.as_ref(), line.touches.as_slice());
+    }
+}
