@@ -1,4 +1,4 @@
-//! Issue 2: on EIDORS' own 40×40 mesh of the 2×2 square, eitskin's complete electrode model
+//! On EIDORS' own 40×40 mesh of the 2×2 square, eitskin's complete electrode model
 //! gives EIDORS' voltages (both protocols, homogeneous and all 20 inclusions) to 1e-6 relative.
 //! Conventions are in `shared/reference/eidors/README.md`.
 

@@ -1,4 +1,4 @@
-//! Issue 2: with point electrodes on pyEIT's own distmesh of the 2×2 square, eitskin gives
+//! With point electrodes on pyEIT's own distmesh of the 2×2 square, eitskin gives
 //! pyEIT's adjacent (and pair) voltages to 1e-8 relative, homogeneous and with an inclusion.
 //! Conventions are in `shared/reference/pyeit/README.md`.
 

@@ -1,4 +1,4 @@
-//! Issue 3: the peak-versus-position profile of eitskin's own chain (own mesh, truth simulated
+//! The peak-versus-position profile of eitskin's own chain (own mesh, truth simulated
 //! on a finer mesh) has the shape of EIDORS' (`peaks_two_terminal.csv`) within 15 %.
 
 mod common;

@@ -1,4 +1,4 @@
-//! Issue 3: on EIDORS' 40×40 mesh, our adjoint Jacobian, NOSER prior and one-step
+//! On EIDORS' 40×40 mesh, our adjoint Jacobian, NOSER prior and one-step
 //! Gauss–Newton images (λ = 0.1) match EIDORS' to 1e-6 relative, for both protocols.
 
 mod common;

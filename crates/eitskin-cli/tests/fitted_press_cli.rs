@@ -1,4 +1,4 @@
-//! Issue 4, past the paper, through the real binary: a calibration on the drop of the press
+//! Past the paper, through the real binary: a calibration on the drop of the press
 //! fitted to Δv (`--strength fitted-drop`, one curve for the sheet) from raw frames of the
 //! virtual sensor, against the paper's per-area peak calibration from the same frames; then
 //! `eitskin run` on a file of frames gives forces and fitted presses with it.

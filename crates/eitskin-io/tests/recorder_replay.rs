@@ -1,4 +1,4 @@
-//! Issue 5: the recorder and replay. What is recorded reads back bit for bit; a file cut anywhere in its
+//! The recorder and replay. What is recorded reads back bit for bit; a file cut anywhere in its
 //! last record, or with a changed byte in the middle, loses that record only and says which line; a
 //! recording is never overwritten by accident and can be continued; and a recorder killed with SIGKILL
 //! loses no record it had reported as written.
@@ -59,7 +59,7 @@ fn bits(records: &[Record]) -> Vec<(u64, u64, Vec<u64>, Option<serde_json::Value
 }
 
 #[test]
-fn issue5_recorder_round_trip_is_bit_exact() {
+fn recorder_round_trip_is_bit_exact() {
     let dir = folder("round-trip");
     let path = dir.join("run.jsonl");
     let mut records: Vec<Record> = (0..20).map(|seq| record(seq, 16)).collect();
@@ -94,7 +94,7 @@ fn issue5_recorder_round_trip_is_bit_exact() {
 }
 
 #[test]
-fn issue5_recorder_cut_anywhere_in_the_last_record_loses_only_it() {
+fn recorder_cut_anywhere_in_the_last_record_loses_only_it() {
     let dir = folder("cut");
     let path = dir.join("run.jsonl");
     let records: Vec<Record> = (0..5).map(|seq| record(seq, 8)).collect();
@@ -118,7 +118,7 @@ fn issue5_recorder_cut_anywhere_in_the_last_record_loses_only_it() {
 }
 
 #[test]
-fn issue5_recorder_a_changed_digit_is_caught_by_the_crc_and_named_by_line() {
+fn recorder_a_changed_digit_is_caught_by_the_crc_and_named_by_line() {
     let dir = folder("flip");
     let path = dir.join("run.jsonl");
     let records: Vec<Record> = (0..5).map(|seq| record(seq, 8)).collect();
@@ -147,7 +147,7 @@ fn issue5_recorder_a_changed_digit_is_caught_by_the_crc_and_named_by_line() {
 }
 
 #[test]
-fn issue5_recorder_create_refuses_an_existing_file() {
+fn recorder_create_refuses_an_existing_file() {
     let dir = folder("refuse");
     let path = dir.join("run.jsonl");
     write(&path, 4, &[record(0, 4)]);
@@ -164,7 +164,7 @@ fn issue5_recorder_create_refuses_an_existing_file() {
 }
 
 #[test]
-fn issue5_recorder_append_continues_the_recording() {
+fn recorder_append_continues_the_recording() {
     let dir = folder("append");
     let path = dir.join("run.jsonl");
     let records: Vec<Record> = (0..6).map(|seq| record(seq, 4)).collect();
@@ -190,7 +190,7 @@ fn issue5_recorder_append_continues_the_recording() {
 }
 
 #[test]
-fn issue5_recorder_append_after_a_crash_keeps_the_torn_line_apart() {
+fn recorder_append_after_a_crash_keeps_the_torn_line_apart() {
     let dir = folder("append-torn");
     let path = dir.join("run.jsonl");
     let records: Vec<Record> = (0..5).map(|seq| record(seq, 4)).collect();
@@ -212,7 +212,7 @@ fn issue5_recorder_append_after_a_crash_keeps_the_torn_line_apart() {
 }
 
 #[test]
-fn issue5_recorder_refuses_frames_that_would_not_read_back() {
+fn recorder_refuses_frames_that_would_not_read_back() {
     let dir = folder("refuse-frames");
     let path = dir.join("run.jsonl");
     let mut recorder = Recorder::create(&path, &header(3)).expect("a new recording");
@@ -229,7 +229,7 @@ fn issue5_recorder_refuses_frames_that_would_not_read_back() {
 }
 
 #[test]
-fn issue5_replay_rejects_what_is_not_a_recording() {
+fn replay_rejects_what_is_not_a_recording() {
     let dir = folder("not-a-recording");
     let path = dir.join("x.jsonl");
     let rest = "\"measurements\":1,\"protocol\":\"p\",\"started_unix_s\":0}\n";
@@ -247,7 +247,7 @@ fn issue5_replay_rejects_what_is_not_a_recording() {
 }
 
 #[test]
-fn issue5_replay_lines_decodes_an_openeit_capture() {
+fn replay_lines_decodes_an_openeit_capture() {
     // 51 lines, of which line 21 (seq 20) was torn in the capture: 24 values instead of 28.
     let path = common::shared().join("data/openeit/anticlockwise_motion.txt");
     let events = replay_lines(&path, 28).expect("readable");
@@ -257,13 +257,13 @@ fn issue5_replay_lines_decodes_an_openeit_capture() {
     assert!(replay_lines(&path.with_file_name("missing.txt"), 28).is_err());
 }
 
-/// The environment variable that makes [`issue5_recorder_crash_child`] record; it holds the file's path.
+/// The environment variable that makes [`recorder_crash_child`] record; it holds the file's path.
 const CHILD: &str = "EITSKIN_RECORDER_CHILD";
 
-/// Not a test on its own: run by [`issue5_recorder_survives_sigkill`] as a child process that records
+/// Not a test on its own: run by [`recorder_survives_sigkill`] as a child process that records
 /// until it is killed. Without the variable it returns at once.
 #[test]
-fn issue5_recorder_crash_child() {
+fn recorder_crash_child() {
     let Some(path) = std::env::var_os(CHILD) else { return };
     let mut recorder = Recorder::create(Path::new(&path), &header(32)).expect("a new recording");
     // Bounded, in case the parent dies before killing this process.
@@ -280,13 +280,13 @@ fn issue5_recorder_crash_child() {
 
 #[cfg(unix)]
 #[test]
-fn issue5_recorder_survives_sigkill() {
+fn recorder_survives_sigkill() {
     use std::os::unix::process::ExitStatusExt;
 
     let dir = folder("sigkill");
     let path = dir.join("run.jsonl");
     let mut child = Command::new(std::env::current_exe().expect("the test binary"))
-        .args(["--exact", "issue5_recorder_crash_child", "--nocapture", "--test-threads=1"])
+        .args(["--exact", "recorder_crash_child", "--nocapture", "--test-threads=1"])
         .env(CHILD, &path)
         .stdout(Stdio::piped())
         .stderr(Stdio::null())

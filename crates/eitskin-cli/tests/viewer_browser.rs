@@ -1,9 +1,9 @@
-//! Issue 5, the live viewer, in a real browser: `eitskin run --viewer` on the virtual sensor,
+//! The live viewer, in a real browser: `eitskin run --viewer` on the virtual sensor,
 //! pressed hard at one place, opened in headless Chromium driven through chromedriver's WebDriver
 //! HTTP API. The page connects, its heat map changes (and turns to the press colour where the
 //! press is) when the sheet is pressed, the touch's unit and force it shows are the stdout line's
 //! for the same frame, and its button re-takes the reference. A screenshot is left in
-//! `target/issue5_viewer.png`.
+//! `target/viewer_browser.png`.
 //!
 //! Needs `chromium` and `chromedriver` on the PATH (Debian: `apt-get install chromium
 //! chromium-driver`; `.ci/run` installs them); without them the test fails and says so.
@@ -345,7 +345,7 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
     let png = base64(browser.call("GET", "/screenshot", None).as_str().expect("a base64 screenshot"));
     assert!(png.starts_with(b"\x89PNG"), "the screenshot is not a PNG");
     let target = Path::new(bin()).ancestors().nth(2).expect("the binary lies in target/PROFILE/");
-    std::fs::write(target.join("issue5_viewer.png"), png).unwrap();
+    std::fs::write(target.join("viewer_browser.png"), png).unwrap();
 
     // The button re-takes the reference: stdout shows referencing frames again after the click.
     let clicked_after = lines.lock().unwrap().iter().filter_map(|l| l["seq"].as_u64()).max().unwrap_or(0);

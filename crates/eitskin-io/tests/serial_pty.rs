@@ -1,4 +1,4 @@
-//! Issue 5: the serial source over real pseudo-terminals, no hardware. A board is played by the
+//! The serial source over real pseudo-terminals, no hardware. A board is played by the
 //! master side of a pty pair and reached through a symlink, as udev's `/dev/serial/by-id/…` names
 //! are. Every good frame comes through in order with its values, every bad one as the right
 //! [`BadFrame`]; pulling the board (closing the pty) is reported, the half frame before it is
@@ -119,7 +119,7 @@ fn stream(count: u64) -> (Vec<String>, Vec<Expected>) {
 
 #[test]
 fn frames_survive_an_unplug_and_a_new_board_behind_the_same_name() {
-    let dir = TempDir::new("issue5-serial");
+    let dir = TempDir::new("serial");
     let link = dir.0.join("ttyEIT");
     let (mut master, slave) = board();
     point(&link, &slave);

@@ -1,4 +1,4 @@
-//! Issue 4, through the real binary: `eitskin study` on the default sensor writes its figures,
+//! Through the real binary: `eitskin study` on the default sensor writes its figures,
 //! numbers and report; `calibrate` and `evaluate` reproduce the study's pseudo-array from the
 //! samples it wrote; a calibration made for another spec is refused.
 
@@ -46,7 +46,7 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
             rms(0)
         );
     }
-    // The issue's R² bar, on the fitted press's drop: every area ≥ 0.95. (On the image peak
+    // The acceptance bar for R², on the fitted press's drop: every area ≥ 0.95. (On the image peak
     // the centre area falls short at this noise; the report shows both.)
     let by_name = |name: &str| methods.iter().find(|m| m["name"] == name).unwrap_or_else(|| panic!("no {name}"));
     for curve in by_name("pseudo-array 5×5 (fitted press)")["curves"].as_array().unwrap() {
@@ -58,7 +58,7 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
     assert!((a + 0.9).abs() < 0.05 && (c - 0.9).abs() < 0.05 && (b / 5.54 - 1.0).abs() < 0.05, "{gel}");
     let fitted_position = json["mean_fit_position_error_m"].as_f64().unwrap();
     assert!(fitted_position < 0.5 * position, "fitted {fitted_position} m, image {position} m");
-    // The issue's bar: a continuous calibration at most half the pseudo-array's RMS error.
+    // The acceptance bar for RMS: a continuous calibration at most half the pseudo-array's RMS error.
     let continuous = (0..methods.len()).filter(|&k| !methods[k]["name"].as_str().unwrap().starts_with("pseudo-array"));
     let best = continuous.map(rms).fold(f64::INFINITY, f64::min);
     assert!(best <= 0.5 * rms(0), "best continuous method {best} N against pseudo-array {} N", rms(0));

@@ -1,4 +1,4 @@
-//! Issue 3: on pyEIT's mesh with point electrodes, our Jacobian and one-step images (plain and
+//! On pyEIT's mesh with point electrodes, our Jacobian and one-step images (plain and
 //! normalised differences) match pyEIT's to 1e-8 relative. pyEIT's J carries the opposite sign
 //! and its "lm" prior is λ·diag(JᵀJ): our NOSER with exponent 1 and hyperparameter √λ.
 

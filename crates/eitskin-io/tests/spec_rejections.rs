@@ -1,4 +1,4 @@
-//! Issue 2: every kind of invalid spec is refused with a message naming the key and the reason.
+//! Every kind of invalid spec is refused with a message naming the key and the reason.
 
 use std::path::Path;
 

@@ -1,4 +1,4 @@
-//! Issue 2, through the real binary: `eitskin mesh`, `forward` (with EIDORS' mesh loaded),
+//! Through the real binary: `eitskin mesh`, `forward` (with EIDORS' mesh loaded),
 //! `bench --json`, `spec`, and clear failures for bad input.
 
 mod binary;

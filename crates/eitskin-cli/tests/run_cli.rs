@@ -1,4 +1,4 @@
-//! Issue 5, through the real binary: `eitskin run` on the virtual sensor and on a file prints one
+//! Through the real binary: `eitskin run` on the virtual sensor and on a file prints one
 //! JSON line per frame, in order, with touches where the presses are, and every bad frame as an
 //! event with its reason; the stream goes on after it.
 
