@@ -3,15 +3,18 @@
 
 mod binary;
 
-#[path = "../../eitskin-io/tests/common/mod.rs"]
-mod common;
-
 use binary::{eitskin, scratch};
+use eitskin_testdata::max_relative_error;
 use std::process::Output;
 
 fn stdout_json(out: &Output) -> serde_json::Value {
     assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
     serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
+/// A JSON array of numbers as a vector.
+fn floats(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array().expect("an array").iter().map(|x| x.as_f64().expect("a number")).collect()
 }
 
 /// EIDORS' 2×2 square as a spec: metres, unit depth, 0.2 m electrodes, z = 0.01 Ω·m².
@@ -35,14 +38,15 @@ fn forward_on_eidors_mesh_matches_eidors() {
     let dir = scratch("eidors");
     let spec = dir.join("square.toml");
     std::fs::write(&spec, EIDORS_SQUARE).unwrap();
-    let mesh = common::shared().join("reference/eidors/mesh.json");
+    let mesh = eitskin_testdata::shared().join("reference/eidors/mesh.json");
     for (protocol, file) in [("two-terminal", "two_terminal"), ("adjacent", "adjacent")] {
         let out =
             eitskin(&["forward", spec.to_str().unwrap(), "--mesh", mesh.to_str().unwrap(), "--protocol", protocol]);
         let json = stdout_json(&out);
-        let ours = common::floats(&json["measurements"]);
-        let reference = common::floats(&common::json(&format!("reference/eidors/protocol_{file}.json"))["v_homog"]);
-        let err = common::max_relative_error(&ours, &reference);
+        let ours = floats(&json["measurements"]);
+        let reference: serde_json::Value =
+            serde_json::from_str(&eitskin_testdata::read(&format!("reference/eidors/protocol_{file}.json"))).unwrap();
+        let err = max_relative_error(&ours, &floats(&reference["v_homog"]));
         assert!(err < 1e-6, "{protocol}: {err:e}");
         assert_eq!(json["triangles"], 3200);
     }
@@ -53,10 +57,10 @@ fn forward_default_sensor_prints_120_values_in_json_and_csv() {
     let json = stdout_json(&eitskin(&["forward", "--triangles", "800"]));
     assert_eq!(json["measurements"].as_array().unwrap().len(), 120);
     assert!(json["protocol"].as_str().unwrap().contains("two-terminal"));
-    let values = common::floats(&json["measurements"]);
+    let values = floats(&json["measurements"]);
     // A press (lower conductivity) raises every two-terminal transfer impedance.
     let pressed = stdout_json(&eitskin(&["forward", "--triangles", "800", "--inclusion", "-50,20,10,0.2"]));
-    assert!(common::floats(&pressed["measurements"]).iter().zip(&values).all(|(p, v)| p >= v));
+    assert!(floats(&pressed["measurements"]).iter().zip(&values).all(|(p, v)| p >= v));
     let csv = eitskin(&["forward", "--triangles", "800", "--format", "csv", "--protocol", "adjacent"]);
     let text = String::from_utf8(csv.stdout).unwrap();
     assert_eq!(text.lines().count(), 1 + 208);

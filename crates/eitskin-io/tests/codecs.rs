@@ -2,8 +2,6 @@
 //! right variant and place, the good frames around it come out unchanged and in order, and the
 //! output does not depend on how the stream is cut into chunks. Real OpenEIT captures included.
 
-mod common;
-
 use eitskin_io::codec::{crc16, encode, BadFrame, BinaryDecoder, Decoder, Event, Frame, LinesDecoder};
 
 /// A tiny seeded xorshift64 generator, so that the chunkings are the same on every run.
@@ -131,7 +129,7 @@ const OPENEIT: [(&str, usize, usize, Torn); 10] = [
 
 #[test]
 fn openeit_captures_decode_whole_and_in_chunks() {
-    let dir = common::shared().join("data/openeit");
+    let dir = eitskin_testdata::shared().join("data/openeit");
     for (seed, (file, expected, frames, torn)) in OPENEIT.into_iter().enumerate() {
         let path = dir.join(file);
         let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

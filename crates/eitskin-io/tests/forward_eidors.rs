@@ -4,8 +4,9 @@
 
 mod common;
 
-use common::{floats, json, max_relative_error, shared};
+use common::{floats, json};
 use eitskin::{ElectrodeModel, ForwardModel, Protocol};
+use eitskin_testdata::{max_relative_error, shared};
 
 fn model(protocol: Protocol) -> ForwardModel {
     let mesh = eitskin_io::read_mesh(&shared().join("reference/eidors/mesh.json")).unwrap();

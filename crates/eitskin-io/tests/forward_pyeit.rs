@@ -4,8 +4,9 @@
 
 mod common;
 
-use common::{floats, json, max_relative_error};
+use common::{floats, json};
 use eitskin::{ElectrodeModel, ForwardModel, Mesh, Protocol};
+use eitskin_testdata::max_relative_error;
 
 fn pyeit_model(protocol: Protocol) -> (ForwardModel, serde_json::Value) {
     let data = json("reference/pyeit/square16_4k.json");

@@ -3,9 +3,10 @@
 
 mod common;
 
-use common::{floats, json, max_relative_error, shared};
+use common::{floats, json};
 use eitskin::inverse::{reconstruction_matrix, Prior};
 use eitskin::{ElectrodeModel, ForwardModel, Protocol};
+use eitskin_testdata::{max_relative_error, shared};
 
 fn check(name: &str, protocol: Protocol) {
     let mesh = eitskin_io::read_mesh(&shared().join("reference/eidors/mesh.json")).unwrap();

@@ -4,9 +4,10 @@
 
 mod common;
 
-use common::{floats, json, max_relative_error};
+use common::{floats, json};
 use eitskin::inverse::{normalize_jacobian, reconstruction_matrix};
 use eitskin::{ElectrodeModel, ForwardModel, Mesh, Prior, Protocol};
+use eitskin_testdata::max_relative_error;
 
 fn model() -> (ForwardModel, serde_json::Value) {
     let data = json("reference/pyeit/square16_4k.json");
