@@ -4,8 +4,8 @@
 
 mod binary;
 
-use binary::{eitskin, scratch};
-use std::process::{Command, Output};
+use binary::{scratch, Scratch};
+use std::process::Output;
 
 fn lines(out: Output) -> Vec<serde_json::Value> {
     assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
@@ -18,7 +18,8 @@ fn the_virtual_sensor_pressed_by_a_script_gives_a_touch_where_and_when_pressed()
     let script = dir.join("script.txt");
     std::fs::write(&script, "# start end x y force\n1.0 1.5 -50 40 9\n").unwrap();
     let source = format!("sim:{}", script.display());
-    let out = lines(eitskin(&["run", "--source", &source, "--frames", "40", "--rate", "20", "--triangles", "1500"]));
+    let out =
+        lines(dir.eitskin(&["run", "--source", &source, "--frames", "40", "--rate", "20", "--triangles", "1500"]));
     assert_eq!(out.len(), 40);
     for (k, line) in out.iter().enumerate() {
         assert_eq!(line["seq"], k as u64, "frames in order");
@@ -51,8 +52,17 @@ fn a_file_with_bad_lines_reports_each_and_goes_on() {
     let file = dir.join("frames.csv");
     std::fs::write(&file, text).unwrap();
     let source = format!("file:{}", file.display());
-    let out =
-        lines(eitskin(&["run", "--source", &source, "--rate", "0", "--reference-frames", "2", "--triangles", "800"]));
+    let out = lines(dir.eitskin(&[
+        "run",
+        "--source",
+        &source,
+        "--rate",
+        "0",
+        "--reference-frames",
+        "2",
+        "--triangles",
+        "800",
+    ]));
     let events: Vec<&serde_json::Value> = out.iter().filter(|l| l["event"] == "bad").collect();
     let frames: Vec<&serde_json::Value> = out.iter().filter(|l| l.get("event").is_none()).collect();
     assert_eq!(frames.len(), 4, "{out:?}");
@@ -71,7 +81,7 @@ fn a_recording_replays_to_the_same_touches() {
     std::fs::write(&script, "0.6 1.2 30 -60 10\n").unwrap();
     let record = dir.join("run.jsonl");
     let source = format!("sim:{}", script.display());
-    let live = lines(eitskin(&[
+    let live = lines(dir.eitskin(&[
         "run",
         "--source",
         &source,
@@ -85,7 +95,7 @@ fn a_recording_replays_to_the_same_touches() {
     ]));
     assert!(live.iter().all(|l| l["recorded"] == true));
     let replay_source = format!("file:{}", record.display());
-    let replayed = lines(eitskin(&["run", "--source", &replay_source, "--fast", "--triangles", "1500"]));
+    let replayed = lines(dir.eitskin(&["run", "--source", &replay_source, "--fast", "--triangles", "1500"]));
     assert_eq!(replayed.len(), live.len());
     for (a, b) in live.iter().zip(&replayed) {
         assert_eq!((&a["seq"], &a["touches"]), (&b["seq"], &b["touches"]), "replay differs");
@@ -99,10 +109,9 @@ fn every_frame_reported_recorded_before_a_sigkill_is_in_the_file() {
     use std::io::BufRead;
     let dir = scratch("kill");
     let record = dir.join("killed.jsonl");
-    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
+    let mut child = dir
+        .command()
         .args(["run", "--source", "sim", "--rate", "200", "--triangles", "800", "--record", record.to_str().unwrap()])
-        .env("EITSKIN_CACHE", cache)
         .stdout(std::process::Stdio::piped())
         .spawn()
         .unwrap();
@@ -144,7 +153,8 @@ fn frames_from_a_real_pseudo_terminal_come_out_in_order_with_bad_ones_named() {
     let (mut master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
     let path = slave.name().expect("the slave has a name");
     let source = format!("serial:{path}");
-    let (mut child, _stderr) = run_on_port(&source, &["--frames", "8"]);
+    let dir = scratch("serial");
+    let (mut child, _stderr) = run_on_port(&dir, &source, &["--frames", "8"]);
     let good = |k: usize| vec![format!("{}", 150.0 + k as f64 * 1e-3); 120].join(",") + "\r\n";
     let mut text = String::new();
     for k in 0..4 {
@@ -195,7 +205,7 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
     std::fs::remove_file(&link).ok();
     std::os::unix::fs::symlink(&path, &link).unwrap();
     let source = format!("serial:{}", link.display());
-    let (mut child, _stderr) = run_on_port(&source, &[]);
+    let (mut child, _stderr) = run_on_port(&dir, &source, &[]);
     let (tx, rx) = std::sync::mpsc::channel();
     let stdout = child.stdout.take().unwrap();
     std::thread::spawn(move || {
@@ -284,13 +294,16 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
 /// Starts `eitskin run --source SOURCE` (reference of 2 frames, 800 triangles) and returns once
 /// it has opened the port, which it says on stderr; the stderr reader is kept open for it.
 #[cfg(unix)]
-fn run_on_port(source: &str, extra: &[&str]) -> (std::process::Child, std::io::BufReader<std::process::ChildStderr>) {
+fn run_on_port(
+    dir: &Scratch,
+    source: &str,
+    extra: &[&str],
+) -> (std::process::Child, std::io::BufReader<std::process::ChildStderr>) {
     use std::io::BufRead;
-    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
+    let mut child = dir
+        .command()
         .args(["run", "--source", source, "--reference-frames", "2", "--triangles", "800"])
         .args(extra)
-        .env("EITSKIN_CACHE", cache)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()

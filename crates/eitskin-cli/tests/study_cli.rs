@@ -4,12 +4,12 @@
 
 mod binary;
 
-use binary::{eitskin, ok, scratch};
+use binary::{ok, scratch};
 
 #[test]
 fn study_on_the_default_sensor_meets_the_papers_bars() {
     let dir = scratch("run");
-    ok(eitskin(&["study", "--out", dir.to_str().unwrap()]));
+    ok(dir.eitskin(&["study", "--out", dir.to_str().unwrap()]));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("study.json")).unwrap()).unwrap();
     for png in ["fig3c_location.png", "fig4b_areas.png", "fig12_1.png", "fig12_5.png"] {
@@ -65,14 +65,14 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
 
     // calibrate + evaluate on the samples the study wrote give the study's 5×5 result.
     let cal = dir.join("cal.json");
-    ok(eitskin(&[
+    ok(dir.eitskin(&[
         "calibrate",
         "--samples",
         dir.join("calibration_samples.csv").to_str().unwrap(),
         "--out",
         cal.to_str().unwrap(),
     ]));
-    let text = ok(eitskin(&[
+    let text = ok(dir.eitskin(&[
         "evaluate",
         "--calibration",
         cal.to_str().unwrap(),
@@ -83,9 +83,9 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
 
     // The same calibration is refused for a sensor with other electrodes.
     let spec = dir.join("other.toml");
-    let paper = ok(eitskin(&["spec"]));
+    let paper = ok(dir.eitskin(&["spec"]));
     std::fs::write(&spec, paper.replace("width = 10.0", "width = 12.0")).unwrap();
-    let out = eitskin(&[
+    let out = dir.eitskin(&[
         "evaluate",
         spec.to_str().unwrap(),
         "--calibration",

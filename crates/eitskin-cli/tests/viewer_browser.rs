@@ -10,7 +10,7 @@
 
 mod binary;
 
-use binary::{cache, scratch};
+use binary::{scratch, Scratch};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
@@ -168,18 +168,19 @@ fn free_port() -> u16 {
 }
 
 /// A calibration made as a user makes one: `eitskin study`, then `eitskin calibrate`.
-fn calibration(dir: &Path) -> PathBuf {
+fn calibration(dir: &Scratch) -> PathBuf {
     let study = dir.join("study");
-    let status = Command::new(bin())
+    let status = dir
+        .command()
         .args(["study", "--out", study.to_str().unwrap(), "--validation", "20", "--repeats", "2"])
-        .env("EITSKIN_CACHE", cache())
         .stdout(Stdio::null())
         .status()
         .unwrap();
     assert!(status.success(), "eitskin study failed");
     let file = dir.join("calibration.json");
     let samples = study.join("calibration_samples.csv");
-    let status = Command::new(bin())
+    let status = dir
+        .command()
         .args(["calibrate", "--samples", samples.to_str().unwrap(), "--out", file.to_str().unwrap()])
         .stdout(Stdio::null())
         .status()
@@ -220,10 +221,10 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
 
     // The sensor, with its viewer on a free port.
     let source = format!("sim:{}", script.display());
-    let mut run = Command::new(bin())
+    let mut run = dir
+        .command()
         .args(["run", "--source", &source, "--viewer", "127.0.0.1:0", "--triangles", "1500", "--rate", "10"])
         .args(["--frames", "3000", "--calibration", calibration.to_str().unwrap(), "--fit"])
-        .env("EITSKIN_CACHE", cache())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -246,7 +247,8 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
 
     // The browser, started meanwhile.
     let driver_port = free_port();
-    let profile = scratch("profile");
+    // In the test's folder, which outlives `guard`: the browser is stopped before it is removed.
+    let profile = dir.join("profile");
     guard.children.push(
         Command::new(&chromedriver)
             .arg(format!("--port={driver_port}"))

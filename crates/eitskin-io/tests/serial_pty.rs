@@ -34,24 +34,6 @@ fn expected(event: &SourceEvent) -> Expected {
     }
 }
 
-/// A temporary directory, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let dir = std::env::temp_dir().join(format!("eitskin-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// A new pty pair: the master plays the board, the slave is the device node the source opens.
 fn board() -> (TTYPort, TTYPort) {
     let (mut master, slave) = TTYPort::pair().expect("this system should provide pseudo-terminals");
@@ -119,8 +101,8 @@ fn stream(count: u64) -> (Vec<String>, Vec<Expected>) {
 
 #[test]
 fn frames_survive_an_unplug_and_a_new_board_behind_the_same_name() {
-    let dir = TempDir::new("serial");
-    let link = dir.0.join("ttyEIT");
+    let dir = tempfile::Builder::new().prefix("eitskin-serial-").tempdir().expect("a temporary folder");
+    let link = dir.path().join("ttyEIT");
     let (mut master, slave) = board();
     point(&link, &slave);
     let mut source = SerialSource::open(&link, 115_200, || Box::new(LinesDecoder::new(4))).unwrap();
