@@ -191,6 +191,7 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
     let (master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
     // serialport opens the pair without close-on-exec: keep the child from inheriting them, or
     // it would hold the line up after the test pulls the board out.
+    #[allow(unsafe_code, reason = "std has no safe way to set close-on-exec on a descriptor it did not open")]
     let close_on_exec = |port: &serialport::TTYPort| {
         // SAFETY: fcntl on a file descriptor this test owns.
         unsafe { libc::fcntl(std::os::fd::AsRawFd::as_raw_fd(port), libc::F_SETFD, libc::FD_CLOEXEC) };
