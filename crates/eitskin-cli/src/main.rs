@@ -1,4 +1,5 @@
 //! The `eitskin` command: thin glue from files and flags to the `eitskin` library.
+#![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
 
 mod bench;
 mod calibrate;

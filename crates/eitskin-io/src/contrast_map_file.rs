@@ -90,18 +90,18 @@ mod tests {
         spec.mesh.triangles = 300;
         let recon = ReconstructorParams { raster: [16, 16], ..ReconstructorParams::default() };
         let params = ContrastMapParams { points: 4, ..ContrastMapParams::default() };
-        let dir = std::env::temp_dir().join(format!("eitskin-contrast-cache-{}", std::process::id()));
-        let (built, hit) = load_or_build_contrast_map(&dir, &spec, &recon, &params).unwrap();
+        let folder = tempfile::Builder::new().prefix("eitskin-contrast-cache-").tempdir().unwrap();
+        let dir = folder.path();
+        let (built, hit) = load_or_build_contrast_map(dir, &spec, &recon, &params).unwrap();
         assert!(!hit);
-        let (loaded, hit) = load_or_build_contrast_map(&dir, &spec, &recon, &params).unwrap();
+        let (loaded, hit) = load_or_build_contrast_map(dir, &spec, &recon, &params).unwrap();
         assert!(hit, "the second start must come from the cache");
         assert_eq!(loaded, built);
-        let path = contrast_map_path(&dir, &spec, &recon, &params).unwrap();
+        let path = contrast_map_path(dir, &spec, &recon, &params).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         std::fs::write(&path, &bytes[..bytes.len() - 3]).unwrap();
-        assert!(!load_or_build_contrast_map(&dir, &spec, &recon, &params).unwrap().1, "a torn file is rebuilt");
+        assert!(!load_or_build_contrast_map(dir, &spec, &recon, &params).unwrap().1, "a torn file is rebuilt");
         let finer = ContrastMapParams { points: 5, ..params };
-        assert_ne!(path, contrast_map_path(&dir, &spec, &recon, &finer).unwrap());
-        std::fs::remove_dir_all(&dir).ok();
+        assert_ne!(path, contrast_map_path(dir, &spec, &recon, &finer).unwrap());
     }
 }

@@ -94,7 +94,8 @@ mod tests {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 300;
         let params = PressModelParams::default();
-        let dir = std::env::temp_dir().join(format!("eitskin-press-cache-{}", std::process::id()));
+        let folder = tempfile::Builder::new().prefix("eitskin-press-cache-").tempdir().unwrap();
+        let dir = folder.path().join("cache"); // made by the first save, as a user's cache folder is
         let (built, hit) = load_or_build_press_model(&dir, &spec, &params).unwrap();
         assert!(!hit);
         let (loaded, hit) = load_or_build_press_model(&dir, &spec, &params).unwrap();
@@ -110,6 +111,5 @@ mod tests {
         assert!(!hit, "a torn file is rebuilt");
         let other = PressModelParams { radius: 0.005, ..params };
         assert_ne!(press_model_path(&dir, &spec, &params).unwrap(), press_model_path(&dir, &spec, &other).unwrap());
-        std::fs::remove_dir_all(&dir).ok();
     }
 }

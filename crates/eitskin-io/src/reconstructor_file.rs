@@ -168,7 +168,8 @@ mod tests {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 400;
         let params = ReconstructorParams { raster: [16, 16], ..ReconstructorParams::default() };
-        let dir = std::env::temp_dir().join(format!("eitskin-cache-{}", std::process::id()));
+        let folder = tempfile::Builder::new().prefix("eitskin-cache-").tempdir().unwrap();
+        let dir = folder.path().join("cache"); // made by the first save, as a user's cache folder is
         let (built, hit) = load_or_build(&dir, &spec, &params).unwrap();
         assert!(!hit);
         let (loaded, hit) = load_or_build(&dir, &spec, &params).unwrap();
@@ -191,6 +192,5 @@ mod tests {
         let bytes = encode_reconstructor(&built, &key);
         assert!(decode_reconstructor(&bytes[..bytes.len() - 1], &key).is_none(), "a torn file is not loaded");
         assert!(decode_reconstructor(&bytes, &[0; 32]).is_none(), "another key is not loaded");
-        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -28,8 +28,9 @@
 //! assert!((touches[0].centre[0] - 0.05).abs() < 1e-3 && (touches[0].centre[1] - 0.15).abs() < 1e-3);
 //! ```
 //!
-//! Not for: locating the unit of a pseudo-array sensor that a touch falls on (a later module
-//! maps touches to units), nor for force (that is the calibration's job, from a [`Touch`]).
+//! Not for: locating the unit of a pseudo-array sensor that a touch falls on (that is
+//! [`PseudoArray::unit_at`](crate::pseudo_array::PseudoArray::unit_at), from the touch's centre),
+//! nor for force (that is the calibration's job, from a [`Touch`]).
 
 use crate::image::Image;
 

@@ -232,12 +232,11 @@ mod tests {
     use crate::recorder::{Header, Recorder};
     use crate::replay::Damage;
 
-    fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("eitskin-source-file-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join(name);
-        std::fs::remove_file(&path).ok();
-        path
+    /// A path named `name` in a folder of its own, removed with the folder when the test ends.
+    fn scratch(name: &str) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::Builder::new().prefix("eitskin-source-file-").tempdir().unwrap();
+        let path = dir.path().join(name);
+        (dir, path)
     }
 
     fn settings(codec: Codec, rate: f64) -> SourceSettings {
@@ -250,7 +249,7 @@ mod tests {
 
     #[test]
     fn a_recording_streams_its_frames_and_names_each_skipped_record() {
-        let path = scratch("damaged.jsonl");
+        let (_dir, path) = scratch("damaged.jsonl");
         let mut recorder = Recorder::create(&path, &Header::now(2, "p")).unwrap();
         for seq in 0..4 {
             recorder.record(seq, 0.5 * seq as f64, &[seq as f64, 1.0], None).unwrap();
@@ -275,21 +274,22 @@ mod tests {
 
     #[test]
     fn a_recording_of_another_length_or_a_json_file_that_is_not_one_is_refused() {
-        let path = scratch("other.jsonl");
+        let (_dir, path) = scratch("other.jsonl");
         Recorder::create(&path, &Header::now(16, "p")).unwrap();
         let error = open(&path, 120, &settings(Codec::Lines, 0.0)).err().unwrap().to_string();
         assert!(error.contains("frames of 16 values") && error.contains("has 120"), "{error}");
-        let path = scratch("stdout.jsonl");
+        let (_dir, path) = scratch("stdout.jsonl");
         std::fs::write(&path, "\n {\"event\":\"start\",\"format\":\"eitskin-run\"}\n").unwrap();
         let error = open(&path, 120, &settings(Codec::Lines, 0.0)).err().unwrap();
         assert!(matches!(&error, SourceError::Recording { path: p, .. } if p == &path), "{error:?}");
-        let error = open(&scratch("missing.csv"), 120, &settings(Codec::Lines, 0.0)).err().unwrap();
+        let (_dir, missing) = scratch("missing.csv");
+        let error = open(&missing, 120, &settings(Codec::Lines, 0.0)).err().unwrap();
         assert!(error.to_string().starts_with("cannot read ") && error.to_string().contains("missing.csv"), "{error}");
     }
 
     #[test]
     fn a_text_capture_is_decoded_and_timed_at_the_rate() {
-        let path = scratch("frames.csv");
+        let (_dir, path) = scratch("frames.csv");
         // Longer than one read buffer, so that lines are cut between reads.
         let line = |k: usize| format!("{k}, {}\r\n", "1.25 ".repeat(9_999));
         let text = format!("{}1 2\n{}", (0..7).map(line).collect::<String>(), line(7).trim_end());
@@ -311,7 +311,7 @@ mod tests {
 
     #[test]
     fn a_binary_capture_is_decoded_with_the_binary_codec() {
-        let path = scratch("frames.bin");
+        let (_dir, path) = scratch("frames.bin");
         let mut bytes = Vec::new();
         for counter in [5, 6, 8] {
             bytes.extend_from_slice(&encode(counter, &[1.0, 2.0, counter as f32]));

@@ -139,6 +139,7 @@ impl Reconstructor {
 
 /// values += Σ_m matrix[:, m]·difference(m), the matrix column-major with `values.len()` rows;
 /// with 8-lane AVX2 where the processor has it (checked at run time), else portable code.
+#[allow(unsafe_code, reason = "calls the AVX2 kernel, only once the processor is known to have AVX2")]
 fn accumulate(values: &mut [f32], matrix: &[f32], difference: impl Fn(usize) -> f32) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {

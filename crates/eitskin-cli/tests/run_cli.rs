@@ -1,12 +1,12 @@
-//! Issue 5, through the real binary: `eitskin run` on the virtual sensor and on a file prints one
+//! Through the real binary: `eitskin run` on the virtual sensor and on a file prints one
 //! JSON line per frame, in order, with touches where the presses are, and every bad frame as an
 //! event with its reason; the stream goes on after it.
 
 mod binary;
 
-use binary::{eitskin, scratch};
+use binary::{scratch, Scratch};
 use eitskin_io::stream::{self, Event, FrameLine, Line, Recorded, Start, Status};
-use std::process::{Command, Output};
+use std::process::Output;
 
 /// The lines after the start line.
 fn lines(out: Output) -> Vec<serde_json::Value> {
@@ -45,7 +45,7 @@ fn the_stream_reads_back_with_its_schema_a_start_line_then_counted_frames_in_mm(
     std::fs::write(&script, "# start end x y force\n1.0 1.5 -50 40 9\n").unwrap();
     let source = format!("sim:{}", script.display());
     let (start, lines) =
-        typed_lines(eitskin(&["run", "--source", &source, "--fast", "--frames", "40", "--triangles", "1500"]));
+        typed_lines(dir.eitskin(&["run", "--source", &source, "--fast", "--frames", "40", "--triangles", "1500"]));
     assert_eq!((start.format.as_str(), start.version), (stream::FORMAT, stream::VERSION));
     assert_eq!((start.source.as_str(), start.length_unit.as_str()), (source.as_str(), "mm"));
     assert_eq!((start.measurements, start.reference_frames), (120, 10));
@@ -71,8 +71,16 @@ fn the_stream_reads_back_with_its_schema_a_start_line_then_counted_frames_in_mm(
     let capture = dir.join("capture.csv");
     std::fs::write(&capture, format!("{good}\n{good}\n1,2\n{good}\nx\n{good}\n")).unwrap();
     let source = format!("file:{}", capture.display());
-    let (_, lines) =
-        typed_lines(eitskin(&["run", "--source", &source, "--fast", "--reference-frames", "2", "--triangles", "800"]));
+    let (_, lines) = typed_lines(dir.eitskin(&[
+        "run",
+        "--source",
+        &source,
+        "--fast",
+        "--reference-frames",
+        "2",
+        "--triangles",
+        "800",
+    ]));
     let bad: Vec<Option<u64>> = lines
         .iter()
         .filter_map(|l| match l {
@@ -94,7 +102,7 @@ fn a_damaged_record_is_skipped_as_an_event_and_the_recording_holds_the_touches()
     let record = dir.join("run.jsonl");
     std::fs::remove_file(&record).ok();
     let source = format!("sim:{}", script.display());
-    let (_, live) = typed_lines(eitskin(&[
+    let (_, live) = typed_lines(dir.eitskin(&[
         "run",
         "--source",
         &source,
@@ -120,8 +128,16 @@ fn a_damaged_record_is_skipped_as_an_event_and_the_recording_holds_the_touches()
     file[6] = file[6].replacen("\"seq\":5,", "\"seq\":50,", 1);
     std::fs::write(&record, file.join("\n") + "\n").unwrap();
     let replay = format!("file:{}", record.display());
-    let (_, replayed) =
-        typed_lines(eitskin(&["run", "--source", &replay, "--fast", "--triangles", "1500", "--reference-frames", "4"]));
+    let (_, replayed) = typed_lines(dir.eitskin(&[
+        "run",
+        "--source",
+        &replay,
+        "--fast",
+        "--triangles",
+        "1500",
+        "--reference-frames",
+        "4",
+    ]));
     let skipped: Vec<(usize, bool)> = replayed
         .iter()
         .filter_map(|l| match l {
@@ -141,7 +157,8 @@ fn the_virtual_sensor_pressed_by_a_script_gives_a_touch_where_and_when_pressed()
     let script = dir.join("script.txt");
     std::fs::write(&script, "# start end x y force\n1.0 1.5 -50 40 9\n").unwrap();
     let source = format!("sim:{}", script.display());
-    let out = lines(eitskin(&["run", "--source", &source, "--frames", "40", "--rate", "20", "--triangles", "1500"]));
+    let out =
+        lines(dir.eitskin(&["run", "--source", &source, "--frames", "40", "--rate", "20", "--triangles", "1500"]));
     assert_eq!(out.len(), 40);
     for (k, line) in out.iter().enumerate() {
         assert_eq!(line["seq"], k as u64, "frames in order");
@@ -174,8 +191,17 @@ fn a_file_with_bad_lines_reports_each_and_goes_on() {
     let file = dir.join("frames.csv");
     std::fs::write(&file, text).unwrap();
     let source = format!("file:{}", file.display());
-    let out =
-        lines(eitskin(&["run", "--source", &source, "--rate", "0", "--reference-frames", "2", "--triangles", "800"]));
+    let out = lines(dir.eitskin(&[
+        "run",
+        "--source",
+        &source,
+        "--rate",
+        "0",
+        "--reference-frames",
+        "2",
+        "--triangles",
+        "800",
+    ]));
     let events: Vec<&serde_json::Value> = out.iter().filter(|l| l["event"] == "bad").collect();
     let frames: Vec<&serde_json::Value> = out.iter().filter(|l| l.get("event").is_none()).collect();
     assert_eq!(frames.len(), 4, "{out:?}");
@@ -194,7 +220,7 @@ fn a_recording_replays_to_the_same_touches() {
     std::fs::write(&script, "0.6 1.2 30 -60 10\n").unwrap();
     let record = dir.join("run.jsonl");
     let source = format!("sim:{}", script.display());
-    let live = lines(eitskin(&[
+    let live = lines(dir.eitskin(&[
         "run",
         "--source",
         &source,
@@ -208,7 +234,7 @@ fn a_recording_replays_to_the_same_touches() {
     ]));
     assert!(live.iter().all(|l| l["recorded"] == true));
     let replay_source = format!("file:{}", record.display());
-    let replayed = lines(eitskin(&["run", "--source", &replay_source, "--fast", "--triangles", "1500"]));
+    let replayed = lines(dir.eitskin(&["run", "--source", &replay_source, "--fast", "--triangles", "1500"]));
     assert_eq!(replayed.len(), live.len());
     for (a, b) in live.iter().zip(&replayed) {
         assert_eq!((&a["seq"], &a["touches"]), (&b["seq"], &b["touches"]), "replay differs");
@@ -222,10 +248,9 @@ fn every_frame_reported_recorded_before_a_sigkill_is_in_the_file() {
     use std::io::BufRead;
     let dir = scratch("kill");
     let record = dir.join("killed.jsonl");
-    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
+    let mut child = dir
+        .command()
         .args(["run", "--source", "sim", "--rate", "200", "--triangles", "800", "--record", record.to_str().unwrap()])
-        .env("EITSKIN_CACHE", cache)
         .stdout(std::process::Stdio::piped())
         .spawn()
         .unwrap();
@@ -267,7 +292,8 @@ fn frames_from_a_real_pseudo_terminal_come_out_in_order_with_bad_ones_named() {
     let (mut master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
     let path = slave.name().expect("the slave has a name");
     let source = format!("serial:{path}");
-    let (mut child, _stderr) = run_on_port(&source, &["--frames", "8"]);
+    let dir = scratch("serial");
+    let (mut child, _stderr) = run_on_port(&dir, &source, &["--frames", "8"]);
     let good = |k: usize| vec![format!("{}", 150.0 + k as f64 * 1e-3); 120].join(",") + "\r\n";
     let mut text = String::new();
     for k in 0..4 {
@@ -304,6 +330,7 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
     let (master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
     // serialport opens the pair without close-on-exec: keep the child from inheriting them, or
     // it would hold the line up after the test pulls the board out.
+    #[allow(unsafe_code, reason = "std has no safe way to set close-on-exec on a descriptor it did not open")]
     let close_on_exec = |port: &serialport::TTYPort| {
         // SAFETY: fcntl on a file descriptor this test owns.
         unsafe { libc::fcntl(std::os::fd::AsRawFd::as_raw_fd(port), libc::F_SETFD, libc::FD_CLOEXEC) };
@@ -318,7 +345,7 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
     std::fs::remove_file(&link).ok();
     std::os::unix::fs::symlink(&path, &link).unwrap();
     let source = format!("serial:{}", link.display());
-    let (mut child, _stderr) = run_on_port(&source, &[]);
+    let (mut child, _stderr) = run_on_port(&dir, &source, &[]);
     let (tx, rx) = std::sync::mpsc::channel();
     let stdout = child.stdout.take().unwrap();
     std::thread::spawn(move || {
@@ -407,13 +434,16 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
 /// Starts `eitskin run --source SOURCE` (reference of 2 frames, 800 triangles) and returns once
 /// it has opened the port, which it says on stderr; the stderr reader is kept open for it.
 #[cfg(unix)]
-fn run_on_port(source: &str, extra: &[&str]) -> (std::process::Child, std::io::BufReader<std::process::ChildStderr>) {
+fn run_on_port(
+    dir: &Scratch,
+    source: &str,
+    extra: &[&str],
+) -> (std::process::Child, std::io::BufReader<std::process::ChildStderr>) {
     use std::io::BufRead;
-    let cache = std::env::temp_dir().join(format!("eitskin-run-{}-cache", std::process::id()));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_eitskin"))
+    let mut child = dir
+        .command()
         .args(["run", "--source", source, "--reference-frames", "2", "--triangles", "800"])
         .args(extra)
-        .env("EITSKIN_CACHE", cache)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()

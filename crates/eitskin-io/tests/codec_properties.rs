@@ -1,4 +1,4 @@
-//! Issue 5: both frame codecs fed arbitrary bytes, cut into arbitrary chunks, never panic, give
+//! Both frame codecs fed arbitrary bytes, cut into arbitrary chunks, never panic, give
 //! the same events however the bytes are cut, and only ever accept well-formed frames; valid
 //! binary frames mixed into random garbage all come out. Property-based (proptest, fixed
 //! seed per run as proptest chooses, 256 cases each), so it runs in every CI build.

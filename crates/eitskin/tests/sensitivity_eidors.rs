@@ -1,14 +1,12 @@
-//! Issue 3: the peak-versus-position profile of eitskin's own chain (own mesh, truth simulated
+//! The peak-versus-position profile of eitskin's own chain (own mesh, truth simulated
 //! on a finer mesh) has the shape of EIDORS' (`peaks_two_terminal.csv`) within 15 %.
-
-mod common;
 
 use eitskin::sensitivity::{along_x, peaks};
 use eitskin::{LengthUnit, Reconstructor, ReconstructorParams, SensorSpec};
 
 #[test]
 fn peak_profile_has_the_shape_of_eidors() {
-    let csv = std::fs::read_to_string(common::shared().join("reference/eidors/peaks_two_terminal.csv")).unwrap();
+    let csv = eitskin_testdata::read("reference/eidors/peaks_two_terminal.csv");
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').map(str::trim).collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name} in {header:?}"));

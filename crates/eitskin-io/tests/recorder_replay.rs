@@ -1,12 +1,10 @@
-//! Issue 5: the recorder and replay. What is recorded reads back bit for bit; a file cut anywhere in its
+//! The recorder and replay. What is recorded reads back bit for bit; a file cut anywhere in its
 //! last record, or with a changed byte in the middle, loses that record only and says which line; a
 //! recording is never overwritten by accident and can be continued; and a recorder killed with SIGKILL
 //! loses no record it had reported as written.
 
-mod common;
-
 use std::io::BufRead;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -15,13 +13,11 @@ use eitskin_io::codec::{BadFrame, Event};
 use eitskin_io::recorder::{Header, Mode, Recorder};
 use eitskin_io::replay::{read_recording, replay_lines, Corrupt, Damage, Record, Skipped};
 use serde_json::json;
+use tempfile::TempDir;
 
-/// A fresh, empty folder for one test.
-fn folder(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("eitskin-recorder-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("a temporary folder");
-    dir
+/// A fresh, empty folder for one test, removed when dropped (when the test ends, passed or failed).
+fn folder(name: &str) -> TempDir {
+    tempfile::Builder::new().prefix(&format!("eitskin-recorder-{name}-")).tempdir().expect("a temporary folder")
 }
 
 /// A header with a fixed start, so that it can be compared.
@@ -59,9 +55,9 @@ fn bits(records: &[Record]) -> Vec<(u64, u64, Vec<u64>, Option<serde_json::Value
 }
 
 #[test]
-fn issue5_recorder_round_trip_is_bit_exact() {
+fn recorder_round_trip_is_bit_exact() {
     let dir = folder("round-trip");
-    let path = dir.join("run.jsonl");
+    let path = dir.path().join("run.jsonl");
     let mut records: Vec<Record> = (0..20).map(|seq| record(seq, 16)).collect();
     records[4].values[..8].copy_from_slice(&[
         0.1,
@@ -90,19 +86,18 @@ fn issue5_recorder_round_trip_is_bit_exact() {
         &text[..200]
     );
     assert_eq!(text.lines().count(), 21);
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
-fn issue5_recorder_cut_anywhere_in_the_last_record_loses_only_it() {
+fn recorder_cut_anywhere_in_the_last_record_loses_only_it() {
     let dir = folder("cut");
-    let path = dir.join("run.jsonl");
+    let path = dir.path().join("run.jsonl");
     let records: Vec<Record> = (0..5).map(|seq| record(seq, 8)).collect();
     write(&path, 8, &records);
     let bytes = std::fs::read(&path).expect("readable");
     assert_eq!(bytes.last(), Some(&b'\n'));
     let start = bytes[..bytes.len() - 1].iter().rposition(|&b| b == b'\n').expect("several lines") + 1;
-    let cut_path = dir.join("cut.jsonl");
+    let cut_path = dir.path().join("cut.jsonl");
     for cut in start..=bytes.len() {
         std::fs::write(&cut_path, &bytes[..cut]).expect("writable");
         let recording = read_recording(&cut_path).unwrap_or_else(|e| panic!("cut at {cut}: {e}"));
@@ -114,13 +109,12 @@ fn issue5_recorder_cut_anywhere_in_the_last_record_loses_only_it() {
         assert_eq!(bits(&recording.records), bits(&records[..whole]), "cut at {cut}");
         assert_eq!(recording.skipped, Skipped { torn_tail: torn, corrupt: vec![] }, "cut at {cut}");
     }
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
-fn issue5_recorder_a_changed_digit_is_caught_by_the_crc_and_named_by_line() {
+fn recorder_a_changed_digit_is_caught_by_the_crc_and_named_by_line() {
     let dir = folder("flip");
-    let path = dir.join("run.jsonl");
+    let path = dir.path().join("run.jsonl");
     let records: Vec<Record> = (0..5).map(|seq| record(seq, 8)).collect();
     write(&path, 8, &records);
     let text = std::fs::read_to_string(&path).expect("readable");
@@ -143,13 +137,12 @@ fn issue5_recorder_a_changed_digit_is_caught_by_the_crc_and_named_by_line() {
         panic!("one CRC mismatch expected: {:?}", recording.skipped);
     };
     assert_eq!((*line, stored == computed), (4, false));
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
-fn issue5_recorder_create_refuses_an_existing_file() {
+fn recorder_create_refuses_an_existing_file() {
     let dir = folder("refuse");
-    let path = dir.join("run.jsonl");
+    let path = dir.path().join("run.jsonl");
     write(&path, 4, &[record(0, 4)]);
     let before = std::fs::read(&path).expect("readable");
     let err = Recorder::create(&path, &header(4)).expect_err("refused");
@@ -160,13 +153,12 @@ fn issue5_recorder_create_refuses_an_existing_file() {
     let recorder = Recorder::create_with(&path, &header(4), Mode::Overwrite).expect("overwritten");
     assert_eq!(recorder.last_seq(), None);
     assert!(read_recording(&path).expect("readable").records.is_empty());
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
-fn issue5_recorder_append_continues_the_recording() {
+fn recorder_append_continues_the_recording() {
     let dir = folder("append");
-    let path = dir.join("run.jsonl");
+    let path = dir.path().join("run.jsonl");
     let records: Vec<Record> = (0..6).map(|seq| record(seq, 4)).collect();
     write(&path, 4, &records[..3]);
     let later = Header { started_unix_s: 2e9, ..header(4) };
@@ -186,13 +178,12 @@ fn issue5_recorder_append_continues_the_recording() {
     let err = Recorder::create_with(&path, &header(5), Mode::Append).expect_err("refused");
     assert!(err.to_string().contains("`measurements` is 4 in the recording, but these frames have 5"), "{err}");
     assert_eq!(std::fs::read(&path).expect("readable"), before);
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
-fn issue5_recorder_append_after_a_crash_keeps_the_torn_line_apart() {
+fn recorder_append_after_a_crash_keeps_the_torn_line_apart() {
     let dir = folder("append-torn");
-    let path = dir.join("run.jsonl");
+    let path = dir.path().join("run.jsonl");
     let records: Vec<Record> = (0..5).map(|seq| record(seq, 4)).collect();
     write(&path, 4, &records[..3]);
     let bytes = std::fs::read(&path).expect("readable");
@@ -208,13 +199,12 @@ fn issue5_recorder_append_after_a_crash_keeps_the_torn_line_apart() {
     assert_eq!(recording.skipped.torn_tail, None);
     assert_eq!(recording.skipped.corrupt.len(), 1);
     assert_eq!(recording.skipped.corrupt[0].line, 4, "record 2 on line 4 is now in the middle");
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
-fn issue5_recorder_refuses_frames_that_would_not_read_back() {
+fn recorder_refuses_frames_that_would_not_read_back() {
     let dir = folder("refuse-frames");
-    let path = dir.join("run.jsonl");
+    let path = dir.path().join("run.jsonl");
     let mut recorder = Recorder::create(&path, &header(3)).expect("a new recording");
     let err = recorder.record(7, 0.0, &[1.0, 2.0], None).expect_err("too short");
     assert!(err.to_string().contains("frame 7 has 2 values, but the recording holds frames of 3"), "{err}");
@@ -225,13 +215,12 @@ fn issue5_recorder_refuses_frames_that_would_not_read_back() {
     recorder.sync().expect("synced");
     let recording = read_recording(&path).expect("readable");
     assert_eq!(recording.records, [Record { seq: 10, t_s: 0.5, values: vec![1.0, 2.0, 3.0], result: None }]);
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
-fn issue5_replay_rejects_what_is_not_a_recording() {
+fn replay_rejects_what_is_not_a_recording() {
     let dir = folder("not-a-recording");
-    let path = dir.join("x.jsonl");
+    let path = dir.path().join("x.jsonl");
     let rest = "\"measurements\":1,\"protocol\":\"p\",\"started_unix_s\":0}\n";
     for (text, says) in [
         (String::new(), "`header` is missing"),
@@ -243,13 +232,12 @@ fn issue5_replay_rejects_what_is_not_a_recording() {
         let err = read_recording(&path).expect_err(&text).to_string();
         assert!(err.starts_with(&path.display().to_string()) && err.contains(says), "{err}");
     }
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
-fn issue5_replay_lines_decodes_an_openeit_capture() {
+fn replay_lines_decodes_an_openeit_capture() {
     // 51 lines, of which line 21 (seq 20) was torn in the capture: 24 values instead of 28.
-    let path = common::shared().join("data/openeit/anticlockwise_motion.txt");
+    let path = eitskin_testdata::shared().join("data/openeit/anticlockwise_motion.txt");
     let events = replay_lines(&path, 28).expect("readable");
     assert_eq!(events.len(), 51);
     assert_eq!(events[20], Event::Bad(BadFrame::WrongCount { seq: 20, expected: 28, got: 24 }));
@@ -257,13 +245,13 @@ fn issue5_replay_lines_decodes_an_openeit_capture() {
     assert!(replay_lines(&path.with_file_name("missing.txt"), 28).is_err());
 }
 
-/// The environment variable that makes [`issue5_recorder_crash_child`] record; it holds the file's path.
+/// The environment variable that makes [`recorder_crash_child`] record; it holds the file's path.
 const CHILD: &str = "EITSKIN_RECORDER_CHILD";
 
-/// Not a test on its own: run by [`issue5_recorder_survives_sigkill`] as a child process that records
+/// Not a test on its own: run by [`recorder_survives_sigkill`] as a child process that records
 /// until it is killed. Without the variable it returns at once.
 #[test]
-fn issue5_recorder_crash_child() {
+fn recorder_crash_child() {
     let Some(path) = std::env::var_os(CHILD) else { return };
     let mut recorder = Recorder::create(Path::new(&path), &header(32)).expect("a new recording");
     // Bounded, in case the parent dies before killing this process.
@@ -280,13 +268,13 @@ fn issue5_recorder_crash_child() {
 
 #[cfg(unix)]
 #[test]
-fn issue5_recorder_survives_sigkill() {
+fn recorder_survives_sigkill() {
     use std::os::unix::process::ExitStatusExt;
 
     let dir = folder("sigkill");
-    let path = dir.join("run.jsonl");
+    let path = dir.path().join("run.jsonl");
     let mut child = Command::new(std::env::current_exe().expect("the test binary"))
-        .args(["--exact", "issue5_recorder_crash_child", "--nocapture", "--test-threads=1"])
+        .args(["--exact", "recorder_crash_child", "--nocapture", "--test-threads=1"])
         .env(CHILD, &path)
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -336,5 +324,4 @@ fn issue5_recorder_survives_sigkill() {
     assert!(recording.records.len() as u64 > last, "{} records, {} reported", recording.records.len(), last + 1);
     let want: Vec<Record> = (0..recording.records.len() as u64).map(|seq| record(seq, 32)).collect();
     assert_eq!(bits(&recording.records), bits(&want), "every record unchanged, the reported ones included");
-    std::fs::remove_dir_all(dir).ok();
 }

@@ -1,11 +1,11 @@
-//! Issue 4, past the paper, through the real binary: a calibration on the drop of the press
+//! Past the paper, through the real binary: a calibration on the drop of the press
 //! fitted to Δv (`--strength fitted-drop`, one curve for the sheet) from raw frames of the
 //! virtual sensor, against the paper's per-area peak calibration from the same frames; then
 //! `eitskin run` on a file of frames gives forces and fitted presses with it.
 
 mod binary;
 
-use binary::{eitskin, ok};
+use binary::{ok, scratch};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -31,8 +31,7 @@ fn write_samples(path: &Path, presses: &[Press], frames: &[Vec<f64>], per_metre:
 
 #[test]
 fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
-    let dir = std::env::temp_dir().join(format!("eitskin-fitted-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch("fitted");
     let spec = SensorSpec::square_hydrogel();
     let per_metre = 1.0 / spec.length_unit.metres();
     let mut skin = VirtualSensor::new(&spec, 11).unwrap();
@@ -78,7 +77,7 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
     let mut rms = Vec::new();
     for (strength, grid) in [("peak", "5"), ("fitted-drop", "1")] {
         let cal = path(&format!("{strength}.json"));
-        let table = ok(eitskin(&[
+        let table = ok(dir.eitskin(&[
             "calibrate",
             "--samples",
             &path("calibration.csv"),
@@ -92,7 +91,7 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
             &cal,
         ]));
         assert!(table.contains(if strength == "peak" { "peak(F)" } else { "drop(F)" }), "{table}");
-        let text = ok(eitskin(&[
+        let text = ok(dir.eitskin(&[
             "evaluate",
             "--calibration",
             &cal,
@@ -106,8 +105,15 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
     assert!(rms[1] < 0.6 * rms[0], "fitted drop {} N against peak {} N", rms[1], rms[0]);
     // A fitted-drop calibration cannot be made from peaks alone.
     std::fs::write(dir.join("peaks.csv"), "unit,force,peak\n1,0,0.01\n1,5,0.1\n1,10,0.2\n").unwrap();
-    let out =
-        eitskin(&["calibrate", "--samples", &path("peaks.csv"), "--strength", "fitted-drop", "--out", &path("x.json")]);
+    let out = dir.eitskin(&[
+        "calibrate",
+        "--samples",
+        &path("peaks.csv"),
+        "--strength",
+        "fitted-drop",
+        "--out",
+        &path("x.json"),
+    ]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("needs each sample's raw frame"));
 
     // Live: 10 reference frames, then the validation frames, through `eitskin run`.
@@ -118,7 +124,7 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
         lines.push('\n');
     }
     std::fs::write(dir.join("frames.txt"), lines).unwrap();
-    let out = ok(eitskin(&[
+    let out = ok(dir.eitskin(&[
         "run",
         "--source",
         &format!("file:{}", path("frames.txt")),
@@ -146,5 +152,4 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
     eprintln!("RMS error: peak per area {} N, fitted drop {} N; live {live} N over {count} touches", rms[0], rms[1]);
     assert!(count >= validation.len() * 3 / 4, "{count} of {} presses gave a touch", validation.len());
     assert!(live < rms[0], "live RMS {live} N over {count} touches, peak calibration {} N", rms[0]);
-    std::fs::remove_dir_all(&dir).ok();
 }

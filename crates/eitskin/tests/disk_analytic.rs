@@ -1,4 +1,4 @@
-//! Issue 2: on a disk, the finite-element forward model converges under mesh refinement to
+//! On a disk, the finite-element forward model converges under mesh refinement to
 //! independent analytic answers (a Fourier-series solution of the complete electrode model,
 //! and the point-electrode dipole), and it is reciprocal.
 

@@ -1,11 +1,12 @@
-//! Issue 2: on EIDORS' own 40×40 mesh of the 2×2 square, eitskin's complete electrode model
+//! On EIDORS' own 40×40 mesh of the 2×2 square, eitskin's complete electrode model
 //! gives EIDORS' voltages (both protocols, homogeneous and all 20 inclusions) to 1e-6 relative.
 //! Conventions are in `shared/reference/eidors/README.md`.
 
 mod common;
 
-use common::{floats, json, max_relative_error, shared};
+use common::{floats, json};
 use eitskin::{ElectrodeModel, ForwardModel, Protocol};
+use eitskin_testdata::{max_relative_error, shared};
 
 fn model(protocol: Protocol) -> ForwardModel {
     let mesh = eitskin_io::read_mesh(&shared().join("reference/eidors/mesh.json")).unwrap();

@@ -1,11 +1,12 @@
-//! Issue 3: on EIDORS' 40×40 mesh, our adjoint Jacobian, NOSER prior and one-step
+//! On EIDORS' 40×40 mesh, our adjoint Jacobian, NOSER prior and one-step
 //! Gauss–Newton images (λ = 0.1) match EIDORS' to 1e-6 relative, for both protocols.
 
 mod common;
 
-use common::{floats, json, max_relative_error, shared};
+use common::{floats, json};
 use eitskin::inverse::{reconstruction_matrix, Prior};
 use eitskin::{ElectrodeModel, ForwardModel, Protocol};
+use eitskin_testdata::{max_relative_error, shared};
 
 fn check(name: &str, protocol: Protocol) {
     let mesh = eitskin_io::read_mesh(&shared().join("reference/eidors/mesh.json")).unwrap();

@@ -1,11 +1,12 @@
-//! Issue 2: with point electrodes on pyEIT's own distmesh of the 2×2 square, eitskin gives
+//! With point electrodes on pyEIT's own distmesh of the 2×2 square, eitskin gives
 //! pyEIT's adjacent (and pair) voltages to 1e-8 relative, homogeneous and with an inclusion.
 //! Conventions are in `shared/reference/pyeit/README.md`.
 
 mod common;
 
-use common::{floats, json, max_relative_error};
+use common::{floats, json};
 use eitskin::{ElectrodeModel, ForwardModel, Mesh, Protocol};
+use eitskin_testdata::max_relative_error;
 
 fn pyeit_model(protocol: Protocol) -> (ForwardModel, serde_json::Value) {
     let data = json("reference/pyeit/square16_4k.json");

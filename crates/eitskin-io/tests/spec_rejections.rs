@@ -173,8 +173,8 @@ fn misplaced_and_missing_keys_are_named() {
 
 #[test]
 fn a_custom_protocol_file_is_read_relative_to_the_spec() {
-    let dir = std::env::temp_dir().join(format!("eitskin-spec-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let folder = tempfile::Builder::new().prefix("eitskin-spec-").tempdir().unwrap();
+    let dir = folder.path();
     std::fs::write(dir.join("p.json"), r#"{"electrodes": 16, "quads": [[1, 9, 1, 9], [2, 10, 3, 4]]}"#).unwrap();
     let text = PAPER.replace("kind = \"two-terminal\"", "kind = \"custom\"\nfile = \"p.json\"");
     std::fs::write(dir.join("s.toml"), &text).unwrap();
@@ -188,5 +188,4 @@ fn a_custom_protocol_file_is_read_relative_to_the_spec() {
         file.display()
     );
     assert_eq!(err, expected);
-    std::fs::remove_dir_all(&dir).ok();
 }

@@ -1,17 +1,20 @@
-//! Issue 2, through the real binary: `eitskin mesh`, `forward` (with EIDORS' mesh loaded),
+//! Through the real binary: `eitskin mesh`, `forward` (with EIDORS' mesh loaded),
 //! `bench --json`, `spec`, and clear failures for bad input.
 
 mod binary;
 
-#[path = "../../eitskin-io/tests/common/mod.rs"]
-mod common;
-
-use binary::{eitskin, scratch};
+use binary::scratch;
+use eitskin_testdata::max_relative_error;
 use std::process::Output;
 
 fn stdout_json(out: &Output) -> serde_json::Value {
     assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
     serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
+/// A JSON array of numbers as a vector.
+fn floats(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array().expect("an array").iter().map(|x| x.as_f64().expect("a number")).collect()
 }
 
 /// EIDORS' 2×2 square as a spec: metres, unit depth, 0.2 m electrodes, z = 0.01 Ω·m².
@@ -35,14 +38,15 @@ fn forward_on_eidors_mesh_matches_eidors() {
     let dir = scratch("eidors");
     let spec = dir.join("square.toml");
     std::fs::write(&spec, EIDORS_SQUARE).unwrap();
-    let mesh = common::shared().join("reference/eidors/mesh.json");
+    let mesh = eitskin_testdata::shared().join("reference/eidors/mesh.json");
     for (protocol, file) in [("two-terminal", "two_terminal"), ("adjacent", "adjacent")] {
         let out =
-            eitskin(&["forward", spec.to_str().unwrap(), "--mesh", mesh.to_str().unwrap(), "--protocol", protocol]);
+            dir.eitskin(&["forward", spec.to_str().unwrap(), "--mesh", mesh.to_str().unwrap(), "--protocol", protocol]);
         let json = stdout_json(&out);
-        let ours = common::floats(&json["measurements"]);
-        let reference = common::floats(&common::json(&format!("reference/eidors/protocol_{file}.json"))["v_homog"]);
-        let err = common::max_relative_error(&ours, &reference);
+        let ours = floats(&json["measurements"]);
+        let reference: serde_json::Value =
+            serde_json::from_str(&eitskin_testdata::read(&format!("reference/eidors/protocol_{file}.json"))).unwrap();
+        let err = max_relative_error(&ours, &floats(&reference["v_homog"]));
         assert!(err < 1e-6, "{protocol}: {err:e}");
         assert_eq!(json["triangles"], 3200);
     }
@@ -50,14 +54,15 @@ fn forward_on_eidors_mesh_matches_eidors() {
 
 #[test]
 fn forward_default_sensor_prints_120_values_in_json_and_csv() {
-    let json = stdout_json(&eitskin(&["forward", "--triangles", "800"]));
+    let dir = scratch("forward");
+    let json = stdout_json(&dir.eitskin(&["forward", "--triangles", "800"]));
     assert_eq!(json["measurements"].as_array().unwrap().len(), 120);
     assert!(json["protocol"].as_str().unwrap().contains("two-terminal"));
-    let values = common::floats(&json["measurements"]);
+    let values = floats(&json["measurements"]);
     // A press (lower conductivity) raises every two-terminal transfer impedance.
-    let pressed = stdout_json(&eitskin(&["forward", "--triangles", "800", "--inclusion", "-50,20,10,0.2"]));
-    assert!(common::floats(&pressed["measurements"]).iter().zip(&values).all(|(p, v)| p >= v));
-    let csv = eitskin(&["forward", "--triangles", "800", "--format", "csv", "--protocol", "adjacent"]);
+    let pressed = stdout_json(&dir.eitskin(&["forward", "--triangles", "800", "--inclusion", "-50,20,10,0.2"]));
+    assert!(floats(&pressed["measurements"]).iter().zip(&values).all(|(p, v)| p >= v));
+    let csv = dir.eitskin(&["forward", "--triangles", "800", "--format", "csv", "--protocol", "adjacent"]);
     let text = String::from_utf8(csv.stdout).unwrap();
     assert_eq!(text.lines().count(), 1 + 208);
     assert!(text.starts_with("measurement,value_ohm\n1,"));
@@ -67,18 +72,19 @@ fn forward_default_sensor_prints_120_values_in_json_and_csv() {
 fn mesh_writes_json_that_forward_reads_back_and_a_png() {
     let dir = scratch("mesh");
     let out_json = dir.join("paper.json");
-    let out = eitskin(&["mesh", "--triangles", "1500", "--out", out_json.to_str().unwrap()]);
+    let out = dir.eitskin(&["mesh", "--triangles", "1500", "--out", out_json.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let png = std::fs::read(dir.join("paper.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
-    let fresh = stdout_json(&eitskin(&["forward", "--triangles", "1500"]));
-    let loaded = stdout_json(&eitskin(&["forward", "--mesh", out_json.to_str().unwrap()]));
+    let fresh = stdout_json(&dir.eitskin(&["forward", "--triangles", "1500"]));
+    let loaded = stdout_json(&dir.eitskin(&["forward", "--mesh", out_json.to_str().unwrap()]));
     assert_eq!(fresh["measurements"], loaded["measurements"], "the same mesh gives the same values");
 }
 
 #[test]
 fn bench_json_has_every_stage() {
-    let json = stdout_json(&eitskin(&["bench", "--triangles", "500", "--repeat", "3", "--json"]));
+    let dir = scratch("bench");
+    let json = stdout_json(&dir.eitskin(&["bench", "--triangles", "500", "--repeat", "3", "--json"]));
     for stage in [
         "mesh",
         "model",
@@ -98,11 +104,11 @@ fn bench_json_has_every_stage() {
 
 #[test]
 fn spec_prints_toml_that_reads_back() {
-    let out = eitskin(&["spec"]);
-    assert!(out.status.success());
     let dir = scratch("spec");
+    let out = dir.eitskin(&["spec"]);
+    assert!(out.status.success());
     std::fs::write(dir.join("paper.toml"), &out.stdout).unwrap();
-    let again = eitskin(&["spec", dir.join("paper.toml").to_str().unwrap()]);
+    let again = dir.eitskin(&["spec", dir.join("paper.toml").to_str().unwrap()]);
     assert_eq!(out.stdout, again.stdout);
 }
 
@@ -111,7 +117,7 @@ fn bad_input_fails_with_a_message_that_says_where() {
     let dir = scratch("bad");
     let spec = dir.join("bad.toml");
     std::fs::write(&spec, EIDORS_SQUARE.replace("contact_impedance = 0.01", "contact_impedance = 0")).unwrap();
-    let out = eitskin(&["forward", spec.to_str().unwrap()]);
+    let out = dir.eitskin(&["forward", spec.to_str().unwrap()]);
     assert!(!out.status.success());
     // Each part of a message once: the file, what failed, and the cause.
     assert_eq!(
@@ -121,12 +127,12 @@ fn bad_input_fails_with_a_message_that_says_where() {
             spec.display()
         )
     );
-    let out = eitskin(&["forward", "--inclusion", "1,2,3"]);
+    let out = dir.eitskin(&["forward", "--inclusion", "1,2,3"]);
     assert_eq!(
         String::from_utf8_lossy(&out.stderr),
         "error: --inclusion \"1,2,3\": expected four numbers x,y,r,sigma, got 3\n"
     );
-    let out = eitskin(&["forward", "--mesh", "/nonexistent/mesh.json"]);
+    let out = dir.eitskin(&["forward", "--mesh", "/nonexistent/mesh.json"]);
     assert_eq!(
         String::from_utf8_lossy(&out.stderr),
         "error: cannot read /nonexistent/mesh.json: No such file or directory (os error 2)\n"
@@ -138,10 +144,10 @@ fn image_finds_a_simulated_press_from_forward_output() {
     let dir = scratch("image");
     let (reference, frame, png) = (dir.join("ref.json"), dir.join("frame.csv"), dir.join("image.png"));
     // Both frames from the same finer "truth" mesh; the image is reconstructed on a coarser one.
-    std::fs::write(&reference, eitskin(&["forward", "--triangles", "3000"]).stdout).unwrap();
-    let pressed = eitskin(&["forward", "--triangles", "3000", "--format", "csv", "--inclusion", "40,-30,10,0.5"]);
+    std::fs::write(&reference, dir.eitskin(&["forward", "--triangles", "3000"]).stdout).unwrap();
+    let pressed = dir.eitskin(&["forward", "--triangles", "3000", "--format", "csv", "--inclusion", "40,-30,10,0.5"]);
     std::fs::write(&frame, pressed.stdout).unwrap();
-    let out = eitskin(&[
+    let out = dir.eitskin(&[
         "image",
         "--triangles",
         "1500",
@@ -164,7 +170,7 @@ fn image_finds_a_simulated_press_from_forward_output() {
 #[test]
 fn sensitivity_writes_the_profile_and_map() {
     let dir = scratch("sensitivity");
-    let out = eitskin(&["sensitivity", "--out", dir.to_str().unwrap(), "--refine", "2", "--map", "3"]);
+    let out = dir.eitskin(&["sensitivity", "--out", dir.to_str().unwrap(), "--refine", "2", "--map", "3"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let csv = std::fs::read_to_string(dir.join("profile.csv")).unwrap();
     let peaks: Vec<f64> = csv.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();

@@ -1,16 +1,16 @@
-//! Issue 5, the live viewer, in a real browser: `eitskin run --viewer` on the virtual sensor,
+//! The live viewer, in a real browser: `eitskin run --viewer` on the virtual sensor,
 //! pressed hard at one place, opened in headless Chromium driven through chromedriver's WebDriver
 //! HTTP API. The page connects, its heat map changes (and turns to the press colour where the
 //! press is) when the sheet is pressed, the touch's unit and force it shows are the stdout line's
 //! for the same frame, and its button re-takes the reference. A screenshot is left in
-//! `target/issue5_viewer.png`.
+//! `target/viewer_browser.png`.
 //!
 //! Needs `chromium` and `chromedriver` on the PATH (Debian: `apt-get install chromium
 //! chromium-driver`; `.ci/run` installs them); without them the test fails and says so.
 
 mod binary;
 
-use binary::{cache, scratch};
+use binary::{scratch, Scratch};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
@@ -168,11 +168,11 @@ fn free_port() -> u16 {
 }
 
 /// A calibration made as a user makes one: `eitskin study`, then `eitskin calibrate`.
-fn calibration(dir: &Path) -> PathBuf {
+fn calibration(dir: &Scratch) -> PathBuf {
     let study = dir.join("study");
-    let status = Command::new(bin())
+    let status = dir
+        .command()
         .args(["study", "--out", study.to_str().unwrap(), "--validation", "20", "--repeats", "2"])
-        .env("EITSKIN_CACHE", cache())
         .stdout(Stdio::null())
         .status()
         .unwrap();
@@ -180,10 +180,10 @@ fn calibration(dir: &Path) -> PathBuf {
     let file = dir.join("calibration.json");
     let samples = study.join("calibration_frames.csv");
     let reference = study.join("reference.csv");
-    let status = Command::new(bin())
+    let status = dir
+        .command()
         .args(["calibrate", "--samples", samples.to_str().unwrap(), "--reference", reference.to_str().unwrap()])
         .args(["--out", file.to_str().unwrap()])
-        .env("EITSKIN_CACHE", cache())
         .stdout(Stdio::null())
         .status()
         .unwrap();
@@ -223,10 +223,10 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
 
     // The sensor, with its viewer on a free port.
     let source = format!("sim:{}", script.display());
-    let mut run = Command::new(bin())
+    let mut run = dir
+        .command()
         .args(["run", "--source", &source, "--viewer", "127.0.0.1:0", "--triangles", "1500", "--rate", "10"])
         .args(["--frames", "3000", "--calibration", calibration.to_str().unwrap(), "--fit"])
-        .env("EITSKIN_CACHE", cache())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -249,7 +249,8 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
 
     // The browser, started meanwhile.
     let driver_port = free_port();
-    let profile = scratch("profile");
+    // In the test's folder, which outlives `guard`: the browser is stopped before it is removed.
+    let profile = dir.join("profile");
     guard.children.push(
         Command::new(&chromedriver)
             .arg(format!("--port={driver_port}"))
@@ -348,7 +349,7 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
     let png = base64(browser.call("GET", "/screenshot", None).as_str().expect("a base64 screenshot"));
     assert!(png.starts_with(b"\x89PNG"), "the screenshot is not a PNG");
     let target = Path::new(bin()).ancestors().nth(2).expect("the binary lies in target/PROFILE/");
-    std::fs::write(target.join("issue5_viewer.png"), png).unwrap();
+    std::fs::write(target.join("viewer_browser.png"), png).unwrap();
 
     // The button re-takes the reference: stdout shows referencing frames again after the click.
     let clicked_after = lines.lock().unwrap().iter().filter_map(|l| l["seq"].as_u64()).max().unwrap_or(0);

@@ -4,12 +4,12 @@
 
 mod binary;
 
-use binary::{eitskin, ok, scratch};
+use binary::{ok, scratch};
 
 #[test]
 fn study_on_the_default_sensor_meets_the_papers_bars() {
     let dir = scratch("run");
-    ok(eitskin(&["study", "--out", dir.to_str().unwrap()]));
+    ok(dir.eitskin(&["study", "--out", dir.to_str().unwrap()]));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("study.json")).unwrap()).unwrap();
     for png in ["fig3c_location.png", "fig4b_areas.png", "fig12_1.png", "fig12_5.png"] {
@@ -46,7 +46,7 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
             rms(0)
         );
     }
-    // The R² bar, on the fitted press's drop: every area ≥ 0.95. (On the image peak
+    // The acceptance bar for R², on the fitted press's drop: every area ≥ 0.95. (On the image peak
     // the centre area falls short at this noise; the report shows both.)
     let by = |grid: u64, strength: &str| {
         methods
@@ -63,7 +63,7 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
     assert!((a + 0.9).abs() < 0.05 && (c - 0.9).abs() < 0.05 && (b / 5.54 - 1.0).abs() < 0.05, "{gel}");
     let fitted_position = json["mean_fit_position_error_m"].as_f64().unwrap();
     assert!(fitted_position < 0.5 * position, "fitted {fitted_position} m, image {position} m");
-    // The bar: a continuous calibration at most half the pseudo-array's RMS error.
+    // The acceptance bar for RMS: a continuous calibration at most half the pseudo-array's RMS error.
     let continuous = (0..methods.len()).filter(|&k| methods[k]["grid"] == 1);
     let best = continuous.map(rms).fold(f64::INFINITY, f64::min);
     assert!(best <= 0.5 * rms(0), "best continuous method {best} N against pseudo-array {} N", rms(0));
@@ -78,7 +78,7 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
         (1, "fitted drop", "fitted-drop"),
     ] {
         let study = by(grid, strength);
-        ok(eitskin(&[
+        ok(dir.eitskin(&[
             "calibrate",
             "--samples",
             &path("calibration_frames.csv"),
@@ -96,7 +96,7 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
         for (ours, theirs) in file["curves"].as_array().unwrap().iter().zip(study["curves"].as_array().unwrap()) {
             assert_eq!((&ours["a"], &ours["b"], &ours["c"]), (&theirs["a"], &theirs["b_newton"], &theirs["c"]));
         }
-        let text = ok(eitskin(&[
+        let text = ok(dir.eitskin(&[
             "evaluate",
             "--calibration",
             cal.to_str().unwrap(),
@@ -112,9 +112,9 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
 
     // The same calibration is refused for a sensor with other electrodes.
     let spec = dir.join("other.toml");
-    let paper = ok(eitskin(&["spec"]));
+    let paper = ok(dir.eitskin(&["spec"]));
     std::fs::write(&spec, paper.replace("width = 10.0", "width = 12.0")).unwrap();
-    let out = eitskin(&[
+    let out = dir.eitskin(&[
         "evaluate",
         spec.to_str().unwrap(),
         "--calibration",

@@ -1,8 +1,6 @@
-//! Issue 5: frame codecs for serial byte streams. Every kind of bad frame is reported with the
+//! Frame codecs for serial byte streams. Every kind of bad frame is reported with the
 //! right variant and place, the good frames around it come out unchanged and in order, and the
 //! output does not depend on how the stream is cut into chunks. Real OpenEIT captures included.
-
-mod common;
 
 use eitskin_io::codec::{crc16, encode, BadFrame, BinaryDecoder, Decoder, Event, Frame, LinesDecoder};
 
@@ -55,7 +53,7 @@ fn bad(bad: BadFrame) -> Event {
 }
 
 #[test]
-fn issue5_lines_every_bad_frame_is_reported_where_it_is() {
+fn lines_every_bad_frame_is_reported_where_it_is() {
     let long = format!("{}\n", "1, ".repeat(40));
     let stream = [
         "magnitudes: 1.0, 2.0, 3.0,\r\n", // 0: good, OpenEIT style
@@ -92,7 +90,7 @@ fn issue5_lines_every_bad_frame_is_reported_where_it_is() {
 }
 
 #[test]
-fn issue5_lines_a_frame_split_across_chunks_is_whole() {
+fn lines_a_frame_split_across_chunks_is_whole() {
     let mut decoder = LinesDecoder::new(4);
     let mut out = Vec::new();
     for chunk in ["magnit", "udes:  1.2", "5 ,  2", ".5 , 3.75", " , 4\r", "\n"] {
@@ -102,7 +100,7 @@ fn issue5_lines_a_frame_split_across_chunks_is_whole() {
 }
 
 #[test]
-fn issue5_messages_are_sentences_with_the_numbers() {
+fn messages_are_sentences_with_the_numbers() {
     let message = BadFrame::WrongCount { seq: 12, expected: 120, got: 119 }.to_string();
     assert!(message.starts_with("frame 12 has 119 values, expected 120; maybe the protocol is adjacent"), "{message}");
     let message = BadFrame::Gap { seq: 9, missing: 2 }.to_string();
@@ -130,8 +128,8 @@ const OPENEIT: [(&str, usize, usize, Torn); 10] = [
 ];
 
 #[test]
-fn issue5_openeit_captures_decode_whole_and_in_chunks() {
-    let dir = common::shared().join("data/openeit");
+fn openeit_captures_decode_whole_and_in_chunks() {
+    let dir = eitskin_testdata::shared().join("data/openeit");
     for (seed, (file, expected, frames, torn)) in OPENEIT.into_iter().enumerate() {
         let path = dir.join(file);
         let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -169,12 +167,12 @@ fn issue5_openeit_captures_decode_whole_and_in_chunks() {
 }
 
 #[test]
-fn issue5_crc_check_value() {
+fn crc_check_value() {
     assert_eq!(crc16(b"123456789"), 0x29B1);
 }
 
 #[test]
-fn issue5_binary_every_bad_frame_is_reported_where_it_is() {
+fn binary_every_bad_frame_is_reported_where_it_is() {
     let v = [1.5f32, -2.25, 1e-3];
     let as_f64 = |values: &[f32]| values.iter().map(|&x| f64::from(x)).collect::<Vec<f64>>();
     let mut stream = b"\x00\xA5junk".to_vec(); // the port opened mid-stream
@@ -215,7 +213,7 @@ fn issue5_binary_every_bad_frame_is_reported_where_it_is() {
 }
 
 #[test]
-fn issue5_binary_nothing_accepted_is_lost_in_noise() {
+fn binary_nothing_accepted_is_lost_in_noise() {
     // 200 frames with random values, random noise between some of them and a few frames dropped:
     // every frame sent comes out once, in order, with its values exactly.
     let mut rng = XorShift(0x5eed);

@@ -1,12 +1,13 @@
-//! Issue 3: on pyEIT's mesh with point electrodes, our Jacobian and one-step images (plain and
+//! On pyEIT's mesh with point electrodes, our Jacobian and one-step images (plain and
 //! normalised differences) match pyEIT's to 1e-8 relative. pyEIT's J carries the opposite sign
 //! and its "lm" prior is λ·diag(JᵀJ): our NOSER with exponent 1 and hyperparameter √λ.
 
 mod common;
 
-use common::{floats, json, max_relative_error};
+use common::{floats, json};
 use eitskin::inverse::{normalize_jacobian, reconstruction_matrix};
 use eitskin::{ElectrodeModel, ForwardModel, Mesh, Prior, Protocol};
+use eitskin_testdata::max_relative_error;
 
 fn model() -> (ForwardModel, serde_json::Value) {
     let data = json("reference/pyeit/square16_4k.json");

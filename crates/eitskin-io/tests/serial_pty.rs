@@ -1,4 +1,4 @@
-//! Issue 5: the serial source over real pseudo-terminals, no hardware. A board is played by the
+//! The serial source over real pseudo-terminals, no hardware. A board is played by the
 //! master side of a pty pair and reached through a symlink, as udev's `/dev/serial/by-id/…` names
 //! are. Every good frame comes through in order with its values, every bad one as the right
 //! [`BadFrame`]; pulling the board (closing the pty) is reported, the half frame before it is
@@ -31,24 +31,6 @@ fn expected(event: &SourceEvent) -> Expected {
         SourceEvent::Bad(bad) => Expected::Bad(bad.clone()),
         SourceEvent::Disconnected { path, .. } => Expected::Disconnected { path: path.clone() },
         SourceEvent::Reconnected { path, .. } => Expected::Reconnected { path: path.clone() },
-    }
-}
-
-/// A temporary directory, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let dir = std::env::temp_dir().join(format!("eitskin-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 
@@ -119,8 +101,8 @@ fn stream(count: u64) -> (Vec<String>, Vec<Expected>) {
 
 #[test]
 fn frames_survive_an_unplug_and_a_new_board_behind_the_same_name() {
-    let dir = TempDir::new("issue5-serial");
-    let link = dir.0.join("ttyEIT");
+    let dir = tempfile::Builder::new().prefix("eitskin-serial-").tempdir().expect("a temporary folder");
+    let link = dir.path().join("ttyEIT");
     let (mut master, slave) = board();
     point(&link, &slave);
     let mut source = SerialSource::open(&link, 115_200, || Box::new(LinesDecoder::new(4))).unwrap();

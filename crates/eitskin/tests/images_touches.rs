@@ -1,4 +1,4 @@
-//! Issue 3: images and touches on eitskin's own meshes, with data simulated on a finer mesh
+//! Images and touches on eitskin's own meshes, with data simulated on a finer mesh
 //! than the one reconstructed on (no inverse crime).
 
 use eitskin::conductivity::{with_inclusions, Inclusion};
