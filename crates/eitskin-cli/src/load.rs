@@ -52,7 +52,7 @@ pub fn chain(spec: &SensorSpec, strength: Strength, fit: bool) -> Result<Chain> 
     let map = if strength.needs_contrast_map() {
         let map_params = ContrastMapParams::default();
         Some(match cache_dir() {
-            Some(dir) => eitskin_io::load_or_build_contrast_map(&dir, spec, &params, &map_params)?.0,
+            Some(dir) => eitskin_io::load_or_build_contrast_map(&dir, spec, &recon, &map_params)?.0,
             None => {
                 ContrastMap::new(&spec.forward_model()?, spec.conductivity, &recon, spec.outline.bounds(), &map_params)?
             }

@@ -24,7 +24,7 @@ use eitskin::pseudo_array::PseudoArray;
 use eitskin::SensorSpec;
 use eitskin_io::recorder::{Header, Recorder};
 use eitskin_io::replay::Speed;
-use eitskin_io::source::{Acquired, Source, SourceError, SourceSettings, SourceSpec};
+use eitskin_io::source::{Acquired, Codec, Source, SourceError, SourceSettings, SourceSpec};
 use eitskin_io::stream::{self, Counters, Event, FrameLine, Recorded, Start};
 
 use crate::load;
@@ -77,7 +77,7 @@ pub struct Args {
     seed: u64,
     /// How a serial board (or a capture file of its bytes) encodes frames: `lines` (text) or
     /// `binary` (framed, with counter and CRC).
-    #[arg(long, value_enum, default_value_t = Codec::Lines)]
+    #[arg(long, default_value_t = Codec::Lines)]
     codec: Codec,
     /// Record every frame and its touches to this file (append-only JSON lines, crash-safe).
     #[arg(long)]
@@ -87,24 +87,6 @@ pub struct Args {
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = viewer::DEFAULT_ADDR,
           value_parser = viewer::parse_addr)]
     viewer: Option<SocketAddr>,
-}
-
-/// The frame codec of a serial source or a capture file.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum Codec {
-    /// One frame per text line of numbers.
-    Lines,
-    /// Sync bytes, counter, count, f32 values, CRC-16 (see the README).
-    Binary,
-}
-
-impl From<Codec> for eitskin_io::source::Codec {
-    fn from(codec: Codec) -> eitskin_io::source::Codec {
-        match codec {
-            Codec::Lines => eitskin_io::source::Codec::Lines,
-            Codec::Binary => eitskin_io::source::Codec::Binary,
-        }
-    }
 }
 
 /// Runs `eitskin run`.
@@ -144,7 +126,7 @@ pub fn run(args: Args) -> Result<()> {
         rate: args.rate,
         speed: if args.fast || args.rate <= 0.0 { Speed::AsFastAsPossible } else { Speed::Recorded },
         frames: args.frames,
-        codec: args.codec.into(),
+        codec: args.codec,
         seed: args.seed,
     };
     let (items, acquisition) = start(Source::open(&args.source, &spec, &settings)?);

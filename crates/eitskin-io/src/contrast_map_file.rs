@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use eitskin::contrast_map::{ContrastMap, ContrastMapParams, ContrastTable};
-use eitskin::{ReconstructorParams, SensorSpec};
+use eitskin::{Reconstructor, ReconstructorParams, SensorSpec};
 
 use crate::reconstructor_file::{cache_file, cached, key_of, Reader};
 use crate::Error;
@@ -25,23 +25,30 @@ pub fn contrast_map_path(
     recon: &ReconstructorParams,
     params: &ContrastMapParams,
 ) -> Result<PathBuf, Error> {
-    Ok(cache_file(dir, "contrast-map", &key_of(spec, &format!("contrast map {recon:?} {params:?}"))?))
+    Ok(cache_file(dir, "contrast-map", &contrast_map_key(spec, recon, params)?))
 }
 
-/// The cached contrast map if `dir` holds a valid one, else builds it (with the reconstructor
-/// that `recon` describes, from the same cache), saves it (best effort) and returns it; the
-/// flag says whether it came from the cache.
-pub fn load_or_build_contrast_map(
-    dir: &Path,
+fn contrast_map_key(
     spec: &SensorSpec,
     recon: &ReconstructorParams,
     params: &ContrastMapParams,
+) -> Result<[u8; 32], Error> {
+    key_of(spec, &format!("contrast map {recon:?} {params:?}"))
+}
+
+/// The cached contrast map if `dir` holds a valid one, else builds it through `recon` (the
+/// sensor's reconstructor), saves it (best effort) and returns it; the flag says whether it
+/// came from the cache.
+pub fn load_or_build_contrast_map(
+    dir: &Path,
+    spec: &SensorSpec,
+    recon: &Reconstructor,
+    params: &ContrastMapParams,
 ) -> Result<(ContrastMap, bool), Error> {
-    let key = key_of(spec, &format!("contrast map {recon:?} {params:?}"))?;
+    let key = contrast_map_key(spec, recon.params(), params)?;
     let build = || {
-        let reconstructor = crate::load_or_build(dir, spec, recon)?.0;
         let model = spec.forward_model()?;
-        Ok(ContrastMap::new(&model, spec.conductivity, &reconstructor, spec.outline.bounds(), params)?)
+        Ok(ContrastMap::new(&model, spec.conductivity, recon, spec.outline.bounds(), params)?)
     };
     cached(&cache_file(dir, "contrast-map", &key), &key, decode_contrast_map, build, encode_contrast_map)
 }
@@ -92,15 +99,16 @@ mod tests {
         let params = ContrastMapParams { points: 4, ..ContrastMapParams::default() };
         let folder = tempfile::Builder::new().prefix("eitskin-contrast-cache-").tempdir().unwrap();
         let dir = folder.path();
-        let (built, hit) = load_or_build_contrast_map(dir, &spec, &recon, &params).unwrap();
+        let reconstructor = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &recon).unwrap();
+        let (built, hit) = load_or_build_contrast_map(dir, &spec, &reconstructor, &params).unwrap();
         assert!(!hit);
-        let (loaded, hit) = load_or_build_contrast_map(dir, &spec, &recon, &params).unwrap();
+        let (loaded, hit) = load_or_build_contrast_map(dir, &spec, &reconstructor, &params).unwrap();
         assert!(hit, "the second start must come from the cache");
         assert_eq!(loaded, built);
         let path = contrast_map_path(dir, &spec, &recon, &params).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         std::fs::write(&path, &bytes[..bytes.len() - 3]).unwrap();
-        assert!(!load_or_build_contrast_map(dir, &spec, &recon, &params).unwrap().1, "a torn file is rebuilt");
+        assert!(!load_or_build_contrast_map(dir, &spec, &reconstructor, &params).unwrap().1, "a torn file is rebuilt");
         let finer = ContrastMapParams { points: 5, ..params };
         assert_ne!(path, contrast_map_path(dir, &spec, &recon, &finer).unwrap());
     }

@@ -136,6 +136,28 @@ pub enum Codec {
     Binary,
 }
 
+impl std::str::FromStr for Codec {
+    type Err = String;
+
+    /// `lines` or `binary`, as on the command line.
+    fn from_str(text: &str) -> Result<Codec, String> {
+        match text {
+            "lines" => Ok(Codec::Lines),
+            "binary" => Ok(Codec::Binary),
+            _ => Err(format!("{text:?} is not a codec; use `lines` or `binary`")),
+        }
+    }
+}
+
+impl std::fmt::Display for Codec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Codec::Lines => "lines",
+            Codec::Binary => "binary",
+        })
+    }
+}
+
 impl Codec {
     /// A fresh decoder for frames of `measurements` values.
     pub fn decoder(self, measurements: usize) -> Box<dyn Decoder + Send> {
