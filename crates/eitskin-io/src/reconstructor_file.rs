@@ -1,25 +1,31 @@
-//! The reconstructor cache: a built [`Reconstructor`] saved to a file named by a hash of
-//! everything it depends on (spec, protocol, mesh settings, prior, λ, normalisation, raster,
-//! and this crate's version), so a second start loads it instead of rebuilding.
+//! The reconstructor cache: the forward model's [`Linearisation`] (Jacobian, background
+//! measurements, mesh) saved to a file named by a hash of everything it depends on (spec,
+//! protocol, mesh settings and this crate's version), so a second start loads it instead of
+//! solving the forward model again. The reconstructor itself (prior, λ, normalisation,
+//! channels, raster) is derived from it in milliseconds, so one file serves them all.
 //!
-//! File layout (little-endian): `EITSKINR`, format version (u32), the 32-byte key, the
-//! parameters (prior tag u8, exponent f64, λ f64, normalised u8), raster nx, ny (u32),
-//! bounds (4 × f64), one byte per pixel (inside or not), measurements (u32), then the matrix
-//! (pixels × measurements f32, column-major). A file that does not match is rebuilt.
+//! File layout (little-endian): `EITSKINR`, format version (u32), the 32-byte key, node,
+//! triangle, electrode and measurement counts (u32), the nodes (2 × f64 each), the triangles
+//! (3 × u32 each), per electrode its node count and nodes (u32), the background
+//! measurements (f64), then the Jacobian (measurements × triangles f64, column-major). A file
+//! that does not match is rebuilt.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use eitskin::{Image, Prior, Reconstructor, ReconstructorParams, SensorSpec};
+use eitskin::inverse::{Channels, Linearisation};
+use eitskin::{Mesh, Reconstructor, ReconstructorParams, SensorSpec};
 use sha2::{Digest, Sha256};
 
 use crate::Error;
 
 const MAGIC: &[u8; 8] = b"EITSKINR";
-const FORMAT: u32 = 1;
+const FORMAT: u32 = 2;
 
-/// The cache key: SHA-256 of the spec, protocol patterns, mesh settings and parameters.
-pub fn cache_key(spec: &SensorSpec, params: &ReconstructorParams) -> Result<[u8; 32], Error> {
-    key_of(spec, &format!("{params:?}"))
+/// The cache key: SHA-256 of the spec, its protocol patterns and mesh settings (the
+/// reconstructor's parameters are not in it: they are derived after loading).
+pub fn cache_key(spec: &SensorSpec) -> Result<[u8; 32], Error> {
+    key_of(spec, "linearisation")
 }
 
 /// SHA-256 of this crate's version, the spec, its protocol patterns, its mesh settings and `extra`.
@@ -33,24 +39,25 @@ pub(crate) fn key_of(spec: &SensorSpec, extra: &str) -> Result<[u8; 32], Error> 
     Ok(hash.finalize().into())
 }
 
-/// The file a reconstructor for `spec` and `params` is cached in, under `dir`.
-pub fn cache_path(dir: &Path, spec: &SensorSpec, params: &ReconstructorParams) -> Result<PathBuf, Error> {
-    Ok(cache_file(dir, "reconstructor", &cache_key(spec, params)?))
+/// The file the linearisation for `spec` is cached in, under `dir`.
+pub fn cache_path(dir: &Path, spec: &SensorSpec) -> Result<PathBuf, Error> {
+    Ok(cache_file(dir, "linearisation", &cache_key(spec)?))
 }
 
-/// The cached reconstructor if `dir` holds a valid one, else builds it, saves it (best effort)
-/// and returns it; the flag says whether it came from the cache.
+/// The reconstructor for `spec` and `params` (every channel used), its linearisation loaded
+/// from `dir` if there, else computed and saved (best effort); the flag says whether it came
+/// from the cache.
 pub fn load_or_build(
     dir: &Path,
     spec: &SensorSpec,
     params: &ReconstructorParams,
 ) -> Result<(Reconstructor, bool), Error> {
-    let key = cache_key(spec, params)?;
-    let build = || {
-        let model = spec.forward_model()?;
-        Ok(Reconstructor::new(&model, spec.conductivity, params)?)
-    };
-    cached(&cache_file(dir, "reconstructor", &key), &key, decode_reconstructor, build, encode_reconstructor)
+    let key = cache_key(spec)?;
+    let build = || Ok(Linearisation::new(&spec.forward_model()?, spec.conductivity)?);
+    let (linearisation, hit) =
+        cached(&cache_file(dir, "linearisation", &key), &key, decode_linearisation, build, encode_linearisation)?;
+    let channels = Channels::all(linearisation.measurements());
+    Ok((Reconstructor::from_linearisation(Arc::new(linearisation), params, channels)?, hit))
 }
 
 /// The cache file `STEM-KEY.bin` under `dir` (the key's first 12 bytes in hex).
@@ -79,61 +86,65 @@ pub(crate) fn cached<T>(
 }
 
 /// The bytes of a cache file.
-pub fn encode_reconstructor(recon: &Reconstructor, key: &[u8; 32]) -> Vec<u8> {
-    let p = recon.params();
-    let image = recon.blank_image();
-    let (tag, exponent) = match p.prior {
-        Prior::Noser { exponent } => (0u8, exponent),
-        Prior::Tikhonov => (1, 0.0),
-        Prior::Laplace => (2, 0.0),
-    };
-    let mut out = Vec::with_capacity(128 + image.inside.len() + 4 * recon.matrix().len());
+pub fn encode_linearisation(lin: &Linearisation, key: &[u8; 32]) -> Vec<u8> {
+    let mesh = lin.mesh();
+    let jacobian = lin.jacobian();
+    let mut out = Vec::with_capacity(64 + 8 * (jacobian.nrows() * jacobian.ncols() + 2 * mesh.nodes().len()));
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&FORMAT.to_le_bytes());
     out.extend_from_slice(key);
-    out.push(tag);
-    out.extend_from_slice(&exponent.to_le_bytes());
-    out.extend_from_slice(&p.hyperparameter.to_le_bytes());
-    out.push(u8::from(p.normalized));
-    for n in image.size {
+    let counts = [mesh.nodes().len(), mesh.triangles().len(), mesh.electrodes().len(), lin.measurements()];
+    for n in counts {
         out.extend_from_slice(&(n as u32).to_le_bytes());
     }
-    for c in image.bounds.iter().flatten() {
-        out.extend_from_slice(&c.to_le_bytes());
-    }
-    out.extend(image.inside.iter().map(|&b| u8::from(b)));
-    out.extend_from_slice(&(recon.measurements() as u32).to_le_bytes());
-    for x in recon.matrix() {
+    for x in mesh.nodes().iter().flatten() {
         out.extend_from_slice(&x.to_le_bytes());
+    }
+    for n in mesh.triangles().iter().flatten() {
+        out.extend_from_slice(&(*n as u32).to_le_bytes());
+    }
+    for electrode in mesh.electrodes() {
+        out.extend_from_slice(&(electrode.len() as u32).to_le_bytes());
+        for n in electrode {
+            out.extend_from_slice(&(*n as u32).to_le_bytes());
+        }
+    }
+    for v in lin.background() {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for k in 0..jacobian.ncols() {
+        for x in jacobian.col(k).iter() {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
     }
     out
 }
 
-/// A reconstructor from cache bytes, or `None` if they are not a complete file for `key`.
-pub fn decode_reconstructor(bytes: &[u8], key: &[u8; 32]) -> Option<Reconstructor> {
+/// A linearisation from cache bytes, or `None` if they are not a complete file for `key`.
+pub fn decode_linearisation(bytes: &[u8], key: &[u8; 32]) -> Option<Linearisation> {
     let mut r = Reader(bytes);
     if r.take(8)? != MAGIC || r.u32()? != FORMAT || r.take(32)? != key {
         return None;
     }
-    let (tag, exponent, hyperparameter, normalized) = (r.take(1)?[0], r.f64()?, r.f64()?, r.take(1)?[0] == 1);
-    let prior = match tag {
-        0 => Prior::Noser { exponent },
-        1 => Prior::Tikhonov,
-        2 => Prior::Laplace,
-        _ => return None,
-    };
-    let size = [r.u32()? as usize, r.u32()? as usize];
-    let bounds = [[r.f64()?, r.f64()?], [r.f64()?, r.f64()?]];
-    let pixels = size[0].checked_mul(size[1])?;
-    let inside = r.take(pixels)?.iter().map(|&b| b == 1).collect();
-    let measurements = r.u32()? as usize;
-    let raw = r.take(pixels.checked_mul(measurements)?.checked_mul(4)?)?;
+    let [nodes, triangles, electrodes, measurements] = [r.u32()?, r.u32()?, r.u32()?, r.u32()?].map(|n| n as usize);
+    let coordinates = r.f64s(nodes.checked_mul(2)?)?;
+    let nodes: Vec<[f64; 2]> = coordinates.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
+    let mut corners = Vec::with_capacity(triangles.min(1 << 24));
+    for _ in 0..triangles {
+        corners.push([r.u32()? as usize, r.u32()? as usize, r.u32()? as usize]);
+    }
+    let mut sets = Vec::with_capacity(electrodes.min(1 << 16));
+    for _ in 0..electrodes {
+        let count = r.u32()? as usize;
+        sets.push((0..count).map(|_| r.u32().map(|n| n as usize)).collect::<Option<Vec<_>>>()?);
+    }
+    let background = r.f64s(measurements)?;
+    let values = r.f64s(measurements.checked_mul(triangles)?)?;
     if !r.0.is_empty() {
         return None;
     }
-    let matrix = raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
-    let params = ReconstructorParams { prior, hyperparameter, normalized, raster: size };
-    Reconstructor::from_parts(params, Image::new(size, bounds, inside), matrix)
+    let mesh = Mesh::new(nodes, corners, sets).ok()?;
+    Linearisation::from_parts(&values, background, mesh)
 }
 
 /// Reads little-endian values off the front of a byte slice; `None` once it runs out.
@@ -164,7 +175,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_saved_reconstructor_loads_back_equal_and_keys_differ_by_input() {
+    fn a_saved_linearisation_loads_back_equal_and_keys_differ_by_input() {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 400;
         let params = ReconstructorParams { raster: [16, 16], ..ReconstructorParams::default() };
@@ -172,25 +183,22 @@ mod tests {
         let dir = folder.path().join("cache"); // made by the first save, as a user's cache folder is
         let (built, hit) = load_or_build(&dir, &spec, &params).unwrap();
         assert!(!hit);
-        let (loaded, hit) = load_or_build(&dir, &spec, &params).unwrap();
-        assert!(hit, "the second start must come from the cache");
-        assert_eq!(loaded, built);
-
         let other = ReconstructorParams { hyperparameter: 0.05, ..params };
-        assert_ne!(cache_key(&spec, &params).unwrap(), cache_key(&spec, &other).unwrap());
-        spec.electrodes.contact_impedance *= 2.0;
-        assert_ne!(cache_key(&spec, &params).unwrap(), cache_key(&SensorSpec::square_hydrogel(), &params).unwrap());
+        let (loaded, hit) = load_or_build(&dir, &spec, &other).unwrap();
+        assert!(hit, "the second start must come from the cache, whatever λ it asks for");
+        assert_eq!(loaded.derive(0.1, loaded.channels().clone()).unwrap(), built);
 
-        let key = cache_key(
-            &SensorSpec {
-                mesh: eitskin::MeshParams { triangles: 400, ..Default::default() },
-                ..SensorSpec::square_hydrogel()
-            },
-            &params,
-        )
+        spec.electrodes.contact_impedance *= 2.0;
+        assert_ne!(cache_key(&spec).unwrap(), cache_key(&SensorSpec::square_hydrogel()).unwrap());
+
+        let key = cache_key(&SensorSpec {
+            mesh: eitskin::MeshParams { triangles: 400, ..Default::default() },
+            ..SensorSpec::square_hydrogel()
+        })
         .unwrap();
-        let bytes = encode_reconstructor(&built, &key);
-        assert!(decode_reconstructor(&bytes[..bytes.len() - 1], &key).is_none(), "a torn file is not loaded");
-        assert!(decode_reconstructor(&bytes, &[0; 32]).is_none(), "another key is not loaded");
+        let bytes = encode_linearisation(built.linearisation(), &key);
+        assert_eq!(decode_linearisation(&bytes, &key).as_ref(), Some(built.linearisation().as_ref()));
+        assert!(decode_linearisation(&bytes[..bytes.len() - 1], &key).is_none(), "a torn file is not loaded");
+        assert!(decode_linearisation(&bytes, &[0; 32]).is_none(), "another key is not loaded");
     }
 }

@@ -42,15 +42,48 @@ pub enum Polarity {
     Decrease,
     /// A press raises the conductivity.
     Increase,
+    /// Either: decreases and increases are both touches, each tagged with its sign.
+    Both,
 }
 
 impl Polarity {
     /// The change `change` (Δσ, in S/m) in the press direction, in S/m: positive where pressed.
+    /// For [`Polarity::Both`], the magnitude |Δσ|.
     pub fn intensity(self, change: f32) -> f64 {
         match self {
             Polarity::Decrease => -f64::from(change),
             Polarity::Increase => f64::from(change),
+            Polarity::Both => f64::from(change.abs()),
         }
+    }
+
+    /// The one-sign directions this stands for: itself, or decrease then increase for `Both`.
+    pub fn signs(self) -> [Option<Polarity>; 2] {
+        match self {
+            Polarity::Both => [Some(Polarity::Decrease), Some(Polarity::Increase)],
+            one => [Some(one), None],
+        }
+    }
+
+    /// The name in files and flags: `decrease`, `increase` or `both`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Polarity::Decrease => "decrease",
+            Polarity::Increase => "increase",
+            Polarity::Both => "both",
+        }
+    }
+}
+
+impl std::str::FromStr for Polarity {
+    type Err = String;
+
+    /// `decrease`, `increase` or `both`.
+    fn from_str(text: &str) -> Result<Polarity, String> {
+        [Polarity::Decrease, Polarity::Increase, Polarity::Both]
+            .into_iter()
+            .find(|p| p.name() == text)
+            .ok_or_else(|| format!("\"{text}\" is not a polarity: use decrease, increase or both"))
     }
 }
 
@@ -76,6 +109,8 @@ impl Default for TouchParams {
 /// One touch: a connected region of the thresholded image.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Touch {
+    /// The sign of the change: [`Polarity::Decrease`] (less conductive) or [`Polarity::Increase`].
+    pub polarity: Polarity,
     /// Centre of gravity of the region, in m.
     pub centre: [f64; 2],
     /// Strongest change in the press direction inside the region, a positive number in S/m.
@@ -134,12 +169,32 @@ pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScrat
         image.inside.len()
     );
     touches.clear();
-    let intensity = |i: usize| params.polarity.intensity(image.values[i]);
-    // The press direction as a sign, so the two passes below stay in f32 and vectorise.
-    let sign = params.polarity.intensity(1.0) as f32;
+    // The peak over the inside pixels in each press direction asked for; with both, the
+    // threshold is a fraction of the larger, so a weak opposite change is not called a touch.
+    let peak = params.polarity.signs().into_iter().flatten().map(|p| peak_toward(image, p)).fold(0.0, f64::max);
+    if peak <= 0.0 || peak < params.min_peak {
+        return;
+    }
+    for polarity in params.polarity.signs().into_iter().flatten() {
+        regions(image, params, polarity, peak, scratch, touches);
+    }
 
-    // 1. The peak over the inside pixels, at least 0 (NaN never wins a comparison). Eight
-    //    independent running maxima, so the comparisons do not wait on each other.
+    // Strongest first; equal peaks by the peak's position (top to bottom, left to right), so
+    // the order never depends on the sort.
+    touches.sort_unstable_by(|a, b| {
+        b.peak
+            .total_cmp(&a.peak)
+            .then(b.peak_at[1].total_cmp(&a.peak_at[1]))
+            .then(a.peak_at[0].total_cmp(&b.peak_at[0]))
+    });
+}
+
+/// The largest change toward `polarity` over the inside pixels, at least 0, in S/m.
+fn peak_toward(image: &Image, polarity: Polarity) -> f64 {
+    // The press direction as a sign, so the pass stays in f32 and vectorises. Eight
+    // independent running maxima, so the comparisons do not wait on each other; NaN never
+    // wins a comparison.
+    let sign = polarity.intensity(1.0) as f32;
     let mut lanes = [0.0_f32; 8];
     let values = image.values.chunks_exact(8).zip(image.inside.chunks_exact(8));
     for (v, inside) in values {
@@ -156,11 +211,22 @@ pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScrat
             lanes[0] = sign * v;
         }
     }
-    let peak = f64::from(lanes.iter().fold(0.0_f32, |m, &x| if x > m { x } else { m }));
-    if peak <= 0.0 || peak < params.min_peak {
-        return;
-    }
+    f64::from(lanes.iter().fold(0.0_f32, |m, &x| if x > m { x } else { m }))
+}
 
+/// Steps 2–4 for one press direction: the regions at or above `threshold × peak`, appended to `touches`.
+fn regions(
+    image: &Image,
+    params: &TouchParams,
+    polarity: Polarity,
+    peak: f64,
+    scratch: &mut TouchScratch,
+    touches: &mut Vec<Touch>,
+) {
+    let [nx, ny] = image.size;
+    let n = nx * ny;
+    let intensity = |i: usize| polarity.intensity(image.values[i]);
+    let sign = polarity.intensity(1.0) as f32;
     // 2. Keep the pixels at or above the threshold; a pixel with no change is never kept, so
     //    every kept weight is positive whatever the threshold.
     let cutoff = (params.threshold * peak) as f32;
@@ -194,17 +260,8 @@ pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScrat
             }
         }
         // 4. Centre of gravity and peak of the region.
-        touches.push(region.touch(image.pixel_area()));
+        touches.push(region.touch(image.pixel_area(), polarity));
     }
-
-    // Strongest first; equal peaks by the peak's position (top to bottom, left to right), so
-    // the order never depends on the sort.
-    touches.sort_unstable_by(|a, b| {
-        b.peak
-            .total_cmp(&a.peak)
-            .then(b.peak_at[1].total_cmp(&a.peak_at[1]))
-            .then(a.peak_at[0].total_cmp(&b.peak_at[0]))
-    });
 }
 
 /// Running sums over the pixels of one region.
@@ -254,8 +311,9 @@ impl Region {
     }
 
     /// The touch this region makes, with pixels of `pixel_area` m².
-    fn touch(&self, pixel_area: f64) -> Touch {
+    fn touch(&self, pixel_area: f64, polarity: Polarity) -> Touch {
         Touch {
+            polarity,
             centre: [self.moment[0] / self.weight, self.moment[1] / self.weight],
             peak: self.peak,
             peak_at: self.peak_at,
@@ -303,6 +361,28 @@ mod tests {
 
     fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
         (a[0] - b[0]).hypot(a[1] - b[1])
+    }
+
+    /// With both polarities a dip and a bump are each a touch, tagged with their sign, and a
+    /// weak opposite change under the threshold of the stronger one is not.
+    #[test]
+    fn either_sign_is_a_touch_with_both_polarities() {
+        let (dip, bump) = ([-0.04, 0.0], [0.04, 0.01]);
+        let mut image = disk();
+        add_gaussian(&mut image, dip, 0.01, -1.0);
+        add_gaussian(&mut image, bump, 0.01, 0.8);
+        let both = TouchParams { polarity: Polarity::Both, ..TouchParams::default() };
+        let touches = detect(&image, &both);
+        assert_eq!(touches.len(), 2, "{touches:?}");
+        assert_eq!((touches[0].polarity, touches[1].polarity), (Polarity::Decrease, Polarity::Increase));
+        assert!(distance(touches[0].centre, dip) < PIXEL && distance(touches[1].centre, bump) < PIXEL);
+        let increase = detect(&image, &TouchParams { polarity: Polarity::Increase, ..TouchParams::default() });
+        assert_eq!(increase.len(), 1);
+        assert_eq!(increase[0].polarity, Polarity::Increase);
+        add_gaussian(&mut image, bump, 0.01, -0.5); // now only 0.3 S/m: under 60 % of the dip
+        assert_eq!(detect(&image, &both).len(), 1);
+        assert_eq!("both".parse(), Ok(Polarity::Both));
+        assert!("up".parse::<Polarity>().is_err());
     }
 
     #[test]

@@ -14,13 +14,19 @@
 //! [`reconstruction_matrix`] gives the element-level matrix; [`Reconstructor`] projects it
 //! once onto a raster so that a frame costs one pixels × measurements product.
 
+mod channels;
+mod hyperparameter;
+mod linearisation;
 mod prior;
 mod raster;
 
+pub use channels::{noise_variance, Channels};
+pub use hyperparameter::{choose_hyperparameter, noise_figure, Hyperparameter, NOISE_FIGURE_TARGET};
+pub use linearisation::Linearisation;
 pub use prior::Prior;
 pub use raster::{Reconstructor, ReconstructorParams};
 
-use faer::{Mat, MatRef, Side};
+use faer::{Mat, MatRef};
 use thiserror::Error;
 
 use crate::mesh::Mesh;
@@ -54,6 +60,12 @@ pub enum InverseError {
         /// 1-based measurement.
         measurement: usize,
     },
+    /// Every channel is dropped (masked, missing or without a usable noise estimate).
+    #[error("no channel is left to image with: every measurement is masked, missing or not finite")]
+    NoChannels,
+    /// The automatic hyperparameter needs a diagonal prior (NOSER or Tikhonov).
+    #[error("the hyperparameter can be chosen from the noise only with a diagonal prior (NOSER or Tikhonov); give λ")]
+    AutoNeedsDiagonalPrior,
     /// Normalised differences divide by the reference, which must not be zero.
     #[error("measurement {measurement} of the reference frame is zero, so it cannot be normalised")]
     ZeroReference {
@@ -71,23 +83,11 @@ pub fn reconstruction_matrix(
     mesh: &Mesh,
 ) -> Result<Mat<f64>, InverseError> {
     check_hyperparameter(hyperparameter)?;
-    let Some(r) = prior.diagonal(jacobian) else {
-        return element_sized(jacobian, prior, hyperparameter, mesh);
-    };
-    // A triangle no measurement sees has R = 0 under NOSER: give it the smallest positive weight.
-    let floor = r.iter().copied().filter(|x| *x > 0.0).fold(f64::INFINITY, f64::min).min(f64::MAX);
-    let r_inv: Vec<f64> = r.iter().map(|&x| 1.0 / if x > 0.0 { x } else { floor }).collect();
-    let (m, k) = (jacobian.nrows(), jacobian.ncols());
-    let scaled = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] * r_inv[j]); // J R⁻¹
-    let mut system = &scaled * jacobian.transpose(); // J R⁻¹ Jᵀ
-    let lambda2 = hyperparameter * hyperparameter;
-    for i in 0..m {
-        system[(i, i)] += lambda2;
+    let white = vec![1.0; jacobian.nrows()];
+    match prior.diagonal(jacobian) {
+        Some(r) => linearisation::measurement_sized(jacobian, &r, hyperparameter, &white),
+        None => linearisation::weighted_element_sized(jacobian, prior, hyperparameter, &white, mesh),
     }
-    let llt = system.llt(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
-    // (JR⁻¹Jᵀ + λ²I)⁻¹ J R⁻¹ = RMᵀ, since both factors are symmetric.
-    let transposed = faer::linalg::solvers::Solve::solve(&llt, &scaled);
-    Ok(transposed.transpose().to_owned())
 }
 
 /// (JᵀJ + λ²R)⁻¹Jᵀ through the triangles × triangles system: for non-diagonal priors, and to
@@ -99,11 +99,7 @@ pub fn element_sized(
     mesh: &Mesh,
 ) -> Result<Mat<f64>, InverseError> {
     check_hyperparameter(hyperparameter)?;
-    let mut system = jacobian.transpose() * jacobian;
-    let r = prior.matrix(jacobian, mesh);
-    system += (hyperparameter * hyperparameter) * r;
-    let llt = system.llt(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
-    Ok(faer::linalg::solvers::Solve::solve(&llt, jacobian.transpose()))
+    linearisation::weighted_element_sized(jacobian, prior, hyperparameter, &vec![1.0; jacobian.nrows()], mesh)
 }
 
 /// Divides row m of the Jacobian by the background measurement v_m (V), for normalised
@@ -121,7 +117,7 @@ pub fn normalize_jacobian(jacobian: &mut Mat<f64>, background: &[f64]) -> Result
     Ok(())
 }
 
-fn check_hyperparameter(hyperparameter: f64) -> Result<(), InverseError> {
+pub(crate) fn check_hyperparameter(hyperparameter: f64) -> Result<(), InverseError> {
     if hyperparameter > 0.0 && hyperparameter.is_finite() {
         Ok(())
     } else {
@@ -152,6 +148,46 @@ mod tests {
         }
         let err = reconstruction_matrix(jacobian.as_ref(), &Prior::Tikhonov, 0.0, model.mesh()).unwrap_err();
         assert_eq!(err, InverseError::Hyperparameter(0.0));
+    }
+
+    /// Dropping a channel from the linearisation gives what a protocol without it gives.
+    #[test]
+    fn a_dropped_channel_equals_a_protocol_without_it() {
+        use crate::spec::ProtocolSpec;
+        use crate::Protocol;
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let params = ReconstructorParams { raster: [24, 24], ..ReconstructorParams::default() };
+        let full = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &params).unwrap();
+        let protocol = spec.protocol().unwrap();
+        let drop = 17;
+        let mut kept = protocol.measurements().to_vec();
+        kept.remove(drop);
+        let smaller = Protocol::new("all but one", 16, protocol.stimulations().to_vec(), kept).unwrap();
+        spec.protocol = ProtocolSpec::Custom(smaller);
+        let direct = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &params).unwrap();
+        let mut mask = vec![true; 120];
+        mask[drop] = false;
+        for normalized in [false, true] {
+            let params = ReconstructorParams { normalized, ..params };
+            let derived = full.rederive(&params, Channels::all(120).masked(&mask)).unwrap();
+            let direct = direct.rederive(&params, Channels::all(119)).unwrap();
+            let pixels = derived.blank_image().values.len();
+            let column = |r: &Reconstructor, m: usize| r.matrix()[m * pixels..(m + 1) * pixels].to_vec();
+            assert!(column(&derived, drop).iter().all(|x| *x == 0.0));
+            let scale = direct.matrix().iter().fold(0.0f32, |a, x| a.max(x.abs()));
+            for m in 0..119 {
+                let d = column(&derived, if m < drop { m } else { m + 1 });
+                let worst = d.iter().zip(column(&direct, m)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+                assert!(worst < 1e-5 * scale, "normalised {normalized}, channel {m}: {worst}");
+            }
+            // A frame with the dropped channel missing images as the smaller protocol's.
+            let mut frame = vec![1.0; 120];
+            frame[3] = 1.01;
+            frame[drop] = f64::NAN;
+            let image = derived.image(&vec![1.0; 120], &frame).unwrap();
+            assert!(image.values.iter().all(|v| v.is_finite()));
+        }
     }
 
     /// A background the forward model refuses is named as such, not blamed on the prior.

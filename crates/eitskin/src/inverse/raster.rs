@@ -5,8 +5,14 @@
 //! that triangle's row of the element-level matrix; pixels outside the outline are masked.
 //! The matrix is kept in f32: half the memory traffic of f64, and images agree with the f64
 //! product to about 1e-7 of their peak (tested to 1e-5).
+//!
+//! A reconstructor keeps the [`Linearisation`] it came from, so another λ, other channels (a
+//! channel gone bad, a mask), other noise weights or another raster follow from it in
+//! milliseconds ([`Reconstructor::derive`]), without a forward solve.
 
-use super::{normalize_jacobian, reconstruction_matrix, InverseError, Prior};
+use std::sync::Arc;
+
+use super::{Channels, InverseError, Linearisation, Prior};
 use crate::forward::ForwardModel;
 use crate::image::Image;
 use crate::mesh::RasterMap;
@@ -36,56 +42,120 @@ impl Default for ReconstructorParams {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reconstructor {
     params: ReconstructorParams,
+    linearisation: Arc<Linearisation>,
+    channels: Channels,
     template: Image,
+    /// Triangle under each pixel centre (`None` outside).
+    pixels: Vec<Option<usize>>,
     /// Pixels × measurements, column-major (one column per measurement), S/m per V (per unit
-    /// ratio when normalised).
+    /// ratio when normalised); zero columns for dropped channels.
     matrix: Vec<f32>,
+    /// Triangles × measurements, column-major, in the same units.
+    elements: Vec<f32>,
     /// Number of measurements (columns of `matrix`).
     measurements: usize,
 }
 
 impl Reconstructor {
     /// Linearises `model` at the homogeneous `background` conductivity (S/m) and projects the
-    /// reconstruction matrix onto the raster.
+    /// reconstruction matrix onto the raster; every channel used, equally weighted.
     pub fn new(
         model: &ForwardModel,
         background: f64,
         params: &ReconstructorParams,
     ) -> Result<Reconstructor, InverseError> {
-        let sigma = vec![background; model.mesh().triangles().len()];
-        // The background is positive and the count right: the forward model accepts it.
-        let solution = model.solve(&sigma)?;
-        let mut jacobian = model.jacobian(&solution);
-        if params.normalized {
-            normalize_jacobian(&mut jacobian, &solution.measurements(model.protocol()))?;
-        }
-        let element = reconstruction_matrix(jacobian.as_ref(), &params.prior, params.hyperparameter, model.mesh())?;
-        let map = RasterMap::new(model.mesh(), params.raster);
+        let linearisation = Linearisation::new(model, background)?;
+        let channels = Channels::all(linearisation.measurements());
+        Reconstructor::from_linearisation(Arc::new(linearisation), params, channels)
+    }
+
+    /// A reconstructor from a linearisation, for these parameters and channels.
+    pub fn from_linearisation(
+        linearisation: Arc<Linearisation>,
+        params: &ReconstructorParams,
+        channels: Channels,
+    ) -> Result<Reconstructor, InverseError> {
+        let map = RasterMap::new(linearisation.mesh(), params.raster);
         let inside: Vec<bool> = map.triangle.iter().map(Option::is_some).collect();
         let template = Image::new(map.size, map.bounds, inside);
+        Reconstructor::assemble(linearisation, params, channels, template, map.triangle)
+    }
+
+    fn assemble(
+        linearisation: Arc<Linearisation>,
+        params: &ReconstructorParams,
+        channels: Channels,
+        template: Image,
+        pixels: Vec<Option<usize>>,
+    ) -> Result<Reconstructor, InverseError> {
+        let element =
+            linearisation.element_matrix(&params.prior, params.hyperparameter, params.normalized, &channels)?;
         let measurements = element.ncols();
         let element = &element;
         let matrix = (0..measurements)
-            .flat_map(|m| map.triangle.iter().map(move |t| t.map_or(0.0, |t| element[(t, m)] as f32)))
+            .flat_map(|m| pixels.iter().map(move |t| t.map_or(0.0, |t| element[(t, m)] as f32)))
             .collect();
-        Ok(Reconstructor { params: *params, template, matrix, measurements })
+        let elements =
+            (0..measurements).flat_map(|m| (0..element.nrows()).map(move |t| element[(t, m)] as f32)).collect();
+        Ok(Reconstructor { params: *params, linearisation, channels, template, pixels, matrix, elements, measurements })
     }
 
-    /// A reconstructor from its parts, as saved by [`Reconstructor::matrix`] and
-    /// [`Reconstructor::blank_image`]; `None` if the sizes disagree.
-    pub fn from_parts(params: ReconstructorParams, template: Image, matrix: Vec<f32>) -> Option<Reconstructor> {
-        let pixels = template.size[0] * template.size[1];
-        let consistent = pixels > 0
-            && template.values.len() == pixels
-            && template.inside.len() == pixels
-            && !matrix.is_empty()
-            && matrix.len().is_multiple_of(pixels);
-        consistent.then(|| Reconstructor { params, measurements: matrix.len() / pixels, template, matrix })
+    /// The same reconstructor with another λ and other channels (milliseconds: one system the
+    /// size of the measurement count, no forward solve).
+    pub fn derive(&self, hyperparameter: f64, channels: Channels) -> Result<Reconstructor, InverseError> {
+        let params = ReconstructorParams { hyperparameter, ..self.params };
+        Reconstructor::assemble(
+            Arc::clone(&self.linearisation),
+            &params,
+            channels,
+            self.template.clone(),
+            self.pixels.clone(),
+        )
+    }
+
+    /// The same reconstructor with other parameters (prior, λ, normalisation, raster) and channels.
+    pub fn rederive(&self, params: &ReconstructorParams, channels: Channels) -> Result<Reconstructor, InverseError> {
+        if params.raster == self.params.raster {
+            let (template, pixels) = (self.template.clone(), self.pixels.clone());
+            return Reconstructor::assemble(Arc::clone(&self.linearisation), params, channels, template, pixels);
+        }
+        Reconstructor::from_linearisation(Arc::clone(&self.linearisation), params, channels)
     }
 
     /// The raster matrix: pixels × measurements, column-major, in S/m per V.
     pub fn matrix(&self) -> &[f32] {
         &self.matrix
+    }
+
+    /// The same reconstructor with λ chosen from the noise (see [`choose_hyperparameter`](super::choose_hyperparameter)) and
+    /// the channels weighted by it: `variance` measured per channel (V², or ratio² when
+    /// normalised; see [`super::noise_variance`]), or else noise relative to each value, as
+    /// boards have it (variance ∝ v₀², equal for normalised differences). Returns it with λ.
+    pub fn with_auto_hyperparameter(
+        &self,
+        channels: Channels,
+        variance: Option<Vec<f64>>,
+    ) -> Result<(Reconstructor, f64), InverseError> {
+        let lin = &self.linearisation;
+        let variance = variance.or_else(|| {
+            (!self.params.normalized).then(|| lin.background().iter().map(|v| v * v).collect::<Vec<f64>>())
+        });
+        let channels = match variance {
+            Some(variance) => channels.with_variance(super::channels::floored(variance)),
+            None => channels,
+        };
+        let lambda = super::choose_hyperparameter(lin, &self.params.prior, self.params.normalized, &channels)?;
+        Ok((self.derive(lambda, channels)?, lambda))
+    }
+
+    /// The linearisation it was derived from.
+    pub fn linearisation(&self) -> &Arc<Linearisation> {
+        &self.linearisation
+    }
+
+    /// The channels it uses and their weights.
+    pub fn channels(&self) -> &Channels {
+        &self.channels
     }
 
     /// The parameters it was built with.
@@ -110,29 +180,55 @@ impl Reconstructor {
         Ok(image)
     }
 
+    /// The conductivity change on each triangle of the mesh (S/m), in mesh order.
+    pub fn element_values(&self, v_ref: &[f64], v: &[f64]) -> Result<Vec<f32>, InverseError> {
+        self.check(v_ref, v)?;
+        let mut values = vec![0.0; self.linearisation.mesh().triangles().len()];
+        accumulate(&mut values, &self.elements, |m| self.difference(v_ref, v, m));
+        Ok(values)
+    }
+
     /// [`Reconstructor::image`] into a caller-owned image (from [`Reconstructor::blank_image`]);
     /// allocates nothing.
     pub fn image_into(&self, v_ref: &[f64], v: &[f64], image: &mut Image) -> Result<(), InverseError> {
+        self.check(v_ref, v)?;
+        let pixels = self.template.values.len();
+        assert_eq!(image.values.len(), pixels, "the image must come from blank_image()");
+        image.values.fill(0.0);
+        accumulate(&mut image.values, &self.matrix, |m| self.difference(v_ref, v, m));
+        Ok(())
+    }
+
+    /// The difference of channel m that the matrix multiplies: 0 for a dropped channel.
+    #[inline(always)]
+    fn difference(&self, v_ref: &[f64], v: &[f64], m: usize) -> f32 {
+        if !self.channels.is_used(m) {
+            0.0
+        } else if self.params.normalized {
+            (v[m] / v_ref[m] - 1.0) as f32
+        } else {
+            (v[m] - v_ref[m]) as f32
+        }
+    }
+
+    /// Refuses frames of the wrong length, and non-finite or (normalised) zero values on a used channel.
+    fn check(&self, v_ref: &[f64], v: &[f64]) -> Result<(), InverseError> {
         let expected = self.measurements();
         for frame in [v_ref, v] {
             if frame.len() != expected {
                 return Err(InverseError::FrameLength { expected, got: frame.len() });
             }
-            if let Some(m) = frame.iter().position(|x| !x.is_finite()) {
+            let bad = |(m, x): (usize, &f64)| self.channels.is_used(m) && !x.is_finite();
+            if let Some((m, _)) = frame.iter().enumerate().find(|&p| bad(p)) {
                 return Err(InverseError::NotFinite { measurement: m + 1 });
             }
         }
         if self.params.normalized {
-            if let Some(m) = v_ref.iter().position(|x| *x == 0.0) {
+            let zero = |(m, x): (usize, &f64)| self.channels.is_used(m) && *x == 0.0;
+            if let Some((m, _)) = v_ref.iter().enumerate().find(|&p| zero(p)) {
                 return Err(InverseError::ZeroReference { measurement: m + 1 });
             }
         }
-        let pixels = self.template.values.len();
-        assert_eq!(image.values.len(), pixels, "the image must come from blank_image()");
-        image.values.fill(0.0);
-        let normalized = self.params.normalized;
-        let difference = |m: usize| if normalized { v[m] / v_ref[m] - 1.0 } else { v[m] - v_ref[m] } as f32;
-        accumulate(&mut image.values, &self.matrix, difference);
         Ok(())
     }
 }

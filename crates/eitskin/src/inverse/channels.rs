@@ -1,0 +1,159 @@
+//! Which measurements (channels) an image uses, and how much each is trusted.
+//!
+//! Real boards lose channels (a dead electrode, a saturated amplifier, a value missing from a
+//! data set) and their channels are not equally noisy. [`Channels`] says which are used and
+//! each one's noise variance; the reconstruction drops the unused ones and weights the rest by
+//! W = Σ⁻¹ (EIDORS' `meas_icov`), which for a diagonal prior costs one system the size of the
+//! measurement count, not a rebuild of the Jacobian.
+
+use super::InverseError;
+
+/// The channels of a frame: which are used, and each one's noise variance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Channels {
+    used: Vec<bool>,
+    variance: Option<Vec<f64>>,
+}
+
+impl Channels {
+    /// All `count` channels used, equally noisy (W = I).
+    pub fn all(count: usize) -> Channels {
+        Channels { used: vec![true; count], variance: None }
+    }
+
+    /// The channels that are finite in `frame` (NaN or ±∞ marks a missing channel), equally noisy.
+    pub fn finite_in(frame: &[f64]) -> Channels {
+        Channels { used: frame.iter().map(|v| v.is_finite()).collect(), variance: None }
+    }
+
+    /// These channels, with `mask[m] = false` dropping channel m as well.
+    pub fn masked(mut self, mask: &[bool]) -> Channels {
+        for (u, &keep) in self.used.iter_mut().zip(mask) {
+            *u &= keep;
+        }
+        self
+    }
+
+    /// These channels with each one's noise variance (in the differences' units², V² or
+    /// ratio²; only the ratios between channels matter). A channel whose variance is not
+    /// positive and finite is dropped.
+    pub fn with_variance(mut self, variance: Vec<f64>) -> Channels {
+        assert_eq!(variance.len(), self.used.len(), "one variance per channel");
+        for (u, v) in self.used.iter_mut().zip(&variance) {
+            *u &= v.is_finite() && *v > 0.0;
+        }
+        self.variance = Some(variance);
+        self
+    }
+
+    /// Number of channels, used or not.
+    pub fn len(&self) -> usize {
+        self.used.len()
+    }
+
+    /// Whether there are no channels at all.
+    pub fn is_empty(&self) -> bool {
+        self.used.is_empty()
+    }
+
+    /// Whether channel `m` (0-based) is used.
+    pub fn is_used(&self, m: usize) -> bool {
+        self.used.get(m).copied().unwrap_or(false)
+    }
+
+    /// The used channels, 0-based, in frame order.
+    pub fn used(&self) -> Vec<usize> {
+        (0..self.used.len()).filter(|&m| self.used[m]).collect()
+    }
+
+    /// The channels dropped, 0-based.
+    pub fn dropped(&self) -> Vec<usize> {
+        (0..self.used.len()).filter(|&m| !self.used[m]).collect()
+    }
+
+    /// Each used channel's variance divided by their mean (1 for all without a measured noise),
+    /// in the order of [`Channels::used`]: the diagonal of Σ that λ² multiplies, so that λ keeps
+    /// its meaning when weights are switched on.
+    pub(crate) fn relative_variance(&self) -> Vec<f64> {
+        let used = self.used();
+        let Some(variance) = &self.variance else {
+            return vec![1.0; used.len()];
+        };
+        let mean = used.iter().map(|&m| variance[m]).sum::<f64>() / used.len().max(1) as f64;
+        used.iter().map(|&m| variance[m] / mean).collect()
+    }
+
+    /// Refuses a channel set that leaves nothing to image with.
+    pub(crate) fn check(&self, expected: usize) -> Result<(), InverseError> {
+        if self.used.len() != expected {
+            return Err(InverseError::FrameLength { expected, got: self.used.len() });
+        }
+        if !self.used.contains(&true) {
+            return Err(InverseError::NoChannels);
+        }
+        Ok(())
+    }
+}
+
+/// Per-channel noise variance of several frames of an unchanging sensor (the reference
+/// frames), about their mean; `None` with fewer than two frames. With `normalized`, the
+/// variance of v/v̄ (ratio²), else of v (V²). NaN values are left out of their channel.
+///
+/// Few frames estimate a variance badly, and a quantised board can repeat a value exactly:
+/// each variance is floored at a tenth of the median channel's, so that no channel is
+/// trusted without limit.
+pub fn noise_variance(frames: &[Vec<f64>], normalized: bool) -> Option<Vec<f64>> {
+    let count = frames.first()?.len();
+    let mut variance = vec![f64::NAN; count];
+    for (m, out) in variance.iter_mut().enumerate() {
+        let values: Vec<f64> = frames.iter().filter_map(|f| f.get(m).copied()).filter(|v| v.is_finite()).collect();
+        if values.len() < 2 {
+            continue;
+        }
+        let mean = values.iter().sum::<f64>() / values.len() as f64;
+        let scale = if normalized { mean } else { 1.0 };
+        let sum: f64 = values.iter().map(|v| ((v - mean) / scale).powi(2)).sum();
+        *out = sum / (values.len() - 1) as f64;
+    }
+    let floored = floored(variance);
+    // Most channels never moved (the median is 0): no usable noise estimate.
+    floored.iter().any(|v| v.is_finite() && *v > 0.0).then_some(floored)
+}
+
+/// Each finite variance raised to at least a tenth of the median finite one.
+pub(crate) fn floored(variance: Vec<f64>) -> Vec<f64> {
+    let mut finite: Vec<f64> = variance.iter().copied().filter(|v| v.is_finite()).collect();
+    if finite.is_empty() {
+        return variance;
+    }
+    finite.sort_by(f64::total_cmp);
+    let floor = 0.1 * finite[finite.len() / 2];
+    variance.into_iter().map(|v| if v.is_finite() { v.max(floor) } else { v }).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn masks_and_variances_drop_channels() {
+        let c = Channels::finite_in(&[1.0, f64::NAN, 2.0, 3.0]).masked(&[true, true, true, false]);
+        assert_eq!(c.used(), [0, 2]);
+        assert_eq!(c.dropped(), [1, 3]);
+        let c = Channels::all(3).with_variance(vec![1.0, 0.0, 3.0]);
+        assert_eq!(c.used(), [0, 2]);
+        assert_eq!(c.relative_variance(), [0.5, 1.5]);
+        assert_eq!(Channels::all(2).masked(&[false, false]).check(2), Err(InverseError::NoChannels));
+    }
+
+    #[test]
+    fn noise_variance_is_the_sample_variance_with_a_floor() {
+        let frames = vec![vec![1.0, 10.0, 5.0, 7.0], vec![3.0, 12.0, 5.0, 7.0], vec![2.0, 11.0, f64::NAN, 7.0]];
+        // Channels 1 and 2: variance 1; 3 has two equal values, 4 never moved: both floored.
+        let v = noise_variance(&frames, false).unwrap();
+        assert_eq!(v, [1.0, 1.0, 0.1, 0.1]);
+        assert!(noise_variance(&frames[..1], false).is_none());
+        let relative = noise_variance(&[vec![9.0], vec![11.0]], true).unwrap();
+        assert!((relative[0] - 0.02).abs() < 1e-12, "{relative:?}");
+    }
+}

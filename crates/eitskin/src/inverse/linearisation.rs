@@ -1,0 +1,154 @@
+//! The forward model linearised once at the background: the Jacobian J, the model's own
+//! measurements v₀ and the mesh. Everything a [`Reconstructor`](super::Reconstructor) needs
+//! is derived from it in milliseconds — for another hyperparameter, another set of channels,
+//! other noise weights, normalised differences or another raster — without a forward solve.
+//!
+//! For channels S, noise variances Σ (relative, see [`Channels`]) and a diagonal prior R:
+//!
+//!   H = R⁻¹J_Sᵀ(J_S R⁻¹J_Sᵀ + λ²Σ)⁻¹,
+//!
+//! the measurement-sized form of (J_SᵀΣ⁻¹J_S + λ²R)⁻¹J_SᵀΣ⁻¹. With normalised differences the
+//! rows of J are divided by v₀ first (and R, which NOSER takes from J, follows).
+
+use faer::{Mat, MatRef, Side};
+
+use super::{check_hyperparameter, Channels, InverseError, Prior};
+use crate::forward::ForwardModel;
+use crate::mesh::Mesh;
+
+/// J, v₀ and the mesh of a forward model at a homogeneous background.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Linearisation {
+    jacobian: Mat<f64>,
+    background: Vec<f64>,
+    mesh: Mesh,
+}
+
+impl Linearisation {
+    /// Solves `model` at the homogeneous `background` conductivity (S/m) and takes its Jacobian.
+    pub fn new(model: &ForwardModel, background: f64) -> Result<Linearisation, InverseError> {
+        let sigma = vec![background; model.mesh().triangles().len()];
+        let solution = model.solve(&sigma)?;
+        let jacobian = model.jacobian(&solution);
+        let background = solution.measurements(model.protocol());
+        Ok(Linearisation { jacobian, background, mesh: model.mesh().clone() })
+    }
+
+    /// A linearisation from its parts (as a cache file holds them): the Jacobian column-major
+    /// (measurements × triangles), v₀ and the mesh; `None` if the sizes disagree or a value is
+    /// not finite.
+    pub fn from_parts(jacobian: &[f64], background: Vec<f64>, mesh: Mesh) -> Option<Linearisation> {
+        let (m, k) = (background.len(), mesh.triangles().len());
+        let consistent = m > 0
+            && m.checked_mul(k) == Some(jacobian.len())
+            && background.iter().chain(jacobian).all(|v| v.is_finite());
+        if !consistent {
+            return None;
+        }
+        let jacobian = Mat::from_fn(m, k, |i, t| jacobian[t * m + i]);
+        Some(Linearisation { jacobian, background, mesh })
+    }
+
+    /// The Jacobian ∂v/∂σ, measurements × triangles, in V per S/m (at 1 A).
+    pub fn jacobian(&self) -> MatRef<'_, f64> {
+        self.jacobian.as_ref()
+    }
+
+    /// The model's measurements at the background, in V (at 1 A).
+    pub fn background(&self) -> &[f64] {
+        &self.background
+    }
+
+    /// The mesh the Jacobian is on.
+    pub fn mesh(&self) -> &Mesh {
+        &self.mesh
+    }
+
+    /// Number of measurements in a frame.
+    pub fn measurements(&self) -> usize {
+        self.background.len()
+    }
+
+    /// The rows of J for the used channels, divided by v₀ when `normalized`.
+    pub(crate) fn rows(&self, used: &[usize], normalized: bool) -> Result<Mat<f64>, InverseError> {
+        let mut scale = vec![1.0; used.len()];
+        if normalized {
+            for (s, &m) in scale.iter_mut().zip(used) {
+                let v = self.background[m];
+                if v == 0.0 {
+                    return Err(InverseError::ZeroReference { measurement: m + 1 });
+                }
+                *s = 1.0 / v;
+            }
+        }
+        Ok(Mat::from_fn(used.len(), self.jacobian.ncols(), |i, k| self.jacobian[(used[i], k)] * scale[i]))
+    }
+
+    /// The element-level reconstruction matrix (triangles × all measurements, S/m per V, or per
+    /// unit ratio when `normalized`) for these channels; dropped channels get zero columns.
+    pub fn element_matrix(
+        &self,
+        prior: &Prior,
+        hyperparameter: f64,
+        normalized: bool,
+        channels: &Channels,
+    ) -> Result<Mat<f64>, InverseError> {
+        check_hyperparameter(hyperparameter)?;
+        channels.check(self.measurements())?;
+        let used = channels.used();
+        let jacobian = self.rows(&used, normalized)?;
+        let variance = channels.relative_variance();
+        let compact = match prior.diagonal(jacobian.as_ref()) {
+            Some(r) => measurement_sized(jacobian.as_ref(), &r, hyperparameter, &variance)?,
+            None => weighted_element_sized(jacobian.as_ref(), prior, hyperparameter, &variance, &self.mesh)?,
+        };
+        let mut full = Mat::zeros(jacobian.ncols(), self.measurements());
+        for (i, &m) in used.iter().enumerate() {
+            full.col_mut(m).copy_from(compact.col(i));
+        }
+        Ok(full)
+    }
+}
+
+/// R⁻¹ for a diagonal prior; a triangle no measurement sees (R = 0 under NOSER) gets the
+/// smallest positive weight.
+pub(crate) fn inverse_diagonal(r: &[f64]) -> Vec<f64> {
+    let floor = r.iter().copied().filter(|x| *x > 0.0).fold(f64::INFINITY, f64::min).min(f64::MAX);
+    r.iter().map(|&x| 1.0 / if x > 0.0 { x } else { floor }).collect()
+}
+
+/// R⁻¹Jᵀ(JR⁻¹Jᵀ + λ²Σ)⁻¹, triangles × measurements, for a diagonal prior `r` and noise variances `variance`.
+pub(crate) fn measurement_sized(
+    jacobian: MatRef<'_, f64>,
+    r: &[f64],
+    hyperparameter: f64,
+    variance: &[f64],
+) -> Result<Mat<f64>, InverseError> {
+    let r_inv = inverse_diagonal(r);
+    let (m, k) = (jacobian.nrows(), jacobian.ncols());
+    let scaled = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] * r_inv[j]); // J R⁻¹
+    let mut system = &scaled * jacobian.transpose(); // J R⁻¹ Jᵀ
+    let lambda2 = hyperparameter * hyperparameter;
+    for i in 0..m {
+        system[(i, i)] += lambda2 * variance[i];
+    }
+    let llt = system.llt(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
+    // (JR⁻¹Jᵀ + λ²Σ)⁻¹ J R⁻¹ = Hᵀ, since both factors are symmetric.
+    let transposed = faer::linalg::solvers::Solve::solve(&llt, &scaled);
+    Ok(transposed.transpose().to_owned())
+}
+
+/// (JᵀΣ⁻¹J + λ²R)⁻¹JᵀΣ⁻¹ through the triangles × triangles system, for non-diagonal priors.
+pub(crate) fn weighted_element_sized(
+    jacobian: MatRef<'_, f64>,
+    prior: &Prior,
+    hyperparameter: f64,
+    variance: &[f64],
+    mesh: &Mesh,
+) -> Result<Mat<f64>, InverseError> {
+    let weighted = Mat::from_fn(jacobian.nrows(), jacobian.ncols(), |i, k| jacobian[(i, k)] / variance[i]);
+    let mut system = jacobian.transpose() * &weighted;
+    system += (hyperparameter * hyperparameter) * prior.matrix(jacobian, mesh);
+    let llt = system.llt(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
+    Ok(faer::linalg::solvers::Solve::solve(&llt, weighted.transpose()))
+}
