@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use eitskin::touch::detect;
+use eitskin::inverse::{Channels, Hyperparameter};
+use eitskin::touch::{detect, Polarity};
 use eitskin::{ReconstructorParams, TouchParams};
 use serde::Serialize;
 
@@ -26,9 +27,17 @@ pub struct Args {
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
-    /// Hyperparameter λ of the one-step Gauss–Newton reconstruction.
-    #[arg(long, default_value_t = 0.1)]
-    hyperparameter: f64,
+    /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in (0, 1000], or `auto`:
+    /// chosen for a noise figure of 0.5 (EIDORS'), with the noise measured from the reference
+    /// frames when the reference file holds several, else taken relative to each value.
+    #[arg(long, default_value = "auto")]
+    hyperparameter: Hyperparameter,
+    /// Normalised differences Δv/v_ref (immune to per-channel gains) instead of absolute ones.
+    #[arg(long)]
+    normalised: bool,
+    /// Which changes are touches: `decrease` (a press on a hydrogel), `increase`, or `both`.
+    #[arg(long, default_value = "decrease")]
+    polarity: Polarity,
     /// Keep pixels at or above this fraction of the peak.
     #[arg(long, default_value_t = 0.6)]
     threshold: f64,
@@ -43,6 +52,7 @@ pub struct Args {
 
 #[derive(Serialize)]
 struct TouchOut {
+    sign: &'static str,
     x: f64,
     y: f64,
     peak: f64,
@@ -52,6 +62,9 @@ struct TouchOut {
 
 #[derive(Serialize)]
 struct Output {
+    hyperparameter: f64,
+    normalised: bool,
+    channels_dropped: Vec<usize>,
     length_unit: &'static str,
     peak_unit: &'static str,
     touches: Vec<TouchOut>,
@@ -65,17 +78,33 @@ pub fn run(args: Args) -> Result<()> {
     }
     let v_ref = eitskin_io::read_frame(&args.reference)?;
     let v = eitskin_io::read_frame(&args.frame)?;
-    let params = ReconstructorParams { hyperparameter: args.hyperparameter, ..ReconstructorParams::default() };
+    let fixed = match args.hyperparameter {
+        Hyperparameter::Fixed(value) => value,
+        Hyperparameter::Auto => ReconstructorParams::default().hyperparameter,
+    };
+    let params =
+        ReconstructorParams { hyperparameter: fixed, normalized: args.normalised, ..ReconstructorParams::default() };
     let recon = load::reconstructor(&spec, &params, !args.no_cache)?;
+    // A channel missing (NaN) in the reference or the frame is dropped, not refused.
+    let channels = Channels::finite_in(&v_ref).masked(Channels::finite_in(&v).used_mask());
+    let recon = match args.hyperparameter {
+        Hyperparameter::Auto => recon.with_auto_hyperparameter(channels, None)?.0,
+        Hyperparameter::Fixed(value) => recon.derive(value, channels)?,
+    };
     let image = recon.image(&v_ref, &v).with_context(|| format!("imaging {}", args.frame.display()))?;
-    let touches = detect(&image, &TouchParams { threshold: args.threshold, ..TouchParams::default() });
+    let touch = TouchParams { threshold: args.threshold, polarity: args.polarity, ..TouchParams::default() };
+    let touches = detect(&image, &touch);
     let k = 1.0 / spec.length_unit.metres();
     let out = Output {
+        hyperparameter: recon.params().hyperparameter,
+        normalised: args.normalised,
+        channels_dropped: recon.channels().dropped().iter().map(|m| m + 1).collect(),
         length_unit: spec.length_unit.symbol(),
         peak_unit: "S/m",
         touches: touches
             .iter()
             .map(|t| TouchOut {
+                sign: t.polarity.name(),
                 x: t.centre[0] * k,
                 y: t.centre[1] * k,
                 peak: t.peak,
@@ -90,10 +119,14 @@ pub fn run(args: Args) -> Result<()> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
+        let dropped = &out.channels_dropped;
+        let dropped = if dropped.is_empty() { String::new() } else { format!(", channels {dropped:?} dropped") };
+        println!("λ = {:.4}{dropped}", out.hyperparameter);
         println!("{} touch(es)", out.touches.len());
         for (i, t) in out.touches.iter().enumerate() {
             let u = out.length_unit;
-            println!("  {}: at ({:.2}, {:.2}) {u}, peak {:.4e} S/m, area {:.1} {u}²", i + 1, t.x, t.y, t.peak, t.area);
+            let (n, x, y, peak, area, sign) = (i + 1, t.x, t.y, t.peak, t.area, t.sign);
+            println!("  {n}: {sign} at ({x:.2}, {y:.2}) {u}, peak {peak:.4e} S/m, area {area:.1} {u}²");
         }
     }
     Ok(())

@@ -167,6 +167,32 @@ fn image_finds_a_simulated_press_from_forward_output() {
     assert_eq!(&std::fs::read(png).unwrap()[1..4], b"PNG");
 }
 
+/// A more conductive object is a touch of the other sign: found with `--polarity both` and
+/// named `increase`, not found with the default `decrease`; λ is chosen and printed.
+#[test]
+fn image_finds_a_more_conductive_object_with_either_polarity() {
+    let dir = scratch("image-polarity");
+    let (reference, frame) = (dir.join("ref.json"), dir.join("frame.json"));
+    std::fs::write(&reference, dir.eitskin(&["forward", "--triangles", "3000"]).stdout).unwrap();
+    let pressed = dir.eitskin(&["forward", "--triangles", "3000", "--inclusion", "-50,20,12,2.0"]);
+    std::fs::write(&frame, pressed.stdout).unwrap();
+    let image = |polarity: &str| {
+        let args = ["image", "--triangles", "1500", "--reference", reference.to_str().unwrap()];
+        let args = [&args[..], &["--frame", frame.to_str().unwrap(), "--json", "--polarity", polarity]].concat();
+        stdout_json(&dir.eitskin(&args))
+    };
+    let both = image("both");
+    let touches = both["touches"].as_array().unwrap();
+    assert_eq!(touches.len(), 1, "{both}");
+    assert_eq!(touches[0]["sign"], "increase");
+    let (x, y) = (touches[0]["x"].as_f64().unwrap(), touches[0]["y"].as_f64().unwrap());
+    assert!((x + 50.0).hypot(y - 20.0) < 20.0, "touch at ({x}, {y}) mm, object at (-50, 20)");
+    let lambda = both["hyperparameter"].as_f64().unwrap();
+    assert!(lambda > 1e-4 && lambda < 10.0, "λ = {lambda}");
+    let decrease = image("decrease");
+    assert!(decrease["touches"].as_array().unwrap().iter().all(|t| t["sign"] == "decrease"), "{decrease}");
+}
+
 #[test]
 fn sensitivity_writes_the_profile_and_map() {
     let dir = scratch("sensitivity");

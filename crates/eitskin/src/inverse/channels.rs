@@ -61,6 +61,11 @@ impl Channels {
         self.used.get(m).copied().unwrap_or(false)
     }
 
+    /// Per channel, whether it is used (a mask to combine with [`Channels::masked`]).
+    pub fn used_mask(&self) -> &[bool] {
+        &self.used
+    }
+
     /// The used channels, 0-based, in frame order.
     pub fn used(&self) -> Vec<usize> {
         (0..self.used.len()).filter(|&m| self.used[m]).collect()
