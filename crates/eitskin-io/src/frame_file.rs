@@ -16,6 +16,15 @@ pub fn read_frame(path: &Path) -> Result<Vec<f64>, Error> {
 
 /// Parses one frame (see the module doc for the accepted shapes); NaN and infinities are refused.
 pub fn parse_frame(text: &str) -> Result<Vec<f64>, Error> {
+    let values = parse_values(text)?;
+    if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+        return Err(frame_error(&format!("value {} is not a finite number", i + 1)));
+    }
+    Ok(values)
+}
+
+/// The numbers of one frame in any accepted shape, NaN and infinities included; at least one.
+pub(crate) fn parse_values(text: &str) -> Result<Vec<f64>, Error> {
     let trimmed = text.trim_start();
     let values: Vec<f64> = if trimmed.starts_with('[') || trimmed.starts_with('{') {
         let value: serde_json::Value =
@@ -47,9 +56,6 @@ pub fn parse_frame(text: &str) -> Result<Vec<f64>, Error> {
         }
         values
     };
-    if let Some(i) = values.iter().position(|x| !x.is_finite()) {
-        return Err(frame_error(&format!("value {} is not a finite number", i + 1)));
-    }
     if values.is_empty() {
         return Err(frame_error("the frame holds no value"));
     }

@@ -34,6 +34,7 @@
 #![warn(rustdoc::broken_intra_doc_links)]
 #![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
 
+mod array_file;
 mod calibration_file;
 pub mod codec;
 mod contrast_map_file;
@@ -41,6 +42,7 @@ mod frame_file;
 mod mesh_file;
 mod press_model_file;
 mod protocol_file;
+mod raster_file;
 mod reconstructor_file;
 pub mod recorder;
 pub mod replay;
@@ -51,12 +53,14 @@ pub mod stream;
 
 use std::path::{Path, PathBuf};
 
+pub use array_file::{read_frames, read_one_frame, ArrayProblem, ArrayVariable, FrameLayout, FrameSelect, FrameTable};
 pub use calibration_file::{calibration_to_json, parse_calibration, read_calibration, spec_key};
 pub use contrast_map_file::{contrast_map_path, decode_contrast_map, encode_contrast_map, load_or_build_contrast_map};
 pub use frame_file::{parse_frame, read_frame};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
 pub use press_model_file::{decode_press_model, encode_press_model, load_or_build_press_model, press_model_path};
 pub use protocol_file::{parse_protocol, read_protocol};
+pub use raster_file::{write_elements_csv, write_labels_npy, write_raster_csv, write_raster_npy};
 pub use reconstructor_file::{cache_key, cache_path, decode_linearisation, encode_linearisation, load_or_build};
 pub use samples_file::{parse_samples, read_samples, Location, Measured, SampleRow};
 pub use spec_file::{parse_spec, protocol_by_name, protocol_kind, read_spec, spec_to_toml};
@@ -125,6 +129,24 @@ pub enum Error {
         /// What is wrong.
         source: ProtocolError,
     },
+    /// An array file (MAT, NPY) or the array chosen in it does not give frames.
+    #[error("{}{}: {problem}", path.display(), variable.as_ref().map(|v| format!(", variable `{v}`")).unwrap_or_default())]
+    Array {
+        /// The file.
+        path: PathBuf,
+        /// The variable read or asked for, if any.
+        variable: Option<String>,
+        /// What is wrong.
+        problem: ArrayProblem,
+    },
+    /// A file could not be written.
+    #[error("cannot write {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
     /// A precomputed model (reconstructor, press model) could not be built.
     #[error("the inverse model could not be built")]
     Inverse(#[from] InverseError),
@@ -138,7 +160,7 @@ impl Error {
     /// The same error, naming `file` if it names no file yet.
     fn in_file(mut self, file: &Path) -> Error {
         match &mut self {
-            Error::Read { .. } | Error::Inverse(_) => {}
+            Error::Read { .. } | Error::Array { .. } | Error::Write { .. } | Error::Inverse(_) => {}
             Error::Toml { path, .. }
             | Error::Json { path, .. }
             | Error::Key { path, .. }
