@@ -3,9 +3,11 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use eitskin::inverse::{Channels, Hyperparameter};
+use eitskin::inverse::{noise_variance, Channels, Hyperparameter};
 use eitskin::touch::{detect, Polarity};
+use eitskin::values::{signed_from_magnitudes, Component};
 use eitskin::{ReconstructorParams, TouchParams};
+use eitskin_io::{FrameLayout, FrameSelect, FrameTable};
 use serde::Serialize;
 
 use crate::{load, plot};
@@ -15,12 +17,35 @@ use crate::{load, plot};
 pub struct Args {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
-    /// The reference (no-touch) frame: JSON array, `forward` output, or CSV.
+    /// The reference (no-touch) frames: a MAT (v5, v7.3) or NPY file, a JSON array, `forward`
+    /// output or CSV; several frames are averaged, and their spread is the measured noise.
     #[arg(long)]
     reference: PathBuf,
     /// The frame to image, in the same formats.
     #[arg(long)]
     frame: PathBuf,
+    /// Which frame of the frame file, from 1.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    frame_index: u64,
+    /// The variable of a MAT file (a struct's field as NAME.FIELD).
+    #[arg(long)]
+    select: Option<String>,
+    /// Frames as `rows` or `columns` of the array; `auto`: columns in MAT files, rows otherwise.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "rows", "columns"])]
+    layout: String,
+    /// What the numbers are: `signed` voltages, or `magnitude`s signed by the model.
+    #[arg(long, default_value = "signed", value_parser = ["signed", "magnitude"])]
+    values: String,
+    /// For complex data, the part imaged: real, imaginary, magnitude (signed by the model) or phase.
+    #[arg(long, default_value = "real")]
+    component: Component,
+    /// Write the raster as data: `.npy` (f32, ny × nx, row 0 at the top, NaN outside) or `.csv`
+    /// (x, y in the spec's unit, Δσ in S/m per inside pixel).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the conductivity change of every triangle as CSV (triangle, centroid x, y, Δσ).
+    #[arg(long)]
+    elements: Option<PathBuf>,
     /// Write the image as a PNG heat map (touches marked).
     #[arg(long)]
     png: Option<PathBuf>,
@@ -76,8 +101,18 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(n) = args.triangles {
         spec.mesh.triangles = n;
     }
-    let v_ref = eitskin_io::read_frame(&args.reference)?;
-    let v = eitskin_io::read_frame(&args.frame)?;
+    let layout = match args.layout.as_str() {
+        "rows" => FrameLayout::Rows,
+        "columns" => FrameLayout::Columns,
+        _ => FrameLayout::Auto,
+    };
+    let select = FrameSelect { variable: args.select.clone(), layout };
+    let references = frames(&eitskin_io::read_frames(&args.reference, &select)?, args.component);
+    let table = frames(&eitskin_io::read_frames(&args.frame, &select)?, args.component);
+    let index = usize::try_from(args.frame_index - 1).unwrap_or(usize::MAX);
+    let Some(v) = table.get(index).cloned() else {
+        anyhow::bail!("--frame-index {}: {} holds {} frame(s)", args.frame_index, args.frame.display(), table.len());
+    };
     let fixed = match args.hyperparameter {
         Hyperparameter::Fixed(value) => value,
         Hyperparameter::Auto => ReconstructorParams::default().hyperparameter,
@@ -85,10 +120,24 @@ pub fn run(args: Args) -> Result<()> {
     let params =
         ReconstructorParams { hyperparameter: fixed, normalized: args.normalised, ..ReconstructorParams::default() };
     let recon = load::reconstructor(&spec, &params, !args.no_cache)?;
+    let magnitudes = args.values == "magnitude" || args.component == Component::Magnitude;
+    let (references, v) = if magnitudes {
+        let model = recon.linearisation().background();
+        let (v, report) = signed_from_magnitudes(&v, model);
+        if !report.unexplained.is_empty() {
+            let channels: Vec<usize> = report.unexplained.iter().map(|m| m + 1).collect();
+            eprintln!("warning: the model does not explain the magnitudes of channels {channels:?}");
+        }
+        (references.iter().map(|r| signed_from_magnitudes(r, model).0).collect(), v)
+    } else {
+        (references, v)
+    };
+    let v_ref = mean(&references);
+    let variance = noise_variance(&references, args.normalised);
     // A channel missing (NaN) in the reference or the frame is dropped, not refused.
     let channels = Channels::finite_in(&v_ref).masked(Channels::finite_in(&v).used_mask());
     let recon = match args.hyperparameter {
-        Hyperparameter::Auto => recon.with_auto_hyperparameter(channels, None)?.0,
+        Hyperparameter::Auto => recon.with_auto_hyperparameter(channels, variance)?.0,
         Hyperparameter::Fixed(value) => recon.derive(value, channels)?,
     };
     let image = recon.image(&v_ref, &v).with_context(|| format!("imaging {}", args.frame.display()))?;
@@ -113,6 +162,21 @@ pub fn run(args: Args) -> Result<()> {
             })
             .collect(),
     };
+    match &args.out {
+        Some(path) if path.extension().is_some_and(|e| e == "npy") => eitskin_io::write_raster_npy(path, &image)?,
+        Some(path) => eitskin_io::write_raster_csv(path, &image, spec.length_unit)?,
+        None => {}
+    }
+    if let Some(path) = &args.elements {
+        let values: Vec<f64> = recon.element_values(&v_ref, &v)?.into_iter().map(f64::from).collect();
+        eitskin_io::write_elements_csv(
+            path,
+            recon.linearisation().mesh(),
+            &values,
+            spec.length_unit,
+            "delta_sigma_s_per_m",
+        )?;
+    }
     if let Some(png) = &args.png {
         plot::image_png(&image, &touches, png)?;
     }
@@ -130,4 +194,24 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The frames of a table as signed values: real data as they are, complex data's `component`.
+fn frames(table: &FrameTable, component: Component) -> Vec<Vec<f64>> {
+    match &table.imaginary {
+        None => table.frames.clone(),
+        Some(imaginary) => table
+            .frames
+            .iter()
+            .zip(imaginary)
+            .map(|(re, im)| re.iter().zip(im).map(|(&r, &i)| component.of(r, i)).collect())
+            .collect(),
+    }
+}
+
+/// The mean of the frames per channel, NaN where a frame misses the channel.
+fn mean(frames: &[Vec<f64>]) -> Vec<f64> {
+    let n = frames.len() as f64;
+    let width = frames.first().map_or(0, Vec::len);
+    (0..width).map(|m| frames.iter().map(|f| f.get(m).copied().unwrap_or(f64::NAN)).sum::<f64>() / n).collect()
 }

@@ -193,6 +193,62 @@ fn image_finds_a_more_conductive_object_with_either_polarity() {
     assert!(decrease["touches"].as_array().unwrap().iter().all(|t| t["sign"] == "decrease"), "{decrease}");
 }
 
+/// A board that sends magnitudes, with a channel missing: the signs come from the model, the
+/// missing channel is dropped and named, and the raster and element values are written as data.
+#[test]
+fn image_signs_magnitudes_drops_a_missing_channel_and_writes_data() {
+    let dir = scratch("image-magnitudes");
+    let spec = dir.join("opposite.toml");
+    let text = String::from_utf8(dir.eitskin(&["spec"]).stdout).unwrap();
+    std::fs::write(&spec, text.replace("kind = \"two-terminal\"", "kind = \"opposite\"")).unwrap();
+    let spec = spec.to_str().unwrap();
+    let values = |extra: &[&str]| {
+        let out = dir.eitskin(&[&["forward", spec, "--triangles", "3000"], extra].concat());
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        json["measurements"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect::<Vec<f64>>()
+    };
+    let reference = values(&[]);
+    assert!(reference.iter().any(|v| *v < 0.0), "opposite-drive measurements have both signs");
+    let magnitudes = |v: &[f64], missing: Option<usize>| {
+        let text: Vec<String> = v
+            .iter()
+            .enumerate()
+            .map(|(m, x)| if Some(m) == missing { "NaN".into() } else { x.abs().to_string() })
+            .collect();
+        text.join(" ")
+    };
+    let (ref_file, frame_file) = (dir.join("ref.txt"), dir.join("frame.txt"));
+    std::fs::write(&ref_file, magnitudes(&reference, None)).unwrap();
+    std::fs::write(&frame_file, magnitudes(&values(&["--inclusion", "40,-30,12,0.5"]), Some(4))).unwrap();
+    let (npy, elements) = (dir.join("image.npy"), dir.join("elements.csv"));
+    let out = dir.eitskin(&[
+        "image",
+        spec,
+        "--triangles",
+        "1500",
+        "--values",
+        "magnitude",
+        "--reference",
+        ref_file.to_str().unwrap(),
+        "--frame",
+        frame_file.to_str().unwrap(),
+        "--out",
+        npy.to_str().unwrap(),
+        "--elements",
+        elements.to_str().unwrap(),
+        "--json",
+    ]);
+    let json = stdout_json(&out);
+    assert_eq!(json["channels_dropped"], serde_json::json!([5]), "{json}");
+    let touches = json["touches"].as_array().unwrap();
+    assert!(!touches.is_empty(), "{json}");
+    let (x, y) = (touches[0]["x"].as_f64().unwrap(), touches[0]["y"].as_f64().unwrap());
+    assert!((x - 40.0).hypot(y + 30.0) < 20.0, "touch at ({x}, {y}) mm, press at (40, -30)");
+    assert_eq!(&std::fs::read(npy).unwrap()[..6], b"\x93NUMPY");
+    let rows = std::fs::read_to_string(elements).unwrap().lines().count();
+    assert!(rows > 1000, "{rows} element rows");
+}
+
 #[test]
 fn sensitivity_writes_the_profile_and_map() {
     let dir = scratch("sensitivity");

@@ -57,6 +57,7 @@ pub mod spec;
 pub mod strength;
 pub mod study;
 pub mod touch;
+pub mod values;
 
 pub use forward::{ElectrodeModel, ForwardError, ForwardModel, ForwardSolution};
 pub use geometry::{Electrode, Outline};
