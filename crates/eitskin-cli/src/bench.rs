@@ -14,6 +14,7 @@ use std::time::Instant;
 use anyhow::Result;
 use eitskin::chain::Chain;
 use eitskin::conductivity::{with_inclusions, Inclusion};
+use eitskin::inverse::Channels;
 use eitskin::pipeline::{Pipeline, PipelineParams};
 use eitskin::press_fit::{PressModel, PressModelParams, PressScratch};
 use eitskin::touch::{detect_into, TouchScratch};
@@ -109,6 +110,12 @@ pub fn run(args: Args) -> Result<()> {
     let params = ReconstructorParams::default();
     let background = spec.conductivity;
     let (t_recon, recon) = time(n, || Ok(Reconstructor::new(&model, background, &params)?))?;
+    // A channel gone bad: the reconstructor derived again without it, from the linearisation.
+    let mut mask = vec![true; recon.measurements()];
+    mask[0] = false;
+    let channels = Channels::all(mask.len()).masked(&mask);
+    let (t_drop, _) = time(n, || Ok(recon.derive(params.hyperparameter, channels.clone())?))?;
+    let (t_auto, _) = time(n.min(3), || Ok(recon.with_auto_hyperparameter(Channels::all(mask.len()), None)?))?;
     // A frame with a press at (30 %, −20 %) of the half-width, so the touch stage finds one.
     let [lo, hi] = model.mesh().bounds();
     let half = (hi[0] - lo[0]) / 2.0;
@@ -139,6 +146,8 @@ pub fn run(args: Args) -> Result<()> {
         ("measurements", t_measure),
         ("jacobian", t_jacobian),
         ("reconstructor", t_recon),
+        ("drop_channel", t_drop),
+        ("auto_hyperparameter", t_auto),
         ("press_model", t_press_model),
         ("frame_image", t_image),
         ("frame_touches", t_touches),

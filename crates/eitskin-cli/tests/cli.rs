@@ -95,6 +95,8 @@ fn bench_json_has_every_stage() {
         "total",
         "jacobian",
         "reconstructor",
+        "drop_channel",
+        "auto_hyperparameter",
         "frame_image",
         "frame_touches",
     ] {
