@@ -20,7 +20,8 @@ pub struct Args {
     /// Override the mesh grading toward electrode edges (1 = uniform).
     #[arg(long)]
     grading: Option<f64>,
-    /// Protocol: two-terminal, adjacent, adjacent-all, opposite, or a protocol JSON file.
+    /// Protocol: two-terminal, adjacent, adjacent-all, opposite, skip-S, skip-S-all (S = 0, 1, …),
+    /// or a protocol JSON file.
     #[arg(long)]
     protocol: Option<String>,
     /// Inclusion x,y,r,sigma for the difference signal (spec units; S/m). Default: radius 5 % of

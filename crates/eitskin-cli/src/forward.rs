@@ -13,7 +13,8 @@ use crate::load;
 pub struct Args {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
-    /// Protocol: two-terminal, adjacent, adjacent-all, opposite, or a protocol JSON file.
+    /// Protocol: two-terminal, adjacent, adjacent-all, opposite, skip-S, skip-S-all (S = 0, 1, …),
+    /// or a protocol JSON file.
     #[arg(long)]
     protocol: Option<String>,
     /// A circular inclusion x,y,r,sigma (spec units from the outline's centre; S/m). Repeatable.

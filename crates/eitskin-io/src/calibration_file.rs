@@ -16,7 +16,8 @@
 //! key version; thickness and background conductivity; the outline's kind and lengths; the
 //! electrode model, width, contact impedance and each electrode's centre (m); the protocol's
 //! stimulation currents and measurement weights. The mesh density and the spec's length unit
-//! are not part of it, nor how the electrodes were placed (only where they are). Files of
+//! are not part of it, nor how the electrodes were placed (only where they are, in electrode
+//! order: numbering the same electrodes clockwise is another sensor, as its frames are). Files of
 //! versions 1 and 2 carry an older key (the spec file's TOML and the protocol's debug text),
 //! which is still accepted for them.
 
@@ -138,8 +139,10 @@ fn legacy_spec_key(spec: &SensorSpec) -> Result<String, Error> {
         protocol.stimulations(),
         measurements.join(", ")
     );
+    // Versions 1 and 2 predate `electrodes.numbering`: the default's line was not printed then.
+    let toml = crate::spec_to_toml(&geometry).replace("numbering = \"counter-clockwise\"\n", "");
     let mut hash = Sha256::new();
-    hash.update(crate::spec_to_toml(&geometry));
+    hash.update(toml);
     hash.update(text);
     Ok(hex(&hash.finalize()))
 }

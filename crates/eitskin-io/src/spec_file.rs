@@ -6,6 +6,7 @@
 
 use std::path::Path;
 
+use eitskin::spec::Numbering;
 use eitskin::{ElectrodeSpec, LengthUnit, MeshParams, Outline, Placement, ProtocolSpec, SensorSpec};
 use serde::{Deserialize, Serialize};
 
@@ -46,6 +47,8 @@ struct ElectrodesFile {
     #[serde(skip_serializing_if = "Option::is_none")]
     contact_impedance: Option<f64>,
     placement: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    numbering: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     start_angle_deg: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -149,10 +152,11 @@ pub fn spec_to_toml(spec: &SensorSpec) -> String {
             width,
             contact_impedance,
             placement: placement.into(),
+            numbering: Some(e.numbering.name().into()),
             start_angle_deg,
             positions,
         },
-        protocol: ProtocolFile { kind: protocol_kind(&spec.protocol).into(), file: None },
+        protocol: ProtocolFile { kind: protocol_kind(&spec.protocol), file: None },
         mesh: MeshFile {
             triangles: spec.mesh.triangles,
             max_element_size: spec.mesh.max_element_size.map(|h| h * k),
@@ -164,26 +168,18 @@ pub fn spec_to_toml(spec: &SensorSpec) -> String {
     toml::to_string(&file).unwrap_or_default()
 }
 
-/// The spec file's name of a protocol kind.
-pub fn protocol_kind(protocol: &ProtocolSpec) -> &'static str {
-    match protocol {
-        ProtocolSpec::TwoTerminal => "two-terminal",
-        ProtocolSpec::Adjacent => "adjacent",
-        ProtocolSpec::AdjacentAll => "adjacent-all",
-        ProtocolSpec::Opposite => "opposite",
-        ProtocolSpec::Custom(_) => "custom",
-    }
+/// The spec file's name of a protocol kind, e.g. "skip-2" ([`ProtocolSpec::name`]).
+pub fn protocol_kind(protocol: &ProtocolSpec) -> String {
+    protocol.name()
 }
 
-/// A protocol named as on the command line or in `protocol.kind`; anything else is a file.
+/// A protocol named as on the command line or in `protocol.kind` (one of
+/// [`ProtocolSpec::NAMES`]); anything else is a protocol file, relative to `base`.
 pub fn protocol_by_name(name: &str, base: &Path) -> Result<ProtocolSpec, Error> {
-    Ok(match name {
-        "two-terminal" => ProtocolSpec::TwoTerminal,
-        "adjacent" => ProtocolSpec::Adjacent,
-        "adjacent-all" => ProtocolSpec::AdjacentAll,
-        "opposite" => ProtocolSpec::Opposite,
-        file => ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(file))?),
-    })
+    match ProtocolSpec::from_name(name) {
+        Some(builtin) => Ok(builtin),
+        None => Ok(ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(name))?)),
+    }
 }
 
 impl SpecFile {
@@ -228,6 +224,15 @@ impl SpecFile {
         };
         only_for("electrodes.start_angle_deg", e.start_angle_deg.is_some(), "equal")?;
         only_for("electrodes.positions", e.positions.is_some(), "explicit")?;
+        let numbering = match e.numbering.as_deref() {
+            None => Numbering::default(),
+            Some(name) => Numbering::from_name(name).ok_or_else(|| {
+                key_error(
+                    "electrodes.numbering",
+                    format!("must be \"counter-clockwise\" or \"clockwise\", got \"{name}\""),
+                )
+            })?,
+        };
         let placement = match e.placement.as_str() {
             "per-side" => Placement::PerSide,
             "equal" => Placement::Equal { start_angle_deg: e.start_angle_deg.unwrap_or(0.0) },
@@ -247,18 +252,18 @@ impl SpecFile {
             }
         };
         let protocol = match (self.protocol.kind.as_str(), self.protocol.file) {
-            ("custom", Some(file)) => protocol_by_name(&file, base)?,
+            ("custom", Some(file)) => ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(file))?),
             ("custom", None) => return Err(key_error("protocol.file", "is required for kind = \"custom\"".into())),
             (_, Some(_)) => return Err(key_error("protocol.file", "applies only to kind = \"custom\"".into())),
-            ("two-terminal" | "adjacent" | "adjacent-all" | "opposite", None) => {
-                protocol_by_name(&self.protocol.kind, base)?
-            }
-            (other, None) => {
-                return Err(key_error(
-                    "protocol.kind",
-                    format!("must be two-terminal, adjacent, adjacent-all, opposite or custom, got \"{other}\""),
-                ))
-            }
+            (name, None) => match ProtocolSpec::from_name(name) {
+                Some(builtin) => builtin,
+                None => {
+                    return Err(key_error(
+                        "protocol.kind",
+                        format!("must be one of {}, or custom, got \"{name}\"", ProtocolSpec::NAMES),
+                    ))
+                }
+            },
         };
         Ok(SensorSpec {
             length_unit,
@@ -270,6 +275,7 @@ impl SpecFile {
                 width: e.width.unwrap_or(0.0) * k,
                 contact_impedance: e.contact_impedance.unwrap_or(0.0),
                 placement,
+                numbering,
                 point,
             },
             protocol,
@@ -301,5 +307,59 @@ mod tests {
         assert!((back.thickness - spec.thickness).abs() < 1e-15);
         assert_eq!(back.protocol, spec.protocol);
         assert!(text.contains("units = \"mm\"") && text.contains("width = 200.0"), "{text}");
+        assert!(text.contains("numbering = \"counter-clockwise\""), "{text}");
+    }
+
+    #[test]
+    fn numbering_angle_and_skip_protocols_round_trip() {
+        let text = r#"
+thickness = 5.0
+conductivity = 1.0
+[outline]
+kind = "rectangle"
+width = 300.0
+height = 200.0
+[electrodes]
+count = 16
+width = 10.0
+contact_impedance = 1e-4
+placement = "equal"
+numbering = "clockwise"
+start_angle_deg = 180.0
+[protocol]
+kind = "skip-2"
+"#;
+        let spec = parse_spec(text, Path::new(".")).unwrap();
+        assert_eq!(spec.electrodes.numbering, Numbering::Clockwise);
+        assert_eq!(spec.electrodes.placement, Placement::Equal { start_angle_deg: 180.0 });
+        assert_eq!(spec.protocol, ProtocolSpec::Skip { skip: 2, skip_driven: true });
+        let printed = spec_to_toml(&spec);
+        for line in ["numbering = \"clockwise\"", "start_angle_deg = 180.0", "kind = \"skip-2\""] {
+            assert!(printed.contains(line), "{line} not in {printed}");
+        }
+        let back = parse_spec(&printed, Path::new(".")).unwrap();
+        assert_eq!(back.electrodes, spec.electrodes);
+        assert_eq!(back.protocol, spec.protocol);
+        let all = parse_spec(&text.replace("skip-2", "skip-2-all"), Path::new(".")).unwrap();
+        assert_eq!(all.protocol().unwrap().len(), 256);
+    }
+
+    #[test]
+    fn bad_numbering_angle_and_kind_name_the_key() {
+        let spec = spec_to_toml(&SensorSpec::square_hydrogel());
+        let message = |text: &str| crate::full_message(&parse_spec(text, Path::new(".")).unwrap_err());
+        let err = message(&spec.replace("\"counter-clockwise\"", "\"anticlockwise\""));
+        assert!(err.contains("`electrodes.numbering`") && err.contains("\"anticlockwise\""), "{err}");
+        let err = message(&spec.replace("placement = \"per-side\"", "placement = \"equal\"\nstart_angle_deg = 720.0"));
+        assert!(
+            err.contains("`electrodes.start_angle_deg` must be a finite number within [-360, 360] degrees"),
+            "{err}"
+        );
+        let err = message(
+            &spec.replace("start_angle_deg = 720.0", "").replace("kind = \"two-terminal\"", "kind = \"skip-x\""),
+        );
+        assert!(err.contains("`protocol.kind`") && err.contains("skip-S"), "{err}");
+        let err = message(&spec.replace("kind = \"two-terminal\"", "kind = \"skip-15\""));
+        assert!(err.contains("skip-15 pairs electrode k with k + 16"), "{err}");
     }
 }

@@ -53,7 +53,8 @@ fn unknown_key_is_named() {
     assert_refused(
         &PAPER.replace("count = 16", "count = 16\ncolour = \"red\""),
         "TOML parse error at line 13, column 1\n   |\n13 | colour = \"red\"\n   | ^^^^^^\nunknown field `colour`, \
-         expected one of `count`, `model`, `width`, `contact_impedance`, `placement`, `start_angle_deg`, `positions`\n",
+         expected one of `count`, `model`, `width`, `contact_impedance`, `placement`, `numbering`, `start_angle_deg`, \
+         `positions`\n",
     );
     assert_refused(
         &format!("{PAPER}\nfoo = 1"),
@@ -139,11 +140,19 @@ fn non_positive_values_are_refused() {
 #[test]
 fn misplaced_and_missing_keys_are_named() {
     assert_refused(
-        &PAPER.replace("placement = \"per-side\"", "placement = \"equal\""),
+        &PAPER.replace("kind = \"rectangle\"\nwidth = 200.0\nheight = 200.0", "kind = \"circle\"\nradius = 100.0"),
         &format!(
-            "{SPEC}`electrodes.placement` = \"equal\" does not fit a rectangle outline; equal spacing is for \
-             circles; use \"explicit\" positions"
+            "{SPEC}`electrodes.placement` = \"per-side\" does not fit a circle outline; per-side is for \
+             rectangles; use \"equal\" spacing or \"explicit\" positions"
         ),
+    );
+    assert_refused(
+        &PAPER.replace("placement = \"per-side\"", "placement = \"per-side\"\nnumbering = \"ccw\""),
+        "`electrodes.numbering` must be \"counter-clockwise\" or \"clockwise\", got \"ccw\"",
+    );
+    assert_refused(
+        &PAPER.replace("placement = \"per-side\"", "placement = \"equal\"\nstart_angle_deg = nan"),
+        &format!("{SPEC}`electrodes.start_angle_deg` must be a finite number within [-360, 360] degrees, got NaN"),
     );
     assert_refused(
         &PAPER.replace("placement = \"per-side\"", "placement = \"per-side\"\nstart_angle_deg = 3.0"),
@@ -159,7 +168,7 @@ fn misplaced_and_missing_keys_are_named() {
     );
     assert_refused(
         &PAPER.replace("kind = \"two-terminal\"", "kind = \"four-terminal\""),
-        "`protocol.kind` must be two-terminal, adjacent, adjacent-all, opposite or custom, got \"four-terminal\"",
+        "`protocol.kind` must be one of two-terminal, adjacent, adjacent-all, opposite, skip-S, skip-S-all (S = 0, 1, 2, …), or custom, got \"four-terminal\"",
     );
     assert_refused(
         &PAPER.replace("units = \"mm\"", "units = \"inch\""),

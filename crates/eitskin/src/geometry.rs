@@ -105,6 +105,35 @@ impl Outline {
         corners[0]
     }
 
+    /// Arc length, in m, where the ray from the origin (the outline's centre) at `angle_deg`
+    /// degrees from the +x axis, counter-clockwise, first meets the boundary; `None` when it
+    /// misses (a polygon that does not surround the origin).
+    pub fn arc_length_at_angle(&self, angle_deg: f64) -> Option<f64> {
+        let theta = angle_deg.to_radians();
+        if let Outline::Circle { radius } = self {
+            return Some(radius * theta.rem_euclid(2.0 * PI));
+        }
+        let direction = [theta.cos(), theta.sin()];
+        let corners = self.corners();
+        let mut best: Option<(f64, f64)> = None;
+        let mut start = 0.0;
+        for (a, b) in polygon_edges(&corners) {
+            let len = dist(a, b);
+            let edge = [b[0] - a[0], b[1] - a[1]];
+            // Solve t·direction = a + u·edge for the ray parameter t (m) and the edge's u ∈ [0, 1].
+            let det = edge[0] * direction[1] - edge[1] * direction[0];
+            if det.abs() > 1e-15 * len {
+                let t = (edge[0] * a[1] - edge[1] * a[0]) / det;
+                let u = (direction[0] * a[1] - direction[1] * a[0]) / det;
+                if t > 0.0 && (-1e-12..=1.0 + 1e-12).contains(&u) && best.is_none_or(|(t_best, _)| t < t_best) {
+                    best = Some((t, start + u.clamp(0.0, 1.0) * len));
+                }
+            }
+            start += len;
+        }
+        best.map(|(_, s)| s.rem_euclid(start))
+    }
+
     /// Arc length of the boundary point nearest to `p`, and the distance to it, in m.
     pub fn locate(&self, p: [f64; 2]) -> (f64, f64) {
         if let Outline::Circle { radius } = self {
@@ -244,6 +273,26 @@ mod tests {
         assert_eq!(sq.point_at(5.0), [0.0, 1.0]);
         let (s, d) = sq.locate([0.3, 1.2]);
         assert!((s - 4.7).abs() < 1e-12 && (d - 0.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn rays_from_the_centre_meet_the_boundary_where_expected() {
+        let sq = Outline::Rectangle { width: 2.0, height: 2.0 };
+        let at = |o: &Outline, deg: f64| o.point_at(o.arc_length_at_angle(deg).unwrap());
+        let close = |p: [f64; 2], q: [f64; 2]| dist(p, q) < 1e-12;
+        assert!(close(at(&sq, 0.0), [1.0, 0.0]));
+        assert!(close(at(&sq, 90.0), [0.0, 1.0]));
+        assert!(close(at(&sq, 225.0), [-1.0, -1.0]), "{:?}", at(&sq, 225.0));
+        assert!(close(at(&sq, -90.0), [0.0, -1.0]));
+        let wide = Outline::Rectangle { width: 4.0, height: 2.0 };
+        assert!(close(at(&wide, 45.0), [1.0, 1.0]));
+        let c = Outline::Circle { radius: 0.5 };
+        assert!(close(at(&c, 120.0), [0.5 * 120f64.to_radians().cos(), 0.5 * 120f64.to_radians().sin()]));
+        let triangle = Outline::Polygon { points: vec![[-1.0, -1.0], [2.0, -1.0], [-1.0, 2.0]] };
+        assert!(close(at(&triangle, 45.0), [0.5, 0.5]));
+        assert!(close(at(&triangle, 180.0), [-1.0, 0.0]));
+        let off_centre = Outline::Polygon { points: vec![[1.0, 1.0], [2.0, 1.0], [2.0, 2.0], [1.0, 2.0]] };
+        assert_eq!(off_centre.arc_length_at_angle(-90.0), None);
     }
 
     #[test]

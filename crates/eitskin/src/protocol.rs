@@ -4,6 +4,28 @@
 //! sum to zero) and a list of measurements (a stimulation index and a weight per electrode;
 //! the weights sum to zero, so a measurement is a voltage difference, in V). Electrodes are
 //! indexed from 0 here and numbered from 1 in files and messages.
+//!
+//! The built-in protocols and their frame order (k the stimulation, m the measured pair,
+//! both from 0 and taken modulo L; "skip driven" drops every pair that shares an electrode
+//! with the drive, keeping the order of the rest):
+//!
+//! | protocol | stimulation k | measurement | L = 16 | L = 32 |
+//! |---|---|---|---|---|
+//! | [`Protocol::two_terminal`] | +1 A at a, −1 A at b | U_a − U_b, pairs a < b in lexicographic order | 120 | 496 |
+//! | [`Protocol::adjacent`] (skip driven) | −1 A at k, +1 A at k+1 | U_m − U_{m+1}, m = 0 … L−1 | 208 | 928 |
+//! | [`Protocol::adjacent`] (all) | as above | row L·k + m | 256 | 1024 |
+//! | [`Protocol::opposite`] | −1 A at k, +1 A at k+⌊L/2⌋ | U_m − U_{m+1}, skip driven | 192 | 896 |
+//! | [`Protocol::skip`] (skip s, skip driven) | −1 A at k, +1 A at k+s+1 | U_m − U_{m+s+1} | 208 (224 for s = 7) | 928 (960 for s = 15) |
+//! | [`Protocol::skip`] (all) | as above | row L·k + m | 256 | 1024 |
+//!
+//! Measurement-major order inside each stimulation, stimulations in order k = 0 … L−1.
+//! EIDORS' `mk_stim_patterns(L,1,[0,1],[0,1],{'no_meas_current'},1)` is `adjacent` row for
+//! row, sign included (checked against its exported quads in `tests/forward_eidors.rs`);
+//! pyEIT's `protocol.create(L, dist_exc=s+1, step_meas=s+1, parser_meas="std")` drives +1 A at
+//! k and measures U_{m+s+1} − U_m: both signs flipped, so every value is the same as `skip`'s.
+//! The OpenEIT firmware's 32-electrode adjacent table (928 values) is `adjacent`'s order, and
+//! its 16-electrode opposition table (192 values) is `opposite`'s order and sign; the board
+//! reports magnitudes |Z| (see `docs/openeit.md`).
 
 use thiserror::Error;
 
@@ -67,6 +89,14 @@ pub enum ProtocolError {
         electrode: usize,
         /// Electrode count.
         count: usize,
+    },
+    /// A skip protocol whose drive pair would be one electrode (skip + 1 ≥ L).
+    #[error("skip-{skip} pairs electrode k with k + {pair_offset}, which needs more than {electrodes} electrodes; use a skip of at most {max}", pair_offset = skip + 1, max = electrodes.saturating_sub(2))]
+    SkipTooLarge {
+        /// The skip s (electrodes between the pair).
+        skip: usize,
+        /// Electrode count L.
+        electrodes: usize,
     },
     /// A quad drives or measures between an electrode and itself.
     #[error("row {row} pairs electrode {electrode} with itself")]
@@ -160,42 +190,60 @@ impl Protocol {
         )
     }
 
-    /// Adjacent drive, adjacent measurement (EIDORS `mk_stim_patterns(L,1,[0,1],[0,1],…)`):
-    /// stimulation k puts −1 A at k and +1 A at k+1; measurement m is U_m − U_{m+1}.
-    /// With `skip_driven` the pairs touching a driven electrode are left out (L(L−3) = 208
-    /// for L = 16); without, all L² = 256 are kept.
+    /// Adjacent drive, adjacent measurement, EIDORS' `mk_stim_patterns(L,1,[0,1],[0,1],…,1)`
+    /// row for row: stimulation k (k = 0 … L−1) puts −1 A at k and +1 A at k+1; measurement m
+    /// (m = 0 … L−1, in that order) is U_m − U_{m+1}, indices modulo L. With `skip_driven`
+    /// (EIDORS' `'no_meas_current'`) the pairs touching a driven electrode are left out:
+    /// L(L−3) values, 208 for L = 16, 928 for L = 32 (the OpenEIT firmware's 32-electrode
+    /// order); without (`'meas_current'`), all L² are kept and row L·k + m is pair m of
+    /// stimulation k (256 for L = 16).
     pub fn adjacent(electrode_count: usize, skip_driven: bool) -> Result<Protocol, ProtocolError> {
-        Protocol::drive_and_adjacent_measure(electrode_count, 1, skip_driven, "adjacent")
-    }
-
-    /// Opposite drive (−1 A at k, +1 A at k + L/2), adjacent measurements that skip the driven
-    /// electrodes; L stimulations.
-    pub fn opposite(electrode_count: usize) -> Result<Protocol, ProtocolError> {
-        Protocol::drive_and_adjacent_measure(electrode_count, electrode_count / 2, true, "opposite")
-    }
-
-    fn drive_and_adjacent_measure(
-        l: usize,
-        offset: usize,
-        skip_driven: bool,
-        name: &str,
-    ) -> Result<Protocol, ProtocolError> {
-        let mut quads = Vec::new();
-        for k in 0..l {
-            let (minus, plus) = (k, (k + offset) % l);
-            for m in 0..l {
-                let (a, b) = (m, (m + 1) % l);
-                let touches = [a, b].iter().any(|e| *e == minus || *e == plus);
-                if skip_driven && touches {
-                    continue;
-                }
-                quads.push([plus, minus, a, b]);
-            }
-        }
+        let quads = drive_and_measure_quads(electrode_count, 1, 1, skip_driven);
         let variant = if skip_driven { "skipping driven electrodes" } else { "all pairs" };
         Protocol::from_quads0(
-            format!("{name} drive, adjacent measurement {variant}: {} measurements of {l} electrodes", quads.len()),
-            l,
+            format!(
+                "adjacent drive, adjacent measurement {variant}: {} measurements of {electrode_count} electrodes",
+                quads.len()
+            ),
+            electrode_count,
+            &quads,
+        )
+    }
+
+    /// Opposite drive, adjacent measurement: stimulation k (k = 0 … L−1) puts −1 A at k and
+    /// +1 A at k + ⌊L/2⌋; measurement m (m = 0 … L−1, in that order) is U_m − U_{m+1}, pairs
+    /// touching a driven electrode left out: L(L−4) values for even L, 192 for L = 16 (the
+    /// OpenEIT firmware's 16-electrode opposition table, row for row).
+    pub fn opposite(electrode_count: usize) -> Result<Protocol, ProtocolError> {
+        let quads = drive_and_measure_quads(electrode_count, electrode_count / 2, 1, true);
+        Protocol::from_quads0(
+            format!(
+                "opposite drive, adjacent measurement skipping driven electrodes: {} measurements of {electrode_count} electrodes",
+                quads.len()
+            ),
+            electrode_count,
+            &quads,
+        )
+    }
+
+    /// Skip-s drive and measurement (pyEIT's `dist_exc = step_meas = s + 1`): stimulation k
+    /// (k = 0 … L−1) puts −1 A at k and +1 A at k+s+1; measurement m (m = 0 … L−1, in that
+    /// order) is U_m − U_{m+s+1}, indices modulo L. With `skip_driven` the pairs sharing an
+    /// electrode with the drive are left out: L(L−3) values (208 for L = 16), or L(L−2) when
+    /// 2(s+1) = L (224 for L = 16, s = 7); without, all L² are kept, row L·k + m. Skip 0 is
+    /// [`Protocol::adjacent`], pattern for pattern.
+    pub fn skip(electrode_count: usize, skip: usize, skip_driven: bool) -> Result<Protocol, ProtocolError> {
+        if skip + 1 >= electrode_count.max(2) {
+            return Err(ProtocolError::SkipTooLarge { skip, electrodes: electrode_count });
+        }
+        let quads = drive_and_measure_quads(electrode_count, skip + 1, skip + 1, skip_driven);
+        let variant = if skip_driven { "skipping driven electrodes" } else { "all pairs" };
+        Protocol::from_quads0(
+            format!(
+                "skip-{skip} drive and measurement {variant}: {} measurements of {electrode_count} electrodes",
+                quads.len()
+            ),
+            electrode_count,
             &quads,
         )
     }
@@ -282,6 +330,25 @@ impl Protocol {
     }
 }
 
+/// 0-based quads `[drive+, drive−, measure+, measure−]`: for k = 0 … L−1, drive +1 A at
+/// k + `drive_offset`, −1 A at k; for m = 0 … L−1, measure U_m − U_{m + measure_offset}
+/// (indices modulo L), leaving out pairs that share an electrode with the drive if `skip_driven`.
+fn drive_and_measure_quads(l: usize, drive_offset: usize, measure_offset: usize, skip_driven: bool) -> Vec<[usize; 4]> {
+    let mut quads = Vec::new();
+    for k in 0..l {
+        let (minus, plus) = (k, (k + drive_offset) % l);
+        for m in 0..l {
+            let (a, b) = (m, (m + measure_offset) % l);
+            let touches = [a, b].iter().any(|e| *e == minus || *e == plus);
+            if skip_driven && touches {
+                continue;
+            }
+            quads.push([plus, minus, a, b]);
+        }
+    }
+    quads
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -316,6 +383,136 @@ mod tests {
         assert_eq!(pair(&skip.measurements()[0]), (2, 3));
         assert_eq!(pair(&skip.measurements()[12]), (14, 15));
         assert_eq!(Protocol::opposite(16).unwrap().stimulations()[3][11], 1.0);
+    }
+
+    /// The 1-based quads `[drive+, drive−, measure+, measure−]` of each measurement.
+    fn quads(p: &Protocol) -> Vec<[usize; 4]> {
+        p.measurements()
+            .iter()
+            .map(|m| {
+                let s = &p.stimulations()[m.stimulation];
+                let plus = s.iter().position(|c| *c == 1.0).unwrap_or(99);
+                let minus = s.iter().position(|c| *c == -1.0).unwrap_or(99);
+                let (a, b) = pair(m);
+                [plus + 1, minus + 1, a + 1, b + 1]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn skip_protocols_count_and_start_as_documented() {
+        // Skip 0 is adjacent, pattern for pattern.
+        assert_eq!(
+            Protocol::skip(16, 0, true).unwrap().measurements(),
+            Protocol::adjacent(16, true).unwrap().measurements()
+        );
+        assert_eq!(
+            Protocol::skip(16, 0, false).unwrap().stimulations(),
+            Protocol::adjacent(16, false).unwrap().stimulations()
+        );
+        let skip2 = Protocol::skip(16, 2, true).unwrap();
+        assert_eq!(skip2.len(), 208);
+        assert_eq!(
+            skip2.description(),
+            "skip-2 drive and measurement skipping driven electrodes: 208 measurements of 16 electrodes"
+        );
+        // Drive −1 A at 1, +1 A at 4; pairs (m, m+3) from m = 1 without 1, 4 or 14 (= 1 − 3).
+        assert_eq!(quads(&skip2)[..3], [[4, 1, 2, 5], [4, 1, 3, 6], [4, 1, 5, 8]]);
+        assert_eq!(quads(&skip2)[12], [4, 1, 16, 3]);
+        assert_eq!(quads(&skip2)[13], [5, 2, 1, 4]);
+        assert_eq!(Protocol::skip(16, 2, false).unwrap().len(), 256);
+        assert_eq!(Protocol::skip(16, 7, true).unwrap().len(), 224);
+        assert_eq!(Protocol::skip(32, 0, true).unwrap().len(), 928);
+        assert_eq!(Protocol::skip(32, 2, true).unwrap().len(), 928);
+        assert_eq!(Protocol::skip(16, 14, true).unwrap().len(), 208);
+        assert_eq!(Protocol::skip(16, 15, true).unwrap_err(), ProtocolError::SkipTooLarge { skip: 15, electrodes: 16 });
+        assert_eq!(
+            Protocol::skip(16, 15, true).unwrap_err().to_string(),
+            "skip-15 pairs electrode k with k + 16, which needs more than 16 electrodes; use a skip of at most 14"
+        );
+    }
+
+    /// The OpenEIT firmware's tables (`OpenEIT/EIT_Firmware`, `lookup.h`, 2018), first rows,
+    /// 0-based as there. The 32-electrode adjacent table lists {A−, A+, V−, V+} as the firmware
+    /// wires them (`ImpedanceMeasurement_EIT32_4WireBioIsolated.c`: M1 = A−, M2 = A+, M3 = V−,
+    /// M4 = V+); the 16-electrode opposition table lists {A+, A−, V+, V−} on the 32-way
+    /// multiplexer's even channels (electrode = channel / 2).
+    #[test]
+    fn openeit_firmware_orders_are_adjacent_and_opposite() {
+        let adjacent_32: [[usize; 4]; 32] = [
+            [0, 1, 2, 3],
+            [0, 1, 3, 4],
+            [0, 1, 4, 5],
+            [0, 1, 5, 6],
+            [0, 1, 6, 7],
+            [0, 1, 7, 8],
+            [0, 1, 8, 9],
+            [0, 1, 9, 10],
+            [0, 1, 10, 11],
+            [0, 1, 11, 12],
+            [0, 1, 12, 13],
+            [0, 1, 13, 14],
+            [0, 1, 14, 15],
+            [0, 1, 15, 16],
+            [0, 1, 16, 17],
+            [0, 1, 17, 18],
+            [0, 1, 18, 19],
+            [0, 1, 19, 20],
+            [0, 1, 20, 21],
+            [0, 1, 21, 22],
+            [0, 1, 22, 23],
+            [0, 1, 23, 24],
+            [0, 1, 24, 25],
+            [0, 1, 25, 26],
+            [0, 1, 26, 27],
+            [0, 1, 27, 28],
+            [0, 1, 28, 29],
+            [0, 1, 29, 30],
+            [0, 1, 30, 31],
+            [1, 2, 3, 4],
+            [1, 2, 4, 5],
+            [1, 2, 5, 6],
+        ];
+        let tail_32: [[usize; 4]; 3] = [[2, 3, 31, 0], [31, 0, 1, 2], [31, 0, 29, 30]];
+        let p = Protocol::adjacent(32, true).unwrap();
+        assert_eq!(p.len(), 928);
+        let q = quads(&p);
+        // Ours is [A+, A−, +, −] with U_m − U_{m+1}: the firmware's {A−, A+, V−, V+} is [2, 1, 3, 4] of it.
+        let as_firmware = |r: [usize; 4]| [r[1] - 1, r[0] - 1, r[2] - 1, r[3] - 1];
+        for (row, want) in adjacent_32.iter().enumerate() {
+            assert_eq!(as_firmware(q[row]), *want, "row {row}");
+        }
+        for (row, want) in [(86, tail_32[0]), (899, tail_32[1]), (927, tail_32[2])] {
+            assert_eq!(as_firmware(q[row]), want, "row {row}");
+        }
+        let opposition_16: [[usize; 4]; 14] = [
+            [0, 16, 4, 2],
+            [0, 16, 6, 4],
+            [0, 16, 8, 6],
+            [0, 16, 10, 8],
+            [0, 16, 12, 10],
+            [0, 16, 14, 12],
+            [0, 16, 20, 18],
+            [0, 16, 22, 20],
+            [0, 16, 24, 22],
+            [0, 16, 26, 24],
+            [0, 16, 28, 26],
+            [0, 16, 30, 28],
+            [2, 18, 6, 4],
+            [2, 18, 8, 6],
+        ];
+        let tail_16: [[usize; 4]; 3] = [[2, 18, 0, 30], [4, 20, 2, 0], [30, 14, 28, 26]];
+        let p = Protocol::opposite(16).unwrap();
+        assert_eq!(p.len(), 192);
+        let q = quads(&p);
+        // The firmware drives +1 A at its A+ and reads V+ − V−; ours flips both, so the value is the same.
+        let as_firmware = |r: [usize; 4]| [2 * (r[1] - 1), 2 * (r[0] - 1), 2 * (r[3] - 1), 2 * (r[2] - 1)];
+        for (row, want) in opposition_16.iter().enumerate() {
+            assert_eq!(as_firmware(q[row]), *want, "row {row}");
+        }
+        for (row, want) in [(23, tail_16[0]), (24, tail_16[1]), (191, tail_16[2])] {
+            assert_eq!(as_firmware(q[row]), want, "row {row}");
+        }
     }
 
     #[test]

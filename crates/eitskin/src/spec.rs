@@ -95,6 +95,25 @@ pub enum SpecError {
         /// Electrode width, in m.
         width: f64,
     },
+    /// A number outside its allowed range, or not finite.
+    #[error("`{key}` must be a finite number within {range}, got {value}")]
+    OutOfRange {
+        /// The spec key, e.g. `electrodes.start_angle_deg`.
+        key: &'static str,
+        /// The value found.
+        value: f64,
+        /// The allowed range, with its unit, e.g. "[-360, 360] degrees".
+        range: &'static str,
+    },
+    /// `electrodes.numbering` = "clockwise" with explicit positions, which are already in order.
+    #[error("`electrodes.numbering` = \"clockwise\" does not apply to placement = \"explicit\": the positions are already listed in electrode order; list them in the order the board numbers them")]
+    NumberingWithExplicit,
+    /// The ray from the centre at `electrodes.start_angle_deg` misses the outline.
+    #[error("`electrodes.start_angle_deg` = {angle_deg}: the ray from the origin at this angle does not meet the outline; centre the polygon on the origin")]
+    StartAngleMisses {
+        /// The angle given, in degrees.
+        angle_deg: f64,
+    },
     /// The protocol could not be built.
     #[error("`protocol` does not make a protocol")]
     Protocol(#[from] ProtocolError),
@@ -134,22 +153,67 @@ impl LengthUnit {
     }
 }
 
-/// Where electrodes sit on the boundary.
+/// Where electrodes sit on the boundary; [`Numbering`] says which way they are counted.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Placement {
     /// Rectangles: count/4 per side, centred in equal parts of each side, electrode 1 first on
-    /// the bottom side from the left corner, counter-clockwise.
+    /// the bottom side from the left corner (numbered counter-clockwise; clockwise keeps
+    /// electrode 1 there and counts up the left side).
     PerSide,
-    /// Circles: equal spacing, electrode 1 centred at `start_angle_deg`, counter-clockwise.
+    /// Any outline: centres equally spaced by arc length along the boundary, electrode 1
+    /// centred where the ray from the origin at `start_angle_deg` meets the boundary.
     Equal {
-        /// Angle of electrode 1's centre from the +x axis, in degrees.
+        /// Angle of the ray to electrode 1's centre, from the +x axis counter-clockwise, in
+        /// degrees, within [−360, 360].
         start_angle_deg: f64,
     },
-    /// Any outline: electrode centres at these points (m), projected onto the boundary.
+    /// Any outline: electrode centres at these points (m), in electrode order, projected onto
+    /// the boundary (the numbering is the order given: only counter-clockwise applies).
     Explicit {
         /// Centre of each electrode `[x, y]`, in m, in electrode order.
         positions: Vec<[f64; 2]>,
     },
+}
+
+/// Which way electrode numbers run around the boundary, seen from above (+z).
+///
+/// A placement defines the counter-clockwise layout; clockwise keeps electrode 1 where it is
+/// and numbers the rest the other way, so clockwise electrode k (1-based) sits where
+/// counter-clockwise electrode (2 − k) mod L sits (L for 0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Numbering {
+    /// Electrode 2 follows electrode 1 counter-clockwise (EIDORS', and this crate's, default).
+    #[default]
+    CounterClockwise,
+    /// Electrode 2 follows electrode 1 clockwise (pyEIT's circle, the OpenEIT dashboard).
+    Clockwise,
+}
+
+impl Numbering {
+    /// The spec file's name: "counter-clockwise" or "clockwise".
+    pub fn name(self) -> &'static str {
+        match self {
+            Numbering::CounterClockwise => "counter-clockwise",
+            Numbering::Clockwise => "clockwise",
+        }
+    }
+
+    /// The numbering named as in the spec file, if it is one.
+    pub fn from_name(name: &str) -> Option<Numbering> {
+        match name {
+            "counter-clockwise" => Some(Numbering::CounterClockwise),
+            "clockwise" => Some(Numbering::Clockwise),
+            _ => None,
+        }
+    }
+
+    /// Reorders counter-clockwise electrode centres (arc lengths, m) into this numbering.
+    pub fn apply(self, mut centres: Vec<f64>) -> Vec<f64> {
+        if self == Numbering::Clockwise && centres.len() > 1 {
+            centres[1..].reverse();
+        }
+        centres
+    }
 }
 
 /// The electrodes of a sensor.
@@ -163,23 +227,71 @@ pub struct ElectrodeSpec {
     pub contact_impedance: f64,
     /// Where they sit.
     pub placement: Placement,
+    /// Which way they are numbered.
+    pub numbering: Numbering,
     /// Complete electrodes (default) or ideal point electrodes.
     pub point: bool,
 }
 
-/// Which protocol the board runs.
+/// Which protocol the board runs; the orders are given in [`crate::protocol`].
 #[derive(Debug, Clone, PartialEq)]
 pub enum ProtocolSpec {
-    /// All pairs, driven and measured on the same pair (the paper's; 120 for L = 16).
+    /// `two-terminal`: all pairs, driven and measured on the same pair (the paper's; 120 for L = 16).
     TwoTerminal,
-    /// Adjacent drive and measurement, skipping pairs that touch a driven electrode (208).
+    /// `adjacent`: adjacent drive and measurement, skipping pairs that touch a driven electrode (208).
     Adjacent,
-    /// Adjacent drive and measurement keeping every pair (256).
+    /// `adjacent-all`: adjacent drive and measurement keeping every pair (256).
     AdjacentAll,
-    /// Opposite drive, adjacent measurement.
+    /// `opposite`: opposite drive, adjacent measurement, skipping driven electrodes (192).
     Opposite,
+    /// `skip-S` / `skip-S-all`: drive (k, k+S+1), measure (m, m+S+1), see [`Protocol::skip`].
+    Skip {
+        /// Electrodes S between the two of a pair (0 is adjacent).
+        skip: usize,
+        /// Leave out the pairs that share an electrode with the drive (`skip-S`, not `skip-S-all`).
+        skip_driven: bool,
+    },
     /// Patterns read from a file.
     Custom(Protocol),
+}
+
+impl ProtocolSpec {
+    /// The built-in protocol names, for help texts and error messages.
+    pub const NAMES: &'static str =
+        "two-terminal, adjacent, adjacent-all, opposite, skip-S, skip-S-all (S = 0, 1, 2, …)";
+
+    /// The built-in protocol of this name (as in `protocol.kind` and `--protocol`), if any.
+    pub fn from_name(name: &str) -> Option<ProtocolSpec> {
+        match name {
+            "two-terminal" => return Some(ProtocolSpec::TwoTerminal),
+            "adjacent" => return Some(ProtocolSpec::Adjacent),
+            "adjacent-all" => return Some(ProtocolSpec::AdjacentAll),
+            "opposite" => return Some(ProtocolSpec::Opposite),
+            _ => {}
+        }
+        let rest = name.strip_prefix("skip-")?;
+        let (digits, skip_driven) = match rest.strip_suffix("-all") {
+            Some(digits) => (digits, false),
+            None => (rest, true),
+        };
+        if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+            return None;
+        }
+        Some(ProtocolSpec::Skip { skip: digits.parse().ok()?, skip_driven })
+    }
+
+    /// The name [`ProtocolSpec::from_name`] reads back; "custom" for patterns from a file.
+    pub fn name(&self) -> String {
+        match self {
+            ProtocolSpec::TwoTerminal => "two-terminal".into(),
+            ProtocolSpec::Adjacent => "adjacent".into(),
+            ProtocolSpec::AdjacentAll => "adjacent-all".into(),
+            ProtocolSpec::Opposite => "opposite".into(),
+            ProtocolSpec::Skip { skip, skip_driven: true } => format!("skip-{skip}"),
+            ProtocolSpec::Skip { skip, skip_driven: false } => format!("skip-{skip}-all"),
+            ProtocolSpec::Custom(_) => "custom".into(),
+        }
+    }
 }
 
 /// A sensor: outline, thickness, background conductivity, electrodes, protocol, mesh density.
@@ -221,6 +333,7 @@ impl SensorSpec {
                 width: 0.010,
                 contact_impedance: 1e-4,
                 placement: Placement::PerSide,
+                numbering: Numbering::CounterClockwise,
                 point: false,
             },
             protocol: ProtocolSpec::TwoTerminal,
@@ -228,9 +341,11 @@ impl SensorSpec {
         }
     }
 
-    /// Checks every value; the error names the spec key at fault.
+    /// Checks every value, the protocol included; the error names the spec key at fault.
     pub fn validate(&self) -> Result<(), SpecError> {
-        self.electrode_positions().map(|_| ())
+        self.electrode_positions()?;
+        self.protocol()?;
+        Ok(())
     }
 
     /// The electrodes as arc-length intervals of the boundary, after checking the whole spec.
@@ -266,6 +381,15 @@ impl SensorSpec {
     }
 
     fn electrode_centres(&self, width: f64) -> Result<Vec<f64>, SpecError> {
+        let counter_clockwise = self.counter_clockwise_centres(width)?;
+        match (&self.electrodes.placement, self.electrodes.numbering) {
+            (Placement::Explicit { .. }, Numbering::Clockwise) => Err(SpecError::NumberingWithExplicit),
+            (_, numbering) => Ok(numbering.apply(counter_clockwise)),
+        }
+    }
+
+    /// Centres (arc lengths, m) in the placement's counter-clockwise order.
+    fn counter_clockwise_centres(&self, width: f64) -> Result<Vec<f64>, SpecError> {
         let count = self.electrodes.count;
         let perimeter = self.outline.perimeter();
         match (&self.electrodes.placement, &self.outline) {
@@ -291,11 +415,18 @@ impl SensorSpec {
                 }
                 Ok(centres)
             }
-            (Placement::Equal { start_angle_deg }, Outline::Circle { radius }) => Ok((0..count)
-                .map(|k| {
-                    (radius * start_angle_deg.to_radians() + k as f64 * perimeter / count as f64).rem_euclid(perimeter)
-                })
-                .collect()),
+            (Placement::Equal { start_angle_deg }, outline) => {
+                let angle_deg = *start_angle_deg;
+                if !(angle_deg.is_finite() && (-360.0..=360.0).contains(&angle_deg)) {
+                    return Err(SpecError::OutOfRange {
+                        key: "electrodes.start_angle_deg",
+                        value: angle_deg,
+                        range: "[-360, 360] degrees",
+                    });
+                }
+                let first = outline.arc_length_at_angle(angle_deg).ok_or(SpecError::StartAngleMisses { angle_deg })?;
+                Ok((0..count).map(|k| (first + k as f64 * perimeter / count as f64).rem_euclid(perimeter)).collect())
+            }
             (Placement::Explicit { positions }, outline) => {
                 if positions.len() != count {
                     return Err(SpecError::PositionCount { expected: count, got: positions.len() });
@@ -315,12 +446,7 @@ impl SensorSpec {
             (Placement::PerSide, outline) => Err(SpecError::Placement {
                 placement: "per-side",
                 outline: outline_kind(outline),
-                hint: "per-side is for rectangles; use \"explicit\" positions",
-            }),
-            (Placement::Equal { .. }, outline) => Err(SpecError::Placement {
-                placement: "equal",
-                outline: outline_kind(outline),
-                hint: "equal spacing is for circles; use \"explicit\" positions",
+                hint: "per-side is for rectangles; use \"equal\" spacing or \"explicit\" positions",
             }),
         }
     }
@@ -365,6 +491,7 @@ impl SensorSpec {
             ProtocolSpec::Adjacent => Protocol::adjacent(l, true)?,
             ProtocolSpec::AdjacentAll => Protocol::adjacent(l, false)?,
             ProtocolSpec::Opposite => Protocol::opposite(l)?,
+            ProtocolSpec::Skip { skip, skip_driven } => Protocol::skip(l, *skip, *skip_driven)?,
             ProtocolSpec::Custom(p) => p.clone(),
         })
     }
@@ -424,6 +551,8 @@ fn outline_kind(outline: &Outline) -> &'static str {
 mod tests {
     use super::*;
 
+    const PI_3: f64 = std::f64::consts::PI / 3.0;
+
     #[test]
     fn paper_square_places_electrode_one_bottom_left_counter_clockwise() {
         let spec = SensorSpec::square_hydrogel();
@@ -434,6 +563,104 @@ mod tests {
         assert!(close(p(4), [0.1, -0.075]));
         assert!(close(p(8), [0.075, 0.1]));
         assert!(close(p(15), [-0.1, -0.075]));
+    }
+
+    fn points(spec: &SensorSpec) -> Vec<[f64; 2]> {
+        spec.electrode_positions().unwrap().iter().map(|e| spec.outline.point_at(e.centre)).collect()
+    }
+
+    fn with(outline: Outline, placement: Placement, numbering: Numbering) -> SensorSpec {
+        let paper = SensorSpec::square_hydrogel();
+        SensorSpec { outline, electrodes: ElectrodeSpec { placement, numbering, ..paper.electrodes }, ..paper }
+    }
+
+    #[test]
+    fn clockwise_keeps_electrode_one_and_reverses_the_rest() {
+        let square = Outline::Rectangle { width: 0.2, height: 0.2 };
+        let hexagon = Outline::Polygon {
+            points: (0..6).map(|k| [0.1 * (k as f64 * PI_3).cos(), 0.1 * (k as f64 * PI_3).sin()]).collect(),
+        };
+        for (outline, placement) in [
+            (square.clone(), Placement::PerSide),
+            (square, Placement::Equal { start_angle_deg: -100.0 }),
+            (Outline::Circle { radius: 0.1 }, Placement::Equal { start_angle_deg: 180.0 }),
+            (hexagon, Placement::Equal { start_angle_deg: 30.0 }),
+        ] {
+            let ccw = points(&with(outline.clone(), placement.clone(), Numbering::CounterClockwise));
+            let cw = points(&with(outline, placement, Numbering::Clockwise));
+            let l = ccw.len();
+            for k in 1..=l {
+                // 1-based: clockwise electrode k is counter-clockwise electrode (2 − k) mod L.
+                let j = (2 + l - k) % l;
+                let j = if j == 0 { l } else { j };
+                assert_eq!(cw[k - 1], ccw[j - 1], "electrode {k}");
+            }
+        }
+        // The paper's square numbered clockwise: electrode 2 is the lowest on the left side.
+        let cw =
+            points(&with(Outline::Rectangle { width: 0.2, height: 0.2 }, Placement::PerSide, Numbering::Clockwise));
+        let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12;
+        assert!(close(cw[0], [-0.075, -0.1]) && close(cw[1], [-0.1, -0.075]), "{cw:?}");
+    }
+
+    #[test]
+    fn equal_spacing_on_rectangle_and_polygon_starts_at_the_angle_and_spaces_arc_lengths() {
+        let pentagon =
+            Outline::Polygon { points: vec![[-0.1, -0.08], [0.12, -0.1], [0.1, 0.05], [0.0, 0.12], [-0.11, 0.06]] };
+        for (outline, angle, first) in [
+            (Outline::Rectangle { width: 0.3, height: 0.2 }, 90.0, [0.0, 0.1]),
+            (Outline::Rectangle { width: 0.3, height: 0.2 }, 180.0, [-0.15, 0.0]),
+            (Outline::Rectangle { width: 0.2, height: 0.2 }, 45.0, [0.1, 0.1]),
+            (pentagon.clone(), 90.0, [0.0, 0.12]),
+            (pentagon, 270.0, [0.0, -0.08 - 0.02 * 0.1 / 0.22]),
+        ] {
+            let spec = with(outline.clone(), Placement::Equal { start_angle_deg: angle }, Numbering::CounterClockwise);
+            let e = spec.electrode_positions().unwrap();
+            let p0 = outline.point_at(e[0].centre);
+            assert!((p0[0] - first[0]).abs() < 1e-12 && (p0[1] - first[1]).abs() < 1e-12, "{p0:?} ≠ {first:?}");
+            let step = outline.perimeter() / e.len() as f64;
+            for k in 0..e.len() {
+                let gap = (e[(k + 1) % e.len()].centre - e[k].centre).rem_euclid(outline.perimeter());
+                assert!((gap - step).abs() < 1e-12, "gap {k}: {gap} ≠ {step}");
+            }
+        }
+    }
+
+    #[test]
+    fn bad_numbering_and_angles_name_the_key() {
+        let circle = Outline::Circle { radius: 0.1 };
+        for angle in [f64::NAN, f64::INFINITY, 400.0, -360.5] {
+            let spec = with(circle.clone(), Placement::Equal { start_angle_deg: angle }, Numbering::CounterClockwise);
+            let err = spec.validate().unwrap_err();
+            assert!(matches!(err, SpecError::OutOfRange { key: "electrodes.start_angle_deg", .. }), "{err}");
+            assert!(err
+                .to_string()
+                .starts_with("`electrodes.start_angle_deg` must be a finite number within [-360, 360] degrees"));
+        }
+        let off = Outline::Polygon { points: vec![[0.1, 0.1], [0.2, 0.1], [0.2, 0.2], [0.1, 0.2]] };
+        let spec = with(off, Placement::Equal { start_angle_deg: 0.0 }, Numbering::CounterClockwise);
+        assert_eq!(spec.validate().unwrap_err(), SpecError::StartAngleMisses { angle_deg: 0.0 });
+        let centres = points(&SensorSpec::square_hydrogel());
+        let square = Outline::Rectangle { width: 0.2, height: 0.2 };
+        let spec = with(square, Placement::Explicit { positions: centres }, Numbering::Clockwise);
+        let err = spec.validate().unwrap_err();
+        assert_eq!(err, SpecError::NumberingWithExplicit);
+        assert!(err.to_string().contains("`electrodes.numbering`"), "{err}");
+        assert_eq!(Numbering::from_name("anticlockwise"), None);
+        for n in [Numbering::Clockwise, Numbering::CounterClockwise] {
+            assert_eq!(Numbering::from_name(n.name()), Some(n));
+        }
+    }
+
+    #[test]
+    fn protocol_names_read_back() {
+        for name in ["two-terminal", "adjacent", "adjacent-all", "opposite", "skip-0", "skip-2", "skip-15-all"] {
+            assert_eq!(ProtocolSpec::from_name(name).map(|p| p.name()).as_deref(), Some(name));
+        }
+        assert_eq!(ProtocolSpec::from_name("skip-3"), Some(ProtocolSpec::Skip { skip: 3, skip_driven: true }));
+        for bad in ["skip-", "skip--1", "skip-+2", "skip-2-al", "skip-x", "adjacent-skip", "custom", ""] {
+            assert_eq!(ProtocolSpec::from_name(bad), None, "{bad}");
+        }
     }
 
     #[test]
