@@ -134,8 +134,10 @@ pub fn run(args: Args) -> Result<()> {
     };
     let v_ref = mean(&references);
     let variance = noise_variance(&references, args.normalised);
-    // A channel missing (NaN) in the reference or the frame is dropped, not refused.
-    let channels = Channels::finite_in(&v_ref).masked(Channels::finite_in(&v).used_mask());
+    // A channel missing (NaN) in the reference or the frame is dropped, not refused; so is one
+    // whose reference is zero (a dead channel) when differences are normalised by it.
+    let alive: Vec<bool> = v_ref.iter().map(|r| !args.normalised || *r != 0.0).collect();
+    let channels = Channels::finite_in(&v_ref).masked(Channels::finite_in(&v).used_mask()).masked(&alive);
     let recon = match args.hyperparameter {
         Hyperparameter::Auto => recon.with_auto_hyperparameter(channels, variance)?.0,
         Hyperparameter::Fixed(value) => recon.derive(value, channels)?,
