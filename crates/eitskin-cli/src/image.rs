@@ -43,6 +43,10 @@ pub struct Args {
     /// (x, y in the spec's unit, Δσ in S/m per inside pixel).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write a label image as NPY (u8, ny × nx, row 0 at the top): 0 background, 1 less and 2
+    /// more conductive, by the touches' own rule (`--threshold` of the peak, `--polarity`).
+    #[arg(long)]
+    labels: Option<PathBuf>,
     /// Write the conductivity change of every triangle as CSV (triangle, centroid x, y, Δσ).
     #[arg(long)]
     elements: Option<PathBuf>,
@@ -168,6 +172,9 @@ pub fn run(args: Args) -> Result<()> {
         Some(path) if path.extension().is_some_and(|e| e == "npy") => eitskin_io::write_raster_npy(path, &image)?,
         Some(path) => eitskin_io::write_raster_csv(path, &image, spec.length_unit)?,
         None => {}
+    }
+    if let Some(path) = &args.labels {
+        eitskin_io::write_labels_npy(path, &eitskin::touch::labels(&image, &touch), image.size)?;
     }
     if let Some(path) = &args.elements {
         let values: Vec<f64> = recon.element_values(&v_ref, &v)?.into_iter().map(f64::from).collect();

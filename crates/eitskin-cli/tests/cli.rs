@@ -191,6 +191,12 @@ fn image_finds_a_more_conductive_object_with_either_polarity() {
     assert!((x + 50.0).hypot(y - 20.0) < 20.0, "touch at ({x}, {y}) mm, object at (-50, 20)");
     let lambda = both["hyperparameter"].as_f64().unwrap();
     assert!(lambda > 1e-4 && lambda < 10.0, "λ = {lambda}");
+    let labels = dir.join("labels.npy");
+    let args = ["image", "--triangles", "1500", "--reference", reference.to_str().unwrap(), "--frame"];
+    let args = [&args[..], &[frame.to_str().unwrap(), "--polarity", "both", "--labels", labels.to_str().unwrap()]];
+    assert!(dir.eitskin(&args.concat()).status.success());
+    let bytes = std::fs::read(labels).unwrap();
+    assert!(bytes.ends_with(&[0]) && bytes.contains(&2) && !bytes[128..].contains(&1), "labels: more conductive only");
     let decrease = image("decrease");
     assert!(decrease["touches"].as_array().unwrap().iter().all(|t| t["sign"] == "decrease"), "{decrease}");
 }

@@ -189,6 +189,38 @@ pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScrat
     });
 }
 
+/// Label of a background pixel in [`labels`].
+pub const BACKGROUND: u8 = 0;
+/// Label of a less conductive pixel (a decrease) in [`labels`].
+pub const LESS_CONDUCTIVE: u8 = 1;
+/// Label of a more conductive pixel (an increase) in [`labels`].
+pub const MORE_CONDUCTIVE: u8 = 2;
+
+/// A label per pixel, row-major from the top: [`LESS_CONDUCTIVE`] or [`MORE_CONDUCTIVE`] where
+/// the pixel belongs to a touch of that sign, else [`BACKGROUND`] (masked pixels included).
+///
+/// The rule is the touches' own, untuned: a pixel is labelled when its change in a direction
+/// `params.polarity` allows is at least `threshold` × the peak (the larger peak for both
+/// directions), and the peak is above `min_peak`.
+pub fn labels(image: &Image, params: &TouchParams) -> Vec<u8> {
+    let mut out = vec![BACKGROUND; image.values.len()];
+    let peak = params.polarity.signs().into_iter().flatten().map(|p| peak_toward(image, p)).fold(0.0, f64::max);
+    if peak <= 0.0 || peak < params.min_peak {
+        return out;
+    }
+    let cutoff = params.threshold * peak;
+    for polarity in params.polarity.signs().into_iter().flatten() {
+        let label = if polarity == Polarity::Decrease { LESS_CONDUCTIVE } else { MORE_CONDUCTIVE };
+        for (i, (&v, &inside)) in image.values.iter().zip(&image.inside).enumerate() {
+            let s = polarity.intensity(v);
+            if inside && s > 0.0 && s >= cutoff {
+                out[i] = label;
+            }
+        }
+    }
+    out
+}
+
 /// The largest change toward `polarity` over the inside pixels, at least 0, in S/m.
 fn peak_toward(image: &Image, polarity: Polarity) -> f64 {
     // The press direction as a sign, so the pass stays in f32 and vectorises. Eight
@@ -381,6 +413,11 @@ mod tests {
         assert_eq!(increase[0].polarity, Polarity::Increase);
         add_gaussian(&mut image, bump, 0.01, -0.5); // now only 0.3 S/m: under 60 % of the dip
         assert_eq!(detect(&image, &both).len(), 1);
+        let labelled = labels(&image, &both);
+        let count = |l| labelled.iter().filter(|&&x| x == l).count();
+        let pixels: usize = detect(&image, &both).iter().map(|t| t.pixels).sum();
+        assert_eq!(count(LESS_CONDUCTIVE), pixels, "the labels are the touches' pixels");
+        assert_eq!(count(MORE_CONDUCTIVE), 0);
         assert_eq!("both".parse(), Ok(Polarity::Both));
         assert!("up".parse::<Polarity>().is_err());
     }
