@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use eitskin::inverse::{noise_variance, Channels, Hyperparameter};
+use eitskin::inverse::{mean_frame, noise_variance, Channels, Hyperparameter};
 use eitskin::touch::{detect, Polarity};
 use eitskin::values::{signed_from_magnitudes, Component};
 use eitskin::{ReconstructorParams, TouchParams};
@@ -136,7 +136,7 @@ pub fn run(args: Args) -> Result<()> {
     } else {
         (references, v)
     };
-    let v_ref = mean(&references);
+    let v_ref = mean_frame(&references);
     let variance = noise_variance(&references, args.normalised);
     // A channel missing (NaN) in the reference or the frame is dropped, not refused; so is one
     // whose reference is zero (a dead channel) when differences are normalised by it.
@@ -209,18 +209,6 @@ pub fn run(args: Args) -> Result<()> {
 fn frames(table: &FrameTable, component: Component) -> Vec<Vec<f64>> {
     match &table.imaginary {
         None => table.frames.clone(),
-        Some(imaginary) => table
-            .frames
-            .iter()
-            .zip(imaginary)
-            .map(|(re, im)| re.iter().zip(im).map(|(&r, &i)| component.of(r, i)).collect())
-            .collect(),
+        Some(imaginary) => table.frames.iter().zip(imaginary).map(|(re, im)| component.of_frame(re, im)).collect(),
     }
-}
-
-/// The mean of the frames per channel, NaN where a frame misses the channel.
-fn mean(frames: &[Vec<f64>]) -> Vec<f64> {
-    let n = frames.len() as f64;
-    let width = frames.first().map_or(0, Vec::len);
-    (0..width).map(|m| frames.iter().map(|f| f.get(m).copied().unwrap_or(f64::NAN)).sum::<f64>() / n).collect()
 }

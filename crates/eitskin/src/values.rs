@@ -41,6 +41,11 @@ impl Component {
         }
     }
 
+    /// This component of each channel of a complex frame given as real and imaginary parts.
+    pub fn of_frame(self, re: &[f64], im: &[f64]) -> Vec<f64> {
+        re.iter().zip(im).map(|(&r, &i)| self.of(r, i)).collect()
+    }
+
     /// The name in flags: `real`, `imaginary`, `magnitude`, `phase`.
     pub fn name(self) -> &'static str {
         match self {

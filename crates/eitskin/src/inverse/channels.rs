@@ -100,6 +100,14 @@ impl Channels {
     }
 }
 
+/// The mean of several frames per channel (the reference of a set of no-touch frames); NaN
+/// where any frame misses the channel, so a channel missing once stays dropped.
+pub fn mean_frame(frames: &[Vec<f64>]) -> Vec<f64> {
+    let n = frames.len() as f64;
+    let width = frames.first().map_or(0, Vec::len);
+    (0..width).map(|m| frames.iter().map(|f| f.get(m).copied().unwrap_or(f64::NAN)).sum::<f64>() / n).collect()
+}
+
 /// Per-channel noise variance of several frames of an unchanging sensor (the reference
 /// frames), about their mean; `None` with fewer than two frames. With `normalized`, the
 /// variance of v/v̄ (ratio²), else of v (V²). NaN values are left out of their channel.

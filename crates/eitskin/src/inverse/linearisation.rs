@@ -98,15 +98,27 @@ impl Linearisation {
         let used = channels.used();
         let jacobian = self.rows(&used, normalized)?;
         let variance = channels.relative_variance();
-        let compact = match prior.diagonal(jacobian.as_ref()) {
-            Some(r) => measurement_sized(jacobian.as_ref(), &r, hyperparameter, &variance)?,
-            None => weighted_element_sized(jacobian.as_ref(), prior, hyperparameter, &variance, &self.mesh)?,
-        };
+        let compact = weighted(jacobian.as_ref(), prior, hyperparameter, &variance, &self.mesh)?;
         let mut full = Mat::zeros(jacobian.ncols(), self.measurements());
         for (i, &m) in used.iter().enumerate() {
             full.col_mut(m).copy_from(compact.col(i));
         }
         Ok(full)
+    }
+}
+
+/// (JᵀΣ⁻¹J + λ²R)⁻¹JᵀΣ⁻¹ (triangles × measurements): through the measurement-sized system for
+/// a diagonal prior, else the triangles × triangles one.
+pub(crate) fn weighted(
+    jacobian: MatRef<'_, f64>,
+    prior: &Prior,
+    hyperparameter: f64,
+    variance: &[f64],
+    mesh: &Mesh,
+) -> Result<Mat<f64>, InverseError> {
+    match prior.diagonal(jacobian) {
+        Some(r) => measurement_sized(jacobian, &r, hyperparameter, variance),
+        None => weighted_element_sized(jacobian, prior, hyperparameter, variance, mesh),
     }
 }
 

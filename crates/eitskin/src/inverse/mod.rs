@@ -20,7 +20,7 @@ mod linearisation;
 mod prior;
 mod raster;
 
-pub use channels::{noise_variance, Channels};
+pub use channels::{mean_frame, noise_variance, Channels};
 pub use hyperparameter::{choose_hyperparameter, noise_figure, Hyperparameter, NOISE_FIGURE_TARGET};
 pub use linearisation::Linearisation;
 pub use prior::Prior;
@@ -83,11 +83,7 @@ pub fn reconstruction_matrix(
     mesh: &Mesh,
 ) -> Result<Mat<f64>, InverseError> {
     check_hyperparameter(hyperparameter)?;
-    let white = vec![1.0; jacobian.nrows()];
-    match prior.diagonal(jacobian) {
-        Some(r) => linearisation::measurement_sized(jacobian, &r, hyperparameter, &white),
-        None => linearisation::weighted_element_sized(jacobian, prior, hyperparameter, &white, mesh),
-    }
+    linearisation::weighted(jacobian, prior, hyperparameter, &vec![1.0; jacobian.nrows()], mesh)
 }
 
 /// (JᵀJ + λ²R)⁻¹Jᵀ through the triangles × triangles system: for non-diagonal priors, and to
