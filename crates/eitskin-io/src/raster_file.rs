@@ -55,8 +55,26 @@ pub fn write_labels_npy(path: &Path, labels: &[u8], size: [usize; 2]) -> Result<
 /// Writes the inside pixels as CSV `x_<unit>,y_<unit>,delta_sigma_s_per_m`, one line per pixel
 /// centre, lengths in `unit`, Δσ in S/m.
 pub fn write_raster_csv(path: &Path, image: &Image, unit: LengthUnit) -> Result<(), Error> {
+    write_pixels_csv(path, image, unit, "delta_sigma_s_per_m", |i| image.values[i].to_string())
+}
+
+/// Writes the label of each inside pixel of `image` as CSV `x_<unit>,y_<unit>,label` (see
+/// [`write_labels_npy`] for the labels), lengths in `unit`.
+pub fn write_labels_csv(path: &Path, image: &Image, labels: &[u8], unit: LengthUnit) -> Result<(), Error> {
+    assert_eq!(labels.len(), image.values.len(), "one label per pixel");
+    write_pixels_csv(path, image, unit, "label", |i| labels[i].to_string())
+}
+
+/// One CSV line per inside pixel centre of `image`: x, y in `unit`, then `value(pixel)`.
+fn write_pixels_csv(
+    path: &Path,
+    image: &Image,
+    unit: LengthUnit,
+    column: &str,
+    value: impl Fn(usize) -> String,
+) -> Result<(), Error> {
     let symbol = unit.symbol();
-    let mut text = format!("x_{symbol},y_{symbol},delta_sigma_s_per_m\n");
+    let mut text = format!("x_{symbol},y_{symbol},{column}\n");
     let [nx, ny] = image.size;
     for row in 0..ny {
         for col in 0..nx {
@@ -64,7 +82,7 @@ pub fn write_raster_csv(path: &Path, image: &Image, unit: LengthUnit) -> Result<
             if image.inside[i] {
                 let [x, y] = image.pixel_centre(col, row);
                 // Writing to a String cannot fail.
-                let _ = writeln!(text, "{},{},{}", x / unit.metres(), y / unit.metres(), image.values[i]);
+                let _ = writeln!(text, "{},{},{}", x / unit.metres(), y / unit.metres(), value(i));
             }
         }
     }

@@ -7,8 +7,9 @@
 //!
 //! - **Which file kind** is decided by the first bytes, not the name: a MAT v5 header (MATLAB's
 //!   `-v6`/`-v7`, `scipy.io.savemat`), a MAT v7.3 header (HDF5 inside, MATLAB's `-v7.3`), the
-//!   NPY magic, or else text (a JSON array, `forward`'s JSON or CSV, or plain numbers: always one
-//!   frame).
+//!   NPY magic, or else text: a frame log (one frame per line, optionally labelled as boards
+//!   print them, `magnitudes: 1.0, 2.0, …`, or a CSV matrix), else one frame (a JSON array,
+//!   `forward`'s JSON or CSV, or plain numbers).
 //! - **Which array**: [`FrameSelect::variable`] names a MAT variable, or a struct's field as
 //!   `data.Uel` (MAT v7.3 only: the MAT v5 reader skips structs). Without a name, a MAT file that
 //!   holds exactly one numeric array gives that one; otherwise the error lists the variables
@@ -41,6 +42,7 @@
 mod mat5;
 mod mat73;
 mod npy;
+mod text;
 
 use std::fmt;
 use std::path::Path;
@@ -100,7 +102,7 @@ pub enum ArrayProblem {
     /// The file is damaged or truncated: its first bytes announce `format`, the rest do not follow.
     #[error("is not a readable {format} file ({message})")]
     Malformed {
-        /// `MAT v5`, `MAT v7.3` or `NPY`.
+        /// `MAT v5`, `MAT v7.3`, `NPY` or `text`.
         format: &'static str,
         /// What the parser found.
         message: String,
@@ -180,6 +182,7 @@ fn shape_text(shape: &[usize]) -> String {
 }
 
 /// A numeric array as a file holds it, before it is cut into frames.
+#[derive(Debug)]
 struct Array {
     /// Extent of each dimension (MATLAB's size for MAT files, numpy's shape for NPY).
     shape: Vec<usize>,
@@ -244,8 +247,13 @@ pub fn read_frames(path: &Path, select: &FrameSelect) -> Result<FrameTable, Erro
                     let io = std::io::Error::new(std::io::ErrorKind::InvalidData, e);
                     Error::Read { path: path.to_path_buf(), source: io }
                 })?;
-                let real = crate::frame_file::parse_values(&text).map_err(|e| e.in_file(path))?;
-                Array { shape: vec![real.len()], column_major: false, real, imaginary: None }
+                match text::frame_log(&text) {
+                    Some(log) => log.map_err(|p| problem(None, p))?,
+                    None => {
+                        let real = crate::frame_file::parse_values(&text).map_err(|e| e.in_file(path))?;
+                        Array { shape: vec![real.len()], column_major: false, real, imaginary: None }
+                    }
+                }
             };
             (array, None)
         }
