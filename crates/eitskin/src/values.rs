@@ -8,6 +8,10 @@
 //! by more than a factor 10 from the median ratio is reported: its sign, or its wiring, is not
 //! what the protocol says.
 //!
+//! Cheap boards also scale each channel by its own gain. [`Gains::estimate`] measures them
+//! against the model from a reference of the homogeneous sensor and names the channels that
+//! disagree with the rest; [`Gains::apply`] divides them out.
+//!
 //! ```
 //! use eitskin::values::{signed_from_magnitudes, Component};
 //! let model = [2.0, -1.0, 0.5];
@@ -82,21 +86,94 @@ pub struct SignReport {
 pub fn signed_from_magnitudes(magnitudes: &[f64], model: &[f64]) -> (Vec<f64>, SignReport) {
     assert_eq!(magnitudes.len(), model.len(), "one model value per channel");
     let signed = magnitudes.iter().zip(model).map(|(v, m)| v.abs() * m.signum()).collect();
-    let mut model_sizes: Vec<f64> = model.iter().map(|m| m.abs()).collect();
-    model_sizes.sort_by(f64::total_cmp);
-    let tiny = 1e-3 * model_sizes.get(model_sizes.len() / 2).copied().unwrap_or(0.0);
+    let tiny = 1e-3 * median(model.iter().map(|m| m.abs()).collect());
     let ratio = |m: usize| magnitudes[m].abs() / model[m].abs();
-    let mut ratios: Vec<f64> =
-        (0..model.len()).filter(|&m| model[m].abs() > tiny && magnitudes[m].is_finite()).map(ratio).collect();
-    ratios.sort_by(f64::total_cmp);
-    let median = ratios.get(ratios.len() / 2).copied().unwrap_or(f64::NAN);
+    let centre =
+        median((0..model.len()).filter(|&m| model[m].abs() > tiny && magnitudes[m].is_finite()).map(ratio).collect());
     let unexplained = (0..model.len())
         .filter(|&m| magnitudes[m].is_finite())
         .filter(|&m| {
-            model[m].abs() <= tiny || !(ratio(m) / median).is_finite() || (ratio(m) / median).ln().abs() > 10f64.ln()
+            model[m].abs() <= tiny || !(ratio(m) / centre).is_finite() || (ratio(m) / centre).ln().abs() > 10f64.ln()
         })
         .collect();
     (signed, SignReport { unexplained })
+}
+
+/// Per-channel gains of a board against the model: what each channel's reference value is in
+/// units of the model's, with the channels that disagree with the rest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gains {
+    /// g_m = v_ref,m / v₀,m per channel (NaN where the model gives no value or the reference is
+    /// missing); the board's unit per V.
+    pub gains: Vec<f64>,
+    /// The median gain (the board's unit per V): the common scale, which also absorbs a
+    /// background conductivity other than the model's.
+    pub median: f64,
+    /// Channels (0-based) whose gain is not positive (the sign is not the model's) or lies more
+    /// than 5 robust standard deviations (1.4826 × the median absolute deviation of ln g), and
+    /// at least a factor 1.5, from the median.
+    pub outliers: Vec<usize>,
+    /// How much of the spread of ln|v_ref| over the channels the model's pattern ln|v₀| explains
+    /// (R², 1 = all; NaN when the pattern is flat): near 1 on a board whose values are the
+    /// protocol's voltages, low or negative when they are not (a saturated front end, another
+    /// measurement order, another electrode layout).
+    pub pattern_fit: f64,
+}
+
+impl Gains {
+    /// Least-squares gains g_m = argmin Σ_t (v_t,m − g·v₀,m)² = mean_t(v_t,m) / v₀,m, from the
+    /// mean reference `reference` and the model's values `model` (V).
+    pub fn estimate(reference: &[f64], model: &[f64]) -> Gains {
+        assert_eq!(reference.len(), model.len(), "one model value per channel");
+        let gains: Vec<f64> =
+            reference.iter().zip(model).map(|(r, m)| if *m != 0.0 { r / m } else { f64::NAN }).collect();
+        let positive: Vec<f64> = gains.iter().copied().filter(|g| *g > 0.0 && g.is_finite()).collect();
+        let centre = median(positive.clone());
+        let logs: Vec<f64> = positive.iter().map(|g| (g / centre).ln().abs()).collect();
+        let spread: f64 = 1.4826 * median(logs);
+        let limit = (5.0 * spread).max(1.5f64.ln());
+        let outliers = (0..gains.len())
+            .filter(|&m| gains[m].is_finite() && (gains[m] <= 0.0 || (gains[m] / centre).ln().abs() > limit))
+            .collect();
+        let pattern_fit = pattern_fit(reference, model);
+        Gains { gains, median: centre, outliers, pattern_fit }
+    }
+
+    /// A frame in the model's units: each value divided by its channel's gain (NaN where the
+    /// gain is unknown or an outlier, so the channel is dropped).
+    pub fn apply(&self, frame: &[f64]) -> Vec<f64> {
+        assert_eq!(frame.len(), self.gains.len(), "one gain per channel");
+        let usable = |m: usize| self.gains[m].is_finite() && self.outliers.binary_search(&m).is_err();
+        frame.iter().enumerate().map(|(m, v)| if usable(m) { v / self.gains[m] } else { f64::NAN }).collect()
+    }
+}
+
+/// R² of ln|reference| against ln|model| + a constant, over the channels the model gives a
+/// value (|v₀| above 1e-3 of the median) and the reference a finite non-zero one.
+fn pattern_fit(reference: &[f64], model: &[f64]) -> f64 {
+    let tiny = 1e-3 * median(model.iter().map(|m| m.abs()).collect());
+    let pairs: Vec<(f64, f64)> = reference
+        .iter()
+        .zip(model)
+        .filter(|(r, m)| m.abs() > tiny && r.is_finite() && **r != 0.0)
+        .map(|(r, m)| (r.abs().ln(), m.abs().ln()))
+        .collect();
+    let n = pairs.len() as f64;
+    let mean_of = |f: &dyn Fn(&(f64, f64)) -> f64| pairs.iter().map(f).sum::<f64>() / n;
+    let (mean_r, mean_gain) = (mean_of(&|p| p.0), mean_of(&|p| p.0 - p.1));
+    let total: f64 = pairs.iter().map(|p| (p.0 - mean_r).powi(2)).sum();
+    let residual: f64 = pairs.iter().map(|p| (p.0 - p.1 - mean_gain).powi(2)).sum();
+    if total > 0.0 {
+        1.0 - residual / total
+    } else {
+        f64::NAN
+    }
+}
+
+/// The median of `values` (NaN when empty).
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 #[cfg(test)]
@@ -111,6 +188,29 @@ mod tests {
         assert!(signed[3].is_nan());
         // Channel 3 is 20× the pattern; channel 5 has no sign in the model.
         assert_eq!(report.unexplained, [2, 4]);
+    }
+
+    #[test]
+    fn gains_are_recovered_and_a_wrong_channel_is_named() {
+        let model: Vec<f64> = (0..40).map(|m| if m % 3 == 0 { -1.0 - m as f64 } else { 2.0 + m as f64 }).collect();
+        // ±30 % gains on a common scale of 50, one channel 4× off and one with the wrong sign.
+        let truth: Vec<f64> = (0..40).map(|m| 50.0 * (1.0 + 0.3 * ((m * 7 % 13) as f64 / 6.0 - 1.0))).collect();
+        let mut reference: Vec<f64> = model.iter().zip(&truth).map(|(v, g)| v * g).collect();
+        reference[5] *= 4.0;
+        reference[9] = -reference[9];
+        let gains = Gains::estimate(&reference, &model);
+        assert_eq!(gains.outliers, [5, 9]);
+        assert!((gains.median / 50.0 - 1.0).abs() < 0.1, "{}", gains.median);
+        for m in (0..40).filter(|m| ![5, 9].contains(m)) {
+            assert!((gains.gains[m] / truth[m] - 1.0).abs() < 1e-12);
+        }
+        assert!(gains.pattern_fit > 0.8, "{}", gains.pattern_fit);
+        // Values that ignore the model's pattern (a saturated front end: two levels) fit badly.
+        let saturated: Vec<f64> = (0..40).map(|m| if m % 2 == 0 { 178.0 } else { 252.0 }).collect();
+        assert!(Gains::estimate(&saturated, &model).pattern_fit < 0.0);
+        let corrected = gains.apply(&reference);
+        assert!(corrected[5].is_nan() && corrected[9].is_nan());
+        assert!((corrected[0] - model[0]).abs() < 1e-12);
     }
 
     #[test]

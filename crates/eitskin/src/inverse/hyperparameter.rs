@@ -204,7 +204,7 @@ pub fn choose_hyperparameter(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::SensorSpec;
+    use crate::{ReconstructorParams, SensorSpec};
 
     fn linearisation() -> Linearisation {
         let mut spec = SensorSpec::square_hydrogel();
@@ -221,7 +221,8 @@ mod tests {
         variance[3] = 4.0;
         let channels = Channels::all(lin.measurements()).with_variance(variance.clone());
         let lambda = 0.07;
-        let h = lin.element_matrix(&prior, lambda, false, &channels).unwrap();
+        let params = ReconstructorParams { hyperparameter: lambda, ..ReconstructorParams::default() };
+        let h = lin.element_matrix(&params, &channels).unwrap();
         let mean = variance.iter().sum::<f64>() / variance.len() as f64;
         let sigma: Vec<f64> = variance.iter().map(|v| v / mean).collect();
         let mesh = lin.mesh();

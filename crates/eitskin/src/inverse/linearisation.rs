@@ -9,10 +9,14 @@
 //!
 //! the measurement-sized form of (J_SᵀΣ⁻¹J_S + λ²R)⁻¹J_SᵀΣ⁻¹. With normalised differences the
 //! rows of J are divided by v₀ first (and R, which NOSER takes from J, follows).
+//!
+//! A uniform change δ of the background (S/m) moves every measurement along d = J·1. Fitted
+//! jointly with the image and left unpenalised, it leaves the image problem with J and Δv
+//! projected by P = I − d(dᵀWd)⁻¹dᵀW (W = Σ⁻¹); P is folded into H, so a frame costs the same.
 
 use faer::{Mat, MatRef, Side};
 
-use super::{check_hyperparameter, Channels, InverseError, Prior};
+use super::{check_hyperparameter, Channels, InverseError, Prior, ReconstructorParams};
 use crate::forward::ForwardModel;
 use crate::mesh::Mesh;
 
@@ -85,25 +89,91 @@ impl Linearisation {
     }
 
     /// The element-level reconstruction matrix (triangles × all measurements, S/m per V, or per
-    /// unit ratio when `normalized`) for these channels; dropped channels get zero columns.
-    pub fn element_matrix(
-        &self,
-        prior: &Prior,
-        hyperparameter: f64,
-        normalized: bool,
-        channels: &Channels,
-    ) -> Result<Mat<f64>, InverseError> {
-        check_hyperparameter(hyperparameter)?;
+    /// unit ratio when normalised) for these parameters and channels; dropped channels get zero
+    /// columns. With `params.background_change`, a global conductivity change is estimated
+    /// with the image and left out of it (see [`Linearisation::background_change_row`]).
+    pub fn element_matrix(&self, params: &ReconstructorParams, channels: &Channels) -> Result<Mat<f64>, InverseError> {
+        check_hyperparameter(params.hyperparameter)?;
         channels.check(self.measurements())?;
         let used = channels.used();
-        let jacobian = self.rows(&used, normalized)?;
+        let mut jacobian = self.rows(&used, params.normalized)?;
         let variance = channels.relative_variance();
-        let compact = weighted(jacobian.as_ref(), prior, hyperparameter, &variance, &self.mesh)?;
-        let mut full = Mat::zeros(jacobian.ncols(), self.measurements());
+        let global = params.background_change.then(|| Global::new(jacobian.as_ref(), &variance));
+        if let Some(global) = &global {
+            global.project_jacobian(&mut jacobian);
+        }
+        let mut compact = weighted(jacobian.as_ref(), &params.prior, params.hyperparameter, &variance, &self.mesh)?;
+        if let Some(global) = &global {
+            global.project_data(&mut compact);
+        }
+        let mut full = Mat::zeros(compact.nrows(), self.measurements());
         for (i, &m) in used.iter().enumerate() {
             full.col_mut(m).copy_from(compact.col(i));
         }
         Ok(full)
+    }
+
+    /// The row r (one weight per measurement, zero on dropped channels) for which r·Δv is the
+    /// global conductivity change δ (S/m) fitted jointly with the image of `element` (from
+    /// [`Linearisation::element_matrix`] with `background_change`): δ = c·(Wd)ᵀ(Δv − J·HΔv),
+    /// with d = J·1 the change of every measurement for 1 S/m everywhere, W = Σ⁻¹, c = 1/(dᵀWd).
+    pub fn background_change_row(
+        &self,
+        element: MatRef<'_, f64>,
+        normalized: bool,
+        channels: &Channels,
+    ) -> Result<Vec<f64>, InverseError> {
+        let used = channels.used();
+        let jacobian = self.rows(&used, normalized)?;
+        let global = Global::new(jacobian.as_ref(), &channels.relative_variance());
+        let mut row = vec![0.0; self.measurements()];
+        for (i, &m) in used.iter().enumerate() {
+            let jh: f64 = (0..element.nrows()).map(|k| global.u[k] * element[(k, m)]).sum();
+            row[m] = global.c * global.wd[i] - jh;
+        }
+        Ok(row)
+    }
+}
+
+/// The global-change direction d = J·1 of the used rows, with W·d, c = 1/(dᵀWd) and
+/// u = c·JᵀWd: P = I − d·c·(Wd)ᵀ removes from data what a uniform change explains.
+struct Global {
+    d: Vec<f64>,
+    wd: Vec<f64>,
+    c: f64,
+    u: Vec<f64>,
+}
+
+impl Global {
+    fn new(jacobian: MatRef<'_, f64>, variance: &[f64]) -> Global {
+        let d: Vec<f64> =
+            (0..jacobian.nrows()).map(|i| (0..jacobian.ncols()).map(|k| jacobian[(i, k)]).sum()).collect();
+        let wd: Vec<f64> = d.iter().zip(variance).map(|(d, s)| d / s).collect();
+        let c = 1.0 / d.iter().zip(&wd).map(|(d, w)| d * w).sum::<f64>();
+        let u = (0..jacobian.ncols())
+            .map(|k| c * (0..jacobian.nrows()).map(|i| wd[i] * jacobian[(i, k)]).sum::<f64>())
+            .collect();
+        Global { d, wd, c, u }
+    }
+
+    /// J ← P·J = J − d·uᵀ.
+    fn project_jacobian(&self, jacobian: &mut Mat<f64>) {
+        for k in 0..jacobian.ncols() {
+            for i in 0..jacobian.nrows() {
+                jacobian[(i, k)] -= self.d[i] * self.u[k];
+            }
+        }
+    }
+
+    /// H ← H·P = H − (H·d)·c·(Wd)ᵀ, so the data need no projection per frame.
+    fn project_data(&self, h: &mut Mat<f64>) {
+        let hd: Vec<f64> = (0..h.nrows()).map(|k| (0..h.ncols()).map(|i| h[(k, i)] * self.d[i]).sum()).collect();
+        for i in 0..h.ncols() {
+            let w = self.c * self.wd[i];
+            for (k, hd) in hd.iter().enumerate() {
+                h[(k, i)] -= hd * w;
+            }
+        }
     }
 }
 

@@ -125,6 +125,7 @@ pub(crate) fn check_hyperparameter(hyperparameter: f64) -> Result<(), InverseErr
 mod tests {
     use super::*;
     use crate::SensorSpec;
+    use std::sync::Arc;
 
     #[test]
     fn measurement_sized_form_equals_element_sized_form() {
@@ -184,6 +185,42 @@ mod tests {
             let image = derived.image(&vec![1.0; 120], &frame).unwrap();
             assert!(image.values.iter().all(|v| v.is_finite()));
         }
+    }
+
+    /// Data that a uniform change explains exactly (Δv = δ·J·1) give δ back and an empty
+    /// image; a local change still images where it is, with and without weights.
+    #[test]
+    fn a_uniform_change_is_estimated_and_left_out_of_the_image() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let params =
+            ReconstructorParams { raster: [24, 24], background_change: true, ..ReconstructorParams::default() };
+        let recon = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &params).unwrap();
+        let lin = Arc::clone(recon.linearisation());
+        let j = lin.jacobian();
+        let v0 = lin.background().to_vec();
+        let d: Vec<f64> = (0..j.nrows()).map(|m| (0..j.ncols()).map(|k| j[(m, k)]).sum()).collect();
+        let variance: Vec<f64> = (0..120).map(|m| 1.0 + (m % 5) as f64).collect();
+        for normalized in [false, true] {
+            for channels in [Channels::all(120), Channels::all(120).with_variance(variance.clone())] {
+                let recon = recon.rederive(&ReconstructorParams { normalized, ..params }, channels).unwrap();
+                let delta = -0.03;
+                let v: Vec<f64> = v0.iter().zip(&d).map(|(v, d)| v + delta * d).collect();
+                let estimated = recon.background_change(&v0, &v).unwrap().unwrap();
+                // Normalised data are Δv/v_ref, so a uniform change is linear in them only to first order.
+                let tolerance = if normalized { 1e-3 } else { 1e-6 };
+                assert!((estimated - delta).abs() < tolerance * delta.abs(), "{normalized}: {estimated}");
+                let image = recon.image(&v0, &v).unwrap();
+                let peak = image.values.iter().fold(0.0f32, |a, x| a.max(x.abs()));
+                // One triangle's change, for scale: what the image of a local change looks like.
+                let local: Vec<f64> = v0.iter().enumerate().map(|(m, v)| v - 0.05 * j[(m, 150)]).collect();
+                let local_image = recon.image(&v0, &local).unwrap();
+                let local_peak = local_image.values.iter().fold(0.0f32, |a, x| a.max(x.abs()));
+                assert!(peak < 1e-3 * local_peak, "{normalized}: {peak} vs {local_peak}");
+            }
+        }
+        let plain = recon.rederive(&ReconstructorParams { background_change: false, ..params }, Channels::all(120));
+        assert_eq!(plain.unwrap().background_change(&v0, &v0).unwrap(), None);
     }
 
     /// A background the forward model refuses is named as such, not blamed on the prior.

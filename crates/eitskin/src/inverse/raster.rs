@@ -29,11 +29,20 @@ pub struct ReconstructorParams {
     pub normalized: bool,
     /// Raster columns and rows `[nx, ny]` over the mesh's bounding box.
     pub raster: [usize; 2],
+    /// Estimate a uniform change of the background conductivity (warming water, a drying gel)
+    /// with each image and leave it out of the image ([`Reconstructor::background_change`]).
+    pub background_change: bool,
 }
 
 impl Default for ReconstructorParams {
     fn default() -> Self {
-        ReconstructorParams { prior: Prior::default(), hyperparameter: 0.1, normalized: false, raster: [64, 64] }
+        ReconstructorParams {
+            prior: Prior::default(),
+            hyperparameter: 0.1,
+            normalized: false,
+            raster: [64, 64],
+            background_change: false,
+        }
     }
 }
 
@@ -52,6 +61,8 @@ pub struct Reconstructor {
     matrix: Vec<f32>,
     /// Triangles × measurements, column-major, in the same units.
     elements: Vec<f32>,
+    /// The row that gives the background change from Δv (S/m per V); empty when not estimated.
+    background: Vec<f64>,
     /// Number of measurements (columns of `matrix`).
     measurements: usize,
 }
@@ -88,8 +99,12 @@ impl Reconstructor {
         template: Image,
         pixels: Vec<Option<usize>>,
     ) -> Result<Reconstructor, InverseError> {
-        let element =
-            linearisation.element_matrix(&params.prior, params.hyperparameter, params.normalized, &channels)?;
+        let element = linearisation.element_matrix(params, &channels)?;
+        let background = if params.background_change {
+            linearisation.background_change_row(element.as_ref(), params.normalized, &channels)?
+        } else {
+            Vec::new()
+        };
         let measurements = element.ncols();
         let element = &element;
         let matrix = (0..measurements)
@@ -97,7 +112,17 @@ impl Reconstructor {
             .collect();
         let elements =
             (0..measurements).flat_map(|m| (0..element.nrows()).map(move |t| element[(t, m)] as f32)).collect();
-        Ok(Reconstructor { params: *params, linearisation, channels, template, pixels, matrix, elements, measurements })
+        Ok(Reconstructor {
+            params: *params,
+            linearisation,
+            channels,
+            template,
+            pixels,
+            matrix,
+            elements,
+            background,
+            measurements,
+        })
     }
 
     /// The same reconstructor with another λ and other channels (milliseconds: one system the
@@ -186,6 +211,18 @@ impl Reconstructor {
         let mut values = vec![0.0; self.linearisation.mesh().triangles().len()];
         accumulate(&mut values, &self.elements, |m| self.difference(v_ref, v, m));
         Ok(values)
+    }
+
+    /// The uniform change of the background conductivity (S/m) between `v_ref` and `v`,
+    /// estimated with the image and left out of it; `None` unless built with
+    /// [`ReconstructorParams::background_change`]. Allocates nothing.
+    pub fn background_change(&self, v_ref: &[f64], v: &[f64]) -> Result<Option<f64>, InverseError> {
+        if self.background.is_empty() {
+            return Ok(None);
+        }
+        self.check(v_ref, v)?;
+        let delta = self.background.iter().enumerate().map(|(m, r)| r * f64::from(self.difference(v_ref, v, m))).sum();
+        Ok(Some(delta))
     }
 
     /// [`Reconstructor::image`] into a caller-owned image (from [`Reconstructor::blank_image`]);
