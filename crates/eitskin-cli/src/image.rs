@@ -3,22 +3,24 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
+use eitskin::image::Image;
 use eitskin::inverse::{mean_frame, noise_variance, Channels, Hyperparameter};
-use eitskin::touch::{detect, Polarity};
-use eitskin::values::{signed_from_magnitudes, Component};
-use eitskin::{ReconstructorParams, TouchParams};
+use eitskin::touch::{detect, Polarity, Touch};
+use eitskin::values::{signed_from_magnitudes, Component, Gains};
+use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::{FrameLayout, FrameSelect, FrameTable};
 use serde::Serialize;
 
 use crate::{load, plot};
 
-/// Flags of `eitskin image`.
+/// What `image` and `segment` read, and how they reconstruct: the flags they share.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub struct Input {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
-    /// The reference (no-touch) frames: a MAT (v5, v7.3) or NPY file, a JSON array, `forward`
-    /// output or CSV; several frames are averaged, and their spread is the measured noise.
+    /// The reference (no-touch) frames: a MAT (v5, v7.3) or NPY file, a text log (one frame per
+    /// line, as boards print them), a JSON array, `forward` output or CSV; several frames are
+    /// averaged, and their spread is the measured noise.
     #[arg(long)]
     reference: PathBuf,
     /// The frame to image, in the same formats.
@@ -27,9 +29,12 @@ pub struct Args {
     /// Which frame of the frame file, from 1.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     frame_index: u64,
-    /// The variable of a MAT file (a struct's field as NAME.FIELD).
+    /// The variable of the frame's MAT file (a struct's field as NAME.FIELD).
     #[arg(long)]
     select: Option<String>,
+    /// The variable of the reference's MAT file; default: `--select`'s.
+    #[arg(long)]
+    reference_select: Option<String>,
     /// Frames as `rows` or `columns` of the array; `auto`: columns in MAT files, rows otherwise.
     #[arg(long, default_value = "auto", value_parser = ["auto", "rows", "columns"])]
     layout: String,
@@ -39,23 +44,6 @@ pub struct Args {
     /// For complex data, the part imaged: real, imaginary, magnitude (signed by the model) or phase.
     #[arg(long, default_value = "real")]
     component: Component,
-    /// Write the raster as data: `.npy` (f32, ny × nx, row 0 at the top, NaN outside) or `.csv`
-    /// (x, y in the spec's unit, Δσ in S/m per inside pixel).
-    #[arg(long)]
-    out: Option<PathBuf>,
-    /// Write a label image as NPY (u8, ny × nx, row 0 at the top): 0 background, 1 less and 2
-    /// more conductive, by the touches' own rule (`--threshold` of the peak, `--polarity`).
-    #[arg(long)]
-    labels: Option<PathBuf>,
-    /// Write the conductivity change of every triangle as CSV (triangle, centroid x, y, Δσ).
-    #[arg(long)]
-    elements: Option<PathBuf>,
-    /// Write the image as a PNG heat map (touches marked).
-    #[arg(long)]
-    png: Option<PathBuf>,
-    /// Print JSON instead of text.
-    #[arg(long)]
-    json: bool,
     /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in (0, 1000], or `auto`:
     /// chosen for a noise figure of 0.5 (EIDORS'), with the noise measured from the reference
     /// frames when the reference file holds several, else taken relative to each value.
@@ -64,10 +52,18 @@ pub struct Args {
     /// Normalised differences Δv/v_ref (immune to per-channel gains) instead of absolute ones.
     #[arg(long)]
     normalised: bool,
+    /// Estimate each channel's gain from the reference against the model, divide it out, and
+    /// drop (and name) the channels whose gain disagrees with the rest.
+    #[arg(long)]
+    gains: bool,
+    /// Estimate a uniform change of the background conductivity between reference and frame
+    /// (warming water, a drying gel), print it, and leave it out of the image.
+    #[arg(long)]
+    background_change: bool,
     /// Which changes are touches: `decrease` (a press on a hydrogel), `increase`, or `both`.
     #[arg(long, default_value = "decrease")]
     polarity: Polarity,
-    /// Keep pixels at or above this fraction of the peak.
+    /// Keep pixels at or above this fraction of the peak, in (0, 1].
     #[arg(long, default_value_t = 0.6)]
     threshold: f64,
     /// Mesh with about this many triangles instead of the spec's count.
@@ -77,6 +73,76 @@ pub struct Args {
     /// ($XDG_CACHE_HOME/eitskin or ~/.cache/eitskin, or $EITSKIN_CACHE).
     #[arg(long)]
     no_cache: bool,
+}
+
+/// Flags of `eitskin image`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    input: Input,
+    /// Write the raster as data: `.npy` (f32, ny × nx, row 0 at the top, NaN outside) or `.csv`
+    /// (x, y in the spec's unit, Δσ in S/m per inside pixel).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the conductivity change of every triangle as CSV (triangle, centroid x, y, Δσ).
+    #[arg(long)]
+    elements: Option<PathBuf>,
+    /// Write the image as a PNG heat map (touches marked).
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One frame reconstructed against its reference, with what was found on the way.
+pub struct Reconstruction {
+    /// The sensor.
+    pub spec: SensorSpec,
+    /// The reconstructor, derived for the data's channels and λ.
+    pub recon: Reconstructor,
+    /// The mean reference and the frame, signed, gains divided out.
+    pub v_ref: Vec<f64>,
+    /// The frame imaged.
+    pub v: Vec<f64>,
+    /// The conductivity-change image (S/m).
+    pub image: Image,
+    /// The touch rule.
+    pub touch: TouchParams,
+    /// The touches of the image.
+    pub touches: Vec<Touch>,
+    /// The settings chosen and the quantities estimated, as printed.
+    pub report: Report,
+}
+
+/// What a reconstruction chose and estimated, for text and JSON output.
+#[derive(Serialize)]
+pub struct Report {
+    /// R² of the reference's ln|v| against the model's ([`Gains::pattern_fit`]).
+    pattern_fit: f64,
+    hyperparameter: f64,
+    normalised: bool,
+    channels_dropped: Vec<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    gains: Option<GainsOut>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    background_change: Option<BackgroundOut>,
+}
+
+#[derive(Serialize)]
+struct GainsOut {
+    /// Median gain, the board's unit per model volt.
+    median: f64,
+    /// 1-based channels whose gain is an outlier (dropped).
+    outliers: Vec<usize>,
+}
+
+#[derive(Serialize)]
+struct BackgroundOut {
+    /// The background conductivity change, S/m.
+    delta_s_per_m: f64,
+    /// The same relative to the spec's conductivity.
+    relative: f64,
 }
 
 #[derive(Serialize)]
@@ -90,43 +156,51 @@ struct TouchOut {
 }
 
 #[derive(Serialize)]
-struct Output {
-    hyperparameter: f64,
-    normalised: bool,
-    channels_dropped: Vec<usize>,
+struct Output<'a> {
+    #[serde(flatten)]
+    report: &'a Report,
     length_unit: &'static str,
     peak_unit: &'static str,
     touches: Vec<TouchOut>,
 }
 
-/// Runs `eitskin image`.
-pub fn run(args: Args) -> Result<()> {
-    let mut spec = load::spec(args.spec.as_deref())?;
-    if let Some(n) = args.triangles {
+/// Reads the reference and the frame, reconstructs, and finds the touches: the chain `image`
+/// and `segment` share.
+pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
+    if !(input.threshold > 0.0 && input.threshold <= 1.0) {
+        anyhow::bail!("--threshold {}: must be in (0, 1], a fraction of the peak", input.threshold);
+    }
+    let mut spec = load::spec(input.spec.as_deref())?;
+    if let Some(n) = input.triangles {
         spec.mesh.triangles = n;
     }
-    let layout = match args.layout.as_str() {
+    let layout = match input.layout.as_str() {
         "rows" => FrameLayout::Rows,
         "columns" => FrameLayout::Columns,
         _ => FrameLayout::Auto,
     };
-    let select = FrameSelect { variable: args.select.clone(), layout };
-    let references = frames(&eitskin_io::read_frames(&args.reference, &select)?, args.component);
-    let table = frames(&eitskin_io::read_frames(&args.frame, &select)?, args.component);
-    let index = usize::try_from(args.frame_index - 1).unwrap_or(usize::MAX);
+    let select = FrameSelect { variable: input.select.clone(), layout };
+    let reference_select = FrameSelect { variable: input.reference_select.clone().or(input.select.clone()), layout };
+    let references = frames(&eitskin_io::read_frames(&input.reference, &reference_select)?, input.component);
+    let table = frames(&eitskin_io::read_frames(&input.frame, &select)?, input.component);
+    let index = usize::try_from(input.frame_index - 1).unwrap_or(usize::MAX);
     let Some(v) = table.get(index).cloned() else {
-        anyhow::bail!("--frame-index {}: {} holds {} frame(s)", args.frame_index, args.frame.display(), table.len());
+        anyhow::bail!("--frame-index {}: {} holds {} frame(s)", input.frame_index, input.frame.display(), table.len());
     };
-    let fixed = match args.hyperparameter {
+    let fixed = match input.hyperparameter {
         Hyperparameter::Fixed(value) => value,
         Hyperparameter::Auto => ReconstructorParams::default().hyperparameter,
     };
-    let params =
-        ReconstructorParams { hyperparameter: fixed, normalized: args.normalised, ..ReconstructorParams::default() };
-    let recon = load::reconstructor(&spec, &params, !args.no_cache)?;
-    let magnitudes = args.values == "magnitude" || args.component == Component::Magnitude;
-    let (references, v) = if magnitudes {
-        let model = recon.linearisation().background();
+    let params = ReconstructorParams {
+        hyperparameter: fixed,
+        normalized: input.normalised,
+        background_change: input.background_change,
+        ..ReconstructorParams::default()
+    };
+    let recon = load::reconstructor(&spec, &params, !input.no_cache)?;
+    let model = recon.linearisation().background();
+    let magnitudes = input.values == "magnitude" || input.component == Component::Magnitude;
+    let (mut references, mut v) = if magnitudes {
         let (v, report) = signed_from_magnitudes(&v, model);
         if !report.unexplained.is_empty() {
             let channels: Vec<usize> = report.unexplained.iter().map(|m| m + 1).collect();
@@ -136,24 +210,76 @@ pub fn run(args: Args) -> Result<()> {
     } else {
         (references, v)
     };
+    let estimate = Gains::estimate(&mean_frame(&references), model);
+    if estimate.pattern_fit < PATTERN_FIT_WARNING {
+        eprintln!(
+            "warning: the reference follows the model's pattern poorly (R² = {:.2} of ln|v| against the model's): \
+             the values may not be this protocol's voltages (a saturated or clipped front end, another measurement \
+             order, another electrode layout)",
+            estimate.pattern_fit
+        );
+    }
+    let pattern_fit = estimate.pattern_fit;
+    let gains = input.gains.then_some(estimate);
+    if let Some(gains) = &gains {
+        references = references.iter().map(|r| gains.apply(r)).collect();
+        v = gains.apply(&v);
+    }
     let v_ref = mean_frame(&references);
-    let variance = noise_variance(&references, args.normalised);
+    let variance = noise_variance(&references, input.normalised);
     // A channel missing (NaN) in the reference or the frame is dropped, not refused; so is one
     // whose reference is zero (a dead channel) when differences are normalised by it.
-    let alive: Vec<bool> = v_ref.iter().map(|r| !args.normalised || *r != 0.0).collect();
+    let alive: Vec<bool> = v_ref.iter().map(|r| !input.normalised || *r != 0.0).collect();
     let channels = Channels::finite_in(&v_ref).masked(Channels::finite_in(&v).used_mask()).masked(&alive);
-    let recon = match args.hyperparameter {
+    let recon = match input.hyperparameter {
         Hyperparameter::Auto => recon.with_auto_hyperparameter(channels, variance)?.0,
         Hyperparameter::Fixed(value) => recon.derive(value, channels)?,
     };
-    let image = recon.image(&v_ref, &v).with_context(|| format!("imaging {}", args.frame.display()))?;
-    let touch = TouchParams { threshold: args.threshold, polarity: args.polarity, ..TouchParams::default() };
+    let image = recon.image(&v_ref, &v).with_context(|| format!("imaging {}", input.frame.display()))?;
+    let touch = TouchParams { threshold: input.threshold, polarity: input.polarity, ..TouchParams::default() };
     let touches = detect(&image, &touch);
+    let background_change = recon
+        .background_change(&v_ref, &v)?
+        .map(|delta| BackgroundOut { delta_s_per_m: delta, relative: delta / spec.conductivity });
+    let report = Report {
+        pattern_fit,
+        hyperparameter: recon.params().hyperparameter,
+        normalised: input.normalised,
+        channels_dropped: recon.channels().dropped().iter().map(|m| m + 1).collect(),
+        gains: gains.map(|g| GainsOut { median: g.median, outliers: g.outliers.iter().map(|m| m + 1).collect() }),
+        background_change,
+    };
+    Ok(Reconstruction { spec, recon, v_ref, v, image, touch, touches, report })
+}
+
+impl Report {
+    /// The report as text lines: λ, the channels dropped, gains and background change.
+    pub fn text(&self) -> String {
+        let dropped = &self.channels_dropped;
+        let mut text =
+            format!("λ = {:.4}, reference against the model R² = {:.3}", self.hyperparameter, self.pattern_fit);
+        if !dropped.is_empty() {
+            text += &format!(", channels {dropped:?} dropped");
+        }
+        if let Some(g) = &self.gains {
+            text += &format!("\ngains: median {:.4e}, outliers {:?}", g.median, g.outliers);
+        }
+        if let Some(b) = &self.background_change {
+            text += &format!("\nbackground change: {:+.4e} S/m ({:+.2} %)", b.delta_s_per_m, 100.0 * b.relative);
+        }
+        text
+    }
+}
+
+/// Below this R² of the reference against the model, the values are suspect and a warning says so.
+const PATTERN_FIT_WARNING: f64 = 0.5;
+
+/// Runs `eitskin image`.
+pub fn run(args: Args) -> Result<()> {
+    let Reconstruction { spec, recon, v_ref, v, image, touches, report, .. } = reconstruct(&args.input)?;
     let k = 1.0 / spec.length_unit.metres();
     let out = Output {
-        hyperparameter: recon.params().hyperparameter,
-        normalised: args.normalised,
-        channels_dropped: recon.channels().dropped().iter().map(|m| m + 1).collect(),
+        report: &report,
         length_unit: spec.length_unit.symbol(),
         peak_unit: "S/m",
         touches: touches
@@ -173,9 +299,6 @@ pub fn run(args: Args) -> Result<()> {
         Some(path) => eitskin_io::write_raster_csv(path, &image, spec.length_unit)?,
         None => {}
     }
-    if let Some(path) = &args.labels {
-        eitskin_io::write_labels_npy(path, &eitskin::touch::labels(&image, &touch), image.size)?;
-    }
     if let Some(path) = &args.elements {
         let values: Vec<f64> = recon.element_values(&v_ref, &v)?.into_iter().map(f64::from).collect();
         eitskin_io::write_elements_csv(
@@ -192,9 +315,7 @@ pub fn run(args: Args) -> Result<()> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        let dropped = &out.channels_dropped;
-        let dropped = if dropped.is_empty() { String::new() } else { format!(", channels {dropped:?} dropped") };
-        println!("λ = {:.4}{dropped}", out.hyperparameter);
+        println!("{}", report.text());
         println!("{} touch(es)", out.touches.len());
         for (i, t) in out.touches.iter().enumerate() {
             let u = out.length_unit;

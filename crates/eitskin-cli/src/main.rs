@@ -12,6 +12,7 @@ mod mesh;
 mod plot;
 mod report;
 mod run;
+mod segment;
 mod sensitivity;
 mod study;
 mod viewer;
@@ -41,6 +42,8 @@ enum Command {
     Forward(forward::Args),
     /// Reconstruct a frame against a reference: print its touches, draw the image.
     Image(image::Args),
+    /// Write a label image of a frame: background, less or more conductive (the touches' rule).
+    Segment(segment::Args),
     /// The paper's Fig. 3: reconstructed peak of one inclusion against its position.
     Sensitivity(sensitivity::Args),
     /// Rerun the paper's study on the virtual sensor: figures, numbers, report.md.
@@ -64,6 +67,7 @@ fn main() {
         Command::Mesh(args) => mesh::run(args),
         Command::Forward(args) => forward::run(args),
         Command::Image(args) => image::run(args),
+        Command::Segment(args) => segment::run(args),
         Command::Sensitivity(args) => sensitivity::run(args),
         Command::Study(args) => study::run(args),
         Command::Calibrate(args) => calibrate::calibrate(args),

@@ -192,9 +192,11 @@ fn image_finds_a_more_conductive_object_with_either_polarity() {
     let lambda = both["hyperparameter"].as_f64().unwrap();
     assert!(lambda > 1e-4 && lambda < 10.0, "λ = {lambda}");
     let labels = dir.join("labels.npy");
-    let args = ["image", "--triangles", "1500", "--reference", reference.to_str().unwrap(), "--frame"];
-    let args = [&args[..], &[frame.to_str().unwrap(), "--polarity", "both", "--labels", labels.to_str().unwrap()]];
-    assert!(dir.eitskin(&args.concat()).status.success());
+    let args = ["segment", "--triangles", "1500", "--reference", reference.to_str().unwrap(), "--frame"];
+    let args =
+        [&args[..], &[frame.to_str().unwrap(), "--polarity", "both", "--json", "--out", labels.to_str().unwrap()]];
+    let counts = stdout_json(&dir.eitskin(&args.concat()));
+    assert!(counts["more_conductive"].as_u64().unwrap() > 0 && counts["less_conductive"] == 0, "{counts}");
     let bytes = std::fs::read(labels).unwrap();
     assert!(bytes.ends_with(&[0]) && bytes.contains(&2) && !bytes[128..].contains(&1), "labels: more conductive only");
     let decrease = image("decrease");
@@ -244,10 +246,17 @@ fn image_signs_magnitudes_drops_a_missing_channel_and_writes_data() {
         npy.to_str().unwrap(),
         "--elements",
         elements.to_str().unwrap(),
+        "--gains",
+        "--background-change",
         "--json",
     ]);
     let json = stdout_json(&out);
     assert_eq!(json["channels_dropped"], serde_json::json!([5]), "{json}");
+    // The simulated board follows the model (a finer mesh, gain 1, no background change).
+    assert!(json["pattern_fit"].as_f64().unwrap() > 0.99, "{json}");
+    assert_eq!(json["gains"]["outliers"], serde_json::json!([]), "{json}");
+    assert!((json["gains"]["median"].as_f64().unwrap() - 1.0).abs() < 0.02, "{json}");
+    assert!(json["background_change"]["relative"].as_f64().unwrap().abs() < 0.01, "{json}");
     let touches = json["touches"].as_array().unwrap();
     assert!(!touches.is_empty(), "{json}");
     let (x, y) = (touches[0]["x"].as_f64().unwrap(), touches[0]["y"].as_f64().unwrap());

@@ -1,0 +1,76 @@
+//! The README's "Your own data": a tank's MAT file (homogeneous and object frames as two
+//! variables, one frame per column) to touches and a label image, with the README's own spec
+//! and commands, on frames simulated by `forward` (an object of known place and sign).
+
+mod binary;
+
+use binary::{ok, scratch};
+
+/// The spec between `cat > tank.toml <<'TOML'` and `TOML` in the README.
+fn readme_spec() -> String {
+    let readme = include_str!("../../../README.md");
+    let start = readme.find("cat > tank.toml <<'TOML'\n").expect("the README writes tank.toml") + 25;
+    let end = start + readme[start..].find("\nTOML\n").expect("the spec ends");
+    readme[start..end].to_string()
+}
+
+/// A MAT v5 file (uncompressed, little-endian) holding real double matrices.
+fn mat5(variables: &[(&str, usize, usize, &[f64])]) -> Vec<u8> {
+    let mut bytes = format!("{:<116}", "MATLAB 5.0 MAT-file, written by eitskin's tests").into_bytes();
+    bytes.extend([0; 8]);
+    bytes.extend(0x0100u16.to_le_bytes());
+    bytes.extend(b"IM");
+    let element = |out: &mut Vec<u8>, kind: u32, data: &[u8]| {
+        out.extend(kind.to_le_bytes());
+        out.extend((data.len() as u32).to_le_bytes());
+        out.extend(data);
+        out.resize(out.len().div_ceil(8) * 8, 0);
+    };
+    for (name, rows, columns, values) in variables {
+        assert_eq!(rows * columns, values.len());
+        let mut matrix = Vec::new();
+        element(&mut matrix, 6, &[6u32.to_le_bytes(), 0u32.to_le_bytes()].concat()); // flags: double
+        element(&mut matrix, 5, &[(*rows as i32).to_le_bytes(), (*columns as i32).to_le_bytes()].concat());
+        element(&mut matrix, 1, name.as_bytes());
+        element(&mut matrix, 9, &values.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>());
+        element(&mut bytes, 14, &matrix);
+    }
+    bytes
+}
+
+#[test]
+fn a_tank_mat_file_gives_touches_and_labels_with_the_readmes_commands() {
+    let dir = scratch("own-data");
+    let spec = dir.join("tank.toml");
+    std::fs::write(&spec, readme_spec()).unwrap();
+    let spec = spec.to_str().unwrap();
+    let forward = |extra: &[&str]| -> Vec<f64> {
+        let json: serde_json::Value =
+            serde_json::from_str(&ok(dir.eitskin(&[&["forward", spec], extra].concat()))).unwrap();
+        json["measurements"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
+    };
+    let homogeneous = forward(&[]);
+    assert_eq!(homogeneous.len(), 208, "16 electrodes, adjacent: 16 × 13");
+    let object = forward(&["--inclusion", "60,40,15,3.0"]);
+    // Two homogeneous frames a little apart (the board's noise), three object frames.
+    let vh: Vec<f64> = [0.998, 1.002].iter().flat_map(|k| homogeneous.iter().map(move |v| v * k)).collect();
+    let vi: Vec<f64> = (0..3).flat_map(|_| object.iter().copied()).collect();
+    let mat = dir.join("tank.mat");
+    std::fs::write(&mat, mat5(&[("vh", 208, 2, &vh), ("vi", 208, 3, &vi)])).unwrap();
+    let mat = mat.to_str().unwrap();
+    let input = ["--reference", mat, "--reference-select", "vh", "--frame", mat, "--select", "vi"];
+    let input = [&input[..], &["--frame-index", "3", "--polarity", "both"]].concat();
+    let image: serde_json::Value =
+        serde_json::from_str(&ok(dir.eitskin(&[&["image", spec], &input[..], &["--json"]].concat()))).unwrap();
+    assert!(image["pattern_fit"].as_f64().unwrap() > 0.99, "{image}");
+    let touches = image["touches"].as_array().unwrap();
+    assert_eq!(touches.len(), 1, "{image}");
+    assert_eq!(touches[0]["sign"], "increase");
+    let (x, y) = (touches[0]["x"].as_f64().unwrap(), touches[0]["y"].as_f64().unwrap());
+    assert!((x - 60.0).hypot(y - 40.0) < 20.0, "touch at ({x}, {y}) mm, object at (60, 40)");
+    let labels = dir.join("labels.npy");
+    let out = [&["segment", spec], &input[..], &["--json", "--out", labels.to_str().unwrap()]].concat();
+    let counts: serde_json::Value = serde_json::from_str(&ok(dir.eitskin(&out))).unwrap();
+    assert!(counts["more_conductive"].as_u64().unwrap() > 0 && counts["less_conductive"] == 0, "{counts}");
+    assert_eq!(&std::fs::read(labels).unwrap()[..6], b"\x93NUMPY");
+}
