@@ -61,11 +61,17 @@ struct ProtocolFile {
     kind: String,
     #[serde(skip_serializing_if = "Option::is_none")]
     file: Option<String>,
+    /// The MAT variable with the stimulations' currents, when `file` is a MAT file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stimulation: Option<String>,
+    /// The MAT variable with the measurement patterns' weights, when `file` is a MAT file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    measurement: Option<String>,
 }
 
 impl Default for ProtocolFile {
     fn default() -> Self {
-        ProtocolFile { kind: "two-terminal".into(), file: None }
+        ProtocolFile { kind: "two-terminal".into(), file: None, stimulation: None, measurement: None }
     }
 }
 
@@ -156,7 +162,7 @@ pub fn spec_to_toml(spec: &SensorSpec) -> String {
             start_angle_deg,
             positions,
         },
-        protocol: ProtocolFile { kind: protocol_kind(&spec.protocol), file: None },
+        protocol: ProtocolFile { kind: protocol_kind(&spec.protocol), ..ProtocolFile::default() },
         mesh: MeshFile {
             triangles: spec.mesh.triangles,
             max_element_size: spec.mesh.max_element_size.map(|h| h * k),
@@ -251,10 +257,31 @@ impl SpecFile {
                 ))
             }
         };
+        let matrices = match (self.protocol.stimulation, self.protocol.measurement) {
+            (Some(stimulation), Some(measurement)) => Some((stimulation, measurement)),
+            (None, None) => None,
+            (Some(_), None) => {
+                return Err(key_error("protocol.measurement", "is required with protocol.stimulation".into()))
+            }
+            (None, Some(_)) => {
+                return Err(key_error("protocol.stimulation", "is required with protocol.measurement".into()))
+            }
+        };
         let protocol = match (self.protocol.kind.as_str(), self.protocol.file) {
-            ("custom", Some(file)) => ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(file))?),
+            ("custom", Some(file)) => match &matrices {
+                Some((stimulation, measurement)) => ProtocolSpec::Custom(protocol_file::read_protocol_matrices(
+                    &base.join(file),
+                    stimulation,
+                    measurement,
+                    e.count,
+                )?),
+                None => ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(file))?),
+            },
             ("custom", None) => return Err(key_error("protocol.file", "is required for kind = \"custom\"".into())),
             (_, Some(_)) => return Err(key_error("protocol.file", "applies only to kind = \"custom\"".into())),
+            (_, None) if matrices.is_some() => {
+                return Err(key_error("protocol.stimulation", "applies only to kind = \"custom\" with a file".into()))
+            }
             (name, None) => match ProtocolSpec::from_name(name) {
                 Some(builtin) => builtin,
                 None => {
