@@ -14,7 +14,8 @@
 //! jointly with the image and left unpenalised, it leaves the image problem with J and Δv
 //! projected by P = I − d(dᵀWd)⁻¹dᵀW (W = Σ⁻¹); P is folded into H, so a frame costs the same.
 
-use faer::{Mat, MatRef, Side};
+use faer::linalg::matmul::triangular::{self, BlockStructure};
+use faer::{Accum, Mat, MatRef, Side};
 
 use super::{check_hyperparameter, Channels, InverseError, Prior, ReconstructorParams};
 use crate::forward::ForwardModel;
@@ -93,6 +94,21 @@ impl Linearisation {
     /// columns. With `params.background_change`, a global conductivity change is estimated
     /// with the image and left out of it (see [`Linearisation::background_change_row`]).
     pub fn element_matrix(&self, params: &ReconstructorParams, channels: &Channels) -> Result<Mat<f64>, InverseError> {
+        let compact = self.compact_matrix(params, channels)?;
+        let mut full = Mat::zeros(compact.nrows(), self.measurements());
+        for (i, m) in channels.used().into_iter().enumerate() {
+            full.col_mut(m).copy_from(compact.col(i));
+        }
+        Ok(full)
+    }
+
+    /// [`Linearisation::element_matrix`] for the used channels only (triangles × used, in the
+    /// order of [`Channels::used`]): what a reconstructor is assembled from.
+    pub(crate) fn compact_matrix(
+        &self,
+        params: &ReconstructorParams,
+        channels: &Channels,
+    ) -> Result<Mat<f64>, InverseError> {
         check_hyperparameter(params.hyperparameter)?;
         channels.check(self.measurements())?;
         let used = channels.used();
@@ -106,11 +122,7 @@ impl Linearisation {
         if let Some(global) = &global {
             global.project_data(&mut compact);
         }
-        let mut full = Mat::zeros(compact.nrows(), self.measurements());
-        for (i, &m) in used.iter().enumerate() {
-            full.col_mut(m).copy_from(compact.col(i));
-        }
-        Ok(full)
+        Ok(compact)
     }
 
     /// The row r (one weight per measurement, zero on dropped channels) for which r·Δv is the
@@ -124,14 +136,27 @@ impl Linearisation {
         channels: &Channels,
     ) -> Result<Vec<f64>, InverseError> {
         let used = channels.used();
-        let jacobian = self.rows(&used, normalized)?;
-        let global = Global::new(jacobian.as_ref(), &channels.relative_variance());
+        let compact = Mat::from_fn(element.nrows(), used.len(), |k, i| element[(k, used[i])]);
+        let compact_row = self.compact_background_change_row(compact.as_ref(), normalized, channels)?;
         let mut row = vec![0.0; self.measurements()];
-        for (i, &m) in used.iter().enumerate() {
-            let jh: f64 = (0..element.nrows()).map(|k| global.u[k] * element[(k, m)]).sum();
-            row[m] = global.c * global.wd[i] - jh;
+        for (r, m) in compact_row.into_iter().zip(used) {
+            row[m] = r;
         }
         Ok(row)
+    }
+
+    /// [`Linearisation::background_change_row`] from a [`Linearisation::compact_matrix`], for
+    /// the used channels only.
+    pub(crate) fn compact_background_change_row(
+        &self,
+        compact: MatRef<'_, f64>,
+        normalized: bool,
+        channels: &Channels,
+    ) -> Result<Vec<f64>, InverseError> {
+        let jacobian = self.rows(&channels.used(), normalized)?;
+        let global = Global::new(jacobian.as_ref(), &channels.relative_variance());
+        let uh = faer::Row::from_fn(compact.nrows(), |k| global.u[k]) * compact; // uᵀH
+        Ok((0..compact.ncols()).map(|i| global.c * global.wd[i] - uh[i]).collect())
     }
 }
 
@@ -209,7 +234,19 @@ pub(crate) fn measurement_sized(
     let r_inv = inverse_diagonal(r);
     let (m, k) = (jacobian.nrows(), jacobian.ncols());
     let scaled = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] * r_inv[j]); // J R⁻¹
-    let mut system = &scaled * jacobian.transpose(); // J R⁻¹ Jᵀ
+                                                                         // J R⁻¹ Jᵀ is symmetric and the Cholesky factorisation reads its lower half: only that is formed.
+    let mut system = Mat::zeros(m, m);
+    triangular::matmul(
+        system.as_mut(),
+        BlockStructure::TriangularLower,
+        Accum::Replace,
+        &scaled,
+        BlockStructure::Rectangular,
+        jacobian.transpose(),
+        BlockStructure::Rectangular,
+        1.0,
+        faer::get_global_parallelism(),
+    );
     let lambda2 = hyperparameter * hyperparameter;
     for i in 0..m {
         system[(i, i)] += lambda2 * variance[i];

@@ -99,19 +99,32 @@ impl Reconstructor {
         template: Image,
         pixels: Vec<Option<usize>>,
     ) -> Result<Reconstructor, InverseError> {
-        let element = linearisation.element_matrix(params, &channels)?;
+        let compact = linearisation.compact_matrix(params, &channels)?;
         let background = if params.background_change {
-            linearisation.background_change_row(element.as_ref(), params.normalized, &channels)?
+            let row = linearisation.compact_background_change_row(compact.as_ref(), params.normalized, &channels)?;
+            let mut full = vec![0.0; channels.len()];
+            for (r, m) in row.into_iter().zip(channels.used()) {
+                full[m] = r;
+            }
+            full
         } else {
             Vec::new()
         };
-        let measurements = element.ncols();
-        let element = &element;
-        let matrix = (0..measurements)
-            .flat_map(|m| pixels.iter().map(move |t| t.map_or(0.0, |t| element[(t, m)] as f32)))
-            .collect();
-        let elements =
-            (0..measurements).flat_map(|m| (0..element.nrows()).map(move |t| element[(t, m)] as f32)).collect();
+        // Columns of H for the used channels, zero columns for the dropped, in f32: per pixel
+        // the triangle under it, and per triangle as it is.
+        let (measurements, triangles) = (channels.len(), compact.nrows());
+        let mut matrix = vec![0.0f32; pixels.len() * measurements];
+        let mut elements = vec![0.0f32; triangles * measurements];
+        for (i, m) in channels.used().into_iter().enumerate() {
+            // Owned matrices are stored column by column, so a column is one slice.
+            let column = compact.col(i).try_as_col_major().map(|c| c.as_slice()).unwrap_or_default();
+            for (out, h) in elements[m * triangles..(m + 1) * triangles].iter_mut().zip(column) {
+                *out = *h as f32;
+            }
+            for (out, t) in matrix[m * pixels.len()..(m + 1) * pixels.len()].iter_mut().zip(&pixels) {
+                *out = t.and_then(|t| column.get(t)).map_or(0.0, |h| *h as f32);
+            }
+        }
         Ok(Reconstructor {
             params: *params,
             linearisation,
