@@ -29,7 +29,7 @@
 use crate::chain::Chain;
 pub use crate::chain::TouchForce;
 use crate::image::Image;
-use crate::inverse::{noise_variance, Channels, InverseError, Reconstructor};
+use crate::inverse::{mean_of_finite, noise_variance, Channels, InverseError, Reconstructor};
 use crate::pseudo_array::PseudoArray;
 
 /// The most bad channels an error names.
@@ -301,17 +301,6 @@ fn too_many_dropped(used: &[bool], new: usize) -> Result<(), InverseError> {
         channels: used.len(),
         first: bad.into_iter().take(NAMED).collect(),
     })
-}
-
-/// The mean of each channel's finite values over `frames`; NaN where none is finite.
-fn mean_of_finite(frames: &[Vec<f64>]) -> Vec<f64> {
-    let count = frames.first().map_or(0, Vec::len);
-    (0..count)
-        .map(|m| {
-            let (sum, n) = frames.iter().map(|f| f[m]).filter(|v| v.is_finite()).fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
-            if n > 0 { sum / n as f64 } else { f64::NAN }
-        })
-        .collect()
 }
 
 #[cfg(test)]

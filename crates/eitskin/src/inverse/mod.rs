@@ -20,7 +20,7 @@ mod linearisation;
 mod prior;
 mod raster;
 
-pub use channels::{mean_frame, noise_variance, Channels};
+pub use channels::{mean_frame, mean_of_finite, noise_variance, Channels};
 pub use hyperparameter::{choose_hyperparameter, noise_figure, Hyperparameter, NOISE_FIGURE_TARGET};
 pub use linearisation::Linearisation;
 pub use prior::Prior;
