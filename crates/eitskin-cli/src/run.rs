@@ -281,7 +281,8 @@ fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: 
             let chosen = hyperparameter == Hyperparameter::Auto;
             let normalised = pipeline.chain().reconstructor().params().normalized;
             let dropped = one_based(&pipeline.dropped_channels());
-            let how = if chosen { format!(" (chosen from the noise of {needed} reference frames)") } else { String::new() };
+            let how =
+                if chosen { format!(" (chosen from the noise of {needed} reference frames)") } else { String::new() };
             let left_out = if dropped.is_empty() {
                 String::new()
             } else {
@@ -289,7 +290,13 @@ fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: 
             };
             let detail = format!("reference taken; λ = {lambda:.4}{how}{left_out}");
             eprintln!("eitskin run: {detail}");
-            Some(Event::ReferenceTaken { hyperparameter: lambda, chosen, normalised, channels_dropped: dropped, detail })
+            Some(Event::ReferenceTaken {
+                hyperparameter: lambda,
+                chosen,
+                normalised,
+                channels_dropped: dropped,
+                detail,
+            })
         }
         Status::ChannelsDropped { .. } => {
             let channels = one_based(pipeline.newly_dropped());

@@ -59,8 +59,9 @@ fn the_stream_reads_back_with_its_schema_a_start_line_then_counted_frames_in_mm(
     assert_eq!(frames.len(), 40);
     // The reference taken by the 10th frame (the event comes before that frame's line), with λ
     // chosen from their noise.
-    let Line::Event(Event::ReferenceTaken { hyperparameter, chosen: true, normalised: false, channels_dropped, .. }) =
-        &lines[9]
+    let Line::Event(Event::ReferenceTaken {
+        hyperparameter, chosen: true, normalised: false, channels_dropped, ..
+    }) = &lines[9]
     else {
         panic!("{:?}", lines[9])
     };
@@ -170,8 +171,17 @@ fn the_virtual_sensor_pressed_by_a_script_gives_a_touch_where_and_when_pressed()
     let script = dir.join("script.txt");
     std::fs::write(&script, "# start end x y force\n1.0 1.5 -50 40 9\n").unwrap();
     let source = format!("sim:{}", script.display());
-    let out =
-        frames_only(dir.eitskin(&["run", "--source", &source, "--frames", "40", "--rate", "20", "--triangles", "1500"]));
+    let out = frames_only(dir.eitskin(&[
+        "run",
+        "--source",
+        &source,
+        "--frames",
+        "40",
+        "--rate",
+        "20",
+        "--triangles",
+        "1500",
+    ]));
     assert_eq!(out.len(), 40);
     for (k, line) in out.iter().enumerate() {
         assert_eq!(line["seq"], k as u64, "frames in order");
@@ -225,7 +235,10 @@ fn a_file_with_bad_lines_reports_each_and_goes_on() {
     // The NaN is a channel lost, not a bad frame: dropped, named, and the frame imaged.
     let dropped: Vec<&serde_json::Value> = out.iter().filter(|l| l["event"] == "channels_dropped").collect();
     assert_eq!(dropped.len(), 1, "{out:?}");
-    assert_eq!((&dropped[0]["seq"], &dropped[0]["channels"], &dropped[0]["dropped"]), (&4.into(), &vec![120].into(), &1.into()));
+    assert_eq!(
+        (&dropped[0]["seq"], &dropped[0]["channels"], &dropped[0]["dropped"]),
+        (&4.into(), &vec![120].into(), &1.into())
+    );
     assert_eq!((&frames[3]["status"], &frames[4]["counters"]["bad"]), (&"ok".into(), &1.into()));
 }
 

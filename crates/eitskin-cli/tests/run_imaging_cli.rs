@@ -133,7 +133,8 @@ fn a_channel_lost_mid_stream_is_named_and_the_press_still_found() {
     let capture = dir.join("capture.csv");
     std::fs::write(&capture, text.join("\n") + "\n").unwrap();
     let source = format!("file:{}", capture.display());
-    let (_, events, frames, stderr) = run(dir.eitskin(&["run", "--source", &source, "--rate", "0", "--triangles", "800"]));
+    let (_, events, frames, stderr) =
+        run(dir.eitskin(&["run", "--source", &source, "--rate", "0", "--triangles", "800"]));
     assert!(stderr.contains("warning: frame 12: channel(s) [17] went bad"), "{stderr}");
     let dropped: Vec<&Event> = events.iter().filter(|e| matches!(e, Event::ChannelsDropped { .. })).collect();
     assert_eq!(dropped.len(), 1, "{events:?}");

@@ -359,7 +359,8 @@ mod tests {
 
     /// A version-4 file as version 3 wrote it: without `hyperparameter` and `normalised`.
     fn version_3(v4: &str) -> String {
-        let lines: Vec<&str> = v4.lines().filter(|l| !l.contains("\"hyperparameter\"") && !l.contains("\"normalised\"")).collect();
+        let lines: Vec<&str> =
+            v4.lines().filter(|l| !l.contains("\"hyperparameter\"") && !l.contains("\"normalised\"")).collect();
         lines.join("\n").replace("\"version\": 4", "\"version\": 3")
     }
 

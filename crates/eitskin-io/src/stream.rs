@@ -555,7 +555,9 @@ mod tests {
         let line = FrameLine { raster: Some(raster), ..frame() };
         let written = text(&line);
         assert!(
-            written.ends_with(",\"raster\":{\"nx\":2,\"ny\":1,\"bounds\":[[-100.0,-50.0],[100.0,50.0]],\"values\":[-0.25,null]}}\n"),
+            written.ends_with(
+                ",\"raster\":{\"nx\":2,\"ny\":1,\"bounds\":[[-100.0,-50.0],[100.0,50.0]],\"values\":[-0.25,null]}}\n"
+            ),
             "{written}"
         );
         assert_eq!(Line::parse(&written).unwrap(), Line::Frame(line));

@@ -423,7 +423,12 @@ mod tests {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 800;
         let recon = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &ReconstructorParams::default()).unwrap();
-        let params = PipelineParams { reference_frames: 3, baseline_rate: 0.5, noise_floor: NoiseFloor::Fixed(0.01), auto_hyperparameter: false };
+        let params = PipelineParams {
+            reference_frames: 3,
+            baseline_rate: 0.5,
+            noise_floor: NoiseFloor::Fixed(0.01),
+            auto_hyperparameter: false,
+        };
         let mut pipeline = Pipeline::new(Chain::new(recon, crate::TouchParams::default()), params);
         let sim = crate::sim::SimParams { drift_per_hour: 0.05, noise_relative: 0.0, ..Default::default() };
         let mut skin = VirtualSensor::with_params(&spec, sim, 1).unwrap();

@@ -361,7 +361,8 @@ impl PressModel {
         for g in masked.responses.chunks_exact_mut(self.measurements) {
             g.iter_mut().zip(used).filter(|(_, u)| !**u).for_each(|(g, _)| *g = 0.0);
         }
-        masked.norms = masked.responses.chunks_exact(self.measurements).map(|g| g.iter().map(|x| x * x).sum()).collect();
+        masked.norms =
+            masked.responses.chunks_exact(self.measurements).map(|g| g.iter().map(|x| x * x).sum()).collect();
         masked
     }
 

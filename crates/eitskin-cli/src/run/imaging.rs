@@ -86,7 +86,10 @@ mod tests {
         assert_eq!(resolve(None, false, Some((path, paper))).unwrap(), fixed);
         assert_eq!(resolve(Some(&flag("0.10")), false, Some((path, paper))).unwrap(), fixed);
         let err = resolve(Some(&flag("0.050")), false, Some((path, paper))).unwrap_err().to_string();
-        assert!(err.starts_with("--hyperparameter 0.050: the calibration cal.json") && err.contains("λ = 0.1"), "{err}");
+        assert!(
+            err.starts_with("--hyperparameter 0.050: the calibration cal.json") && err.contains("λ = 0.1"),
+            "{err}"
+        );
         assert!(resolve(Some(&flag("auto")), false, Some((path, paper))).unwrap_err().to_string().contains("auto"));
         let err = resolve(None, true, Some((path, paper))).unwrap_err().to_string();
         assert!(err.contains("--normalised") && err.contains("absolute differences"), "{err}");
