@@ -250,9 +250,10 @@ impl Pipeline {
 
     fn take_reference(&mut self) -> Result<(), InverseError> {
         self.reference = mean_of_finite(&self.collected);
-        let recon = self.reference_reconstructor()?;
-        too_many_dropped(recon.channels().used_mask(), 0)?;
-        self.chain.set_reconstructor(recon);
+        if let Some(recon) = self.reference_reconstructor()? {
+            too_many_dropped(recon.channels().used_mask(), 0)?;
+            self.chain.set_reconstructor(recon);
+        }
         self.noise_peak = 0.0;
         for frame in &self.collected {
             // Channels missing from any reference frame are dropped, so imaging cannot fail.
@@ -271,8 +272,9 @@ impl Pipeline {
     }
 
     /// The reconstructor for the new reference: without the channels it lacks (or, normalised,
-    /// whose reference is zero), with λ given or chosen from the reference frames' noise.
-    fn reference_reconstructor(&self) -> Result<Reconstructor, InverseError> {
+    /// whose reference is zero), with λ given or chosen from the reference frames' noise;
+    /// `None` when the chain's already is that one.
+    fn reference_reconstructor(&self) -> Result<Option<Reconstructor>, InverseError> {
         let recon = self.chain.reconstructor();
         let normalized = recon.params().normalized;
         let alive: Vec<bool> = self.reference.iter().map(|r| !normalized || *r != 0.0).collect();
@@ -280,12 +282,12 @@ impl Pipeline {
         let channels = Channels::all(self.reference.len()).masked(&keep).masked(&alive);
         if self.params.auto_hyperparameter {
             let variance = noise_variance(&self.collected, normalized);
-            return Ok(recon.with_auto_hyperparameter(channels, variance)?.0);
+            return Ok(Some(recon.with_auto_hyperparameter(channels, variance)?.0));
         }
         if recon.channels() == &channels && recon.params().hyperparameter == self.given_hyperparameter {
-            return Ok(recon.clone());
+            return Ok(None);
         }
-        recon.derive(self.given_hyperparameter, channels)
+        recon.derive(self.given_hyperparameter, channels).map(Some)
     }
 }
 
