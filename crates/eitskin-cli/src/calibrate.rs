@@ -8,8 +8,8 @@ use eitskin::calibration::{force_errors, Calibration, ForceEstimate, Sample};
 use eitskin::chain::LabelledFrame;
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::strength::Strength;
-use eitskin::SensorSpec;
-use eitskin_io::{Location, Measured, SampleRow};
+use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
+use eitskin_io::{CalibrationFile, Imaging, Location, Measured, SampleRow};
 
 use crate::load;
 
@@ -95,7 +95,10 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
         }
     };
     let calibration = Calibration::fit_strength(&samples, array.area_count(), strength)?;
-    std::fs::write(&args.out, eitskin_io::calibration_to_json(&spec, &array, &calibration)?)
+    // The chain images as `load::chain` does: the file records it, and `run` then images so.
+    let params = ReconstructorParams::default();
+    let imaging = Imaging { hyperparameter: params.hyperparameter, normalized: params.normalized };
+    std::fs::write(&args.out, eitskin_io::calibration_file_to_json(&spec, &array, &calibration, imaging)?)
         .with_context(|| format!("writing {}", args.out.display()))?;
     let unit = format!("[{}]", strength.unit());
     println!("{} samples, {} areas; {strength}(F) = a·e^(−F/b) + c:", samples.len(), array.area_count());
@@ -131,7 +134,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
 /// sample's own unit.
 pub fn evaluate(args: EvaluateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
-    let (array, calibration) = eitskin_io::read_calibration(&args.calibration, &spec)?;
+    let CalibrationFile { array, calibration, imaging } = eitskin_io::read_calibration_file(&args.calibration, &spec)?;
     let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
     let (mut truth, mut predicted, mut saturated, mut missed) = (Vec::new(), Vec::new(), 0, 0);
     let mut add = |force: f64, estimate: Option<ForceEstimate>| match estimate {
@@ -155,7 +158,14 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
         ),
         Labelled::Frames(frames) => {
             let reference = reference(args.reference.as_deref(), &args.samples)?;
-            let mut chain = load::chain(&spec, calibration.strength, false)?.with_calibration(array, calibration)?;
+            let params = ReconstructorParams {
+                hyperparameter: imaging.hyperparameter,
+                normalized: imaging.normalized,
+                ..ReconstructorParams::default()
+            };
+            let strength = calibration.strength;
+            let mut chain = load::chain_with(&spec, &params, TouchParams::default(), strength, false)?
+                .with_calibration(array, calibration)?;
             for (k, f) in frames.iter().enumerate() {
                 let touches = chain.process(&reference, &f.frame).with_context(|| format!("sample {}", k + 1))?;
                 add(f.force, touches.first().and_then(|t| t.force));

@@ -47,8 +47,18 @@ pub fn reconstructor(spec: &SensorSpec, params: &ReconstructorParams, use_cache:
 /// (from the cache), the paper's touch settings, the press model when the strength needs it or
 /// `fit` asks for it, the contrast map when the strength reads it.
 pub fn chain(spec: &SensorSpec, strength: Strength, fit: bool) -> Result<Chain> {
-    let params = ReconstructorParams::default();
-    let recon = reconstructor(spec, &params, true)?;
+    chain_with(spec, &ReconstructorParams::default(), TouchParams::default(), strength, fit)
+}
+
+/// [`chain`] with these reconstructor parameters (λ, normalisation) and touch settings.
+pub fn chain_with(
+    spec: &SensorSpec,
+    params: &ReconstructorParams,
+    touch: TouchParams,
+    strength: Strength,
+    fit: bool,
+) -> Result<Chain> {
+    let recon = reconstructor(spec, params, true)?;
     let map = if strength.needs_contrast_map() {
         let map_params = ContrastMapParams::default();
         Some(match cache_dir() {
@@ -60,7 +70,7 @@ pub fn chain(spec: &SensorSpec, strength: Strength, fit: bool) -> Result<Chain> 
     } else {
         None
     };
-    let mut chain = Chain::new(recon, TouchParams::default());
+    let mut chain = Chain::new(recon, touch);
     if fit || strength.needs_press_model() {
         chain = chain.with_press_model(press_model(spec)?);
     }

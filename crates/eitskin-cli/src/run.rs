@@ -10,6 +10,13 @@
 //! every frame to the recorder before it prints. With `--viewer`, processing also offers each
 //! frame to the web viewer without waiting (see [`crate::viewer`]) and takes its commands
 //! (re-take the reference) between frames.
+//!
+//! Imaging: λ is chosen from the reference frames' noise unless given (`--hyperparameter`), or
+//! taken from the calibration, which fixes λ and the normalisation it was fitted with (see
+//! [`imaging`]). A channel that goes bad (not finite) is dropped and named on stderr and in a
+//! `channels_dropped` event, until the reference is re-taken; see [`eitskin::pipeline`].
+
+mod imaging;
 
 use std::borrow::Cow;
 use std::io::Write;
@@ -19,13 +26,15 @@ use std::sync::mpsc;
 
 use anyhow::{bail, Result};
 use eitskin::calibration::Strength;
+use eitskin::inverse::Hyperparameter;
 use eitskin::pipeline::{Pipeline, PipelineParams, Status};
 use eitskin::pseudo_array::PseudoArray;
-use eitskin::SensorSpec;
+use eitskin::touch::Polarity;
+use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::recorder::{Header, Recorder};
 use eitskin_io::replay::Speed;
 use eitskin_io::source::{Acquired, Codec, Source, SourceError, SourceSettings, SourceSpec};
-use eitskin_io::stream::{self, Counters, Event, FrameLine, Recorded, Start};
+use eitskin_io::stream::{self, Counters, Event, FrameLine, Raster, Recorded, Start};
 
 use crate::load;
 use crate::viewer::{self, Viewer};
@@ -87,6 +96,25 @@ pub struct Args {
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = viewer::DEFAULT_ADDR,
           value_parser = viewer::parse_addr)]
     viewer: Option<SocketAddr>,
+    /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in (0, 1000], or `auto`:
+    /// chosen for a noise figure of 0.5 (EIDORS'), with the noise measured from the reference
+    /// frames (each time the reference is taken). Default: `auto`, or with --calibration the λ
+    /// the calibration was fitted with (another is refused).
+    #[arg(long, value_name = "auto|λ")]
+    hyperparameter: Option<imaging::HyperparameterFlag>,
+    /// Normalised differences Δv/v_ref (immune to per-channel gains) instead of absolute ones;
+    /// a channel whose reference is zero (dead) is dropped. With --calibration, as it was fitted.
+    #[arg(long)]
+    normalised: bool,
+    /// Which changes are touches: `decrease` (a press on a hydrogel), `increase`, or `both`
+    /// (each touch then says its `sign`).
+    #[arg(long, default_value = "decrease")]
+    polarity: Polarity,
+    /// Add each imaged frame's raster to its JSON line (`raster`: nx, ny, bounds in the spec's
+    /// unit, Δσ in S/m row by row from the top, null outside the outline): about 4,000 numbers a
+    /// frame at 64 × 64, some 60 kB a line.
+    #[arg(long)]
+    stream_image: bool,
 }
 
 /// Runs `eitskin run`.
@@ -95,16 +123,43 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(n) = args.triangles {
         spec.mesh.triangles = n;
     }
-    let chain = match &args.calibration {
-        Some(path) => {
-            let (array, calibration) = eitskin_io::read_calibration(path, &spec)?;
-            load::chain(&spec, calibration.strength, args.fit)?.with_calibration(array, calibration)?
+    let calibration = match &args.calibration {
+        Some(path) => Some((path, eitskin_io::read_calibration_file(path, &spec)?)),
+        None => None,
+    };
+    let imaging = imaging::resolve(
+        args.hyperparameter.as_ref(),
+        args.normalised,
+        calibration.as_ref().map(|(path, file)| (path.as_path(), file.imaging)),
+    )?;
+    let recon_params = ReconstructorParams {
+        hyperparameter: match imaging.hyperparameter {
+            Hyperparameter::Fixed(value) => value,
+            // Chosen once the reference frames are in; until then, the paper's.
+            Hyperparameter::Auto => ReconstructorParams::default().hyperparameter,
+        },
+        normalized: imaging.normalized,
+        ..ReconstructorParams::default()
+    };
+    let touch = TouchParams { polarity: args.polarity, ..TouchParams::default() };
+    let chain = match calibration {
+        Some((path, file)) => {
+            let strength = file.calibration.strength;
+            eprintln!(
+                "eitskin run: λ = {}, {} differences, as the calibration {} was fitted",
+                file.imaging.hyperparameter,
+                if file.imaging.normalized { "normalised" } else { "absolute" },
+                path.display()
+            );
+            load::chain_with(&spec, &recon_params, touch, strength, args.fit)?
+                .with_calibration(file.array, file.calibration)?
         }
-        None => load::chain(&spec, Strength::Peak, args.fit)?,
+        None => load::chain_with(&spec, &recon_params, touch, Strength::Peak, args.fit)?,
     };
     let params = PipelineParams {
         reference_frames: args.reference_frames,
         baseline_rate: args.baseline_rate,
+        auto_hyperparameter: imaging.hyperparameter == Hyperparameter::Auto,
         ..PipelineParams::default()
     };
     let mut pipeline = Pipeline::new(chain, params);
@@ -133,7 +188,10 @@ pub fn run(args: Args) -> Result<()> {
     eprintln!("eitskin run: reading {}", args.source);
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
-    let start = Start::new(args.source.to_string(), spec.length_unit.symbol(), protocol.len(), args.reference_frames);
+    let mut start =
+        Start::new(args.source.to_string(), spec.length_unit.symbol(), protocol.len(), args.reference_frames);
+    start.normalised = imaging.normalized;
+    start.polarity = args.polarity.name().to_owned();
     // A closed stdout (the reader went away) ends the run, here and at every line below.
     if print(&mut out, &Event::Start(start)).is_err() {
         return Ok(());
@@ -156,19 +214,29 @@ pub fn run(args: Args) -> Result<()> {
         let printed = match item? {
             Acquired::Frame { seq, t, values } => match pipeline.process(&values) {
                 Err(e) => {
+                    if let eitskin::InverseError::TooManyBadChannels { .. } = e {
+                        eprintln!("warning: frame {seq}: {e}");
+                    }
                     bad += 1;
                     let event = Event::Bad { seq: Some(seq), reason: e.to_string() };
                     viewer.iter().for_each(|v| v.offer_event(&event));
                     print(&mut out, &event)
                 }
                 Ok(status) => {
+                    if let Some(event) = channel_event(seq, status, &pipeline, imaging.hyperparameter) {
+                        viewer.iter().for_each(|v| v.offer_event(&event));
+                        if print(&mut out, &event).is_err() {
+                            return Ok(());
+                        }
+                    }
                     frames += 1;
                     let counters = Counters { frames, bad, viewer_dropped: viewer.as_ref().map(Viewer::dropped) };
                     fill_frame_line(&mut line, seq, t, status, &pipeline, metres, counters);
+                    set_raster(&mut line, args.stream_image && status_imaged(status), &pipeline, metres);
                     if let Some(viewer) = &viewer {
                         let referencing = match status {
                             Status::Referencing { collected, needed } => Some([collected, needed]),
-                            Status::Processed => None,
+                            Status::Processed | Status::ChannelsDropped { .. } => None,
                         };
                         let image = &pipeline.image().values;
                         viewer.offer_frame(&viewer::Frame { line: &line, referencing, image });
@@ -201,6 +269,66 @@ pub fn run(args: Args) -> Result<()> {
         bail!("the acquisition thread panicked");
     }
     Ok(())
+}
+
+/// The event a frame's status calls for, also said on stderr: the reference taken (with λ and
+/// the channels left out), or channels dropped; `None` for any other frame.
+fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: Hyperparameter) -> Option<Event> {
+    let one_based = |channels: &[usize]| channels.iter().map(|m| m + 1).collect::<Vec<usize>>();
+    match status {
+        Status::Referencing { collected, needed } if collected == needed => {
+            let lambda = pipeline.hyperparameter();
+            let chosen = hyperparameter == Hyperparameter::Auto;
+            let normalised = pipeline.chain().reconstructor().params().normalized;
+            let dropped = one_based(&pipeline.dropped_channels());
+            let how =
+                if chosen { format!(" (chosen from the noise of {needed} reference frames)") } else { String::new() };
+            let left_out = if dropped.is_empty() {
+                String::new()
+            } else {
+                format!("; channels {dropped:?} left out (missing from a reference frame, or a zero reference)")
+            };
+            let detail = format!("reference taken; λ = {lambda:.4}{how}{left_out}");
+            eprintln!("eitskin run: {detail}");
+            Some(Event::ReferenceTaken {
+                hyperparameter: lambda,
+                chosen,
+                normalised,
+                channels_dropped: dropped,
+                detail,
+            })
+        }
+        Status::ChannelsDropped { .. } => {
+            let channels = one_based(pipeline.newly_dropped());
+            let dropped = pipeline.dropped_channels().len();
+            let detail = format!(
+                "channel(s) {channels:?} went bad (not finite) and are dropped until the reference is \
+                 re-taken ({dropped} dropped in all); imaging goes on without them"
+            );
+            eprintln!("warning: frame {seq}: {detail}");
+            Some(Event::ChannelsDropped { seq, channels, dropped, detail })
+        }
+        _ => None,
+    }
+}
+
+/// Whether a frame of this status was imaged.
+fn status_imaged(status: Status) -> bool {
+    matches!(status, Status::Processed | Status::ChannelsDropped { .. })
+}
+
+/// Puts the pipeline's image into `line` (in units of `metres` m) when `on`, reusing its memory;
+/// takes it out otherwise.
+fn set_raster(line: &mut FrameLine, on: bool, pipeline: &Pipeline, metres: f64) {
+    match (on, &mut line.raster) {
+        (false, raster) => *raster = None,
+        (true, Some(raster)) => raster.set(pipeline.image(), metres),
+        (true, raster) => {
+            let mut new = Raster::default();
+            new.set(pipeline.image(), metres);
+            *raster = Some(new);
+        }
+    }
 }
 
 /// Prints one line of the stream and flushes it, so that a reader sees each frame as it comes.

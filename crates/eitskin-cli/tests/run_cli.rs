@@ -18,6 +18,11 @@ fn lines(out: Output) -> Vec<serde_json::Value> {
     lines
 }
 
+/// The frame lines after the start line (no events).
+fn frames_only(out: Output) -> Vec<serde_json::Value> {
+    lines(out).into_iter().filter(|l| l.get("event").is_none()).collect()
+}
+
 /// Every line of a run's standard output, read with the schema's types (which refuse unknown
 /// fields): the start line, then the rest.
 fn typed_lines(out: Output) -> (Start, Vec<Line>) {
@@ -50,8 +55,17 @@ fn the_stream_reads_back_with_its_schema_a_start_line_then_counted_frames_in_mm(
     assert_eq!((start.source.as_str(), start.length_unit.as_str()), (source.as_str(), "mm"));
     assert_eq!((start.measurements, start.reference_frames), (120, 10));
     let frames = frame_lines(&lines);
-    assert_eq!(frames.len(), lines.len(), "no events from a scripted virtual sensor");
+    assert_eq!(frames.len() + 1, lines.len(), "one event from a scripted virtual sensor: {lines:?}");
     assert_eq!(frames.len(), 40);
+    // The reference taken by the 10th frame (the event comes before that frame's line), with λ
+    // chosen from their noise.
+    let Line::Event(Event::ReferenceTaken {
+        hyperparameter, chosen: true, normalised: false, channels_dropped, ..
+    }) = &lines[9]
+    else {
+        panic!("{:?}", lines[9])
+    };
+    assert!(*hyperparameter > 0.0 && channels_dropped.is_empty(), "{:?}", lines[9]);
     for (k, frame) in frames.iter().enumerate() {
         assert_eq!((frame.seq, frame.counters.frames, frame.counters.bad), (k as u64, k as u64 + 1, 0), "{frame:?}");
         assert_eq!(frame.status, if k < 10 { Status::Referencing } else { Status::Ok }, "frame {k}");
@@ -157,8 +171,17 @@ fn the_virtual_sensor_pressed_by_a_script_gives_a_touch_where_and_when_pressed()
     let script = dir.join("script.txt");
     std::fs::write(&script, "# start end x y force\n1.0 1.5 -50 40 9\n").unwrap();
     let source = format!("sim:{}", script.display());
-    let out =
-        lines(dir.eitskin(&["run", "--source", &source, "--frames", "40", "--rate", "20", "--triangles", "1500"]));
+    let out = frames_only(dir.eitskin(&[
+        "run",
+        "--source",
+        &source,
+        "--frames",
+        "40",
+        "--rate",
+        "20",
+        "--triangles",
+        "1500",
+    ]));
     assert_eq!(out.len(), 40);
     for (k, line) in out.iter().enumerate() {
         assert_eq!(line["seq"], k as u64, "frames in order");
@@ -204,13 +227,19 @@ fn a_file_with_bad_lines_reports_each_and_goes_on() {
     ]));
     let events: Vec<&serde_json::Value> = out.iter().filter(|l| l["event"] == "bad").collect();
     let frames: Vec<&serde_json::Value> = out.iter().filter(|l| l.get("event").is_none()).collect();
-    assert_eq!(frames.len(), 4, "{out:?}");
-    assert_eq!(frames.iter().map(|f| f["seq"].as_u64().unwrap()).collect::<Vec<_>>(), vec![0, 1, 2, 5]);
-    assert_eq!(events.len(), 2);
+    assert_eq!(frames.len(), 5, "{out:?}");
+    assert_eq!(frames.iter().map(|f| f["seq"].as_u64().unwrap()).collect::<Vec<_>>(), vec![0, 1, 2, 4, 5]);
+    assert_eq!(events.len(), 1);
     assert!(events[0]["reason"].as_str().unwrap().contains("has 3 values, expected 120"), "{:?}", events[0]);
     assert_eq!(events[0]["seq"], 3);
-    assert!(events[1]["reason"].as_str().unwrap().contains("not a finite number"), "{:?}", events[1]);
-    assert_eq!(frames[3]["counters"]["bad"], 2);
+    // The NaN is a channel lost, not a bad frame: dropped, named, and the frame imaged.
+    let dropped: Vec<&serde_json::Value> = out.iter().filter(|l| l["event"] == "channels_dropped").collect();
+    assert_eq!(dropped.len(), 1, "{out:?}");
+    assert_eq!(
+        (&dropped[0]["seq"], &dropped[0]["channels"], &dropped[0]["dropped"]),
+        (&4.into(), &vec![120].into(), &1.into())
+    );
+    assert_eq!((&frames[3]["status"], &frames[4]["counters"]["bad"]), (&"ok".into(), &1.into()));
 }
 
 #[test]
@@ -220,7 +249,7 @@ fn a_recording_replays_to_the_same_touches() {
     std::fs::write(&script, "0.6 1.2 30 -60 10\n").unwrap();
     let record = dir.join("run.jsonl");
     let source = format!("sim:{}", script.display());
-    let live = lines(dir.eitskin(&[
+    let live = frames_only(dir.eitskin(&[
         "run",
         "--source",
         &source,
@@ -234,7 +263,7 @@ fn a_recording_replays_to_the_same_touches() {
     ]));
     assert!(live.iter().all(|l| l["recorded"] == true));
     let replay_source = format!("file:{}", record.display());
-    let replayed = lines(dir.eitskin(&["run", "--source", &replay_source, "--fast", "--triangles", "1500"]));
+    let replayed = frames_only(dir.eitskin(&["run", "--source", &replay_source, "--fast", "--triangles", "1500"]));
     assert_eq!(replayed.len(), live.len());
     for (a, b) in live.iter().zip(&replayed) {
         assert_eq!((&a["seq"], &a["touches"]), (&b["seq"], &b["touches"]), "replay differs");
@@ -367,7 +396,7 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
         good(2),             // 2: imaged
         "1,2,3".to_string(), // 3: wrong count
         with(3, "x"),        // 4: not a number
-        with(4, "NaN"),      // 5: not finite
+        with(4, "NaN"),      // 5: channel 8 lost: dropped, and the frame imaged
         "1,".repeat(40_000), // 6: over-long (80 kB)
     ];
     let port = master.as_mut().unwrap();
@@ -384,7 +413,7 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
     let mut out: Vec<serde_json::Value> = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(30);
     let (mut unplugged, mut replugged) = (false, None);
-    let done = |out: &[serde_json::Value]| out.iter().filter(|l| l.get("event").is_none()).count() >= 6;
+    let done = |out: &[serde_json::Value]| out.iter().filter(|l| l.get("event").is_none()).count() >= 7;
     while Instant::now() < deadline && !done(&out) {
         if let Ok(line) = rx.recv_timeout(Duration::from_millis(100)) {
             out.push(serde_json::from_str(&line).unwrap());
@@ -411,7 +440,9 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
     let frames: Vec<u64> =
         out.iter().filter(|l| l.get("event").is_none()).map(|l| l["seq"].as_u64().unwrap()).collect();
     // A new connection starts a new line count: the board's frames after the return are 0 and 1.
-    assert_eq!(frames, vec![0, 1, 2, 7, 0, 1], "{out:?}");
+    assert_eq!(frames, vec![0, 1, 2, 5, 7, 0, 1], "{out:?}");
+    let dropped = out.iter().find(|l| l["event"] == "channels_dropped").expect("the lost channel is named");
+    assert_eq!((&dropped["seq"], &dropped["channels"]), (&5.into(), &vec![8].into()), "{dropped}");
     let reconnected = out.iter().position(|l| l["event"] == "reconnected").expect("the return is reported");
     assert!(out.iter().position(|l| l["event"] == "disconnected").unwrap() < reconnected);
     drop(replugged);
@@ -420,14 +451,14 @@ fn every_kind_of_bad_line_an_unplug_and_a_return_are_reported_and_the_stream_goe
         .filter(|l| l["event"] == "bad")
         .map(|l| (l["seq"].as_u64().unwrap(), l["reason"].as_str().unwrap().to_string()))
         .collect();
-    let expect = [(3, "has 3 values, expected 120"), (4, "\"x\""), (5, "not a finite number"), (6, "bytes long")];
+    let expect = [(3, "has 3 values, expected 120"), (4, "\"x\""), (6, "bytes long")];
     assert_eq!(reasons.len(), expect.len(), "{reasons:?}");
     for ((seq, reason), (want_seq, want)) in reasons.iter().zip(expect) {
         assert_eq!(*seq, want_seq);
         assert!(reason.contains(want), "seq {seq}: {reason:?} does not say {want:?}");
     }
     assert!(out.iter().any(|l| l["event"] == "disconnected"), "the unplug was not reported: {out:?}");
-    assert_eq!(out.iter().rfind(|l| l.get("event").is_none()).unwrap()["counters"]["bad"], 4);
+    assert_eq!(out.iter().rfind(|l| l.get("event").is_none()).unwrap()["counters"]["bad"], 3);
     std::fs::remove_file(&link).ok();
 }
 

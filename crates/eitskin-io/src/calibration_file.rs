@@ -2,15 +2,18 @@
 //! to the sensor they were made for.
 //!
 //! ```json
-//! { "format": "eitskin-calibration", "version": 3, "spec_key": "…", "strength": "peak",
-//!   "grid": [5, 5], "areas": [6, 5, 3, …], "curves": [{ "a": …, "b": …, "c": …,
+//! { "format": "eitskin-calibration", "version": 4, "spec_key": "…", "strength": "peak",
+//!   "hyperparameter": 0.1, "normalised": false, "grid": [5, 5], "areas": [6, 5, 3, …], "curves": [{ "a": …, "b": …, "c": …,
 //!   "r_squared": …, "force_range": [0, 15], "samples": 240 }, …] }
 //! ```
 //! `areas` gives each unit's area, counting both from 1, units row-major from the bottom-left;
 //! curve k is area k + 1, s(F) = a·e^(−F/b) + c with F in N and the strength s named as in
 //! [`Strength::name`]: the image's `"peak"` in S/m, the `"fitted drop"` of the press fitted to
 //! Δv (a fraction of the background), or one of the contrast map's readings. Version 1 files (no
-//! `strength`) are read as peak. A file made for another sensor (another `spec_key`) is refused.
+//! `strength`) are read as peak. A strength depends on how the images were made, so version 4
+//! records it ([`Imaging`]): the hyperparameter λ and whether differences were normalised
+//! (Δv/v_ref); older files were all made with the paper's λ = 0.1 and absolute differences, and
+//! are read so. A file made for another sensor (another `spec_key`) is refused.
 //!
 //! The key ([`spec_key`]) is a SHA-256 of the sensor's canonical values, serialised as JSON: a
 //! key version; thickness and background conductivity; the outline's kind and lengths; the
@@ -32,7 +35,7 @@ use sha2::{Digest, Sha256};
 use crate::Error;
 
 const FORMAT: &str = "eitskin-calibration";
-const VERSION: u32 = 3;
+const VERSION: u32 = 4;
 /// The version of the canonical sensor values hashed into the key.
 const KEY_VERSION: u32 = 1;
 
@@ -44,6 +47,10 @@ struct CalibrationJson {
     spec_key: String,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     strength: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    hyperparameter: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    normalised: Option<bool>,
     grid: [usize; 2],
     areas: Vec<usize>,
     curves: Vec<CurveJson>,
@@ -72,6 +79,33 @@ impl From<&CurveJson> for Curve {
         let CurveJson { a, b, c, r_squared, force_range, samples } = *c;
         Curve { a, b, c, r_squared, force_range, samples }
     }
+}
+
+/// How the images a calibration was fitted on were made; `Default` is the paper's (and that of
+/// every file before version 4): λ = 0.1, absolute differences.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Imaging {
+    /// The hyperparameter λ (dimensionless).
+    pub hyperparameter: f64,
+    /// Whether differences were normalised (Δv/v_ref).
+    pub normalized: bool,
+}
+
+impl Default for Imaging {
+    fn default() -> Self {
+        Imaging { hyperparameter: 0.1, normalized: false }
+    }
+}
+
+/// A calibration file's contents: the pseudo-array, the curves and how the images were made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationFile {
+    /// The pseudo-array, over the spec's outline.
+    pub array: PseudoArray,
+    /// The curves, one per area, and the strength they read.
+    pub calibration: Calibration,
+    /// The λ and normalisation the curves were fitted with.
+    pub imaging: Imaging,
 }
 
 /// The canonical values of a sensor, hashed into [`spec_key`].
@@ -151,13 +185,26 @@ fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// The calibration as JSON, for `spec` with its pseudo-array.
+/// The calibration as JSON, for `spec` with its pseudo-array, fitted on images of the paper's
+/// λ = 0.1 and absolute differences (else see [`calibration_file_to_json`]).
 pub fn calibration_to_json(spec: &SensorSpec, array: &PseudoArray, calibration: &Calibration) -> Result<String, Error> {
+    calibration_file_to_json(spec, array, calibration, Imaging::default())
+}
+
+/// The calibration as JSON, for `spec` with its pseudo-array, fitted on images made as `imaging` says.
+pub fn calibration_file_to_json(
+    spec: &SensorSpec,
+    array: &PseudoArray,
+    calibration: &Calibration,
+    imaging: Imaging,
+) -> Result<String, Error> {
     let file = CalibrationJson {
         format: FORMAT.into(),
         version: VERSION,
         spec_key: spec_key(spec)?,
         strength: Some(calibration.strength.name().into()),
+        hyperparameter: Some(imaging.hyperparameter),
+        normalised: Some(imaging.normalized),
         grid: array.grid(),
         areas: (0..array.unit_count()).map(|u| array.area_of(u) + 1).collect(),
         curves: calibration.curves.iter().map(CurveJson::from).collect(),
@@ -167,11 +214,21 @@ pub fn calibration_to_json(spec: &SensorSpec, array: &PseudoArray, calibration: 
 
 /// Reads a calibration made for `spec`: its pseudo-array (over the spec's outline) and curves.
 pub fn read_calibration(path: &Path, spec: &SensorSpec) -> Result<(PseudoArray, Calibration), Error> {
-    parse_calibration(&crate::read_text(path)?, spec).map_err(|e| e.in_file(path))
+    read_calibration_file(path, spec).map(|f| (f.array, f.calibration))
 }
 
 /// Parses calibration JSON made for `spec`.
 pub fn parse_calibration(text: &str, spec: &SensorSpec) -> Result<(PseudoArray, Calibration), Error> {
+    parse_calibration_file(text, spec).map(|f| (f.array, f.calibration))
+}
+
+/// Reads a calibration made for `spec`, with how its images were made.
+pub fn read_calibration_file(path: &Path, spec: &SensorSpec) -> Result<CalibrationFile, Error> {
+    parse_calibration_file(&crate::read_text(path)?, spec).map_err(|e| e.in_file(path))
+}
+
+/// Parses calibration JSON made for `spec`, with how its images were made.
+pub fn parse_calibration_file(text: &str, spec: &SensorSpec) -> Result<CalibrationFile, Error> {
     let file: CalibrationJson =
         serde_json::from_str(text).map_err(|e| Error::Json { path: None, message: e.to_string() })?;
     let refuse = |key: &'static str, reason: String| Err(Error::Key { path: None, key, reason });
@@ -190,6 +247,17 @@ pub fn parse_calibration(text: &str, spec: &SensorSpec) -> Result<(PseudoArray, 
                 return refuse("strength", format!("is \"{name}\"; use one of {}", names.join(", ")));
             }
         },
+    };
+    let imaging = match (file.version, file.hyperparameter, file.normalised) {
+        (..=3, _, _) => Imaging::default(),
+        (_, Some(hyperparameter), Some(normalized)) if hyperparameter > 0.0 && hyperparameter.is_finite() => {
+            Imaging { hyperparameter, normalized }
+        }
+        (_, Some(hyperparameter), Some(_)) => {
+            return refuse("hyperparameter", format!("is {hyperparameter}; it must be positive and finite"));
+        }
+        (_, None, _) => return refuse("hyperparameter", "is missing: a version-4 file records λ".into()),
+        (_, _, None) => return refuse("normalised", "is missing: a version-4 file records it".into()),
     };
     let key = if file.version >= 3 { spec_key(spec)? } else { legacy_spec_key(spec)? };
     if file.spec_key != key {
@@ -214,7 +282,7 @@ pub fn parse_calibration(text: &str, spec: &SensorSpec) -> Result<(PseudoArray, 
         return refuse("curves", format!("has {} curves for {} areas", file.curves.len(), array.area_count()));
     }
     let curves = file.curves.iter().map(Curve::from).collect();
-    Ok((array, Calibration { curves, strength }))
+    Ok(CalibrationFile { array, calibration: Calibration { curves, strength }, imaging })
 }
 
 #[cfg(test)]
@@ -251,8 +319,8 @@ mod tests {
         let mut denser = spec.clone();
         denser.mesh.triangles = 9000;
         assert!(parse_calibration(&text, &denser).is_ok(), "the mesh density is not part of the sensor");
-        let err = parse_calibration(&text.replace("\"version\": 3", "\"version\": 7"), &spec).unwrap_err();
-        assert!(err.to_string().contains("reads versions 1 to 3"), "{err}");
+        let err = parse_calibration(&text.replace("\"version\": 4", "\"version\": 7"), &spec).unwrap_err();
+        assert!(err.to_string().contains("reads versions 1 to 4"), "{err}");
         // A fitted-drop calibration keeps its kind; an unknown kind is refused by name.
         let drop = Calibration { strength: Strength::FittedDrop, ..calibration.clone() };
         let text = calibration_to_json(&spec, &array, &drop).unwrap();
@@ -274,7 +342,7 @@ mod tests {
         assert_eq!(legacy_spec_key(&spec).unwrap(), LEGACY_KEY);
         assert_eq!(spec_key(&spec).unwrap(), CANONICAL_KEY);
         let (array, calibration) = fitted(&spec);
-        let v3 = calibration_to_json(&spec, &array, &calibration).unwrap();
+        let v3 = version_3(&calibration_to_json(&spec, &array, &calibration).unwrap());
         let v2 = v3.replace("\"version\": 3", "\"version\": 2").replace(CANONICAL_KEY, LEGACY_KEY);
         assert_eq!(parse_calibration(&v2, &spec).unwrap().1, calibration);
         // Version 1 had no strength: its curves are of the peak.
@@ -287,6 +355,36 @@ mod tests {
         let centres = spec.electrode_positions().unwrap().iter().map(|e| spec.outline.point_at(e.centre)).collect();
         explicit.electrodes.placement = eitskin::Placement::Explicit { positions: centres };
         assert_eq!(spec_key(&explicit).unwrap(), CANONICAL_KEY);
+    }
+
+    /// A version-4 file as version 3 wrote it: without `hyperparameter` and `normalised`.
+    fn version_3(v4: &str) -> String {
+        let lines: Vec<&str> =
+            v4.lines().filter(|l| !l.contains("\"hyperparameter\"") && !l.contains("\"normalised\"")).collect();
+        lines.join("\n").replace("\"version\": 4", "\"version\": 3")
+    }
+
+    /// Version 4 records λ and the normalisation, and reads them back; a file of version 3 or
+    /// older was made with the paper's λ = 0.1 and absolute differences.
+    #[test]
+    fn the_imaging_is_recorded_and_old_files_read_as_the_papers() {
+        let spec = SensorSpec::square_hydrogel();
+        let (array, calibration) = fitted(&spec);
+        let imaging = Imaging { hyperparameter: 0.0316, normalized: true };
+        let v4 = calibration_file_to_json(&spec, &array, &calibration, imaging).unwrap();
+        assert!(v4.contains("\"hyperparameter\": 0.0316") && v4.contains("\"normalised\": true"), "{v4}");
+        let back = parse_calibration_file(&v4, &spec).unwrap();
+        assert_eq!((back.imaging, &back.calibration, &back.array), (imaging, &calibration, &array));
+        let v3 = version_3(&v4);
+        assert!(!v3.contains("hyperparameter") && v3.contains("\"version\": 3"), "{v3}");
+        let old = parse_calibration_file(&v3, &spec).unwrap();
+        assert_eq!(old.imaging, Imaging { hyperparameter: 0.1, normalized: false });
+        assert_eq!(old.calibration, calibration);
+        let err = parse_calibration_file(&v4.replace("0.0316", "-1.0"), &spec).unwrap_err().to_string();
+        assert!(err.contains("`hyperparameter` is -1"), "{err}");
+        let missing = v3.replace("\"version\": 3", "\"version\": 4");
+        let err = parse_calibration_file(&missing, &spec).unwrap_err().to_string();
+        assert!(err.contains("`hyperparameter` is missing"), "{err}");
     }
 
     const LEGACY_KEY: &str = "1c07185805c58b979be4cbecb34bb4bf0addff2e8f475fa606149629e0cb9614";

@@ -54,7 +54,10 @@ pub mod stream;
 use std::path::{Path, PathBuf};
 
 pub use array_file::{read_frames, read_one_frame, ArrayProblem, ArrayVariable, FrameLayout, FrameSelect, FrameTable};
-pub use calibration_file::{calibration_to_json, parse_calibration, read_calibration, spec_key};
+pub use calibration_file::{
+    calibration_file_to_json, calibration_to_json, parse_calibration, parse_calibration_file, read_calibration,
+    read_calibration_file, spec_key, CalibrationFile, Imaging,
+};
 pub use contrast_map_file::{contrast_map_path, decode_contrast_map, encode_contrast_map, load_or_build_contrast_map};
 pub use frame_file::{parse_frame, read_frame};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};

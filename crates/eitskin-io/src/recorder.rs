@@ -3,7 +3,7 @@
 //! A recording is a JSON-lines file, only ever appended to. Line 1 is the header:
 //!
 //! ```text
-//! {"format":"eitskin-recording","version":1,"measurements":16,"protocol":"two-terminal","started_unix_s":1767225600.5}
+//! {"format":"eitskin-recording","version":2,"measurements":16,"protocol":"two-terminal","started_unix_s":1767225600.5}
 //! ```
 //!
 //! and every further line is one frame:
@@ -16,7 +16,9 @@
 //!   `started_unix_s`: when the recording started, in seconds since 1970-01-01 UTC.
 //! * `seq`: the frame's sequence number; `t_s`: when it came, in seconds since the recording started;
 //!   `values`: its measurements in protocol order (V or Ω, as the board sends), printed so that they read back
-//!   bit for bit; `result`: any JSON the caller attaches (touches, forces), or `null`.
+//!   bit for bit, except that a value that is NaN or infinite (a channel the board lost) is `null` and reads
+//!   back as NaN; `result`: any JSON the caller attaches (touches, forces), or `null`. Version 2 added those
+//!   `null`s; version-1 files read as before.
 //! * `crc`: the CRC-32 (ISO-HDLC, as zlib and PNG) of the record's JSON text without its crc field — the
 //!   line up to `,"crc"`, closed by `}` — as 8 lower-case hex digits. It is always the last field, so a reader
 //!   checks the bytes as written, without printing anything again.
@@ -58,8 +60,8 @@ use crate::Error;
 /// The `format` of a recording's header.
 pub const FORMAT: &str = "eitskin-recording";
 
-/// The `version` of the format this crate writes and reads.
-pub const VERSION: u64 = 1;
+/// The `version` of the format this crate writes (it reads this one and 1).
+pub const VERSION: u64 = 2;
 
 /// What a recording is of: the first line of the file.
 #[derive(Debug, Clone, PartialEq)]
@@ -258,9 +260,6 @@ impl Recorder {
         if !t_s.is_finite() {
             return Err(refuse(format!("frame {seq} has time {t_s} s, which is not a finite number")));
         }
-        if let Some(i) = values.iter().position(|x| !x.is_finite()) {
-            return Err(refuse(format!("frame {seq}: value {} is not a finite number (JSON has none)", i + 1)));
-        }
         Ok(())
     }
 }
@@ -291,11 +290,11 @@ pub(crate) fn parse_header(line: &[u8]) -> Result<Header, Error> {
             reason: format!("is {:?}, not {FORMAT:?}; this is not an eitskin recording", header.format),
         });
     }
-    if header.version != VERSION {
+    if !(1..=VERSION).contains(&header.version) {
         return Err(Error::Key {
             path: None,
             key: "version",
-            reason: format!("is {}, but this eitskin reads version {VERSION}; is it newer?", header.version),
+            reason: format!("is {}, but this eitskin reads versions 1 to {VERSION}; is it newer?", header.version),
         });
     }
     Ok(Header { measurements: header.measurements, protocol: header.protocol, started_unix_s: header.started_unix_s })

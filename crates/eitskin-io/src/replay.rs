@@ -50,10 +50,18 @@ pub struct Record {
     pub seq: u64,
     /// When the frame came, in seconds since the recording started.
     pub t_s: f64,
-    /// The measurements, in protocol order (V or Ω, as the board sends).
+    /// The measurements, in protocol order (V or Ω, as the board sends); NaN where the board lost a
+    /// channel (`null` in the file).
+    #[serde(deserialize_with = "values_or_missing")]
     pub values: Vec<f64>,
     /// What the recorder attached (touches, forces), if anything.
     pub result: Option<serde_json::Value>,
+}
+
+/// A record's values, `null` read as NaN (a lost channel).
+fn values_or_missing<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<Vec<f64>, D::Error> {
+    let values: Vec<Option<f64>> = Deserialize::deserialize(deserializer)?;
+    Ok(values.into_iter().map(|v| v.unwrap_or(f64::NAN)).collect())
 }
 
 /// The lines of a recording that were skipped.

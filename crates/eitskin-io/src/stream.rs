@@ -5,11 +5,14 @@
 //! # Version
 //!
 //! The stream says its version once, in its first line, the [`Start`] event: format
-//! `"eitskin-run"`, [`VERSION`] 1, with what a reader needs to understand the rest (the length
+//! `"eitskin-run"`, [`VERSION`] 2, with what a reader needs to understand the rest (the length
 //! unit, the number of measurements). One line at the start rather than a field in every line:
 //! frames stay short, and the unit, which the numbers cannot carry, is stated once. The version
 //! goes up whenever a field or an event is added, removed or changes meaning, so the types here,
-//! which refuse unknown fields, read exactly their version.
+//! which refuse unknown fields, read exactly their version. Version 2 added the start line's
+//! `normalised` and `polarity`, each touch's `sign`, the frame line's optional `raster` and the
+//! `reference_taken` and `channels_dropped` events; a version-1 touch (no `sign`) reads as a
+//! decrease, which was then the only kind.
 //!
 //! # Lines
 //!
@@ -17,8 +20,9 @@
 //! order; events come where they happened, between frames.
 //!
 //! ```text
-//! {"event":"start","format":"eitskin-run","version":1,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10}
-//! {"seq":10,"t":0.5,"status":"ok","touches":[{"x":-49.1,"y":41.7,"peak":0.63,"unit":7,"area":2,"force":8.7,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41}}],"counters":{"frames":11,"bad":0},"recorded":true}
+//! {"event":"start","format":"eitskin-run","version":2,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"normalised":false,"polarity":"decrease"}
+//! {"event":"reference_taken","hyperparameter":0.031,"chosen":true,"normalised":false,"channels_dropped":[],"detail":"…"}
+//! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"unit":7,"area":2,"force":8.7,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41}}],"counters":{"frames":11,"bad":0},"recorded":true}
 //! {"event":"bad","seq":11,"reason":"frame 11 has 3 values, expected 120; …"}
 //! ```
 //!
@@ -32,10 +36,12 @@
 //! | `touches`   | the touches found, strongest first; each a [`Touch`], below                      |
 //! | `counters`  | `frames`: frames processed so far, this one included; `bad`: input skipped so far (bad frames, damaged records); `viewer_dropped`: messages that did not reach a viewer page, only when a viewer runs |
 //! | `recorded`  | `true` once the frame is in the recording; absent when not recording            |
+//! | `raster`    | with `eitskin run --stream-image` only: the frame's image, a [`Raster`]: `nx`, `ny`, `bounds` (`[[x_min, y_min], [x_max, y_max]]` in the length unit) and `values`, Δσ in S/m, `ny` rows of `nx` from the top row (largest y), `null` outside the outline |
 //!
-//! A touch ([`Touch`]): `x`, `y`, its centre of gravity in the spec's length unit (`length_unit`
+//! A touch ([`Touch`]): `sign`, `"decrease"` (less conductive, a press on a hydrogel) or
+//! `"increase"`; `x`, `y`, its centre of gravity in the spec's length unit (`length_unit`
 //! of the start line), relative to the outline's centre; `peak`, the strongest conductivity
-//! change, in S/m (positive for a press); `unit` and `area`, the pseudo-array unit holding the
+//! change in the touch's own direction, in S/m (positive); `unit` and `area`, the pseudo-array unit holding the
 //! centre and its area, counted from 1, or `null` without a calibration; `force`, in N, and
 //! `saturated`, whether the force is at the end of the calibrated range, or `null` without a
 //! calibration; `press`, the press fitted to Δv, `{x, y, drop}` (centre in the length unit,
@@ -46,7 +52,9 @@
 //!
 //! | `event`        | fields                                                                       |
 //! |----------------|------------------------------------------------------------------------------|
-//! | `start`        | `format` (`"eitskin-run"`), `version`, `source` (as given), `length_unit` (`"mm"` or `"m"`), `measurements` (values per frame), `reference_frames` (frames averaged into the reference) |
+//! | `start`        | `format` (`"eitskin-run"`), `version`, `source` (as given), `length_unit` (`"mm"` or `"m"`), `measurements` (values per frame), `reference_frames` (frames averaged into the reference), `normalised` (differences Δv/v_ref), `polarity` (`"decrease"`, `"increase"` or `"both"`: which changes are touches) |
+//! | `reference_taken` | the reference is taken: `hyperparameter` (λ imaged with), `chosen` (whether λ was chosen from the reference frames' noise), `normalised`, `channels_dropped` (1-based: missing from a reference frame, or with a zero reference when normalised), `detail` |
+//! | `channels_dropped` | channels went bad (not finite) in frame `seq` and are dropped until the reference is taken again: `channels` (1-based), `dropped` (channels dropped in all), `detail` |
 //! | `bad`          | `seq` (where in the stream, or `null` for bytes that belong to no frame), `reason` (a sentence) |
 //! | `skipped`      | a damaged record of a recording: `line` (from 1, the header is line 1), `torn` (the last record, torn by a crash), `reason` |
 //! | `disconnected` | `path` (the port), `detail` (why, as the operating system said it)            |
@@ -57,7 +65,7 @@
 //!
 //! ```
 //! use eitskin_io::stream::{Event, Line, Status};
-//! let text = r#"{"event":"start","format":"eitskin-run","version":1,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10}
+//! let text = r#"{"event":"start","format":"eitskin-run","version":2,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"normalised":false,"polarity":"decrease"}
 //! {"seq":0,"t":0.0,"status":"referencing","touches":[],"counters":{"frames":1,"bad":0}}"#;
 //! let lines: Vec<Line> = text.lines().map(Line::parse).collect::<Result<_, _>>()?;
 //! assert!(matches!(&lines[0], Line::Event(Event::Start(start)) if start.length_unit == "mm"));
@@ -84,7 +92,7 @@ use crate::source::Acquired;
 pub const FORMAT: &str = "eitskin-run";
 
 /// The version of the stream this crate writes and reads.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// Any line of the stream, for readers: an event if it has an `event` field, else a frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -134,6 +142,33 @@ pub struct FrameLine {
     /// Whether the frame is in the recording (written only when true).
     #[serde(default, skip_serializing_if = "is_false")]
     pub recorded: bool,
+    /// The frame's image, with `eitskin run --stream-image` (written only then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub raster: Option<Raster>,
+}
+
+/// A frame's image as data: Δσ per pixel, row 0 at the top, `null` outside the outline.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Raster {
+    /// Columns.
+    pub nx: usize,
+    /// Rows.
+    pub ny: usize,
+    /// The box covered, `[[x_min, y_min], [x_max, y_max]]`, in the length unit.
+    pub bounds: [[f64; 2]; 2],
+    /// Δσ per pixel, in S/m, row-major from the top row; `None` (null) outside the outline.
+    pub values: Vec<Option<f32>>,
+}
+
+impl Raster {
+    /// Refills this raster with `image` (positions in m) in units of `metres` m, reusing its memory.
+    pub fn set(&mut self, image: &eitskin::image::Image, metres: f64) {
+        [self.nx, self.ny] = image.size;
+        self.bounds = image.bounds.map(|p| p.map(|c| c / metres));
+        self.values.clear();
+        self.values.extend(image.values.iter().zip(&image.inside).map(|(v, inside)| inside.then_some(*v)));
+    }
 }
 
 impl FrameLine {
@@ -168,7 +203,7 @@ impl From<eitskin::pipeline::Status> for Status {
     fn from(status: eitskin::pipeline::Status) -> Status {
         match status {
             eitskin::pipeline::Status::Referencing { .. } => Status::Referencing,
-            eitskin::pipeline::Status::Processed => Status::Ok,
+            eitskin::pipeline::Status::Processed | eitskin::pipeline::Status::ChannelsDropped { .. } => Status::Ok,
         }
     }
 }
@@ -177,11 +212,14 @@ impl From<eitskin::pipeline::Status> for Status {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Touch {
+    /// The sign of the change (a version-1 touch, without it, was a decrease).
+    #[serde(default)]
+    pub sign: Sign,
     /// Centre of gravity, x.
     pub x: f64,
     /// Centre of gravity, y.
     pub y: f64,
-    /// The strongest conductivity change, in S/m (positive for a press).
+    /// The strongest conductivity change in the touch's own direction, in S/m (positive).
     pub peak: f64,
     /// The pseudo-array unit holding the centre, from 1, with a calibration.
     pub unit: Option<usize>,
@@ -200,6 +238,7 @@ impl Touch {
     /// `metres` m, unit and area from 1.
     pub fn new(t: &TouchForce, metres: f64) -> Touch {
         Touch {
+            sign: Sign::of(t.touch.polarity),
             x: t.touch.centre[0] / metres,
             y: t.touch.centre[1] / metres,
             peak: t.touch.peak,
@@ -208,6 +247,27 @@ impl Touch {
             force: t.force.map(|f| f.newtons),
             saturated: t.force.map(|f| f.saturated),
             press: t.press.map(|p| Press { x: p.centre[0] / metres, y: p.centre[1] / metres, drop: p.drop }),
+        }
+    }
+}
+
+/// The sign of a touch's change, written as [`Polarity::name`](eitskin::touch::Polarity::name).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Sign {
+    /// Less conductive (a press on a hydrogel).
+    #[default]
+    Decrease,
+    /// More conductive.
+    Increase,
+}
+
+impl Sign {
+    /// The sign of a touch's polarity (a touch has one sign; `Both` never tags one).
+    pub fn of(polarity: eitskin::touch::Polarity) -> Sign {
+        match polarity {
+            eitskin::touch::Polarity::Increase => Sign::Increase,
+            _ => Sign::Decrease,
         }
     }
 }
@@ -280,6 +340,30 @@ pub enum Event {
         /// Who asked, as a sentence.
         detail: String,
     },
+    /// The reference is taken: what the frames after it are imaged with.
+    ReferenceTaken {
+        /// λ imaged with (dimensionless).
+        hyperparameter: f64,
+        /// Whether λ was chosen from the reference frames' noise (`--hyperparameter auto`).
+        chosen: bool,
+        /// Whether differences are normalised (Δv/v_ref).
+        normalised: bool,
+        /// Channels left out from the start, 1-based.
+        channels_dropped: Vec<usize>,
+        /// The same, as a sentence.
+        detail: String,
+    },
+    /// Channels went bad in a frame and are dropped until the reference is taken again.
+    ChannelsDropped {
+        /// The frame.
+        seq: u64,
+        /// The channels that went bad, 1-based.
+        channels: Vec<usize>,
+        /// Channels dropped in all, these included.
+        dropped: usize,
+        /// What happened, as a sentence.
+        detail: String,
+    },
 }
 
 impl Event {
@@ -320,10 +404,15 @@ pub struct Start {
     pub measurements: usize,
     /// The number of frames averaged into the reference.
     pub reference_frames: usize,
+    /// Whether differences are normalised (Δv/v_ref).
+    pub normalised: bool,
+    /// Which changes are touches: `"decrease"`, `"increase"` or `"both"`.
+    pub polarity: String,
 }
 
 impl Start {
-    /// The start line of this crate's format and version.
+    /// The start line of this crate's format and version, for absolute differences and presses
+    /// that lower the conductivity (set `normalised` and `polarity` otherwise).
     pub fn new(source: String, length_unit: &str, measurements: usize, reference_frames: usize) -> Start {
         Start {
             format: FORMAT.to_owned(),
@@ -332,6 +421,8 @@ impl Start {
             length_unit: length_unit.to_owned(),
             measurements,
             reference_frames,
+            normalised: false,
+            polarity: eitskin::touch::Polarity::Decrease.name().to_owned(),
         }
     }
 }
@@ -362,6 +453,7 @@ mod tests {
 
     fn frame() -> FrameLine {
         let touch = Touch {
+            sign: Sign::Decrease,
             x: -50.5,
             y: 40.0,
             peak: 0.6,
@@ -378,6 +470,7 @@ mod tests {
             touches: vec![touch],
             counters: Counters { frames: 13, bad: 1, viewer_dropped: None },
             recorded: false,
+            raster: None,
         }
     }
 
@@ -392,7 +485,7 @@ mod tests {
         let line = text(&frame());
         assert_eq!(
             line,
-            "{\"seq\":12,\"t\":0.6,\"status\":\"ok\",\"touches\":[{\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"unit\":7,\
+            "{\"seq\":12,\"t\":0.6,\"status\":\"ok\",\"touches\":[{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"unit\":7,\
              \"area\":2,\"force\":8.5,\"saturated\":false,\"press\":{\"x\":-50.0,\"y\":41.0,\"drop\":0.4}}],\
              \"counters\":{\"frames\":13,\"bad\":1}}\n"
         );
@@ -409,7 +502,7 @@ mod tests {
         let touch = Touch { unit: None, area: None, force: None, saturated: None, press: None, ..frame().touches[0] };
         assert_eq!(
             text(&touch),
-            "{\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"unit\":null,\"area\":null,\"force\":null,\"saturated\":null,\
+            "{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"unit\":null,\"area\":null,\"force\":null,\"saturated\":null,\
              \"press\":null}\n"
         );
     }
@@ -423,6 +516,14 @@ mod tests {
             Event::Disconnected { path: "/dev/ttyACM0".into(), detail: "gone".into() },
             Event::Reconnected { path: "/dev/ttyACM0".into(), outage_s: 0.25, detail: "back".into() },
             Event::Reference { detail: "asked".into() },
+            Event::ReferenceTaken {
+                hyperparameter: 0.03,
+                chosen: true,
+                normalised: false,
+                channels_dropped: vec![4],
+                detail: "λ".into(),
+            },
+            Event::ChannelsDropped { seq: 40, channels: vec![7, 9], dropped: 3, detail: "gone".into() },
         ];
         for event in events {
             let line = text(&event);
@@ -436,11 +537,37 @@ mod tests {
         );
     }
 
+    /// Each touch says its sign as the library names polarities; a version-1 touch, without
+    /// one, reads as a decrease; the raster writes nulls outside the outline.
+    #[test]
+    fn signs_and_rasters_are_written_as_documented() {
+        use eitskin::touch::Polarity;
+        for polarity in [Polarity::Decrease, Polarity::Increase] {
+            let touch = Touch { sign: Sign::of(polarity), ..frame().touches[0] };
+            assert!(text(&touch).starts_with(&format!("{{\"sign\":\"{}\",", polarity.name())));
+        }
+        let old = r#"{"x":1.0,"y":2.0,"peak":0.5,"unit":null,"area":null,"force":null,"saturated":null,"press":null}"#;
+        assert_eq!(serde_json::from_str::<Touch>(old).unwrap().sign, Sign::Decrease);
+        let mut image = eitskin::image::Image::new([2, 1], [[-0.1, -0.05], [0.1, 0.05]], vec![true, false]);
+        image.values[0] = -0.25;
+        let mut raster = Raster::default();
+        raster.set(&image, 1e-3);
+        let line = FrameLine { raster: Some(raster), ..frame() };
+        let written = text(&line);
+        assert!(
+            written.ends_with(
+                ",\"raster\":{\"nx\":2,\"ny\":1,\"bounds\":[[-100.0,-50.0],[100.0,50.0]],\"values\":[-0.25,null]}}\n"
+            ),
+            "{written}"
+        );
+        assert_eq!(Line::parse(&written).unwrap(), Line::Frame(line));
+    }
+
     #[test]
     fn unknown_fields_and_events_are_refused_by_name() {
         let error = Line::parse(r#"{"event":"bad","seq":1,"reason":"r","extra":2}"#).unwrap_err().to_string();
         assert!(error.contains("extra"), "{error}");
-        let error = Line::parse(r#"{"event":"start","format":"eitskin-run","version":1,"source":"sim","length_unit":"mm","measurements":1,"reference_frames":1,"more":0}"#)
+        let error = Line::parse(r#"{"event":"start","format":"eitskin-run","version":2,"source":"sim","length_unit":"mm","measurements":1,"reference_frames":1,"normalised":false,"polarity":"both","more":0}"#)
             .unwrap_err()
             .to_string();
         assert!(error.contains("more"), "{error}");

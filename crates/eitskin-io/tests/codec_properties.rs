@@ -1,5 +1,6 @@
 //! Both frame codecs fed arbitrary bytes, cut into arbitrary chunks, never panic, give
-//! the same events however the bytes are cut, and only ever accept well-formed frames; valid
+//! the same events however the bytes are cut, and only ever accept well-formed frames (of the
+//! right length; NaN or infinite values, lost channels, are passed on); valid
 //! binary frames mixed into random garbage all come out. Property-based (proptest, fixed
 //! seed per run as proptest chooses, 256 cases each), so it runs in every CI build.
 
@@ -19,9 +20,14 @@ fn decode(mut decoder: impl Decoder, bytes: &[u8], cuts: &[usize]) -> Vec<Event>
     out
 }
 
+/// Events as text, to compare: a lost channel's NaN equals nothing, not even itself.
+fn debug(events: &[Event]) -> String {
+    format!("{events:?}")
+}
+
 fn well_formed(events: &[Event], expected: usize) -> bool {
     events.iter().all(|e| match e {
-        Event::Frame(f) => f.values.len() == expected && f.values.iter().all(|v| v.is_finite()),
+        Event::Frame(f) => f.values.len() == expected,
         Event::Bad(_) => true,
     })
 }
@@ -31,21 +37,21 @@ proptest! {
     fn lines_survive_any_bytes(bytes in prop::collection::vec(any::<u8>(), 0..2048), cuts in prop::collection::vec(0usize..300, 0..20)) {
         let whole = decode(LinesDecoder::new(3), &bytes, &[]);
         let cut = decode(LinesDecoder::new(3), &bytes, &cuts);
-        prop_assert_eq!(&whole, &cut);
+        prop_assert_eq!(debug(&whole), debug(&cut));
         prop_assert!(well_formed(&whole, 3));
     }
 
     #[test]
     fn lines_of_number_like_text_survive(text in "[0-9eE.,;: \\-+\\r\\nNaInf]{0,600}", cuts in prop::collection::vec(0usize..100, 0..10)) {
         let whole = decode(LinesDecoder::new(2), text.as_bytes(), &[]);
-        prop_assert_eq!(&whole, &decode(LinesDecoder::new(2), text.as_bytes(), &cuts));
+        prop_assert_eq!(debug(&whole), debug(&decode(LinesDecoder::new(2), text.as_bytes(), &cuts)));
         prop_assert!(well_formed(&whole, 2));
     }
 
     #[test]
     fn binary_survives_any_bytes(bytes in prop::collection::vec(any::<u8>(), 0..2048), cuts in prop::collection::vec(0usize..300, 0..20)) {
         let whole = decode(BinaryDecoder::new(4), &bytes, &[]);
-        prop_assert_eq!(&whole, &decode(BinaryDecoder::new(4), &bytes, &cuts));
+        prop_assert_eq!(debug(&whole), debug(&decode(BinaryDecoder::new(4), &bytes, &cuts)));
         prop_assert!(well_formed(&whole, 4));
     }
 

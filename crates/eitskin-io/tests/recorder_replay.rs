@@ -79,7 +79,7 @@ fn recorder_round_trip_is_bit_exact() {
     let text = std::fs::read_to_string(&path).expect("readable");
     assert!(
         text.starts_with(
-            "{\"format\":\"eitskin-recording\",\"version\":1,\"measurements\":16,\"protocol\":\"two-terminal\",\
+            "{\"format\":\"eitskin-recording\",\"version\":2,\"measurements\":16,\"protocol\":\"two-terminal\",\
              \"started_unix_s\":1767225600.125}\n{\"seq\":0,\"t_s\":0.0,\"values\":["
         ),
         "{}",
@@ -208,13 +208,28 @@ fn recorder_refuses_frames_that_would_not_read_back() {
     let mut recorder = Recorder::create(&path, &header(3)).expect("a new recording");
     let err = recorder.record(7, 0.0, &[1.0, 2.0], None).expect_err("too short");
     assert!(err.to_string().contains("frame 7 has 2 values, but the recording holds frames of 3"), "{err}");
-    let err = recorder.record(8, 0.0, &[1.0, f64::NAN, 3.0], None).expect_err("NaN");
-    assert!(err.to_string().contains("frame 8: value 2 is not a finite number"), "{err}");
     assert!(recorder.record(9, f64::INFINITY, &[1.0, 2.0, 3.0], None).is_err());
     recorder.record(10, 0.5, &[1.0, 2.0, 3.0], Some(&serde_json::Value::Null)).expect("recorded");
     recorder.sync().expect("synced");
     let recording = read_recording(&path).expect("readable");
     assert_eq!(recording.records, [Record { seq: 10, t_s: 0.5, values: vec![1.0, 2.0, 3.0], result: None }]);
+}
+
+/// A channel the board lost (NaN or ∞) is recorded as `null` and reads back as NaN, the rest bit for bit.
+#[test]
+fn a_lost_channel_is_recorded_as_null_and_reads_back_as_nan() {
+    let dir = folder("lost-channel");
+    let path = dir.path().join("run.jsonl");
+    let mut recorder = Recorder::create(&path, &header(3)).expect("a new recording");
+    recorder.record(3, 0.25, &[0.1, f64::NAN, f64::NEG_INFINITY], None).expect("recorded");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("\"values\":[0.1,null,null]"), "{text}");
+    let recording = read_recording(&path).expect("readable");
+    let values = &recording.records[0].values;
+    assert!(values[0] == 0.1 && values[1].is_nan() && values[2].is_nan(), "{values:?}");
+    // A version-1 file (no nulls then) still reads.
+    std::fs::write(&path, text.replace("\"version\":2", "\"version\":1")).unwrap();
+    assert_eq!(read_recording(&path).expect("version 1 reads").records.len(), 1);
 }
 
 #[test]
@@ -225,7 +240,7 @@ fn replay_rejects_what_is_not_a_recording() {
     for (text, says) in [
         (String::new(), "`header` is missing"),
         (format!("{{\"format\":\"other\",\"version\":1,{rest}"), "`format`"),
-        (format!("{{\"format\":\"eitskin-recording\",\"version\":2,{rest}"), "`version` is 2"),
+        (format!("{{\"format\":\"eitskin-recording\",\"version\":3,{rest}"), "`version` is 3"),
         ("1 2 3\n".to_string(), "header"),
     ] {
         std::fs::write(&path, &text).expect("writable");

@@ -129,6 +129,8 @@ pub struct Chain {
     touch: TouchParams,
     strength: Strength,
     press_model: Option<PressModel>,
+    /// The press model blind to the reconstructor's dropped channels, while any are dropped.
+    masked_press: Option<PressModel>,
     contrast_map: Option<ContrastMap>,
     calibration: Option<(PseudoArray, Calibration)>,
     image: Image,
@@ -152,6 +154,7 @@ impl Chain {
             touch,
             strength: Strength::Peak,
             press_model: None,
+            masked_press: None,
             contrast_map: None,
             calibration: None,
             image,
@@ -167,7 +170,29 @@ impl Chain {
     /// The same chain, fitting a press to Δv from each touch.
     pub fn with_press_model(mut self, model: PressModel) -> Chain {
         self.press_model = Some(model);
+        self.mask_press_model();
         self
+    }
+
+    /// Replaces the reconstructor by `recon` (the same one derived for another λ or other
+    /// channels, see [`Reconstructor::derive`]); the press fit then skips its dropped channels
+    /// too. Allocates (a copy of the press table while channels are dropped): an event, not the
+    /// frame path.
+    #[track_caller]
+    pub fn set_reconstructor(&mut self, recon: Reconstructor) {
+        assert_eq!(recon.measurements(), self.recon.measurements(), "the same protocol");
+        assert_eq!(recon.blank_image().size, self.image.size, "the same raster");
+        self.recon = recon;
+        self.mask_press_model();
+    }
+
+    fn mask_press_model(&mut self) {
+        let channels = self.recon.channels();
+        let all = channels.used_mask().iter().all(|u| *u);
+        self.masked_press = match &self.press_model {
+            Some(model) if !all => Some(model.masked(channels.used_mask())),
+            _ => None,
+        };
     }
 
     /// The same chain, with the contrast map the continuous strengths read.
@@ -275,14 +300,20 @@ impl Chain {
     }
 
     /// Runs the whole chain on `frame` against `reference` (both in protocol order); the
-    /// touches, strongest first. A bad frame (wrong length, NaN) is an error and leaves no touches.
+    /// touches, strongest first. A bad frame (wrong length, NaN on a used channel) is an error and
+    /// leaves no touches; the reconstructor's dropped channels are ignored, in the image and the
+    /// press fit alike.
     pub fn process(&mut self, reference: &[f64], frame: &[f64]) -> Result<&[TouchForce], InverseError> {
         self.touches.clear();
         self.recon.image_into(reference, frame, &mut self.image)?;
         detect_into(&self.image, &self.touch, &mut self.scratch, &mut self.found);
         self.fits.clear();
-        if let Some(model) = &self.press_model {
-            self.difference.iter_mut().zip(frame.iter().zip(reference)).for_each(|(d, (v, r))| *d = v - r);
+        if let Some(model) = self.masked_press.as_ref().or(self.press_model.as_ref()) {
+            // A dropped channel's Δv is 0 (it may be NaN): the masked model ignores it.
+            let channels = self.recon.channels();
+            for (m, (d, (v, r))) in self.difference.iter_mut().zip(frame.iter().zip(reference)).enumerate() {
+                *d = if channels.is_used(m) { v - r } else { 0.0 };
+            }
             self.starts.clear();
             self.starts.extend(self.found.iter().take(MAX_FITTED).map(|t| t.centre));
             model.fit_into(&self.difference, &self.starts, &mut self.press_scratch, &mut self.fits)?;

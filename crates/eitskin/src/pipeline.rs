@@ -4,19 +4,36 @@
 //! The reference (no-touch) frame is the mean of the first N frames (and again after
 //! [`Pipeline::retake_reference`]). While referencing, the pipeline also measures its own noise:
 //! the peak of each reference frame's image against the mean; with [`NoiseFloor::Auto`] a touch
-//! needs a peak above a multiple of that. An optional slow baseline update, while no touch is
-//! present, follows drift: v_ref ← (1 − α)·v_ref + α·v. Each later frame goes through the
-//! chain against the reference.
+//! needs a peak above a multiple of that. With [`PipelineParams::auto_hyperparameter`] it also
+//! chooses λ from the reference frames' per-channel noise ([`noise_variance`],
+//! [`Reconstructor::with_auto_hyperparameter`](crate::Reconstructor::with_auto_hyperparameter)).
+//! An optional slow baseline update, while no touch is present, follows drift:
+//! v_ref ← (1 − α)·v_ref + α·v. Each later frame goes through the chain against the reference.
+//!
+//! Channels going bad. A channel whose value is not finite (NaN marks a missing value) in a
+//! reference frame is dropped, and so is one whose reference is zero with normalised
+//! differences; the reference is the mean of each channel's finite values. After the reference
+//! is taken, a non-finite value on a used channel drops that channel: the reconstructor is
+//! derived again without it (milliseconds, from its stored linearisation), the press fit skips
+//! it too, the frame is imaged, and [`Status::ChannelsDropped`] says so
+//! ([`Pipeline::newly_dropped`] says which). A dropped channel stays dropped until
+//! [`Pipeline::retake_reference`], even if its values come back. A frame that would leave more
+//! than a quarter of the channels dropped is refused ([`InverseError::TooManyBadChannels`]) and
+//! changes nothing; a reference that would is refused as a whole, and the next frames start a
+//! new one.
 //!
 //! Plain data and no threads or I/O: the caller feeds frames (from a port, a file, the virtual
 //! sensor) and reads the results. After the reference is taken, [`Pipeline::process`]
-//! allocates nothing.
+//! allocates nothing, except on the frame that drops a channel (an event, not the frame path).
 
 use crate::chain::Chain;
 pub use crate::chain::TouchForce;
 use crate::image::Image;
-use crate::inverse::InverseError;
+use crate::inverse::{mean_of_finite, noise_variance, Channels, InverseError, Reconstructor};
 use crate::pseudo_array::PseudoArray;
+
+/// The most bad channels an error names.
+const NAMED: usize = 8;
 
 /// How touches are told from noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,7 +47,8 @@ pub enum NoiseFloor {
     Fixed(f64),
 }
 
-/// Settings of the frame path; `Default` takes the mean of 10 frames and no baseline update.
+/// Settings of the frame path; `Default` takes the mean of 10 frames, no baseline update, and
+/// keeps the chain's λ.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PipelineParams {
     /// Frames averaged into the reference.
@@ -39,11 +57,20 @@ pub struct PipelineParams {
     pub baseline_rate: f64,
     /// How touches are told from noise (on top of the chain's own [`TouchParams::min_peak`](crate::TouchParams::min_peak)).
     pub noise_floor: NoiseFloor,
+    /// Choose λ from the reference frames' noise each time the reference is taken (a noise
+    /// figure of 0.5, see [`Hyperparameter::Auto`](crate::inverse::Hyperparameter::Auto)),
+    /// instead of keeping the chain's reconstructor's.
+    pub auto_hyperparameter: bool,
 }
 
 impl Default for PipelineParams {
     fn default() -> Self {
-        PipelineParams { reference_frames: 10, baseline_rate: 0.0, noise_floor: NoiseFloor::Auto { factor: 2.0 } }
+        PipelineParams {
+            reference_frames: 10,
+            baseline_rate: 0.0,
+            noise_floor: NoiseFloor::Auto { factor: 2.0 },
+            auto_hyperparameter: false,
+        }
     }
 }
 
@@ -59,6 +86,12 @@ pub enum Status {
     },
     /// The frame was imaged; its touches are in [`Pipeline::touches`].
     Processed,
+    /// The frame was imaged without `count` channels that went bad in it (not finite), dropped
+    /// from now until [`Pipeline::retake_reference`]; which ones: [`Pipeline::newly_dropped`].
+    ChannelsDropped {
+        /// Channels dropped by this frame.
+        count: usize,
+    },
 }
 
 /// The frame path of one sensor: the [`Chain`], its reference and the noise it measured.
@@ -68,31 +101,43 @@ pub struct Pipeline {
     params: PipelineParams,
     /// The chain's own minimum peak, under the noise floor (S/m).
     min_peak: f64,
+    /// λ of the chain's reconstructor as given, for each new reference unless λ is chosen.
+    given_hyperparameter: f64,
     reference: Vec<f64>,
     collected: Vec<Vec<f64>>,
+    /// Per channel, whether a reference frame collected so far missed it.
+    missing: Vec<bool>,
     noise_peak: f64,
+    /// Channels the last frame dropped, 0-based (room for every channel, so no allocation).
+    newly_dropped: Vec<usize>,
 }
 
 impl Pipeline {
     /// A pipeline running `chain` that starts by taking its reference.
     pub fn new(chain: Chain, params: PipelineParams) -> Pipeline {
+        let count = chain.reconstructor().measurements();
         Pipeline {
             min_peak: chain.touch_params().min_peak,
+            given_hyperparameter: chain.reconstructor().params().hyperparameter,
             chain,
             params,
             reference: Vec::new(),
             collected: Vec::with_capacity(params.reference_frames.max(1)),
+            missing: vec![false; count],
             noise_peak: 0.0,
+            newly_dropped: Vec::with_capacity(count),
         }
     }
 
-    /// Forgets the reference; the next frames build a new one.
+    /// Forgets the reference, and with it every dropped channel; the next frames build a new one.
     pub fn retake_reference(&mut self) {
         self.reference.clear();
         self.collected.clear();
+        self.missing.fill(false);
+        self.newly_dropped.clear();
     }
 
-    /// The reference frame, once taken.
+    /// The reference frame, once taken (NaN on a channel no reference frame had).
     pub fn reference(&self) -> Option<&[f64]> {
         (!self.reference.is_empty()).then_some(self.reference.as_slice())
     }
@@ -100,6 +145,21 @@ impl Pipeline {
     /// The largest peak of the reference frames' own images, in S/m: the noise the floor is set from.
     pub fn noise_peak(&self) -> f64 {
         self.noise_peak
+    }
+
+    /// The hyperparameter λ imaged with (dimensionless): given, or chosen once the reference is taken.
+    pub fn hyperparameter(&self) -> f64 {
+        self.chain.reconstructor().params().hyperparameter
+    }
+
+    /// The channels dropped so far, 0-based: at the reference and by later frames.
+    pub fn dropped_channels(&self) -> Vec<usize> {
+        self.chain.reconstructor().channels().dropped()
+    }
+
+    /// The channels the last frame dropped, 0-based (empty unless it was [`Status::ChannelsDropped`]).
+    pub fn newly_dropped(&self) -> &[usize] {
+        &self.newly_dropped
     }
 
     /// The chain it runs.
@@ -126,40 +186,77 @@ impl Pipeline {
         self.chain.pseudo_array()
     }
 
-    /// Feeds one frame (protocol order); a bad frame (wrong length, NaN) is refused and changes nothing.
+    /// Feeds one frame (protocol order). A frame of the wrong length, or one that leaves more
+    /// than a quarter of the channels dropped, is refused and changes nothing; a non-finite
+    /// value on a used channel drops that channel (see the module doc).
     pub fn process(&mut self, frame: &[f64]) -> Result<Status, InverseError> {
-        let needed = self.params.reference_frames.max(1);
+        let count = self.chain.reconstructor().measurements();
+        if frame.len() != count {
+            return Err(InverseError::FrameLength { expected: count, got: frame.len() });
+        }
+        self.newly_dropped.clear();
         if self.reference.is_empty() {
-            // Check the frame as the reconstructor will, before it joins the reference.
-            self.chain.image_only(frame, frame)?;
-            self.collected.push(frame.to_vec());
-            if self.collected.len() < needed {
-                return Ok(Status::Referencing { collected: self.collected.len(), needed });
+            return self.collect(frame);
+        }
+        let channels = self.chain.reconstructor().channels();
+        self.newly_dropped.extend((0..count).filter(|&m| channels.is_used(m) && !frame[m].is_finite()));
+        if !self.newly_dropped.is_empty() {
+            if let Err(e) = self.drop_new_channels() {
+                self.newly_dropped.clear();
+                return Err(e);
             }
-            self.take_reference();
-            return Ok(Status::Referencing { collected: needed, needed });
         }
         let touched = !self.chain.process(&self.reference, frame)?.is_empty();
         let alpha = self.params.baseline_rate;
         if alpha > 0.0 && !touched {
-            for (r, v) in self.reference.iter_mut().zip(frame) {
+            for (r, v) in self.reference.iter_mut().zip(frame).filter(|(_, v)| v.is_finite()) {
                 *r += alpha * (v - *r);
             }
         }
-        Ok(Status::Processed)
+        Ok(match self.newly_dropped.len() {
+            0 => Status::Processed,
+            count => Status::ChannelsDropped { count },
+        })
     }
 
-    fn take_reference(&mut self) {
-        let n = self.collected.len() as f64;
-        self.reference = vec![0.0; self.collected[0].len()];
-        for frame in &self.collected {
-            for (r, v) in self.reference.iter_mut().zip(frame) {
-                *r += v / n;
-            }
+    /// Derives the reconstructor again without the channels of `newly_dropped`.
+    fn drop_new_channels(&mut self) -> Result<(), InverseError> {
+        let recon = self.chain.reconstructor();
+        let mut used = recon.channels().used_mask().to_vec();
+        self.newly_dropped.iter().for_each(|&m| used[m] = false);
+        too_many_dropped(&used, self.newly_dropped.len())?;
+        let derived = recon.derive(recon.params().hyperparameter, recon.channels().clone().masked(&used))?;
+        self.chain.set_reconstructor(derived);
+        Ok(())
+    }
+
+    /// Adds a frame to the reference, and takes it once enough are collected.
+    fn collect(&mut self, frame: &[f64]) -> Result<Status, InverseError> {
+        let needed = self.params.reference_frames.max(1);
+        let used: Vec<bool> = self.missing.iter().zip(frame).map(|(missing, v)| !missing && v.is_finite()).collect();
+        let new = self.missing.iter().zip(frame).filter(|(missing, v)| !**missing && !v.is_finite()).count();
+        too_many_dropped(&used, new)?;
+        self.missing.iter_mut().zip(&used).for_each(|(missing, used)| *missing = !used);
+        self.collected.push(frame.to_vec());
+        if self.collected.len() < needed {
+            return Ok(Status::Referencing { collected: self.collected.len(), needed });
+        }
+        if let Err(e) = self.take_reference() {
+            self.retake_reference();
+            return Err(e);
+        }
+        Ok(Status::Referencing { collected: needed, needed })
+    }
+
+    fn take_reference(&mut self) -> Result<(), InverseError> {
+        self.reference = mean_of_finite(&self.collected);
+        if let Some(recon) = self.reference_reconstructor()? {
+            too_many_dropped(recon.channels().used_mask(), 0)?;
+            self.chain.set_reconstructor(recon);
         }
         self.noise_peak = 0.0;
         for frame in &self.collected {
-            // Frames were checked when collected, so imaging them cannot fail.
+            // Channels missing from any reference frame are dropped, so imaging cannot fail.
             if let Ok(image) = self.chain.image_only(&self.reference, frame) {
                 let peak = image.peak().map_or(0.0, |(_, v)| f64::from(v.abs()));
                 self.noise_peak = self.noise_peak.max(peak);
@@ -171,7 +268,41 @@ impl Pipeline {
         };
         self.chain.set_min_peak(self.min_peak.max(floor));
         self.collected.clear();
+        Ok(())
     }
+
+    /// The reconstructor for the new reference: without the channels it lacks (or, normalised,
+    /// whose reference is zero), with λ given or chosen from the reference frames' noise;
+    /// `None` when the chain's already is that one.
+    fn reference_reconstructor(&self) -> Result<Option<Reconstructor>, InverseError> {
+        let recon = self.chain.reconstructor();
+        let normalized = recon.params().normalized;
+        let alive: Vec<bool> = self.reference.iter().map(|r| !normalized || *r != 0.0).collect();
+        let keep: Vec<bool> = self.missing.iter().map(|missing| !missing).collect();
+        let channels = Channels::all(self.reference.len()).masked(&keep).masked(&alive);
+        if self.params.auto_hyperparameter {
+            let variance = noise_variance(&self.collected, normalized);
+            return Ok(Some(recon.with_auto_hyperparameter(channels, variance)?.0));
+        }
+        if recon.channels() == &channels && recon.params().hyperparameter == self.given_hyperparameter {
+            return Ok(None);
+        }
+        recon.derive(self.given_hyperparameter, channels).map(Some)
+    }
+}
+
+/// Refuses a set of used channels that drops more than a quarter of them (`new` for the first time).
+fn too_many_dropped(used: &[bool], new: usize) -> Result<(), InverseError> {
+    let bad: Vec<usize> = (0..used.len()).filter(|&m| !used[m]).map(|m| m + 1).collect();
+    if bad.len() * 4 <= used.len() {
+        return Ok(());
+    }
+    Err(InverseError::TooManyBadChannels {
+        bad: bad.len(),
+        new,
+        channels: used.len(),
+        first: bad.into_iter().take(NAMED).collect(),
+    })
 }
 
 #[cfg(test)]
@@ -253,10 +384,40 @@ mod tests {
         let (mut pipeline, mut skin) = setup();
         let err = pipeline.process(&[1.0; 119]).unwrap_err();
         assert_eq!(err, InverseError::FrameLength { expected: 120, got: 119 });
-        let mut nan = skin.frame().unwrap();
-        nan[3] = f64::NAN;
-        assert!(pipeline.process(&nan).is_err());
+        // 31 of 120 channels missing is more than a quarter.
+        let mut holes = skin.frame().unwrap();
+        holes[..31].fill(f64::NAN);
+        let err = pipeline.process(&holes).unwrap_err();
+        let first = (1..=8).collect();
+        assert_eq!(err, InverseError::TooManyBadChannels { bad: 31, new: 31, channels: 120, first });
+        assert!(err.to_string().starts_with("31 of 120 channels are missing or not finite"), "{err}");
         assert_eq!(pipeline.process(&skin.frame().unwrap()).unwrap(), Status::Referencing { collected: 1, needed: 10 });
+    }
+
+    /// A channel missing from a reference frame is dropped; the reference is the mean of the rest.
+    #[test]
+    fn a_channel_missing_from_the_reference_is_dropped() {
+        let (mut pipeline, mut skin) = setup();
+        for k in 0..10 {
+            let mut frame = skin.frame().unwrap();
+            if k == 4 {
+                frame[3] = f64::NAN;
+            }
+            pipeline.process(&frame).unwrap();
+        }
+        assert_eq!(pipeline.dropped_channels(), [3]);
+        assert!(pipeline.reference().unwrap().iter().all(|r| r.is_finite()));
+        skin.press([-0.05, 0.02], 10.0);
+        assert_eq!(pipeline.process(&skin.frame().unwrap()).unwrap(), Status::Processed);
+        let c = pipeline.touches()[0].touch.centre;
+        assert!((c[0] + 0.05).hypot(c[1] - 0.02) < 0.015, "{c:?}");
+        // The reference frames named the channel; taking the reference again restores it.
+        pipeline.retake_reference();
+        skin.release();
+        for _ in 0..10 {
+            pipeline.process(&skin.frame().unwrap()).unwrap();
+        }
+        assert!(pipeline.dropped_channels().is_empty());
     }
 
     #[test]
@@ -264,7 +425,12 @@ mod tests {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 800;
         let recon = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &ReconstructorParams::default()).unwrap();
-        let params = PipelineParams { reference_frames: 3, baseline_rate: 0.5, noise_floor: NoiseFloor::Fixed(0.01) };
+        let params = PipelineParams {
+            reference_frames: 3,
+            baseline_rate: 0.5,
+            noise_floor: NoiseFloor::Fixed(0.01),
+            auto_hyperparameter: false,
+        };
         let mut pipeline = Pipeline::new(Chain::new(recon, crate::TouchParams::default()), params);
         let sim = crate::sim::SimParams { drift_per_hour: 0.05, noise_relative: 0.0, ..Default::default() };
         let mut skin = VirtualSensor::with_params(&spec, sim, 1).unwrap();

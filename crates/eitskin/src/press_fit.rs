@@ -352,6 +352,20 @@ impl PressModel {
         contrast
     }
 
+    /// The same model blind to the channels with `used[m] = false`: their responses are zeroed,
+    /// so whatever finite value their Δv holds adds nothing to a fit (a channel gone bad: pass
+    /// its Δv as 0, since 0·NaN is NaN). Copies the table (milliseconds): an event, not the frame path.
+    pub fn masked(&self, used: &[bool]) -> PressModel {
+        assert_eq!(used.len(), self.measurements, "one flag per measurement");
+        let mut masked = self.clone();
+        for g in masked.responses.chunks_exact_mut(self.measurements) {
+            g.iter_mut().zip(used).filter(|(_, u)| !**u).for_each(|(g, _)| *g = 0.0);
+        }
+        masked.norms =
+            masked.responses.chunks_exact(self.measurements).map(|g| g.iter().map(|x| x * x).sum()).collect();
+        masked
+    }
+
     /// Number of values a Δv must have.
     pub fn measurements(&self) -> usize {
         self.measurements
@@ -579,6 +593,23 @@ mod tests {
             assert!(distance(fit.centre, centre) < 3e-3, "{centre:?}: found at {:?}", fit.centre);
             assert!((fit.drop - drop).abs() < 0.05, "{centre:?}: drop {} for {drop}", fit.drop);
         }
+    }
+
+    /// A masked channel's Δv, however wrong, moves nothing; unmasked, the same value ruins the fit.
+    #[test]
+    fn a_masked_channel_adds_nothing_to_the_fit() {
+        let (model, dv) = setup();
+        let (centre, drop) = ([0.03, -0.04], 0.5);
+        let clean = model.fit(&dv(&[(centre, drop)]), [0.035, -0.045]).unwrap().unwrap();
+        let mut wrong = dv(&[(centre, drop)]);
+        wrong[40] = 1e3 * wrong.iter().fold(0.0, |a, x| f64::max(a, x.abs()));
+        let mut used = vec![true; 120];
+        used[40] = false;
+        let masked = model.masked(&used).fit(&wrong, [0.035, -0.045]).unwrap().unwrap();
+        assert!(distance(masked.centre, centre) < 4e-3, "found at {:?}", masked.centre);
+        assert!((masked.drop - clean.drop).abs() < 0.03, "drop {} for {}", masked.drop, clean.drop);
+        let unmasked = model.fit(&wrong, [0.035, -0.045]).unwrap();
+        assert!(unmasked.is_none_or(|f| (f.drop - clean.drop).abs() > 0.1), "{unmasked:?}");
     }
 
     #[test]

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use eitskin::calibration::{Calibration, Strength};
 use eitskin::chain::Chain;
-use eitskin::pipeline::{Pipeline, PipelineParams};
+use eitskin::pipeline::{Pipeline, PipelineParams, Status};
 use eitskin::press_fit::{PressModel, PressModelParams};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::sim::{Hydrogel, VirtualSensor};
@@ -85,4 +85,17 @@ fn a_frame_with_touches_fitted_presses_and_forces_allocates_nothing() {
     assert_eq!(touches.len(), 2, "{touches:?}");
     assert!(touches.iter().all(|t| t.press.is_some() && t.force.is_some()), "{touches:?}");
     assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in 4 frames");
+    // A channel going bad is an event (the reconstructor is derived again); after it, the frames
+    // that still miss the channel cost nothing again.
+    let mut lost = frames[11].clone();
+    lost[7] = f64::NAN;
+    assert_eq!(pipeline.process(&lost).unwrap(), Status::ChannelsDropped { count: 1 });
+    pipeline.process(&lost).unwrap(); // warm-up: the press fit's buffers
+    COUNTING.store(true, Ordering::Relaxed);
+    for _ in 0..3 {
+        assert_eq!(pipeline.process(&lost).unwrap(), Status::Processed);
+    }
+    COUNTING.store(false, Ordering::Relaxed);
+    assert_eq!(pipeline.touches().len(), 2, "{:?}", pipeline.touches());
+    assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in 3 frames after a channel was dropped");
 }

@@ -25,14 +25,14 @@
 //! [`BadFrame::WrongCount`] and a CRC mismatch a [`BadFrame::Crc`]; after either, the hunt
 //! starts again one byte after the sync, since a good frame may start inside the bad one; the
 //! bytes the bad frame claims are not reported again as garbage (up to the next good frame). A frame that passes its CRC
-//! is delivered, or reported as [`BadFrame::NotFinite`] if a value is NaN or infinite. Before
+//! is delivered, NaN or infinite values included (lost channels, see [`super`]). Before
 //! it, a [`BadFrame::Gap`] reports the counter values skipped since the last frame that passed
 //! its CRC, less the frames reported bad in between, so each lost frame is reported once. A
 //! counter that goes back (a board reset) reads as a gap of the wrapped distance.
 
 use crc::{Crc, CRC_16_IBM_3740};
 
-use super::{first_not_finite, BadFrame, Decoder, Event, Frame};
+use super::{BadFrame, Decoder, Event, Frame};
 
 /// The two bytes that start every frame.
 pub const SYNC: [u8; 2] = [0xA5, 0x5A];
@@ -184,10 +184,7 @@ impl BinaryDecoder {
             .map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])))
             .collect();
         let seq = u64::from(counter);
-        out.push(match first_not_finite(&values) {
-            Some(field) => Event::Bad(BadFrame::NotFinite { seq, field }),
-            None => Event::Frame(Frame { seq, values }),
-        });
+        out.push(Event::Frame(Frame { seq, values }));
         Some(length)
     }
 }

@@ -7,7 +7,7 @@
 //! non-empty lines before it, so a lost line shows only as a [`BadFrame::WrongCount`] when it
 //! was torn, and not at all when it was lost whole.
 
-use super::{first_not_finite, BadFrame, Decoder, Event, Frame};
+use super::{BadFrame, Decoder, Event, Frame};
 
 /// The longest line accepted by default, in bytes (64 KiB; an OpenEIT frame of 928 values is about 14 KiB).
 pub const DEFAULT_LINE_LIMIT: usize = 64 * 1024;
@@ -19,9 +19,10 @@ pub const DEFAULT_LINE_LIMIT: usize = 64 * 1024;
 /// let mut decoder = LinesDecoder::new(2);
 /// let mut events = Vec::new();
 /// decoder.feed(b"magnitudes : 1.0 , 2", &mut events); // a frame split across two chunks
-/// decoder.feed(b".5 ,\r\n\r\n1; nan\n", &mut events);
+/// decoder.feed(b".5 ,\r\n\r\n1; nan\n1 x\n", &mut events);
 /// assert!(matches!(&events[0], Event::Frame(f) if f.seq == 0 && f.values == [1.0, 2.5]));
-/// assert_eq!(events[1], Event::Bad(BadFrame::NotFinite { seq: 1, field: 2 }));
+/// assert!(matches!(&events[1], Event::Frame(f) if f.seq == 1 && f.values[1].is_nan())); // a lost channel
+/// assert_eq!(events[2], Event::Bad(BadFrame::NotANumber { seq: 2, field: 2, text: "x".into() }));
 /// ```
 #[derive(Debug, Clone)]
 pub struct LinesDecoder {
@@ -130,9 +131,6 @@ fn decode_line(line: &[u8], seq: u64, expected: usize) -> Event {
     if values.len() != expected {
         return Event::Bad(BadFrame::WrongCount { seq, expected, got: values.len() });
     }
-    if let Some(field) = first_not_finite(&values) {
-        return Event::Bad(BadFrame::NotFinite { seq, field });
-    }
     Event::Frame(Frame { seq, values })
 }
 
@@ -178,7 +176,7 @@ mod tests {
     fn field_numbers_count_from_one_after_the_label() {
         let got = decode(&mut LinesDecoder::new(3), &[b"1 2 3\nv: 1, x2, 3\n1 inf 3\n"]);
         assert_eq!(got[1], Event::Bad(BadFrame::NotANumber { seq: 1, field: 2, text: "x2".into() }));
-        assert_eq!(got[2], Event::Bad(BadFrame::NotFinite { seq: 2, field: 2 }));
+        assert_eq!(got[2], frame(2, &[1.0, f64::INFINITY, 3.0]), "a lost channel is passed on");
     }
 
     #[test]

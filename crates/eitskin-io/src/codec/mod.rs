@@ -22,8 +22,12 @@
 //! assert!(matches!(&events[2], Event::Frame(f) if f.seq == 7 && f.values == [1.0, 2.0, 3.0]));
 //! ```
 //!
+//! A value that is NaN or infinite is passed on as it is: it marks a channel the board lost
+//! (a saturated or disconnected input), which the pipeline drops and names
+//! ([`eitskin::pipeline`]), rather than a reason to lose the whole frame.
+//!
 //! Not for: opening serial ports or timing frames (the sources do that), or checking that the
-//! values make physical sense (a frame of the right length and finite values is accepted).
+//! values make physical sense (a frame of the right length is accepted).
 
 pub mod binary;
 pub mod lines;
@@ -74,14 +78,6 @@ pub enum BadFrame {
         field: usize,
         /// The field as received.
         text: String,
-    },
-    /// A value that is NaN or infinite.
-    #[error("frame {seq}: value {field} is not a finite number; is the board's ADC saturated or disconnected?")]
-    NotFinite {
-        /// Where the frame was in the stream.
-        seq: u64,
-        /// The value, counted from 1.
-        field: usize,
     },
     /// A line longer than the decoder's limit; it was dropped up to the next new line.
     #[error("frame {seq} is {bytes} bytes long, over the line limit, and was dropped; is the board ending its lines?")]
@@ -136,7 +132,6 @@ impl BadFrame {
         match self {
             BadFrame::WrongCount { seq, .. }
             | BadFrame::NotANumber { seq, .. }
-            | BadFrame::NotFinite { seq, .. }
             | BadFrame::TooLong { seq, .. }
             | BadFrame::Crc { seq, .. }
             | BadFrame::Gap { seq, .. }
@@ -163,9 +158,4 @@ pub trait Decoder {
     fn abandon(&mut self, out: &mut Vec<Event>) {
         self.finish(out);
     }
-}
-
-/// The index (from 1) of the first value that is NaN or infinite, if any.
-fn first_not_finite(values: &[f64]) -> Option<usize> {
-    values.iter().position(|x| !x.is_finite()).map(|i| i + 1)
 }

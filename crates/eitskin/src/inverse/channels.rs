@@ -108,6 +108,23 @@ pub fn mean_frame(frames: &[Vec<f64>]) -> Vec<f64> {
     (0..width).map(|m| frames.iter().map(|f| f.get(m).copied().unwrap_or(f64::NAN)).sum::<f64>() / n).collect()
 }
 
+/// The mean of each channel's finite values over several frames (a stream's reference, whose
+/// channels missing from some frames are dropped by other means); NaN where none is finite.
+pub fn mean_of_finite(frames: &[Vec<f64>]) -> Vec<f64> {
+    let width = frames.first().map_or(0, Vec::len);
+    (0..width)
+        .map(|m| {
+            let finite = frames.iter().filter_map(|f| f.get(m).copied()).filter(|v| v.is_finite());
+            let (sum, count) = finite.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+            if count > 0 {
+                sum / count as f64
+            } else {
+                f64::NAN
+            }
+        })
+        .collect()
+}
+
 /// Per-channel noise variance of several frames of an unchanging sensor (the reference
 /// frames), about their mean; `None` with fewer than two frames. With `normalized`, the
 /// variance of v/v̄ (ratio²), else of v (V²). NaN values are left out of their channel.
@@ -157,6 +174,14 @@ mod tests {
         assert_eq!(c.used(), [0, 2]);
         assert_eq!(c.relative_variance(), [0.5, 1.5]);
         assert_eq!(Channels::all(2).masked(&[false, false]).check(2), Err(InverseError::NoChannels));
+    }
+
+    #[test]
+    fn the_mean_of_finite_values_skips_missing_ones() {
+        let frames = vec![vec![1.0, f64::NAN, 4.0], vec![3.0, f64::NAN, f64::INFINITY]];
+        let mean = mean_of_finite(&frames);
+        assert_eq!((mean[0], mean[2]), (2.0, 4.0));
+        assert!(mean[1].is_nan() && !mean_frame(&frames)[2].is_finite(), "the plain mean keeps ∞");
     }
 
     #[test]

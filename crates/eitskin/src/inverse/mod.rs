@@ -20,7 +20,7 @@ mod linearisation;
 mod prior;
 mod raster;
 
-pub use channels::{mean_frame, noise_variance, Channels};
+pub use channels::{mean_frame, mean_of_finite, noise_variance, Channels};
 pub use hyperparameter::{choose_hyperparameter, noise_figure, Hyperparameter, NOISE_FIGURE_TARGET};
 pub use linearisation::Linearisation;
 pub use prior::Prior;
@@ -66,6 +66,23 @@ pub enum InverseError {
     /// The automatic hyperparameter needs a diagonal prior (NOSER or Tikhonov).
     #[error("the hyperparameter can be chosen from the noise only with a diagonal prior (NOSER or Tikhonov); give λ")]
     AutoNeedsDiagonalPrior,
+    /// More than a quarter of a frame's channels are missing or not finite, counting those
+    /// dropped before: the frame is refused.
+    #[error(
+        "{bad} of {channels} channels are missing or not finite ({new} of them new in this frame; \
+         first: {first:?}), more than a quarter: the frame is refused; check the board and its \
+         wiring, then re-take the reference"
+    )]
+    TooManyBadChannels {
+        /// Channels bad in this frame or dropped before.
+        bad: usize,
+        /// Of those, the ones bad for the first time in this frame.
+        new: usize,
+        /// Channels in a frame.
+        channels: usize,
+        /// The first bad channels (at most 8), 1-based.
+        first: Vec<usize>,
+    },
     /// Normalised differences divide by the reference, which must not be zero.
     #[error("measurement {measurement} of the reference frame is zero, so it cannot be normalised")]
     ZeroReference {
