@@ -6,6 +6,7 @@ use anyhow::{bail, Context, Result};
 use eitskin::chain::Chain;
 use eitskin::conductivity::Inclusion;
 use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
+use eitskin::inverse::Channels;
 use eitskin::strength::Strength;
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 
@@ -35,12 +36,18 @@ pub fn inclusion(text: &str, spec: &SensorSpec) -> Result<Inclusion> {
     Ok(Inclusion { centre: [x * k, y * k], radius: r * k, conductivity: sigma })
 }
 
-/// The reconstructor of `spec` with `params`, from the cache when there is one (and `use_cache`).
+/// The reconstructor of `spec` with `params`, from the cache when there is one (and
+/// `use_cache`), without the channels the spec's mask drops.
 pub fn reconstructor(spec: &SensorSpec, params: &ReconstructorParams, use_cache: bool) -> Result<Reconstructor> {
-    Ok(match cache_dir().filter(|_| use_cache) {
+    let recon = match cache_dir().filter(|_| use_cache) {
         Some(dir) => eitskin_io::load_or_build(&dir, spec, params)?.0,
         None => Reconstructor::new(&spec.forward_model()?, spec.conductivity, params)?,
-    })
+    };
+    let used = spec.used_channels()?;
+    if used.contains(&false) {
+        return Ok(recon.derive(params.hyperparameter, Channels::all(used.len()).masked(&used))?);
+    }
+    Ok(recon)
 }
 
 /// The frame chain of `spec` reading each touch's strength as `strength`: the reconstructor

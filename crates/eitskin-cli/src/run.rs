@@ -30,6 +30,7 @@ use eitskin::inverse::Hyperparameter;
 use eitskin::pipeline::{Pipeline, PipelineParams, Status};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::touch::Polarity;
+use eitskin::values::{Component, ValueKind};
 use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::recorder::{Header, Recorder};
 use eitskin_io::replay::Speed;
@@ -115,6 +116,13 @@ pub struct Args {
     /// frame at 64 × 64, some 60 kB a line.
     #[arg(long)]
     stream_image: bool,
+    /// What a board's numbers are: `signed` values, `magnitude`s (signed by the model), or
+    /// `complex` (re, im) pairs, two numbers per measurement, imaged through --component.
+    #[arg(long, default_value = "signed", value_parser = ["signed", "magnitude", "complex"])]
+    values: String,
+    /// For complex values, the part imaged: real, imaginary, magnitude (signed by the model) or phase.
+    #[arg(long, default_value = "real")]
+    component: Component,
 }
 
 /// Runs `eitskin run`.
@@ -163,9 +171,21 @@ pub fn run(args: Args) -> Result<()> {
         ..PipelineParams::default()
     };
     let mut pipeline = Pipeline::new(chain, params);
+    let kind = match args.values.as_str() {
+        "magnitude" => ValueKind::Magnitude,
+        "complex" => ValueKind::Complex(args.component),
+        _ => ValueKind::Signed,
+    };
+    // The signed frame the pipeline takes, from what the board sends (allocated once).
+    let model = pipeline.chain().reconstructor().linearisation().background().to_vec();
+    let mut signed = vec![0.0; model.len()];
     let protocol = spec.protocol()?;
     let mut recorder = match &args.record {
-        Some(path) => Some(Recorder::create(path, &Header::now(protocol.len(), protocol.description()))?),
+        // As the board sent them: complex pairs are two numbers per measurement.
+        Some(path) => {
+            let numbers = protocol.len() * kind.per_measurement();
+            Some(Recorder::create(path, &Header::now(numbers, protocol.description()))?)
+        }
         None => None,
     };
     let metres = spec.length_unit.metres();
@@ -183,6 +203,7 @@ pub fn run(args: Args) -> Result<()> {
         frames: args.frames,
         codec: args.codec,
         seed: args.seed,
+        values_per_measurement: kind.per_measurement(),
     };
     let (items, acquisition) = start(Source::open(&args.source, &spec, &settings)?);
     eprintln!("eitskin run: reading {}", args.source);
@@ -212,7 +233,9 @@ pub fn run(args: Args) -> Result<()> {
             }
         }
         let printed = match item? {
-            Acquired::Frame { seq, t, values } => match pipeline.process(&values) {
+            Acquired::Frame { seq, t, values } => match signed_frame(kind, &values, &model, &mut signed)
+                .and_then(|frame| pipeline.process(frame))
+            {
                 Err(e) => {
                     if let eitskin::InverseError::TooManyBadChannels { .. } = e {
                         eprintln!("warning: frame {seq}: {e}");
@@ -269,6 +292,25 @@ pub fn run(args: Args) -> Result<()> {
         bail!("the acquisition thread panicked");
     }
     Ok(())
+}
+
+/// The signed frame of what a board sent (`kind`), in `signed` unless it already is one; a
+/// frame of the wrong length is refused.
+fn signed_frame<'a>(
+    kind: ValueKind,
+    values: &'a [f64],
+    model: &[f64],
+    signed: &'a mut [f64],
+) -> Result<&'a [f64], eitskin::InverseError> {
+    if kind == ValueKind::Signed {
+        return Ok(values);
+    }
+    let expected = signed.len() * kind.per_measurement();
+    if values.len() != expected {
+        return Err(eitskin::InverseError::FrameLength { expected, got: values.len() });
+    }
+    kind.signed_into(values, model, signed);
+    Ok(signed)
 }
 
 /// The event a frame's status calls for, also said on stderr: the reference taken (with λ and

@@ -110,12 +110,16 @@ pub struct Pipeline {
     noise_peak: f64,
     /// Channels the last frame dropped, 0-based (room for every channel, so no allocation).
     newly_dropped: Vec<usize>,
+    /// The channels the chain came with (a spec's mask left the others out): only these are
+    /// imaged, and only their losses count towards the limit.
+    configured: Vec<bool>,
 }
 
 impl Pipeline {
     /// A pipeline running `chain` that starts by taking its reference.
     pub fn new(chain: Chain, params: PipelineParams) -> Pipeline {
         let count = chain.reconstructor().measurements();
+        let configured = chain.reconstructor().channels().used_mask().to_vec();
         Pipeline {
             min_peak: chain.touch_params().min_peak,
             given_hyperparameter: chain.reconstructor().params().hyperparameter,
@@ -126,6 +130,7 @@ impl Pipeline {
             missing: vec![false; count],
             noise_peak: 0.0,
             newly_dropped: Vec::with_capacity(count),
+            configured,
         }
     }
 
@@ -224,7 +229,7 @@ impl Pipeline {
         let recon = self.chain.reconstructor();
         let mut used = recon.channels().used_mask().to_vec();
         self.newly_dropped.iter().for_each(|&m| used[m] = false);
-        too_many_dropped(&used, self.newly_dropped.len())?;
+        too_many_dropped(&used, &self.configured, self.newly_dropped.len())?;
         let derived = recon.derive(recon.params().hyperparameter, recon.channels().clone().masked(&used))?;
         self.chain.set_reconstructor(derived);
         Ok(())
@@ -234,8 +239,9 @@ impl Pipeline {
     fn collect(&mut self, frame: &[f64]) -> Result<Status, InverseError> {
         let needed = self.params.reference_frames.max(1);
         let used: Vec<bool> = self.missing.iter().zip(frame).map(|(missing, v)| !missing && v.is_finite()).collect();
-        let new = self.missing.iter().zip(frame).filter(|(missing, v)| !**missing && !v.is_finite()).count();
-        too_many_dropped(&used, new)?;
+        let lost = |m: usize| self.configured[m] && !self.missing[m] && !frame[m].is_finite();
+        let new = (0..frame.len()).filter(|&m| lost(m)).count();
+        too_many_dropped(&used, &self.configured, new)?;
         self.missing.iter_mut().zip(&used).for_each(|(missing, used)| *missing = !used);
         self.collected.push(frame.to_vec());
         if self.collected.len() < needed {
@@ -251,7 +257,7 @@ impl Pipeline {
     fn take_reference(&mut self) -> Result<(), InverseError> {
         self.reference = mean_of_finite(&self.collected);
         if let Some(recon) = self.reference_reconstructor()? {
-            too_many_dropped(recon.channels().used_mask(), 0)?;
+            too_many_dropped(recon.channels().used_mask(), &self.configured, 0)?;
             self.chain.set_reconstructor(recon);
         }
         self.noise_peak = 0.0;
@@ -277,9 +283,10 @@ impl Pipeline {
     fn reference_reconstructor(&self) -> Result<Option<Reconstructor>, InverseError> {
         let recon = self.chain.reconstructor();
         let normalized = recon.params().normalized;
-        let alive: Vec<bool> = self.reference.iter().map(|r| !normalized || *r != 0.0).collect();
+        // A reference of exactly zero is a dead channel (a board prints 0 for a broken contact).
+        let alive: Vec<bool> = self.reference.iter().map(|r| *r != 0.0).collect();
         let keep: Vec<bool> = self.missing.iter().map(|missing| !missing).collect();
-        let channels = Channels::all(self.reference.len()).masked(&keep).masked(&alive);
+        let channels = Channels::all(self.reference.len()).masked(&self.configured).masked(&keep).masked(&alive);
         if self.params.auto_hyperparameter {
             let variance = noise_variance(&self.collected, normalized);
             return Ok(Some(recon.with_auto_hyperparameter(channels, variance)?.0));
@@ -291,10 +298,11 @@ impl Pipeline {
     }
 }
 
-/// Refuses a set of used channels that drops more than a quarter of them (`new` for the first time).
-fn too_many_dropped(used: &[bool], new: usize) -> Result<(), InverseError> {
-    let bad: Vec<usize> = (0..used.len()).filter(|&m| !used[m]).map(|m| m + 1).collect();
-    if bad.len() * 4 <= used.len() {
+/// Refuses a set of used channels that drops more than a quarter of the `configured` ones
+/// (`new` of them for the first time).
+fn too_many_dropped(used: &[bool], configured: &[bool], new: usize) -> Result<(), InverseError> {
+    let bad: Vec<usize> = (0..used.len()).filter(|&m| configured[m] && !used[m]).map(|m| m + 1).collect();
+    if bad.len() * 4 <= configured.iter().filter(|c| **c).count() {
         return Ok(());
     }
     Err(InverseError::TooManyBadChannels {

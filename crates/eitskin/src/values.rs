@@ -12,6 +12,8 @@
 //! against the model from a reference of the homogeneous sensor and names the channels that
 //! disagree with the rest; [`Gains::apply`] divides them out.
 //!
+//! A stream sends one [`ValueKind`] per frame, turned into signed values without allocating.
+//!
 //! ```
 //! use eitskin::values::{signed_from_magnitudes, Component};
 //! let model = [2.0, -1.0, 0.5];
@@ -70,6 +72,51 @@ impl std::str::FromStr for Component {
             .into_iter()
             .find(|c| c.name() == text)
             .ok_or_else(|| format!("\"{text}\" is not a component: use real, imaginary, magnitude or phase"))
+    }
+}
+
+/// What a board sends per measurement, on a serial line or in a capture.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ValueKind {
+    /// Signed values, as the forward model gives them.
+    Signed,
+    /// Magnitudes |v|, signed by the model.
+    Magnitude,
+    /// Complex values as interleaved pairs (re₀, im₀, re₁, im₁, …), imaged through a component
+    /// (a magnitude signed by the model).
+    Complex(Component),
+}
+
+impl ValueKind {
+    /// Numbers per measurement in a frame: 2 for complex pairs, else 1.
+    pub fn per_measurement(self) -> usize {
+        if matches!(self, ValueKind::Complex(_)) {
+            2
+        } else {
+            1
+        }
+    }
+
+    /// The signed values of a frame `raw` of this kind into `out` (one per measurement), signs
+    /// from the model's values `model`; NaN stays NaN. Allocates nothing.
+    pub fn signed_into(self, raw: &[f64], model: &[f64], out: &mut [f64]) {
+        assert_eq!(raw.len(), out.len() * self.per_measurement(), "numbers per frame");
+        assert_eq!(model.len(), out.len(), "one model value per measurement");
+        let signed = |v: f64, m: f64| v.abs() * m.signum();
+        match self {
+            ValueKind::Signed => out.copy_from_slice(raw),
+            ValueKind::Magnitude => {
+                for ((o, v), m) in out.iter_mut().zip(raw).zip(model) {
+                    *o = signed(*v, *m);
+                }
+            }
+            ValueKind::Complex(component) => {
+                for ((o, pair), m) in out.iter_mut().zip(raw.chunks_exact(2)).zip(model) {
+                    let value = component.of(pair[0], pair[1]);
+                    *o = if component == Component::Magnitude { signed(value, *m) } else { value };
+                }
+            }
+        }
     }
 }
 
@@ -211,6 +258,21 @@ mod tests {
         let corrected = gains.apply(&reference);
         assert!(corrected[5].is_nan() && corrected[9].is_nan());
         assert!((corrected[0] - model[0]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn each_value_kind_gives_the_signed_values() {
+        let model = [2.0, -1.0];
+        let mut out = [0.0; 2];
+        ValueKind::Signed.signed_into(&[2.1, -0.9], &model, &mut out);
+        assert_eq!(out, [2.1, -0.9]);
+        ValueKind::Magnitude.signed_into(&[2.1, 0.9], &model, &mut out);
+        assert_eq!(out, [2.1, -0.9]);
+        ValueKind::Complex(Component::Magnitude).signed_into(&[3.0, 4.0, 0.6, 0.8], &model, &mut out);
+        assert_eq!(out, [5.0, -1.0]);
+        ValueKind::Complex(Component::Imaginary).signed_into(&[3.0, 4.0, 0.6, -0.8], &model, &mut out);
+        assert_eq!(out, [4.0, -0.8]);
+        assert_eq!(ValueKind::Complex(Component::Real).per_measurement(), 2);
     }
 
     #[test]

@@ -28,6 +28,13 @@ pub enum SourceError {
         /// The text as written.
         spec: String,
     },
+    /// Numbers per measurement other than 1 (signed or magnitudes) or 2 (complex pairs), or
+    /// complex pairs asked of the virtual sensor, which sends signed values.
+    #[error("{per} numbers per measurement: a board sends 1 (signed values or magnitudes) or 2 (complex re, im pairs); the virtual sensor sends 1")]
+    ValuesPerMeasurement {
+        /// The number asked for.
+        per: usize,
+    },
     /// `file:` without a path.
     #[error("{spec:?} names no file; write `file:PATH`, e.g. `file:run.jsonl` or `file:frames.csv`")]
     NoFile {

@@ -185,12 +185,23 @@ pub struct SourceSettings {
     pub codec: Codec,
     /// The seed of the virtual sensor's noise and random presses.
     pub seed: u64,
+    /// Numbers a board sends per measurement: 1, or 2 for complex (re, im) pairs; a frame from
+    /// a port or a capture holds this many times the protocol's length. The virtual sensor
+    /// sends signed values and takes 1 only.
+    pub values_per_measurement: usize,
 }
 
 impl Default for SourceSettings {
     /// 20 frames/s in real time, no limit, the lines codec, seed 1.
     fn default() -> SourceSettings {
-        SourceSettings { rate: 20.0, speed: Speed::Recorded, frames: None, codec: Codec::Lines, seed: 1 }
+        SourceSettings {
+            rate: 20.0,
+            speed: Speed::Recorded,
+            frames: None,
+            codec: Codec::Lines,
+            seed: 1,
+            values_per_measurement: 1,
+        }
     }
 }
 
@@ -224,11 +235,18 @@ impl Source {
     /// Opens the source `spec` names, for `sensor`'s frames (its protocol's length, its length unit
     /// for a press script), as `settings` say; an error if it cannot be opened now.
     pub fn open(spec: &SourceSpec, sensor: &SensorSpec, settings: &SourceSettings) -> Result<Source, SourceError> {
-        let measurements = sensor.protocol()?.len();
+        let per = settings.values_per_measurement;
+        if !(1..=2).contains(&per) {
+            return Err(SourceError::ValuesPerMeasurement { per });
+        }
+        let measurements = sensor.protocol()?.len() * per;
         let inner: Box<dyn FrameSource> = match spec {
             SourceSpec::Sim { script } => {
                 if !(settings.rate > 0.0 && settings.rate.is_finite()) {
                     return Err(SourceError::Rate { rate: settings.rate });
+                }
+                if per != 1 {
+                    return Err(SourceError::ValuesPerMeasurement { per });
                 }
                 let script = match script {
                     Some(path) => read_script(path, sensor.length_unit.metres())?,
