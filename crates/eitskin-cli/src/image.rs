@@ -228,9 +228,13 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
     let v_ref = mean_frame(&references);
     let variance = noise_variance(&references, input.normalised);
     // A channel missing (NaN) in the reference or the frame is dropped, not refused; so is one
-    // whose reference is zero (a dead channel) when differences are normalised by it.
-    let alive: Vec<bool> = v_ref.iter().map(|r| !input.normalised || *r != 0.0).collect();
-    let channels = Channels::finite_in(&v_ref).masked(Channels::finite_in(&v).used_mask()).masked(&alive);
+    // whose reference is exactly zero: a dead channel (a board prints 0 for a broken contact),
+    // which would tell the image that nothing changed there.
+    let alive: Vec<bool> = v_ref.iter().map(|r| *r != 0.0).collect();
+    let channels = Channels::finite_in(&v_ref)
+        .masked(Channels::finite_in(&v).used_mask())
+        .masked(&alive)
+        .masked(&spec.used_channels()?);
     let recon = match input.hyperparameter {
         Hyperparameter::Auto => recon.with_auto_hyperparameter(channels, variance)?.0,
         Hyperparameter::Fixed(value) => recon.derive(value, channels)?,

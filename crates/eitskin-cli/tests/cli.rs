@@ -203,14 +203,17 @@ fn image_finds_a_more_conductive_object_with_either_polarity() {
     assert!(decrease["touches"].as_array().unwrap().iter().all(|t| t["sign"] == "decrease"), "{decrease}");
 }
 
-/// A board that sends magnitudes, with a channel missing: the signs come from the model, the
-/// missing channel is dropped and named, and the raster and element values are written as data.
+/// A board that sends magnitudes in the OpenEIT firmware's 192-value opposite order, with a
+/// channel missing, one dead and one masked in the spec: the signs come from the model, the
+/// three channels are dropped and named, and the raster and element values are written as data.
 #[test]
 fn image_signs_magnitudes_drops_a_missing_channel_and_writes_data() {
     let dir = scratch("image-magnitudes");
     let spec = dir.join("opposite.toml");
     let text = String::from_utf8(dir.eitskin(&["spec"]).stdout).unwrap();
-    std::fs::write(&spec, text.replace("kind = \"two-terminal\"", "kind = \"opposite\"")).unwrap();
+    // Channel 7 is a known fault of the board, dropped in the spec.
+    let text = text.replace("kind = \"two-terminal\"", "kind = \"opposite\"\ndrop_channels = [7]");
+    std::fs::write(&spec, text).unwrap();
     let spec = spec.to_str().unwrap();
     let values = |extra: &[&str]| {
         let out = dir.eitskin(&[&["forward", spec, "--triangles", "3000"], extra].concat());
@@ -219,11 +222,16 @@ fn image_signs_magnitudes_drops_a_missing_channel_and_writes_data() {
     };
     let reference = values(&[]);
     assert!(reference.iter().any(|v| *v < 0.0), "opposite-drive measurements have both signs");
+    // Channel 11 is dead (the board prints 0 in every frame); channel 5 is missing in the frame.
     let magnitudes = |v: &[f64], missing: Option<usize>| {
         let text: Vec<String> = v
             .iter()
             .enumerate()
-            .map(|(m, x)| if Some(m) == missing { "NaN".into() } else { x.abs().to_string() })
+            .map(|(m, x)| match m {
+                10 => "0".into(),
+                _ if Some(m) == missing => "NaN".into(),
+                _ => x.abs().to_string(),
+            })
             .collect();
         text.join(" ")
     };
@@ -251,10 +259,10 @@ fn image_signs_magnitudes_drops_a_missing_channel_and_writes_data() {
         "--json",
     ]);
     let json = stdout_json(&out);
-    assert_eq!(json["channels_dropped"], serde_json::json!([5]), "{json}");
+    assert_eq!(json["channels_dropped"], serde_json::json!([5, 7, 11]), "{json}");
     // The simulated board follows the model (a finer mesh, gain 1, no background change).
     assert!(json["pattern_fit"].as_f64().unwrap() > 0.99, "{json}");
-    assert_eq!(json["gains"]["outliers"], serde_json::json!([]), "{json}");
+    assert_eq!(json["gains"]["outliers"], serde_json::json!([11]), "{json}");
     assert!((json["gains"]["median"].as_f64().unwrap() - 1.0).abs() < 0.02, "{json}");
     assert!(json["background_change"]["relative"].as_f64().unwrap().abs() < 0.01, "{json}");
     let touches = json["touches"].as_array().unwrap();

@@ -14,30 +14,6 @@ fn readme_spec() -> String {
     readme[start..end].to_string()
 }
 
-/// A MAT v5 file (uncompressed, little-endian) holding real double matrices.
-fn mat5(variables: &[(&str, usize, usize, &[f64])]) -> Vec<u8> {
-    let mut bytes = format!("{:<116}", "MATLAB 5.0 MAT-file, written by eitskin's tests").into_bytes();
-    bytes.extend([0; 8]);
-    bytes.extend(0x0100u16.to_le_bytes());
-    bytes.extend(b"IM");
-    let element = |out: &mut Vec<u8>, kind: u32, data: &[u8]| {
-        out.extend(kind.to_le_bytes());
-        out.extend((data.len() as u32).to_le_bytes());
-        out.extend(data);
-        out.resize(out.len().div_ceil(8) * 8, 0);
-    };
-    for (name, rows, columns, values) in variables {
-        assert_eq!(rows * columns, values.len());
-        let mut matrix = Vec::new();
-        element(&mut matrix, 6, &[6u32.to_le_bytes(), 0u32.to_le_bytes()].concat()); // flags: double
-        element(&mut matrix, 5, &[(*rows as i32).to_le_bytes(), (*columns as i32).to_le_bytes()].concat());
-        element(&mut matrix, 1, name.as_bytes());
-        element(&mut matrix, 9, &values.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>());
-        element(&mut bytes, 14, &matrix);
-    }
-    bytes
-}
-
 #[test]
 fn a_tank_mat_file_gives_touches_and_labels_with_the_readmes_commands() {
     let dir = scratch("own-data");
@@ -56,7 +32,7 @@ fn a_tank_mat_file_gives_touches_and_labels_with_the_readmes_commands() {
     let vh: Vec<f64> = [0.998, 1.002].iter().flat_map(|k| homogeneous.iter().map(move |v| v * k)).collect();
     let vi: Vec<f64> = (0..3).flat_map(|_| object.iter().copied()).collect();
     let mat = dir.join("tank.mat");
-    std::fs::write(&mat, mat5(&[("vh", 208, 2, &vh), ("vi", 208, 3, &vi)])).unwrap();
+    std::fs::write(&mat, eitskin_testdata::mat5(&[("vh", 208, 2, &vh), ("vi", 208, 3, &vi)])).unwrap();
     let mat = mat.to_str().unwrap();
     let input = ["--reference", mat, "--reference-select", "vh", "--frame", mat, "--select", "vi"];
     let input = [&input[..], &["--frame-index", "3", "--polarity", "both"]].concat();

@@ -9,13 +9,18 @@
 //! EIDORS' exported files, which this reads as they are). Instead of `quads`, a file may give
 //! `stimulations` (current per electrode, A) and `measurements` (`{"stimulation": k, "weights": […]}`
 //! with k counted from `index_base`). Other keys are ignored, so files of other tools load.
+//!
+//! Published data sets give the patterns as two matrices instead, in a MAT file
+//! ([`read_protocol_matrices`]): the currents of each stimulation (electrodes × stimulations,
+//! e.g. `Inj`) and the weights of each measurement pattern (electrodes × patterns, e.g. `Mpat`),
+//! every stimulation measured with every pattern, stimulation by stimulation (EIDORS' order).
 
 use std::path::Path;
 
 use eitskin::{Measurement, Protocol};
 use serde::Deserialize;
 
-use crate::Error;
+use crate::{Error, FrameLayout, FrameSelect};
 
 #[derive(Debug, Deserialize)]
 struct ProtocolJson {
@@ -48,6 +53,47 @@ pub fn read_protocol(path: &Path) -> Result<Protocol, Error> {
     let text = crate::read_text(path)?;
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     parse_protocol(&text, &name).map_err(|e| e.in_file(path))
+}
+
+/// A protocol from two matrices of a MAT file: `stimulation` (the current of each electrode in
+/// each stimulation, one column per stimulation) and `measurement` (the weights of each
+/// electrode in each measurement pattern, one column per pattern), for `electrodes`
+/// electrodes; a matrix given the other way round (one row per pattern) is read as such. The
+/// measurements are every pattern for stimulation 1, then every pattern for stimulation 2, …
+pub fn read_protocol_matrices(
+    path: &Path,
+    stimulation: &str,
+    measurement: &str,
+    electrodes: usize,
+) -> Result<Protocol, Error> {
+    let patterns = |variable: &str| -> Result<Vec<Vec<f64>>, Error> {
+        let mut shape = None;
+        for layout in [FrameLayout::Columns, FrameLayout::Rows] {
+            let table = crate::read_frames(path, &FrameSelect { variable: Some(variable.to_string()), layout })?;
+            let columns = table.frames.first().map_or(0, Vec::len);
+            if table.imaginary.is_none() && columns == electrodes {
+                return Ok(table.frames);
+            }
+            shape.get_or_insert((columns, table.frames.len(), table.imaginary.is_some()));
+        }
+        let (rows, columns, complex) = shape.unwrap_or_default();
+        let what = if complex { "complex" } else { "real" };
+        Err(Error::Key {
+            path: Some(path.to_path_buf()),
+            key: "protocol",
+            reason: format!(
+                "`{variable}` is a {what} {rows} × {columns} matrix; a pattern matrix must be real with one side of {electrodes} (the spec's electrodes)"
+            ),
+        })
+    };
+    let stimulations = patterns(stimulation)?;
+    let weights = patterns(measurement)?;
+    let measurements = (0..stimulations.len())
+        .flat_map(|s| weights.iter().map(move |w| Measurement { stimulation: s, weights: w.clone() }))
+        .collect();
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let description = format!("{stimulation} × {measurement} from {name}");
+    Protocol::new(description, electrodes, stimulations, measurements).map_err(|e| Error::from(e).in_file(path))
 }
 
 /// Parses protocol JSON; `name` describes it when the file has no `description`.

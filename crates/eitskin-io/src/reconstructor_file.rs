@@ -32,7 +32,9 @@ pub fn cache_key(spec: &SensorSpec) -> Result<[u8; 32], Error> {
 pub(crate) fn key_of(spec: &SensorSpec, extra: &str) -> Result<[u8; 32], Error> {
     let mut hash = Sha256::new();
     hash.update(env!("CARGO_PKG_VERSION"));
-    hash.update(crate::spec_to_toml(spec));
+    // The mask only selects channels of the linearisation: one cache file serves every mask.
+    let unmasked = SensorSpec { mask: eitskin::ChannelMask::default(), ..spec.clone() };
+    hash.update(crate::spec_to_toml(&unmasked));
     // Custom protocols are not in the TOML: hash the patterns themselves.
     hash.update(format!("{:?}", spec.protocol()?));
     hash.update(format!("{:?} {extra}", spec.mesh));
@@ -188,6 +190,9 @@ mod tests {
         assert!(hit, "the second start must come from the cache, whatever λ it asks for");
         assert_eq!(loaded.derive(0.1, loaded.channels().clone()).unwrap(), built);
 
+        let masked =
+            SensorSpec { mask: eitskin::ChannelMask { channels: vec![3], electrodes: vec![] }, ..spec.clone() };
+        assert_eq!(cache_key(&masked).unwrap(), cache_key(&spec).unwrap(), "a mask needs no other linearisation");
         spec.electrodes.contact_impedance *= 2.0;
         assert_ne!(cache_key(&spec).unwrap(), cache_key(&SensorSpec::square_hydrogel()).unwrap());
 

@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use eitskin::spec::Numbering;
-use eitskin::{ElectrodeSpec, LengthUnit, MeshParams, Outline, Placement, ProtocolSpec, SensorSpec};
+use eitskin::{ChannelMask, ElectrodeSpec, LengthUnit, MeshParams, Outline, Placement, ProtocolSpec, SensorSpec};
 use serde::{Deserialize, Serialize};
 
 use crate::{protocol_file, Error};
@@ -61,11 +61,30 @@ struct ProtocolFile {
     kind: String,
     #[serde(skip_serializing_if = "Option::is_none")]
     file: Option<String>,
+    /// The MAT variable with the stimulations' currents, when `file` is a MAT file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stimulation: Option<String>,
+    /// The MAT variable with the measurement patterns' weights, when `file` is a MAT file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    measurement: Option<String>,
+    /// Measurements left out of every image, 1-based.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    drop_channels: Vec<usize>,
+    /// Broken electrodes, 1-based: every measurement that drives or reads one is left out.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    drop_electrodes: Vec<usize>,
 }
 
 impl Default for ProtocolFile {
     fn default() -> Self {
-        ProtocolFile { kind: "two-terminal".into(), file: None }
+        ProtocolFile {
+            kind: "two-terminal".into(),
+            file: None,
+            stimulation: None,
+            measurement: None,
+            drop_channels: Vec::new(),
+            drop_electrodes: Vec::new(),
+        }
     }
 }
 
@@ -156,7 +175,12 @@ pub fn spec_to_toml(spec: &SensorSpec) -> String {
             start_angle_deg,
             positions,
         },
-        protocol: ProtocolFile { kind: protocol_kind(&spec.protocol), file: None },
+        protocol: ProtocolFile {
+            kind: protocol_kind(&spec.protocol),
+            drop_channels: spec.mask.channels.iter().map(|c| c + 1).collect(),
+            drop_electrodes: spec.mask.electrodes.iter().map(|e| e + 1).collect(),
+            ..ProtocolFile::default()
+        },
         mesh: MeshFile {
             triangles: spec.mesh.triangles,
             max_element_size: spec.mesh.max_element_size.map(|h| h * k),
@@ -251,10 +275,40 @@ impl SpecFile {
                 ))
             }
         };
+        let from_one = |key: &'static str, list: &[usize]| -> Result<Vec<usize>, Error> {
+            list.iter()
+                .map(|&n| n.checked_sub(1).ok_or_else(|| key_error(key, "counts from 1, got 0".into())))
+                .collect()
+        };
+        let mask = ChannelMask {
+            channels: from_one("protocol.drop_channels", &self.protocol.drop_channels)?,
+            electrodes: from_one("protocol.drop_electrodes", &self.protocol.drop_electrodes)?,
+        };
+        let matrices = match (self.protocol.stimulation, self.protocol.measurement) {
+            (Some(stimulation), Some(measurement)) => Some((stimulation, measurement)),
+            (None, None) => None,
+            (Some(_), None) => {
+                return Err(key_error("protocol.measurement", "is required with protocol.stimulation".into()))
+            }
+            (None, Some(_)) => {
+                return Err(key_error("protocol.stimulation", "is required with protocol.measurement".into()))
+            }
+        };
         let protocol = match (self.protocol.kind.as_str(), self.protocol.file) {
-            ("custom", Some(file)) => ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(file))?),
+            ("custom", Some(file)) => match &matrices {
+                Some((stimulation, measurement)) => ProtocolSpec::Custom(protocol_file::read_protocol_matrices(
+                    &base.join(file),
+                    stimulation,
+                    measurement,
+                    e.count,
+                )?),
+                None => ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(file))?),
+            },
             ("custom", None) => return Err(key_error("protocol.file", "is required for kind = \"custom\"".into())),
             (_, Some(_)) => return Err(key_error("protocol.file", "applies only to kind = \"custom\"".into())),
+            (_, None) if matrices.is_some() => {
+                return Err(key_error("protocol.stimulation", "applies only to kind = \"custom\" with a file".into()))
+            }
             (name, None) => match ProtocolSpec::from_name(name) {
                 Some(builtin) => builtin,
                 None => {
@@ -279,6 +333,7 @@ impl SpecFile {
                 point,
             },
             protocol,
+            mask,
             mesh: MeshParams {
                 triangles: self.mesh.triangles,
                 max_element_size: self.mesh.max_element_size.map(|h| h * k),
@@ -328,18 +383,26 @@ numbering = "clockwise"
 start_angle_deg = 180.0
 [protocol]
 kind = "skip-2"
+drop_channels = [5, 200]
+drop_electrodes = [3]
 "#;
         let spec = parse_spec(text, Path::new(".")).unwrap();
+        assert_eq!(spec.mask, ChannelMask { channels: vec![4, 199], electrodes: vec![2] });
         assert_eq!(spec.electrodes.numbering, Numbering::Clockwise);
         assert_eq!(spec.electrodes.placement, Placement::Equal { start_angle_deg: 180.0 });
         assert_eq!(spec.protocol, ProtocolSpec::Skip { skip: 2, skip_driven: true });
         let printed = spec_to_toml(&spec);
-        for line in ["numbering = \"clockwise\"", "start_angle_deg = 180.0", "kind = \"skip-2\""] {
+        let lines =
+            ["numbering = \"clockwise\"", "start_angle_deg = 180.0", "kind = \"skip-2\"", "drop_channels = [5, 200]"];
+        for line in lines {
             assert!(printed.contains(line), "{line} not in {printed}");
         }
         let back = parse_spec(&printed, Path::new(".")).unwrap();
         assert_eq!(back.electrodes, spec.electrodes);
-        assert_eq!(back.protocol, spec.protocol);
+        assert_eq!((back.protocol, back.mask), (spec.protocol, spec.mask));
+        let zero = text.replace("drop_electrodes = [3]", "drop_electrodes = [0]");
+        let err = parse_spec(&zero, Path::new(".")).unwrap_err();
+        assert_eq!(err.to_string(), "`protocol.drop_electrodes` counts from 1, got 0");
         let all = parse_spec(&text.replace("skip-2", "skip-2-all"), Path::new(".")).unwrap();
         assert_eq!(all.protocol().unwrap().len(), 256);
     }

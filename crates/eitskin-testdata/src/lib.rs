@@ -6,6 +6,8 @@
 //! for them, saying that it did not run: a reference comparison that did not run must never look
 //! like one that passed.
 //!
+//! It also writes test input in the field's file formats ([`mat5`]), so tests need no MATLAB.
+//!
 //! A dev-dependency only (`publish = false`), with nothing beyond `std`; parsing what it reads is
 //! the caller's business. Not for library or binary code.
 #![deny(missing_docs)]
@@ -46,6 +48,35 @@ pub fn max_relative_error(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len(), "lengths differ");
     let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+}
+
+/// The bytes of a MAT v5 file (uncompressed, little-endian, as MATLAB's `-v6` writes) holding
+/// real double matrices, each `(name, rows, columns, values in column-major order)`: test
+/// input in the format published EIT data come in, without MATLAB.
+pub fn mat5(variables: &[(&str, usize, usize, &[f64])]) -> Vec<u8> {
+    let mut bytes = format!("{:<116}", "MATLAB 5.0 MAT-file, written by eitskin's tests").into_bytes();
+    bytes.extend([0; 8]);
+    bytes.extend(0x0100u16.to_le_bytes());
+    bytes.extend(b"IM");
+    // A data element: type, byte count, the bytes, padded to 8 bytes.
+    let element = |out: &mut Vec<u8>, kind: u32, data: &[u8]| {
+        let count = u32::try_from(data.len()).expect("a test matrix under 4 GiB");
+        out.extend(kind.to_le_bytes());
+        out.extend(count.to_le_bytes());
+        out.extend(data);
+        out.resize(out.len().div_ceil(8) * 8, 0);
+    };
+    let int32 = |n: usize| i32::try_from(n).expect("a test dimension under 2³¹").to_le_bytes();
+    for (name, rows, columns, values) in variables {
+        assert_eq!(rows * columns, values.len(), "{name}: rows × columns values");
+        let mut matrix = Vec::new();
+        element(&mut matrix, 6, &[6u32.to_le_bytes(), 0u32.to_le_bytes()].concat()); // miUINT32 flags: mxDOUBLE_CLASS
+        element(&mut matrix, 5, &[int32(*rows), int32(*columns)].concat()); // miINT32 dimensions
+        element(&mut matrix, 1, name.as_bytes()); // miINT8 name
+        element(&mut matrix, 9, &values.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>()); // miDOUBLE
+        element(&mut bytes, 14, &matrix); // miMATRIX
+    }
+    bytes
 }
 
 #[cfg(test)]

@@ -65,5 +65,5 @@ pub use image::Image;
 pub use inverse::{InverseError, Prior, Reconstructor, ReconstructorParams};
 pub use mesh::{Mesh, MeshError, MeshParams, PointLocator, RasterMap};
 pub use protocol::{Measurement, Protocol, ProtocolError};
-pub use spec::{ElectrodeSpec, LengthUnit, Placement, ProtocolSpec, SensorSpec, SpecError};
+pub use spec::{ChannelMask, ElectrodeSpec, LengthUnit, Placement, ProtocolSpec, SensorSpec, SpecError};
 pub use touch::{Touch, TouchParams};

@@ -114,6 +114,22 @@ pub enum SpecError {
         /// The angle given, in degrees.
         angle_deg: f64,
     },
+    /// A dropped channel or electrode that the protocol does not have.
+    #[error("`{key}` names {value}, but they are numbered 1 to {count}")]
+    MaskOutOfRange {
+        /// `protocol.drop_channels` or `protocol.drop_electrodes`.
+        key: &'static str,
+        /// The 1-based number given.
+        value: usize,
+        /// How many there are.
+        count: usize,
+    },
+    /// The dropped channels and electrodes leave no measurement.
+    #[error("`protocol.drop_channels` and `protocol.drop_electrodes` leave none of the {measurements} measurements")]
+    MaskDropsAll {
+        /// Measurements of the protocol.
+        measurements: usize,
+    },
     /// The protocol could not be built.
     #[error("`protocol` does not make a protocol")]
     Protocol(#[from] ProtocolError),
@@ -294,6 +310,17 @@ impl ProtocolSpec {
     }
 }
 
+/// Channels left out of every image, as a board's known faults: measurements by number, and
+/// every measurement whose stimulation drives, or whose pattern reads, a broken electrode
+/// (0-based here; 1-based in the spec file).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ChannelMask {
+    /// Dropped measurements, 0-based, in protocol order.
+    pub channels: Vec<usize>,
+    /// Broken electrodes, 0-based.
+    pub electrodes: Vec<usize>,
+}
+
 /// A sensor: outline, thickness, background conductivity, electrodes, protocol, mesh density.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SensorSpec {
@@ -309,6 +336,8 @@ pub struct SensorSpec {
     pub electrodes: ElectrodeSpec,
     /// The stimulation and measurement protocol.
     pub protocol: ProtocolSpec,
+    /// Channels the board never measures well, left out of every image.
+    pub mask: ChannelMask,
     /// How finely to mesh.
     pub mesh: MeshParams,
 }
@@ -337,15 +366,41 @@ impl SensorSpec {
                 point: false,
             },
             protocol: ProtocolSpec::TwoTerminal,
+            mask: ChannelMask::default(),
             mesh: MeshParams::default(),
         }
     }
 
-    /// Checks every value, the protocol included; the error names the spec key at fault.
+    /// Checks every value, the protocol and its mask included; the error names the spec key at fault.
     pub fn validate(&self) -> Result<(), SpecError> {
         self.electrode_positions()?;
-        self.protocol()?;
+        self.used_channels()?;
         Ok(())
+    }
+
+    /// Which measurements of the protocol are used (true) after [`SensorSpec::mask`]: a
+    /// dropped channel, or one whose stimulation drives or whose pattern reads a dropped electrode.
+    pub fn used_channels(&self) -> Result<Vec<bool>, SpecError> {
+        let protocol = self.protocol()?;
+        let (count, electrodes) = (protocol.measurements().len(), protocol.electrode_count());
+        let check = |key, list: &[usize], count| match list.iter().find(|&&i| i >= count) {
+            Some(&i) => Err(SpecError::MaskOutOfRange { key, value: i + 1, count }),
+            None => Ok(()),
+        };
+        check("protocol.drop_channels", &self.mask.channels, count)?;
+        check("protocol.drop_electrodes", &self.mask.electrodes, electrodes)?;
+        let touches =
+            |m: &crate::Measurement, e: usize| protocol.stimulations()[m.stimulation][e] != 0.0 || m.weights[e] != 0.0;
+        let used: Vec<bool> = protocol
+            .measurements()
+            .iter()
+            .enumerate()
+            .map(|(i, m)| !self.mask.channels.contains(&i) && !self.mask.electrodes.iter().any(|&e| touches(m, e)))
+            .collect();
+        if !used.contains(&true) {
+            return Err(SpecError::MaskDropsAll { measurements: count });
+        }
+        Ok(used)
     }
 
     /// The electrodes as arc-length intervals of the boundary, after checking the whole spec.
@@ -661,6 +716,21 @@ mod tests {
         for bad in ["skip-", "skip--1", "skip-+2", "skip-2-al", "skip-x", "adjacent-skip", "custom", ""] {
             assert_eq!(ProtocolSpec::from_name(bad), None, "{bad}");
         }
+    }
+
+    #[test]
+    fn a_mask_drops_channels_and_every_measurement_of_a_broken_electrode() {
+        let mut spec = SensorSpec::square_hydrogel(); // two-terminal: 120 pairs, (1,2) … (15,16)
+        spec.mask = ChannelMask { channels: vec![0, 119], electrodes: vec![0] };
+        let used = spec.used_channels().unwrap();
+        // Electrode 1 is in 15 pairs, channel 1 among them; channel 120 is (15, 16).
+        assert_eq!(used.iter().filter(|u| !**u).count(), 16);
+        assert!(!used[0] && !used[14] && used[15] && !used[119]);
+        spec.mask = ChannelMask { channels: vec![120], electrodes: vec![] };
+        let err = spec.validate().unwrap_err();
+        assert_eq!(err.to_string(), "`protocol.drop_channels` names 121, but they are numbered 1 to 120");
+        spec.mask = ChannelMask { channels: vec![], electrodes: (0..15).collect() };
+        assert!(matches!(spec.validate(), Err(SpecError::MaskDropsAll { measurements: 120 })));
     }
 
     #[test]
