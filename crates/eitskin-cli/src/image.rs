@@ -69,6 +69,10 @@ pub struct Input {
     /// Mesh with about this many triangles instead of the spec's count.
     #[arg(long)]
     triangles: Option<usize>,
+    /// The raster's pixels across and down, `NX` (square) or `NXxNY`, each in [4, 1024], over
+    /// the mesh's bounding box.
+    #[arg(long, default_value = "64", value_parser = parse_raster)]
+    raster: [usize; 2],
     /// Always rebuild the reconstructor instead of loading it from the cache
     /// ($XDG_CACHE_HOME/eitskin or ~/.cache/eitskin, or $EITSKIN_CACHE).
     #[arg(long)]
@@ -195,6 +199,7 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
         hyperparameter: fixed,
         normalized: input.normalised,
         background_change: input.background_change,
+        raster: input.raster,
         ..ReconstructorParams::default()
     };
     let recon = load::reconstructor(&spec, &params, !input.no_cache)?;
@@ -330,10 +335,35 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
+/// `NX` or `NXxNY` as pixels across and down, each in [4, 1024].
+fn parse_raster(text: &str) -> Result<[usize; 2], String> {
+    let refuse = || {
+        format!("\"{text}\" is not a raster size: write NX or NXxNY, each from 4 to 1024 pixels, e.g. 128 or 160x120")
+    };
+    let (nx, ny) = text.split_once(['x', 'X', '×']).unwrap_or((text, text));
+    let side = |s: &str| s.trim().parse::<usize>().ok().filter(|n| (4..=1024).contains(n));
+    Ok([side(nx).ok_or_else(refuse)?, side(ny).ok_or_else(refuse)?])
+}
+
 /// The frames of a table as signed values: real data as they are, complex data's `component`.
 fn frames(table: &FrameTable, component: Component) -> Vec<Vec<f64>> {
     match &table.imaginary {
         None => table.frames.clone(),
         Some(imaginary) => table.frames.iter().zip(imaginary).map(|(re, im)| component.of_frame(re, im)).collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn raster_sizes_are_read_and_checked() {
+        assert_eq!(parse_raster("128"), Ok([128, 128]));
+        assert_eq!(parse_raster("160x120"), Ok([160, 120]));
+        for bad in ["3", "2000", "0x64", "64x", "big", "-64"] {
+            let err = parse_raster(bad).unwrap_err();
+            assert!(err.starts_with(&format!("\"{bad}\" is not a raster size")), "{err}");
+        }
     }
 }

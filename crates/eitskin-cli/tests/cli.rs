@@ -256,6 +256,8 @@ fn image_signs_magnitudes_drops_a_missing_channel_and_writes_data() {
         elements.to_str().unwrap(),
         "--gains",
         "--background-change",
+        "--raster",
+        "80x40",
         "--json",
     ]);
     let json = stdout_json(&out);
@@ -269,7 +271,10 @@ fn image_signs_magnitudes_drops_a_missing_channel_and_writes_data() {
     assert!(!touches.is_empty(), "{json}");
     let (x, y) = (touches[0]["x"].as_f64().unwrap(), touches[0]["y"].as_f64().unwrap());
     assert!((x - 40.0).hypot(y + 30.0) < 20.0, "touch at ({x}, {y}) mm, press at (40, -30)");
-    assert_eq!(&std::fs::read(npy).unwrap()[..6], b"\x93NUMPY");
+    let npy = std::fs::read(npy).unwrap();
+    assert_eq!(&npy[..6], b"\x93NUMPY");
+    let header = String::from_utf8_lossy(&npy[..128]);
+    assert!(header.contains("'shape': (40, 80,"), "the raster asked for: {header}");
     let rows = std::fs::read_to_string(elements).unwrap().lines().count();
     assert!(rows > 1000, "{rows} element rows");
 }
