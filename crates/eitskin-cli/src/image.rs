@@ -38,8 +38,10 @@ pub struct Input {
     /// Frames as `rows` or `columns` of the array; `auto`: columns in MAT files, rows otherwise.
     #[arg(long, default_value = "auto", value_parser = ["auto", "rows", "columns"])]
     layout: String,
-    /// What the numbers are: `signed` voltages, or `magnitude`s signed by the model.
-    #[arg(long, default_value = "signed", value_parser = ["signed", "magnitude"])]
+    /// What the numbers are: `signed` voltages, `magnitude`s signed by the model, or `complex`
+    /// (re, im) pairs, two numbers per measurement (complex MAT and NPY arrays are read as such
+    /// whatever this says), imaged through --component.
+    #[arg(long, default_value = "signed", value_parser = ["signed", "magnitude", "complex"])]
     values: String,
     /// For complex data, the part imaged: real, imaginary, magnitude (signed by the model) or phase.
     #[arg(long, default_value = "real")]
@@ -185,8 +187,11 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
     };
     let select = FrameSelect { variable: input.select.clone(), layout };
     let reference_select = FrameSelect { variable: input.reference_select.clone().or(input.select.clone()), layout };
-    let references = frames(&eitskin_io::read_frames(&input.reference, &reference_select)?, input.component);
-    let table = frames(&eitskin_io::read_frames(&input.frame, &select)?, input.component);
+    let pairs = input.values == "complex";
+    let references = frames(&eitskin_io::read_frames(&input.reference, &reference_select)?, input.component, pairs)
+        .with_context(|| format!("reading {}", input.reference.display()))?;
+    let table = frames(&eitskin_io::read_frames(&input.frame, &select)?, input.component, pairs)
+        .with_context(|| format!("reading {}", input.frame.display()))?;
     let index = usize::try_from(input.frame_index - 1).unwrap_or(usize::MAX);
     let Some(v) = table.get(index).cloned() else {
         anyhow::bail!("--frame-index {}: {} holds {} frame(s)", input.frame_index, input.frame.display(), table.len());
@@ -345,11 +350,23 @@ fn parse_raster(text: &str) -> Result<[usize; 2], String> {
     Ok([side(nx).ok_or_else(refuse)?, side(ny).ok_or_else(refuse)?])
 }
 
-/// The frames of a table as signed values: real data as they are, complex data's `component`.
-fn frames(table: &FrameTable, component: Component) -> Vec<Vec<f64>> {
+/// The frames of a table as values to image: real data as they are, complex data's
+/// `component`, and with `pairs` real frames of interleaved (re, im) pairs through `component`.
+fn frames(table: &FrameTable, component: Component, pairs: bool) -> Result<Vec<Vec<f64>>> {
     match &table.imaginary {
-        None => table.frames.clone(),
-        Some(imaginary) => table.frames.iter().zip(imaginary).map(|(re, im)| component.of_frame(re, im)).collect(),
+        Some(imaginary) => Ok(table.frames.iter().zip(imaginary).map(|(re, im)| component.of_frame(re, im)).collect()),
+        None if pairs => table
+            .frames
+            .iter()
+            .enumerate()
+            .map(|(k, frame)| {
+                if frame.len() % 2 != 0 {
+                    anyhow::bail!("frame {} holds {} numbers: (re, im) pairs need an even count", k + 1, frame.len());
+                }
+                Ok(frame.chunks_exact(2).map(|p| component.of(p[0], p[1])).collect())
+            })
+            .collect(),
+        None => Ok(table.frames.clone()),
     }
 }
 
@@ -365,5 +382,16 @@ mod tests {
             let err = parse_raster(bad).unwrap_err();
             assert!(err.starts_with(&format!("\"{bad}\" is not a raster size")), "{err}");
         }
+    }
+
+    #[test]
+    fn interleaved_pairs_give_the_component_and_an_odd_count_is_refused() {
+        let table = FrameTable { frames: vec![vec![3.0, 4.0, 0.0, -2.0]], imaginary: None };
+        assert_eq!(frames(&table, Component::Magnitude, true).unwrap(), [vec![5.0, 2.0]]);
+        assert_eq!(frames(&table, Component::Imaginary, true).unwrap(), [vec![4.0, -2.0]]);
+        assert_eq!(frames(&table, Component::Real, false).unwrap(), table.frames);
+        let odd = FrameTable { frames: vec![vec![1.0, 2.0, 3.0]], imaginary: None };
+        let err = frames(&odd, Component::Real, true).unwrap_err();
+        assert_eq!(err.to_string(), "frame 1 holds 3 numbers: (re, im) pairs need an even count");
     }
 }
