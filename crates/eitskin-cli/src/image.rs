@@ -47,8 +47,9 @@ pub struct Input {
     #[arg(long, default_value = "real")]
     component: Component,
     /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in (0, 1000], or `auto`:
-    /// chosen for a noise figure of 0.5 (EIDORS'), with the noise measured from the reference
-    /// frames when the reference file holds several, else taken relative to each value.
+    /// the larger of the λ for a noise figure of 0.5 (EIDORS') and the MAP λ of the noise level,
+    /// with the noise measured from the reference frames when the reference file holds
+    /// several, else 0.3 % of each value.
     #[arg(long, default_value = "auto")]
     hyperparameter: Hyperparameter,
     /// Normalised differences Δv/v_ref (immune to per-channel gains) instead of absolute ones.
@@ -236,7 +237,7 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
         v = gains.apply(&v);
     }
     let v_ref = mean_frame(&references);
-    let variance = noise_variance(&references, input.normalised);
+    let variance = noise_variance(&references);
     // A channel missing (NaN) in the reference or the frame is dropped, not refused; so is one
     // whose reference is exactly zero: a dead channel (a board prints 0 for a broken contact),
     // which would tell the image that nothing changed there.

@@ -98,9 +98,10 @@ pub struct Args {
           value_parser = viewer::parse_addr)]
     viewer: Option<SocketAddr>,
     /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in (0, 1000], or `auto`:
-    /// chosen for a noise figure of 0.5 (EIDORS'), with the noise measured from the reference
-    /// frames (each time the reference is taken). Default: `auto`, or with --calibration the λ
-    /// the calibration was fitted with (another is refused).
+    /// the larger of the λ for a noise figure of 0.5 (EIDORS') and the MAP λ of the noise level,
+    /// with the noise measured from the reference frames (each time the reference is taken).
+    /// Default: `auto`, or with --calibration the λ the calibration was fitted with (another is
+    /// refused).
     #[arg(long, value_name = "auto|λ")]
     hyperparameter: Option<imaging::HyperparameterFlag>,
     /// Normalised differences Δv/v_ref (immune to per-channel gains) instead of absolute ones;

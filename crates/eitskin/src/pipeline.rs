@@ -277,18 +277,17 @@ impl Pipeline {
         Ok(())
     }
 
-    /// The reconstructor for the new reference: without the channels it lacks (or, normalised,
-    /// whose reference is zero), with λ given or chosen from the reference frames' noise;
-    /// `None` when the chain's already is that one.
+    /// The reconstructor for the new reference: without the channels it lacks or whose
+    /// reference is zero, with λ given or chosen from the reference frames' noise; `None` when
+    /// the chain's already is that one.
     fn reference_reconstructor(&self) -> Result<Option<Reconstructor>, InverseError> {
         let recon = self.chain.reconstructor();
-        let normalized = recon.params().normalized;
         // A reference of exactly zero is a dead channel (a board prints 0 for a broken contact).
         let alive: Vec<bool> = self.reference.iter().map(|r| *r != 0.0).collect();
         let keep: Vec<bool> = self.missing.iter().map(|missing| !missing).collect();
         let channels = Channels::all(self.reference.len()).masked(&self.configured).masked(&keep).masked(&alive);
         if self.params.auto_hyperparameter {
-            let variance = noise_variance(&self.collected, normalized);
+            let variance = noise_variance(&self.collected);
             return Ok(Some(recon.with_auto_hyperparameter(channels, variance)?.0));
         }
         if recon.channels() == &channels && recon.params().hyperparameter == self.given_hyperparameter {

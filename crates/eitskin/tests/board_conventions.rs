@@ -39,7 +39,7 @@ fn frames(skin: &mut VirtualSensor, hours: f64) -> (Vec<Vec<f64>>, Vec<f64>) {
 /// The one touch of an image made with λ chosen from the references' noise.
 fn touches(recon: &Reconstructor, references: &[Vec<f64>], v: &[f64]) -> Vec<Touch> {
     let v_ref = mean_frame(references);
-    let variance = eitskin::inverse::noise_variance(references, recon.params().normalized);
+    let variance = eitskin::inverse::noise_variance(references);
     let channels = Channels::finite_in(&v_ref).masked(Channels::finite_in(v).used_mask());
     let (recon, _) = recon.with_auto_hyperparameter(channels, variance).unwrap();
     detect(&recon.image(&v_ref, v).unwrap(), &TouchParams::default())

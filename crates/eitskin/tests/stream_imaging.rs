@@ -77,8 +77,10 @@ fn auto_lambda_is_chosen_from_the_reference_noise() {
     }
     // The λ of the noise figure for the noise these very frames show.
     let recon = pipeline.chain().reconstructor();
-    let variance = noise_variance(&reference, false).unwrap();
-    let channels = Channels::all(120).with_variance(variance);
+    // Relative noise, in the model's units (V² at 1 A) as the pipeline weighs it.
+    let relative = noise_variance(&reference).unwrap();
+    let model = recon.linearisation().background();
+    let channels = Channels::all(120).with_variance(relative.iter().zip(model).map(|(r, v)| r * v * v).collect());
     let expected = choose_hyperparameter(recon.linearisation(), &recon.params().prior, false, &channels).unwrap();
     let lambda = pipeline.hyperparameter();
     assert!((lambda / expected - 1.0).abs() < 1e-9 && (lambda / 0.1 - 1.0).abs() > 0.05, "λ = {lambda}, {expected}");

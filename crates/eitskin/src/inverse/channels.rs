@@ -88,6 +88,13 @@ impl Channels {
         used.iter().map(|&m| variance[m] / mean).collect()
     }
 
+    /// The mean noise variance of the used channels (their unit²); `None` without variances.
+    pub(crate) fn mean_variance(&self) -> Option<f64> {
+        let variance = self.variance.as_ref()?;
+        let used = self.used();
+        (!used.is_empty()).then(|| used.iter().map(|&m| variance[m]).sum::<f64>() / used.len() as f64)
+    }
+
     /// Refuses a channel set that leaves nothing to image with.
     pub(crate) fn check(&self, expected: usize) -> Result<(), InverseError> {
         if self.used.len() != expected {
@@ -125,14 +132,15 @@ pub fn mean_of_finite(frames: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// Per-channel noise variance of several frames of an unchanging sensor (the reference
-/// frames), about their mean; `None` with fewer than two frames. With `normalized`, the
-/// variance of v/v̄ (ratio²), else of v (V²). NaN values are left out of their channel.
+/// Per-channel relative noise variance of several frames of an unchanging sensor (the
+/// reference frames): the variance of v/v̄ about each channel's mean v̄ (ratio², free of the
+/// board's unit and gains); `None` with fewer than two frames. NaN values are left out of
+/// their channel.
 ///
 /// Few frames estimate a variance badly, and a quantised board can repeat a value exactly:
 /// each variance is floored at a tenth of the median channel's, so that no channel is
 /// trusted without limit.
-pub fn noise_variance(frames: &[Vec<f64>], normalized: bool) -> Option<Vec<f64>> {
+pub fn noise_variance(frames: &[Vec<f64>]) -> Option<Vec<f64>> {
     let count = frames.first()?.len();
     let mut variance = vec![f64::NAN; count];
     for (m, out) in variance.iter_mut().enumerate() {
@@ -141,8 +149,7 @@ pub fn noise_variance(frames: &[Vec<f64>], normalized: bool) -> Option<Vec<f64>>
             continue;
         }
         let mean = values.iter().sum::<f64>() / values.len() as f64;
-        let scale = if normalized { mean } else { 1.0 };
-        let sum: f64 = values.iter().map(|v| ((v - mean) / scale).powi(2)).sum();
+        let sum: f64 = values.iter().map(|v| ((v - mean) / mean).powi(2)).sum();
         *out = sum / (values.len() - 1) as f64;
     }
     let floored = floored(variance);
@@ -185,13 +192,17 @@ mod tests {
     }
 
     #[test]
-    fn noise_variance_is_the_sample_variance_with_a_floor() {
+    fn noise_variance_is_the_relative_sample_variance_with_a_floor() {
         let frames = vec![vec![1.0, 10.0, 5.0, 7.0], vec![3.0, 12.0, 5.0, 7.0], vec![2.0, 11.0, f64::NAN, 7.0]];
-        // Channels 1 and 2: variance 1; 3 has two equal values, 4 never moved: both floored.
-        let v = noise_variance(&frames, false).unwrap();
-        assert_eq!(v, [1.0, 1.0, 0.1, 0.1]);
-        assert!(noise_variance(&frames[..1], false).is_none());
-        let relative = noise_variance(&[vec![9.0], vec![11.0]], true).unwrap();
-        assert!((relative[0] - 0.02).abs() < 1e-12, "{relative:?}");
+        // Channel 1: variance 1 about a mean of 2; channel 2: 1 about 11; 3 has two equal values
+        // and 4 never moved: both floored at a tenth of the median, channel 2's.
+        let v = noise_variance(&frames).unwrap();
+        let want = [0.25, 1.0 / 121.0, 0.1 / 121.0, 0.1 / 121.0];
+        assert!(v.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-15), "{v:?}");
+        assert!(noise_variance(&frames[..1]).is_none());
+        // In a board's counts or in volts, the same relative noise.
+        let counts: Vec<Vec<f64>> = frames.iter().map(|f| f.iter().map(|x| 250.0 * x).collect()).collect();
+        let in_counts = noise_variance(&counts).unwrap();
+        assert!(in_counts.iter().zip(&v).all(|(a, b)| (a / b - 1.0).abs() < 1e-12), "{in_counts:?}");
     }
 }

@@ -1,6 +1,7 @@
-//! The hyperparameter λ, given or chosen from the noise by the noise figure.
+//! The hyperparameter λ, given or chosen from the noise: by the noise figure, and at least the
+//! λ the noise level calls for.
 //!
-//! The noise figure (Adler & Guardo 1996; EIDORS' `calc_noise_figure`) compares the
+//! **Noise figure.** The noise figure (Adler & Guardo 1996; EIDORS' `calc_noise_figure`) compares the
 //! signal-to-noise ratio of the measurements with that of the image, for a small target at
 //! the centre and the measurement noise Σ:
 //!
@@ -16,6 +17,17 @@
 //!
 //! In the eigenbasis of the whitened system Σ^-½ J R⁻¹Jᵀ Σ^-½ = U diag(e) Uᵀ, every NF(λ)
 //! costs one triangles × channels product, so λ is found on a fine grid in milliseconds.
+//!
+//! **Noise level.** NF is a ratio of two SNRs, so the noise's level cancels from it, and λ_NF
+//! would stay the same however noisy the board. The one-step reconstruction is also the
+//! maximum a posteriori estimate for Gaussian noise Σ and a Gaussian prior q·R⁻¹ on Δσ, for
+//! which λ² = mean(Σ)/q (λ² multiplies Σ/mean(Σ) here): λ grows in proportion to the noise.
+//! The prior's scale q is set, without reference to any data set, by the same standard target
+//! the noise figure uses: a change of [`TARGET_CONTRAST`] × σ₀ over the target's share a of the
+//! sensor's area has the area-mean square c²σ₀²a, and q is such that the prior's area-mean
+//! variance q·⟨R⁻¹⟩ equals it. σ₀ follows from the model (v₀ = −σ₀·J·1 for a homogeneous
+//! body, fitted by least squares). The chosen λ is max(λ_NF, λ_MAP): the noise figure's at low
+//! noise, growing with the noise above it.
 
 use std::str::FromStr;
 
@@ -27,6 +39,15 @@ use super::{Channels, InverseError, Linearisation, Prior};
 /// The noise figure λ is chosen for (EIDORS' GREIT examples use 0.5).
 pub const NOISE_FIGURE_TARGET: f64 = 0.5;
 
+/// The standard target's conductivity loss as a fraction of the background (dimensionless),
+/// which sets the prior's scale: half the background, a light press on a hydrogel (the virtual
+/// sensor's gel loses half at about 4.5 N) or an insulating object over half the target.
+pub const TARGET_CONTRAST: f64 = 0.5;
+
+/// The noise assumed without a measured one: 0.3 % of each value (dimensionless), the
+/// frame-to-frame noise of open boards.
+pub const DEFAULT_RELATIVE_NOISE: f64 = 0.003;
+
 /// The range λ is searched in (dimensionless).
 const SEARCH: (f64, f64) = (1e-6, 1e3);
 
@@ -35,7 +56,7 @@ const SEARCH: (f64, f64) = (1e-6, 1e3);
 pub enum Hyperparameter {
     /// This λ (dimensionless, > 0).
     Fixed(f64),
-    /// λ for a noise figure of [`NOISE_FIGURE_TARGET`], from the measured noise.
+    /// λ from the measured noise: see [`choose_hyperparameter`].
     Auto,
 }
 
@@ -164,10 +185,52 @@ pub fn noise_figure(
     Ok(NoiseFigure::new(lin, prior, normalized, channels)?.at(hyperparameter))
 }
 
+/// The automatic λ: the larger of the noise figure's ([`noise_figure_hyperparameter`]) and,
+/// when the channels carry their noise variances in the model's units (V² at 1 A, or ratio²
+/// when normalised), the noise level's ([`map_hyperparameter`]); see the module doc.
+pub fn choose_hyperparameter(
+    lin: &Linearisation,
+    prior: &Prior,
+    normalized: bool,
+    channels: &Channels,
+) -> Result<f64, InverseError> {
+    let from_figure = noise_figure_hyperparameter(lin, prior, normalized, channels)?;
+    let from_level = map_hyperparameter(lin, prior, normalized, channels)?;
+    Ok(from_level.map_or(from_figure, |l| from_figure.max(l.min(SEARCH.1))))
+}
+
+/// The MAP λ = √(mean(Σ)/q) for the channels' noise variances Σ (the model's units) and the
+/// prior scale q of the standard target (see the module doc); `None` without variances.
+pub fn map_hyperparameter(
+    lin: &Linearisation,
+    prior: &Prior,
+    normalized: bool,
+    channels: &Channels,
+) -> Result<Option<f64>, InverseError> {
+    let Some(mean_variance) = channels.mean_variance() else {
+        return Ok(None);
+    };
+    let jacobian = lin.rows(&channels.used(), normalized)?;
+    let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
+    let r_inv = inverse_diagonal(&r);
+    let mesh = lin.mesh();
+    let area: Vec<f64> = (0..mesh.triangles().len()).map(|t| mesh.area(t)).collect();
+    let total: f64 = area.iter().sum();
+    let mean_r_inv = r_inv.iter().zip(&area).map(|(r, a)| r * a).sum::<f64>() / total;
+    let share = target(mesh).iter().map(|&t| area[t]).sum::<f64>() / total;
+    // σ₀ from v₀ = −σ₀·J·1, by least squares over every channel of the model.
+    let j = lin.jacobian();
+    let d: Vec<f64> = (0..j.nrows()).map(|m| (0..j.ncols()).map(|k| j[(m, k)]).sum()).collect();
+    let sigma0 =
+        -lin.background().iter().zip(&d).map(|(v, d)| v * d).sum::<f64>() / d.iter().map(|d| d * d).sum::<f64>();
+    let q = (TARGET_CONTRAST * sigma0).powi(2) * share / mean_r_inv;
+    Ok(Some((mean_variance / q).sqrt()).filter(|l| l.is_finite() && *l > 0.0))
+}
+
 /// The λ whose noise figure is [`NOISE_FIGURE_TARGET`], searched on a grid of 20 steps a
 /// decade over [1e-6, 1e3] and refined by bisection in log λ; the nearest end of the range if
 /// the noise figure does not cross the target inside it.
-pub fn choose_hyperparameter(
+pub fn noise_figure_hyperparameter(
     lin: &Linearisation,
     prior: &Prior,
     normalized: bool,
@@ -243,6 +306,28 @@ mod tests {
         let low = noise_figure(&lin, &prior, false, &channels, 0.01).unwrap();
         let high = noise_figure(&lin, &prior, false, &channels, 1.0).unwrap();
         assert!(low > got && got > high, "NF falls as λ grows: {low}, {got}, {high}");
+    }
+
+    /// With noise variances, λ is the larger of the noise figure's, which ignores the noise
+    /// level, and the MAP λ, which grows in proportion to it.
+    #[test]
+    fn the_chosen_lambda_grows_with_the_noise_level() {
+        let lin = linearisation();
+        let prior = Prior::default();
+        let at = |level: f64| {
+            let variance = lin.background().iter().map(|v| (level * v).powi(2)).collect();
+            let channels = Channels::all(lin.measurements()).with_variance(variance);
+            let figure = noise_figure_hyperparameter(&lin, &prior, false, &channels).unwrap();
+            let map = map_hyperparameter(&lin, &prior, false, &channels).unwrap().unwrap();
+            assert_eq!(choose_hyperparameter(&lin, &prior, false, &channels).unwrap(), figure.max(map));
+            (figure, map)
+        };
+        let (figure_low, map_low) = at(0.0001);
+        let (figure_high, map_high) = at(0.01);
+        assert!((figure_low / figure_high - 1.0).abs() < 1e-6, "NF: {figure_low} vs {figure_high}");
+        assert!((map_high / map_low - 100.0).abs() < 1e-6, "MAP: {map_low} vs {map_high}");
+        // Quiet data keep the noise figure's λ; noisy data get a larger one.
+        assert!(map_low < figure_low && map_high > figure_high, "{map_low} {figure_low} {map_high}");
     }
 
     #[test]

@@ -21,7 +21,10 @@ mod prior;
 mod raster;
 
 pub use channels::{mean_frame, mean_of_finite, noise_variance, Channels};
-pub use hyperparameter::{choose_hyperparameter, noise_figure, Hyperparameter, NOISE_FIGURE_TARGET};
+pub use hyperparameter::{
+    choose_hyperparameter, map_hyperparameter, noise_figure, noise_figure_hyperparameter, Hyperparameter,
+    DEFAULT_RELATIVE_NOISE, NOISE_FIGURE_TARGET, TARGET_CONTRAST,
+};
 pub use linearisation::Linearisation;
 pub use prior::Prior;
 pub use raster::{Reconstructor, ReconstructorParams};

@@ -165,24 +165,24 @@ impl Reconstructor {
         &self.matrix
     }
 
-    /// The same reconstructor with λ chosen from the noise (see [`choose_hyperparameter`](super::choose_hyperparameter)) and
-    /// the channels weighted by it: `variance` measured per channel (V², or ratio² when
-    /// normalised; see [`super::noise_variance`]), or else noise relative to each value, as
-    /// boards have it (variance ∝ v₀², equal for normalised differences). Returns it with λ.
+    /// The same reconstructor with λ chosen from the noise (see [`choose_hyperparameter`](super::choose_hyperparameter))
+    /// and the channels weighted by it. `relative` is the noise measured per channel relative to
+    /// its value (ratio², from [`super::noise_variance`]), or else [`super::DEFAULT_RELATIVE_NOISE`]
+    /// of each value; in the model's units that is relative·v₀² for absolute differences, so
+    /// neither a board's unit nor its gains move λ. Returns it with λ.
     pub fn with_auto_hyperparameter(
         &self,
         channels: Channels,
-        variance: Option<Vec<f64>>,
+        relative: Option<Vec<f64>>,
     ) -> Result<(Reconstructor, f64), InverseError> {
         let lin = &self.linearisation;
-        let variance = variance.or_else(|| {
-            (!self.params.normalized).then(|| lin.background().iter().map(|v| v * v).collect::<Vec<f64>>())
-        });
-        let channels = match variance {
-            Some(variance) => channels.with_variance(super::channels::floored(variance)),
-            None => channels,
-        };
-        let lambda = super::choose_hyperparameter(lin, &self.params.prior, self.params.normalized, &channels)?;
+        let normalized = self.params.normalized;
+        let default = super::DEFAULT_RELATIVE_NOISE * super::DEFAULT_RELATIVE_NOISE;
+        let relative = super::channels::floored(relative.unwrap_or_else(|| vec![default; lin.measurements()]));
+        let variance =
+            if normalized { relative } else { relative.iter().zip(lin.background()).map(|(r, v)| r * v * v).collect() };
+        let channels = channels.with_variance(variance);
+        let lambda = super::choose_hyperparameter(lin, &self.params.prior, normalized, &channels)?;
         Ok((self.derive(lambda, channels)?, lambda))
     }
 
