@@ -44,7 +44,7 @@ use crate::inverse::{InverseError, Reconstructor};
 use crate::press_fit::{PressFit, PressModel, PressScratch};
 use crate::pseudo_array::PseudoArray;
 use crate::strength::{Reading, Strength};
-use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
+use crate::touch::{detect_into, Polarity, Touch, TouchParams, TouchScratch};
 
 /// The most touches whose presses are fitted per frame.
 pub const MAX_FITTED: usize = 16;
@@ -321,8 +321,11 @@ impl Chain {
         for (k, touch) in self.found.iter().enumerate() {
             let press = self.fits.get(k).copied().flatten();
             let reading = self.strength.read(touch, press.as_ref(), self.contrast_map.as_ref());
+            // Calibrations are fitted on presses: a conductivity increase gets no unit or force.
             let located = match (&self.calibration, reading) {
-                (Some((array, calibration)), Some(reading)) => calibration.locate(array, reading),
+                (Some((array, calibration)), Some(reading)) if touch.polarity == Polarity::Decrease => {
+                    calibration.locate(array, reading)
+                }
                 _ => None,
             };
             self.touches.push(TouchForce {
@@ -335,5 +338,36 @@ impl Chain {
             });
         }
         Ok(&self.touches)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::conductivity::{with_inclusions, Inclusion};
+    use crate::sim::Hydrogel;
+    use crate::{ReconstructorParams, SensorSpec};
+
+    /// With touches of both signs, a calibration (fitted on presses) gives a press its force and
+    /// a more conductive object none.
+    #[test]
+    fn only_a_decrease_gets_a_force_from_the_calibration() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 800;
+        let model = spec.forward_model().unwrap();
+        let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
+        let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
+        let calibration = Calibration { curves: vec![Hydrogel::default().drop_curve(16.0)], strength: Strength::Peak };
+        let touch = TouchParams { polarity: Polarity::Both, ..TouchParams::default() };
+        let mut chain = Chain::new(recon, touch).with_calibration(array, calibration).unwrap();
+        let reference = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
+        for (conductivity, polarity) in [(0.3, Polarity::Decrease), (3.0, Polarity::Increase)] {
+            let object = Inclusion { centre: [0.04, -0.03], radius: 0.015, conductivity };
+            let frame = model.measure(&with_inclusions(model.mesh(), 1.0, &[object])).unwrap();
+            let found = chain.process(&reference, &frame).unwrap();
+            assert_eq!(found[0].touch.polarity, polarity);
+            let force = found[0].force.is_some();
+            assert_eq!(force, polarity == Polarity::Decrease, "{polarity:?}: {:?}", found[0]);
+        }
     }
 }
