@@ -33,7 +33,7 @@ use std::str::FromStr;
 
 use faer::{Mat, Side};
 
-use super::linearisation::inverse_diagonal;
+use super::linearisation::{inverse_diagonal, uniform_response};
 use super::{Channels, InverseError, Linearisation, Prior};
 
 /// The noise figure λ is chosen for (EIDORS' GREIT examples use 0.5).
@@ -219,8 +219,7 @@ pub fn map_hyperparameter(
     let mean_r_inv = r_inv.iter().zip(&area).map(|(r, a)| r * a).sum::<f64>() / total;
     let share = target(mesh).iter().map(|&t| area[t]).sum::<f64>() / total;
     // σ₀ from v₀ = −σ₀·J·1, by least squares over every channel of the model.
-    let j = lin.jacobian();
-    let d: Vec<f64> = (0..j.nrows()).map(|m| (0..j.ncols()).map(|k| j[(m, k)]).sum()).collect();
+    let d = uniform_response(lin.jacobian());
     let sigma0 =
         -lin.background().iter().zip(&d).map(|(v, d)| v * d).sum::<f64>() / d.iter().map(|d| d * d).sum::<f64>();
     let q = (TARGET_CONTRAST * sigma0).powi(2) * share / mean_r_inv;

@@ -171,8 +171,7 @@ struct Global {
 
 impl Global {
     fn new(jacobian: MatRef<'_, f64>, variance: &[f64]) -> Global {
-        let d: Vec<f64> =
-            (0..jacobian.nrows()).map(|i| (0..jacobian.ncols()).map(|k| jacobian[(i, k)]).sum()).collect();
+        let d = uniform_response(jacobian);
         let wd: Vec<f64> = d.iter().zip(variance).map(|(d, s)| d / s).collect();
         let c = 1.0 / d.iter().zip(&wd).map(|(d, w)| d * w).sum::<f64>();
         let u = (0..jacobian.ncols())
@@ -200,6 +199,11 @@ impl Global {
             }
         }
     }
+}
+
+/// J·1: each measurement's change for a change of 1 S/m on every triangle.
+pub(crate) fn uniform_response(jacobian: MatRef<'_, f64>) -> Vec<f64> {
+    (0..jacobian.nrows()).map(|i| (0..jacobian.ncols()).map(|k| jacobian[(i, k)]).sum()).collect()
 }
 
 /// (JᵀΣ⁻¹J + λ²R)⁻¹JᵀΣ⁻¹ (triangles × measurements): through the measurement-sized system for
@@ -233,8 +237,9 @@ pub(crate) fn measurement_sized(
 ) -> Result<Mat<f64>, InverseError> {
     let r_inv = inverse_diagonal(r);
     let (m, k) = (jacobian.nrows(), jacobian.ncols());
-    let scaled = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] * r_inv[j]); // J R⁻¹
-                                                                         // J R⁻¹ Jᵀ is symmetric and the Cholesky factorisation reads its lower half: only that is formed.
+    // J R⁻¹
+    let scaled = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] * r_inv[j]);
+    // J R⁻¹ Jᵀ is symmetric and the Cholesky factorisation reads its lower half: only that is formed.
     let mut system = Mat::zeros(m, m);
     triangular::matmul(
         system.as_mut(),
