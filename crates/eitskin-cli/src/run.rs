@@ -27,9 +27,9 @@ use std::sync::mpsc;
 use anyhow::{bail, Result};
 use eitskin::calibration::Strength;
 use eitskin::inverse::Hyperparameter;
-use eitskin::pipeline::{Pipeline, PipelineParams, Status};
+use eitskin::pipeline::{NoiseFloor, Pipeline, PipelineParams, Status};
 use eitskin::pseudo_array::PseudoArray;
-use eitskin::touch::Polarity;
+use eitskin::touch::{PeakOf, Polarity};
 use eitskin::values::{Component, ValueKind};
 use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::recorder::{Header, Recorder};
@@ -69,9 +69,23 @@ pub struct Args {
     /// Stop after this many frames (default: at the end of the source, never for `sim`).
     #[arg(long)]
     frames: Option<u64>,
-    /// Frames averaged into the reference.
+    /// Frames averaged into the reference; with two or more, each channel's noise is measured
+    /// from them (and then from every frame without a touch).
     #[arg(long, default_value_t = 10)]
     reference_frames: usize,
+    /// False touches allowed per frame without a touch, in (0, 0.5]: a touch's peak must stand
+    /// out from the measured noise by the z this rate calls for (about 4.6 at 0.001).
+    #[arg(long, default_value = "0.001", value_parser = parse_false_alarm_rate)]
+    false_alarm_rate: f64,
+    /// Image the mean of the last N frames, 1–1000: the noise falls by √N, and a change shows
+    /// (N − 1)/2 frames late on average.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=1000))]
+    average: u16,
+    /// Whose peak a touch's 60 % threshold is a fraction of: `frame` (the strongest touch's, the
+    /// paper's rule) or `touch` (each touch's own, from each local maximum that passes the noise
+    /// test: a weak press beside a strong one is found, but so is a strong press's side lobe).
+    #[arg(long, default_value = "frame")]
+    peak_of: PeakOf,
     /// Baseline update weight per frame without a touch (0 = off).
     #[arg(long, default_value_t = 0.0)]
     baseline_rate: f64,
@@ -150,7 +164,7 @@ pub fn run(args: Args) -> Result<()> {
         normalized: imaging.normalized,
         ..ReconstructorParams::default()
     };
-    let touch = TouchParams { polarity: args.polarity, ..TouchParams::default() };
+    let touch = TouchParams { polarity: args.polarity, peak_of: args.peak_of, ..TouchParams::default() };
     let chain = match calibration {
         Some((path, file)) => {
             let strength = file.calibration.strength;
@@ -169,9 +183,19 @@ pub fn run(args: Args) -> Result<()> {
         reference_frames: args.reference_frames,
         baseline_rate: args.baseline_rate,
         auto_hyperparameter: imaging.hyperparameter == Hyperparameter::Auto,
-        ..PipelineParams::default()
+        noise_floor: NoiseFloor::FalseAlarm { rate: args.false_alarm_rate },
+        average: usize::from(args.average),
     };
     let mut pipeline = Pipeline::new(chain, params);
+    if args.average > 1 {
+        let frames = pipeline.latency_frames();
+        let at = if args.rate > 0.0 {
+            format!(" ({:.0} ms at {} frames/s)", 1e3 * frames / args.rate, args.rate)
+        } else {
+            String::new()
+        };
+        eprintln!("eitskin run: averaging {} frames delays a change by {frames} frames on average{at}", args.average);
+    }
     let kind = match args.values.as_str() {
         "magnitude" => ValueKind::Magnitude,
         "complex" => ValueKind::Complex(args.component),
@@ -214,6 +238,9 @@ pub fn run(args: Args) -> Result<()> {
         Start::new(args.source.to_string(), spec.length_unit.symbol(), protocol.len(), args.reference_frames);
     start.normalised = imaging.normalized;
     start.polarity = args.polarity.name().to_owned();
+    start.average = usize::from(args.average);
+    start.peak_of = args.peak_of.name().to_owned();
+    start.false_alarm_rate = Some(args.false_alarm_rate);
     // A closed stdout (the reader went away) ends the run, here and at every line below.
     if print(&mut out, &Event::Start(start)).is_err() {
         return Ok(());
@@ -256,11 +283,11 @@ pub fn run(args: Args) -> Result<()> {
                     frames += 1;
                     let counters = Counters { frames, bad, viewer_dropped: viewer.as_ref().map(Viewer::dropped) };
                     fill_frame_line(&mut line, seq, t, status, &pipeline, metres, counters);
-                    set_raster(&mut line, args.stream_image && status_imaged(status), &pipeline, metres);
+                    set_raster(&mut line, args.stream_image && status.imaged(), &pipeline, metres);
                     if let Some(viewer) = &viewer {
                         let referencing = match status {
                             Status::Referencing { collected, needed } => Some([collected, needed]),
-                            Status::Processed | Status::ChannelsDropped { .. } => None,
+                            Status::Processed | Status::ChannelsDropped { .. } | Status::NoiseUpdated => None,
                         };
                         let image = &pipeline.image().values;
                         viewer.offer_frame(&viewer::Frame { line: &line, referencing, image });
@@ -331,15 +358,38 @@ fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: 
             } else {
                 format!("; channels {dropped:?} left out (missing from a reference frame, or a zero reference)")
             };
-            let detail = format!("reference taken; λ = {lambda:.4}{how}{left_out}");
+            let (threshold, noise) = noise_figures(pipeline);
+            let measured = pipeline.noise_measured();
+            let test = match threshold {
+                Some(z) => format!(
+                    "; noise {:.3} % per value ({}), a touch needs z ≥ {z:.2}",
+                    100.0 * noise,
+                    if measured { "measured" } else { "assumed: one reference frame" }
+                ),
+                None => String::new(),
+            };
+            let detail = format!("reference taken; λ = {lambda:.4}{how}{left_out}{test}");
             eprintln!("eitskin run: {detail}");
             Some(Event::ReferenceTaken {
                 hyperparameter: lambda,
                 chosen,
                 normalised,
                 channels_dropped: dropped,
+                threshold,
+                noise: Some(noise),
+                noise_measured: measured,
                 detail,
             })
+        }
+        Status::NoiseUpdated => {
+            let (threshold, noise) = noise_figures(pipeline);
+            let frames = pipeline.noise().map_or(0.0, |n| n.frames());
+            let lambda = pipeline.hyperparameter();
+            let z = threshold.map_or(String::new(), |z| format!(", a touch needs z ≥ {z:.2}"));
+            let detail =
+                format!("noise measured on {frames:.0} frames: {:.3} % per value; λ = {lambda:.4}{z}", 100.0 * noise);
+            eprintln!("eitskin run: {detail}");
+            Some(Event::NoiseUpdated { seq, frames, hyperparameter: lambda, threshold, noise, detail })
         }
         Status::ChannelsDropped { .. } => {
             let channels = one_based(pipeline.newly_dropped());
@@ -355,9 +405,21 @@ fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: 
     }
 }
 
-/// Whether a frame of this status was imaged.
-fn status_imaged(status: Status) -> bool {
-    matches!(status, Status::Processed | Status::ChannelsDropped { .. })
+/// The threshold z of the pipeline's noise test (if any) and the median channel's relative noise.
+fn noise_figures(pipeline: &Pipeline) -> (Option<f64>, f64) {
+    let threshold = pipeline.significance().map(|s| s.threshold());
+    let mut relative: Vec<f64> = pipeline.noise().map_or(Vec::new(), |n| n.relative_variance());
+    relative.retain(|v| v.is_finite());
+    relative.sort_by(f64::total_cmp);
+    (threshold, relative.get(relative.len() / 2).map_or(0.0, |v| v.sqrt()))
+}
+
+/// `--false-alarm-rate`: a number in (0, 0.5].
+fn parse_false_alarm_rate(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(rate) if rate > 0.0 && rate <= 0.5 => Ok(rate),
+        _ => Err(format!("\"{text}\" is not a false-alarm rate: give a number in (0, 0.5], e.g. 0.001")),
+    }
 }
 
 /// Puts the pipeline's image into `line` (in units of `metres` m) when `on`, reusing its memory;

@@ -55,7 +55,12 @@ fn the_stream_reads_back_with_its_schema_a_start_line_then_counted_frames_in_mm(
     assert_eq!((start.source.as_str(), start.length_unit.as_str()), (source.as_str(), "mm"));
     assert_eq!((start.measurements, start.reference_frames), (120, 10));
     let frames = frame_lines(&lines);
-    assert_eq!(frames.len() + 1, lines.len(), "one event from a scripted virtual sensor: {lines:?}");
+    // Two events from a scripted virtual sensor: the reference taken, then the noise measured
+    // again once the frames without a touch after it doubled what it was measured on.
+    assert_eq!(frames.len() + 2, lines.len(), "{lines:?}");
+    let updated =
+        lines.iter().position(|l| matches!(l, Line::Event(Event::NoiseUpdated { frames, .. }) if *frames >= 18.0));
+    assert_eq!(updated, Some(19), "{lines:?}");
     assert_eq!(frames.len(), 40);
     // The reference taken by the 10th frame (the event comes before that frame's line), with λ
     // chosen from their noise.

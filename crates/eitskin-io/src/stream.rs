@@ -5,14 +5,17 @@
 //! # Version
 //!
 //! The stream says its version once, in its first line, the [`Start`] event: format
-//! `"eitskin-run"`, [`VERSION`] 2, with what a reader needs to understand the rest (the length
+//! `"eitskin-run"`, [`VERSION`] 3, with what a reader needs to understand the rest (the length
 //! unit, the number of measurements). One line at the start rather than a field in every line:
 //! frames stay short, and the unit, which the numbers cannot carry, is stated once. The version
 //! goes up whenever a field or an event is added, removed or changes meaning, so the types here,
 //! which refuse unknown fields, read exactly their version. Version 2 added the start line's
 //! `normalised` and `polarity`, each touch's `sign`, the frame line's optional `raster` and the
 //! `reference_taken` and `channels_dropped` events; a version-1 touch (no `sign`) reads as a
-//! decrease, which was then the only kind.
+//! decrease, which was then the only kind. Version 3 added the noise test: the start line's
+//! `average`, `peak_of` and `false_alarm_rate`, each touch's `z`, the `reference_taken` event's
+//! `threshold`, `noise` and `noise_measured`, and the `noise_updated` event; read from an older
+//! line they are absent (`null`, or 1 frame averaged and the frame's peak).
 //!
 //! # Lines
 //!
@@ -20,9 +23,9 @@
 //! order; events come where they happened, between frames.
 //!
 //! ```text
-//! {"event":"start","format":"eitskin-run","version":2,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"normalised":false,"polarity":"decrease"}
-//! {"event":"reference_taken","hyperparameter":0.031,"chosen":true,"normalised":false,"channels_dropped":[],"detail":"…"}
-//! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"unit":7,"area":2,"force":8.7,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41}}],"counters":{"frames":11,"bad":0},"recorded":true}
+//! {"event":"start","format":"eitskin-run","version":3,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"normalised":false,"polarity":"decrease","average":1,"peak_of":"frame","false_alarm_rate":0.001}
+//! {"event":"reference_taken","hyperparameter":0.031,"chosen":true,"normalised":false,"channels_dropped":[],"threshold":4.6,"noise":0.0005,"noise_measured":true,"detail":"…"}
+//! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"z":48.2,"unit":7,"area":2,"force":8.7,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41}}],"counters":{"frames":11,"bad":0},"recorded":true}
 //! {"event":"bad","seq":11,"reason":"frame 11 has 3 values, expected 120; …"}
 //! ```
 //!
@@ -41,7 +44,9 @@
 //! A touch ([`Touch`]): `sign`, `"decrease"` (less conductive, a press on a hydrogel) or
 //! `"increase"`; `x`, `y`, its centre of gravity in the spec's length unit (`length_unit`
 //! of the start line), relative to the outline's centre; `peak`, the strongest conductivity
-//! change in the touch's own direction, in S/m (positive); `unit` and `area`, the pseudo-array unit holding the
+//! change in the touch's own direction, in S/m (positive); `z`, that peak over the noise's
+//! standard deviation at its pixel (its detection confidence; `null` without the noise test);
+//! `unit` and `area`, the pseudo-array unit holding the
 //! centre and its area, counted from 1, or `null` without a calibration; `force`, in N, and
 //! `saturated`, whether the force is at the end of the calibrated range, or `null` without a
 //! calibration; `press`, the press fitted to Δv, `{x, y, drop}` (centre in the length unit,
@@ -52,8 +57,9 @@
 //!
 //! | `event`        | fields                                                                       |
 //! |----------------|------------------------------------------------------------------------------|
-//! | `start`        | `format` (`"eitskin-run"`), `version`, `source` (as given), `length_unit` (`"mm"` or `"m"`), `measurements` (values per frame), `reference_frames` (frames averaged into the reference), `normalised` (differences Δv/v_ref), `polarity` (`"decrease"`, `"increase"` or `"both"`: which changes are touches) |
-//! | `reference_taken` | the reference is taken: `hyperparameter` (λ imaged with), `chosen` (whether λ was chosen from the reference frames' noise), `normalised`, `channels_dropped` (1-based: missing from a reference frame, or with a zero reference when normalised), `detail` |
+//! | `start`        | `format` (`"eitskin-run"`), `version`, `source` (as given), `length_unit` (`"mm"` or `"m"`), `measurements` (values per frame), `reference_frames` (frames averaged into the reference), `normalised` (differences Δv/v_ref), `polarity` (`"decrease"`, `"increase"` or `"both"`: which changes are touches), `average` (frames averaged into each frame imaged), `peak_of` (`"frame"` or `"touch"`: whose peak a touch's threshold is a fraction of), `false_alarm_rate` (false touches allowed per frame without a touch, or `null` without the noise test) |
+//! | `reference_taken` | the reference is taken: `hyperparameter` (λ imaged with), `chosen` (whether λ was chosen from the reference frames' noise), `normalised`, `channels_dropped` (1-based: missing from a reference frame, or with a zero reference when normalised), `threshold` (the z a touch's peak must reach, or `null`), `noise` (the median channel's noise standard deviation relative to its value), `noise_measured` (false: assumed, from a single reference frame), `detail` |
+//! | `noise_updated` | the noise model, grown on the frames without a touch, gave λ, channel weights and the threshold anew after frame `seq`: `frames` (frames behind the noise model), `hyperparameter`, `threshold`, `noise`, `detail` |
 //! | `channels_dropped` | channels went bad (not finite) in frame `seq` and are dropped until the reference is taken again: `channels` (1-based), `dropped` (channels dropped in all), `detail` |
 //! | `bad`          | `seq` (where in the stream, or `null` for bytes that belong to no frame), `reason` (a sentence) |
 //! | `skipped`      | a damaged record of a recording: `line` (from 1, the header is line 1), `torn` (the last record, torn by a crash), `reason` |
@@ -92,7 +98,7 @@ use crate::source::Acquired;
 pub const FORMAT: &str = "eitskin-run";
 
 /// The version of the stream this crate writes and reads.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 
 /// Any line of the stream, for readers: an event if it has an `event` field, else a frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -203,7 +209,9 @@ impl From<eitskin::pipeline::Status> for Status {
     fn from(status: eitskin::pipeline::Status) -> Status {
         match status {
             eitskin::pipeline::Status::Referencing { .. } => Status::Referencing,
-            eitskin::pipeline::Status::Processed | eitskin::pipeline::Status::ChannelsDropped { .. } => Status::Ok,
+            eitskin::pipeline::Status::Processed
+            | eitskin::pipeline::Status::ChannelsDropped { .. }
+            | eitskin::pipeline::Status::NoiseUpdated => Status::Ok,
         }
     }
 }
@@ -221,6 +229,9 @@ pub struct Touch {
     pub y: f64,
     /// The strongest conductivity change in the touch's own direction, in S/m (positive).
     pub peak: f64,
+    /// That peak over the noise's standard deviation at its pixel (dimensionless), with the noise test.
+    #[serde(default)]
+    pub z: Option<f64>,
     /// The pseudo-array unit holding the centre, from 1, with a calibration.
     pub unit: Option<usize>,
     /// That unit's area, from 1, with a calibration.
@@ -242,6 +253,7 @@ impl Touch {
             x: t.touch.centre[0] / metres,
             y: t.touch.centre[1] / metres,
             peak: t.touch.peak,
+            z: t.touch.significance,
             unit: t.unit.map(|u| u + 1),
             area: t.area.map(|a| a + 1),
             force: t.force.map(|f| f.newtons),
@@ -350,6 +362,30 @@ pub enum Event {
         normalised: bool,
         /// Channels left out from the start, 1-based.
         channels_dropped: Vec<usize>,
+        /// The z a touch's peak must reach, with the noise test.
+        #[serde(default)]
+        threshold: Option<f64>,
+        /// The median channel's noise standard deviation relative to its value (dimensionless).
+        #[serde(default)]
+        noise: Option<f64>,
+        /// Whether the noise was measured (false: assumed, from a single reference frame).
+        #[serde(default)]
+        noise_measured: bool,
+        /// The same, as a sentence.
+        detail: String,
+    },
+    /// The noise model, grown on frames without a touch, gave λ, weights and threshold anew.
+    NoiseUpdated {
+        /// The frame after which it did.
+        seq: u64,
+        /// Frames behind the noise model.
+        frames: f64,
+        /// λ imaged with from now on (dimensionless).
+        hyperparameter: f64,
+        /// The z a touch's peak must reach, with the noise test.
+        threshold: Option<f64>,
+        /// The median channel's noise standard deviation relative to its value (dimensionless).
+        noise: f64,
         /// The same, as a sentence.
         detail: String,
     },
@@ -408,6 +444,23 @@ pub struct Start {
     pub normalised: bool,
     /// Which changes are touches: `"decrease"`, `"increase"` or `"both"`.
     pub polarity: String,
+    /// Frames averaged into each frame imaged (1 before version 3).
+    #[serde(default = "one")]
+    pub average: usize,
+    /// Whose peak a touch's threshold is a fraction of: `"frame"` or `"touch"`.
+    #[serde(default = "frame_peak")]
+    pub peak_of: String,
+    /// False touches allowed per frame without a touch, with the noise test.
+    #[serde(default)]
+    pub false_alarm_rate: Option<f64>,
+}
+
+fn one() -> usize {
+    1
+}
+
+fn frame_peak() -> String {
+    eitskin::touch::PeakOf::Frame.name().to_owned()
 }
 
 impl Start {
@@ -423,6 +476,9 @@ impl Start {
             reference_frames,
             normalised: false,
             polarity: eitskin::touch::Polarity::Decrease.name().to_owned(),
+            average: 1,
+            peak_of: frame_peak(),
+            false_alarm_rate: None,
         }
     }
 }
@@ -457,6 +513,7 @@ mod tests {
             x: -50.5,
             y: 40.0,
             peak: 0.6,
+            z: None,
             unit: Some(7),
             area: Some(2),
             force: Some(8.5),
@@ -485,7 +542,7 @@ mod tests {
         let line = text(&frame());
         assert_eq!(
             line,
-            "{\"seq\":12,\"t\":0.6,\"status\":\"ok\",\"touches\":[{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"unit\":7,\
+            "{\"seq\":12,\"t\":0.6,\"status\":\"ok\",\"touches\":[{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"z\":null,\"unit\":7,\
              \"area\":2,\"force\":8.5,\"saturated\":false,\"press\":{\"x\":-50.0,\"y\":41.0,\"drop\":0.4}}],\
              \"counters\":{\"frames\":13,\"bad\":1}}\n"
         );
@@ -502,7 +559,7 @@ mod tests {
         let touch = Touch { unit: None, area: None, force: None, saturated: None, press: None, ..frame().touches[0] };
         assert_eq!(
             text(&touch),
-            "{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"unit\":null,\"area\":null,\"force\":null,\"saturated\":null,\
+            "{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"z\":null,\"unit\":null,\"area\":null,\"force\":null,\"saturated\":null,\
              \"press\":null}\n"
         );
     }
@@ -521,7 +578,18 @@ mod tests {
                 chosen: true,
                 normalised: false,
                 channels_dropped: vec![4],
+                threshold: Some(4.6),
+                noise: Some(5e-4),
+                noise_measured: true,
                 detail: "λ".into(),
+            },
+            Event::NoiseUpdated {
+                seq: 30,
+                frames: 19.0,
+                hyperparameter: 2.5,
+                threshold: Some(4.5),
+                noise: 4.9e-4,
+                detail: "grown".into(),
             },
             Event::ChannelsDropped { seq: 40, channels: vec![7, 9], dropped: 3, detail: "gone".into() },
         ];

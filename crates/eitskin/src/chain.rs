@@ -6,7 +6,8 @@
 //! run on recorded samples: a calibration fitted by one is applied by the others unchanged.
 //!
 //! 1. image Δσ = H·(v − v_ref) ([`Reconstructor::image_into`]);
-//! 2. touches by the paper's threshold and components ([`touch::detect_into`](crate::touch::detect_into)),
+//! 2. touches by the paper's threshold and components, or each by its own peak, tested against
+//!    the measured noise where a [`Significance`] is set ([`touch::detect_tested_into`](crate::touch::detect_tested_into)),
 //!    strongest first;
 //! 3. with a [`PressModel`], one press fitted to Δv from each touch's centre (at most 16, jointly);
 //! 4. the strength of each touch ([`Strength::read`]: the peak, the fitted drop, or a reading
@@ -41,10 +42,11 @@ use crate::calibration::{Calibration, ForceEstimate, Sample};
 use crate::contrast_map::ContrastMap;
 use crate::image::Image;
 use crate::inverse::{InverseError, Reconstructor};
+use crate::noise::Significance;
 use crate::press_fit::{PressFit, PressModel, PressScratch};
 use crate::pseudo_array::PseudoArray;
 use crate::strength::{Reading, Strength};
-use crate::touch::{detect_into, Polarity, Touch, TouchParams, TouchScratch};
+use crate::touch::{detect_tested_into, Polarity, Touch, TouchParams, TouchScratch};
 
 /// The most touches whose presses are fitted per frame.
 pub const MAX_FITTED: usize = 16;
@@ -133,6 +135,7 @@ pub struct Chain {
     masked_press: Option<PressModel>,
     contrast_map: Option<ContrastMap>,
     calibration: Option<(PseudoArray, Calibration)>,
+    significance: Option<Significance>,
     image: Image,
     scratch: TouchScratch,
     found: Vec<Touch>,
@@ -157,6 +160,7 @@ impl Chain {
             masked_press: None,
             contrast_map: None,
             calibration: None,
+            significance: None,
             image,
             scratch,
             found: Vec::with_capacity(MAX_FITTED),
@@ -240,6 +244,17 @@ impl Chain {
         self.touch.min_peak = min_peak;
     }
 
+    /// Tests each touch against the measured noise from now on (`None`: no test); the map must
+    /// be for this chain's raster.
+    pub fn set_significance(&mut self, significance: Option<Significance>) {
+        self.significance = significance;
+    }
+
+    /// The noise test touches pass, if one is set.
+    pub fn significance(&self) -> Option<&Significance> {
+        self.significance.as_ref()
+    }
+
     /// What each touch's strength is.
     pub fn strength(&self) -> Strength {
         self.strength
@@ -306,7 +321,8 @@ impl Chain {
     pub fn process(&mut self, reference: &[f64], frame: &[f64]) -> Result<&[TouchForce], InverseError> {
         self.touches.clear();
         self.recon.image_into(reference, frame, &mut self.image)?;
-        detect_into(&self.image, &self.touch, &mut self.scratch, &mut self.found);
+        let significance = self.significance.as_ref();
+        detect_tested_into(&self.image, &self.touch, significance, &mut self.scratch, &mut self.found);
         self.fits.clear();
         if let Some(model) = self.masked_press.as_ref().or(self.press_model.as_ref()) {
             // A dropped channel's Δv is 0 (it may be NaN): the masked model ignores it.

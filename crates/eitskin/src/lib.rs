@@ -47,6 +47,7 @@ pub mod geometry;
 pub mod image;
 pub mod inverse;
 pub mod mesh;
+pub mod noise;
 pub mod pipeline;
 pub mod press_fit;
 pub mod protocol;

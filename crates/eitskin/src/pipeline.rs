@@ -2,11 +2,20 @@
 //! touches, fitted presses, forces) on every frame.
 //!
 //! The reference (no-touch) frame is the mean of the first N frames (and again after
-//! [`Pipeline::retake_reference`]). While referencing, the pipeline also measures its own noise:
-//! the peak of each reference frame's image against the mean; with [`NoiseFloor::Auto`] a touch
-//! needs a peak above a multiple of that. With [`PipelineParams::auto_hyperparameter`] it also
-//! chooses λ from the reference frames' per-channel noise ([`noise_variance`],
-//! [`Reconstructor::with_auto_hyperparameter`](crate::Reconstructor::with_auto_hyperparameter)).
+//! [`Pipeline::retake_reference`]). While referencing, the pipeline also measures its noise, each
+//! channel's ([`NoiseModel`]), and keeps measuring it on every later frame without a touch.
+//! With [`NoiseFloor::FalseAlarm`] (the default) a touch's peak must stand out from that noise
+//! at a stated false-alarm rate ([`Significance`]); with [`NoiseFloor::Auto`] it needs a peak
+//! above a multiple of the reference frames' own image peaks. With
+//! [`PipelineParams::auto_hyperparameter`] it also chooses λ from the measured noise and weights
+//! the channels by it ([`Reconstructor::with_auto_hyperparameter`](crate::Reconstructor::with_auto_hyperparameter)).
+//! As the noise model sees more frames (each time their number doubles, then every
+//! [`REFRESH_MAX`] frames) λ, the weights and the threshold are derived again from it, and
+//! [`Status::NoiseUpdated`] says so: an event, like a dropped channel.
+//!
+//! Optional averaging ([`PipelineParams::average`]): each frame imaged is the mean of the last
+//! N (a moving average, started from the reference frames), so the noise falls by √N and a
+//! change shows (N − 1)/2 frames late on average.
 //! An optional slow baseline update, while no touch is present, follows drift:
 //! v_ref ← (1 − α)·v_ref + α·v. Each later frame goes through the chain against the reference.
 //!
@@ -29,15 +38,25 @@
 use crate::chain::Chain;
 pub use crate::chain::TouchForce;
 use crate::image::Image;
-use crate::inverse::{mean_of_finite, noise_variance, Channels, InverseError, Reconstructor};
+use crate::inverse::{mean_of_finite, Channels, InverseError, Reconstructor, DEFAULT_RELATIVE_NOISE};
+use crate::noise::{NoiseModel, Significance};
 use crate::pseudo_array::PseudoArray;
 
 /// The most bad channels an error names.
 const NAMED: usize = 8;
 
+/// The most frames between two refreshes of λ and the threshold from the noise model.
+pub const REFRESH_MAX: f64 = 500.0;
+
 /// How touches are told from noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum NoiseFloor {
+    /// A touch's peak must pass the z-test of the measured noise ([`Significance`]) at `rate`
+    /// false touches per frame without a touch.
+    FalseAlarm {
+        /// False touches per no-touch frame, in (0, 0.5].
+        rate: f64,
+    },
     /// A touch needs a peak above `factor` × the largest peak of the reference frames' own images.
     Auto {
         /// Multiple of the measured noise peak (dimensionless).
@@ -47,8 +66,8 @@ pub enum NoiseFloor {
     Fixed(f64),
 }
 
-/// Settings of the frame path; `Default` takes the mean of 10 frames, no baseline update, and
-/// keeps the chain's λ.
+/// Settings of the frame path; `Default` takes the mean of 10 frames, no baseline update, tests
+/// touches at 1 false touch per 1,000 frames, images single frames and keeps the chain's λ.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PipelineParams {
     /// Frames averaged into the reference.
@@ -61,6 +80,8 @@ pub struct PipelineParams {
     /// figure of 0.5, see [`Hyperparameter::Auto`](crate::inverse::Hyperparameter::Auto)),
     /// instead of keeping the chain's reconstructor's.
     pub auto_hyperparameter: bool,
+    /// Frames averaged into each frame imaged (a moving average; 1 = none).
+    pub average: usize,
 }
 
 impl Default for PipelineParams {
@@ -68,8 +89,9 @@ impl Default for PipelineParams {
         PipelineParams {
             reference_frames: 10,
             baseline_rate: 0.0,
-            noise_floor: NoiseFloor::Auto { factor: 2.0 },
+            noise_floor: NoiseFloor::FalseAlarm { rate: 1e-3 },
             auto_hyperparameter: false,
+            average: 1,
         }
     }
 }
@@ -92,6 +114,16 @@ pub enum Status {
         /// Channels dropped by this frame.
         count: usize,
     },
+    /// The frame was imaged, and then the noise model, grown by it, gave a new λ, channel
+    /// weights and threshold for the frames after it.
+    NoiseUpdated,
+}
+
+impl Status {
+    /// Whether the frame was imaged (its touches are in [`Pipeline::touches`]).
+    pub fn imaged(self) -> bool {
+        !matches!(self, Status::Referencing { .. })
+    }
 }
 
 /// The frame path of one sensor: the [`Chain`], its reference and the noise it measured.
@@ -113,6 +145,17 @@ pub struct Pipeline {
     /// The channels the chain came with (a spec's mask left the others out): only these are
     /// imaged, and only their losses count towards the limit.
     configured: Vec<bool>,
+    /// Each channel's measured noise, once the reference is taken.
+    noise: Option<NoiseModel>,
+    /// Whether the noise model was measured (false: assumed, from one reference frame).
+    noise_measured: bool,
+    /// Frames the noise model had seen at its last refresh, and frames added since.
+    refreshed_at: f64,
+    since_refresh: f64,
+    /// The last `average` frames (a ring, frame after frame), the next slot, and their mean.
+    ring: Vec<f64>,
+    ring_next: usize,
+    averaged: Vec<f64>,
 }
 
 impl Pipeline {
@@ -131,6 +174,13 @@ impl Pipeline {
             noise_peak: 0.0,
             newly_dropped: Vec::with_capacity(count),
             configured,
+            noise: None,
+            noise_measured: false,
+            refreshed_at: 0.0,
+            since_refresh: 0.0,
+            ring: vec![0.0; count * params.average.max(1)],
+            ring_next: 0,
+            averaged: vec![0.0; count],
         }
     }
 
@@ -150,6 +200,26 @@ impl Pipeline {
     /// The largest peak of the reference frames' own images, in S/m: the noise the floor is set from.
     pub fn noise_peak(&self) -> f64 {
         self.noise_peak
+    }
+
+    /// Each channel's noise as measured (or assumed, with one reference frame), once the reference is taken.
+    pub fn noise(&self) -> Option<&NoiseModel> {
+        self.noise.as_ref()
+    }
+
+    /// Whether the noise model was measured from frames (false: [`DEFAULT_RELATIVE_NOISE`] assumed).
+    pub fn noise_measured(&self) -> bool {
+        self.noise_measured
+    }
+
+    /// The noise test touches pass, with [`NoiseFloor::FalseAlarm`] once the reference is taken.
+    pub fn significance(&self) -> Option<&Significance> {
+        self.chain.significance()
+    }
+
+    /// Frames by which averaging delays a change, on average ((N − 1)/2 for N frames averaged).
+    pub fn latency_frames(&self) -> f64 {
+        (self.params.average.max(1) - 1) as f64 / 2.0
     }
 
     /// The hyperparameter λ imaged with (dimensionless): given, or chosen once the reference is taken.
@@ -211,17 +281,78 @@ impl Pipeline {
                 return Err(e);
             }
         }
-        let touched = !self.chain.process(&self.reference, frame)?.is_empty();
-        let alpha = self.params.baseline_rate;
-        if alpha > 0.0 && !touched {
-            for (r, v) in self.reference.iter_mut().zip(frame).filter(|(_, v)| v.is_finite()) {
-                *r += alpha * (v - *r);
-            }
-        }
-        Ok(match self.newly_dropped.len() {
+        let imaged = if self.params.average > 1 {
+            self.average(frame);
+            &self.averaged
+        } else {
+            frame
+        };
+        let touched = !self.chain.process(&self.reference, imaged)?.is_empty();
+        let mut status = match self.newly_dropped.len() {
             0 => Status::Processed,
             count => Status::ChannelsDropped { count },
-        })
+        };
+        if !touched {
+            if let Some(noise) = self.noise.as_mut() {
+                noise.update(&self.reference, frame);
+                self.since_refresh += 1.0;
+                if self.since_refresh >= self.refreshed_at.clamp(1.0, REFRESH_MAX) && status == Status::Processed {
+                    self.refresh()?;
+                    status = Status::NoiseUpdated;
+                }
+            }
+            let alpha = self.params.baseline_rate;
+            if alpha > 0.0 {
+                for (r, v) in self.reference.iter_mut().zip(frame).filter(|(_, v)| v.is_finite()) {
+                    *r += alpha * (v - *r);
+                }
+            }
+        }
+        Ok(status)
+    }
+
+    /// Puts `frame` into the ring of the last frames, and their mean into `averaged`.
+    fn average(&mut self, frame: &[f64]) {
+        let count = frame.len();
+        let n = self.params.average;
+        self.ring[self.ring_next * count..(self.ring_next + 1) * count].copy_from_slice(frame);
+        self.ring_next = (self.ring_next + 1) % n;
+        self.averaged.fill(0.0);
+        for past in self.ring.chunks_exact(count) {
+            self.averaged.iter_mut().zip(past).for_each(|(a, v)| *a += v);
+        }
+        self.averaged.iter_mut().for_each(|a| *a /= n as f64);
+    }
+
+    /// λ, the channel weights and the threshold again, from the noise model as it is now.
+    fn refresh(&mut self) -> Result<(), InverseError> {
+        let Some(noise) = &self.noise else { return Ok(()) };
+        self.refreshed_at = noise.frames();
+        self.since_refresh = 0.0;
+        if self.params.auto_hyperparameter {
+            let recon = self.chain.reconstructor();
+            let (derived, _) =
+                recon.with_auto_hyperparameter(recon.channels().clone(), Some(noise.relative_variance()))?;
+            self.chain.set_reconstructor(derived);
+        }
+        self.set_significance()
+    }
+
+    /// The noise test of the chain's reconstructor under the noise model, for the floor asked.
+    fn set_significance(&mut self) -> Result<(), InverseError> {
+        let significance = match (self.params.noise_floor, &self.noise) {
+            (NoiseFloor::FalseAlarm { rate }, Some(noise)) => {
+                let polarity = self.chain.touch_params().polarity;
+                let single = Significance::new(self.chain.reconstructor(), &self.reference, noise, polarity, rate)?;
+                Some(match self.params.average {
+                    0 | 1 => single,
+                    n => single.averaged(n, noise.reference_frames()),
+                })
+            }
+            _ => None,
+        };
+        self.chain.set_significance(significance);
+        Ok(())
     }
 
     /// Derives the reconstructor again without the channels of `newly_dropped`.
@@ -256,6 +387,14 @@ impl Pipeline {
 
     fn take_reference(&mut self) -> Result<(), InverseError> {
         self.reference = mean_of_finite(&self.collected);
+        let measured = NoiseModel::from_frames(&self.collected);
+        self.noise_measured = measured.is_some();
+        let count = self.reference.len();
+        let noise =
+            measured.unwrap_or_else(|| NoiseModel::assumed(DEFAULT_RELATIVE_NOISE, count, self.collected.len()));
+        self.refreshed_at = noise.frames();
+        self.since_refresh = 0.0;
+        self.noise = Some(noise);
         if let Some(recon) = self.reference_reconstructor()? {
             too_many_dropped(recon.channels().used_mask(), &self.configured, 0)?;
             self.chain.set_reconstructor(recon);
@@ -271,8 +410,19 @@ impl Pipeline {
         let floor = match self.params.noise_floor {
             NoiseFloor::Auto { factor } => factor * self.noise_peak,
             NoiseFloor::Fixed(value) => value,
+            NoiseFloor::FalseAlarm { .. } => 0.0,
         };
         self.chain.set_min_peak(self.min_peak.max(floor));
+        self.set_significance()?;
+        // The moving average starts from the last reference frames (the reference itself where
+        // there are fewer).
+        let n = self.params.average.max(1);
+        for k in 0..n {
+            let past = (self.collected.len() + k).checked_sub(n).and_then(|i| self.collected.get(i));
+            let slot = &mut self.ring[k * count..(k + 1) * count];
+            slot.copy_from_slice(past.unwrap_or(&self.reference));
+        }
+        self.ring_next = 0;
         self.collected.clear();
         Ok(())
     }
@@ -287,7 +437,7 @@ impl Pipeline {
         let keep: Vec<bool> = self.missing.iter().map(|missing| !missing).collect();
         let channels = Channels::all(self.reference.len()).masked(&self.configured).masked(&keep).masked(&alive);
         if self.params.auto_hyperparameter {
-            let variance = noise_variance(&self.collected);
+            let variance = self.noise.as_ref().filter(|_| self.noise_measured).map(NoiseModel::relative_variance);
             return Ok(Some(recon.with_auto_hyperparameter(channels, variance)?.0));
         }
         if recon.channels() == &channels && recon.params().hyperparameter == self.given_hyperparameter {
@@ -437,6 +587,7 @@ mod tests {
             baseline_rate: 0.5,
             noise_floor: NoiseFloor::Fixed(0.01),
             auto_hyperparameter: false,
+            average: 1,
         };
         let mut pipeline = Pipeline::new(Chain::new(recon, crate::TouchParams::default()), params);
         let sim = crate::sim::SimParams { drift_per_hour: 0.05, noise_relative: 0.0, ..Default::default() };

@@ -33,6 +33,7 @@
 //! nor for force (that is the calibration's job, from a [`Touch`]).
 
 use crate::image::Image;
+use crate::noise::Significance;
 
 /// Which sign of conductivity change a press makes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -87,6 +88,41 @@ impl std::str::FromStr for Polarity {
     }
 }
 
+/// What a touch's threshold is a fraction of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PeakOf {
+    /// The strongest change in the frame (the paper's rule): a press much weaker than the
+    /// strongest one is lost under its threshold.
+    #[default]
+    Frame,
+    /// Each touch's own peak: every local maximum that passes the noise test (or `min_peak`)
+    /// starts a touch, grown downhill from it to the threshold of its own peak, so a weak press
+    /// is found next to a strong one and two presses with a dip between them stay apart.
+    Touch,
+}
+
+impl PeakOf {
+    /// The name in files and flags: `frame` or `touch`.
+    pub fn name(self) -> &'static str {
+        match self {
+            PeakOf::Frame => "frame",
+            PeakOf::Touch => "touch",
+        }
+    }
+}
+
+impl std::str::FromStr for PeakOf {
+    type Err = String;
+
+    /// `frame` or `touch`.
+    fn from_str(text: &str) -> Result<PeakOf, String> {
+        [PeakOf::Frame, PeakOf::Touch]
+            .into_iter()
+            .find(|p| p.name() == text)
+            .ok_or_else(|| format!("\"{text}\" is not whose peak a threshold is of: use frame or touch"))
+    }
+}
+
 /// How touches are found; `Default` gives the paper's method.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TouchParams {
@@ -98,11 +134,19 @@ pub struct TouchParams {
     pub weighted: bool,
     /// The sign of change a press makes.
     pub polarity: Polarity,
+    /// Whose peak the threshold is a fraction of.
+    pub peak_of: PeakOf,
 }
 
 impl Default for TouchParams {
     fn default() -> TouchParams {
-        TouchParams { threshold: 0.6, min_peak: 0.0, weighted: true, polarity: Polarity::Decrease }
+        TouchParams {
+            threshold: 0.6,
+            min_peak: 0.0,
+            weighted: true,
+            polarity: Polarity::Decrease,
+            peak_of: PeakOf::Frame,
+        }
     }
 }
 
@@ -126,21 +170,34 @@ pub struct Touch {
     pub pixels: usize,
     /// Bounding box of the region's pixel centres, `[[x_min, y_min], [x_max, y_max]]`, in m.
     pub bounding_box: [[f64; 2]; 2],
+    /// The peak over the noise's standard deviation at its pixel (a z-score, dimensionless),
+    /// when touches were tested against a measured noise ([`Significance`]).
+    pub significance: Option<f64>,
 }
 
 /// Reusable buffers for [`detect_into`], so that it allocates nothing once they have grown.
 #[derive(Debug, Clone, Default)]
 pub struct TouchScratch {
-    /// Per pixel: kept by the threshold and not yet given to a region.
-    pending: Vec<bool>,
+    /// Per pixel: 0, or 1 + the index of the region that holds it.
+    claim: Vec<u32>,
     /// Row-major indices of the pixels waiting to be visited by the flood fill.
     stack: Vec<usize>,
+    /// Local maxima that may start a touch: (intensity, pixel).
+    seeds: Vec<(f32, usize)>,
+    /// The regions found, in the order they were grown.
+    regions: Vec<Region>,
 }
 
 impl TouchScratch {
     /// Buffers for images of `[nx, ny]` pixels (`Default` gives empty ones that grow on first use).
     pub fn new([nx, ny]: [usize; 2]) -> TouchScratch {
-        TouchScratch { pending: Vec::with_capacity(nx * ny), stack: Vec::with_capacity(nx * ny) }
+        let n = nx * ny;
+        TouchScratch {
+            claim: Vec::with_capacity(n),
+            stack: Vec::with_capacity(n),
+            seeds: Vec::with_capacity(n),
+            regions: Vec::with_capacity(n),
+        }
     }
 }
 
@@ -160,6 +217,21 @@ pub fn detect(image: &Image, params: &TouchParams) -> Vec<Touch> {
 /// Panics if `image.values` or `image.inside` does not have nx·ny entries (a caller contract).
 #[track_caller]
 pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScratch, touches: &mut Vec<Touch>) {
+    detect_tested_into(image, params, None, scratch, touches);
+}
+
+/// [`detect_into`], with each touch tested against the noise: a touch's peak must reach the
+/// `significance` threshold (z, for its false-alarm rate) at its pixel, and carries its z.
+///
+/// Panics if `image.values`, `image.inside` or the significance map does not have nx·ny entries.
+#[track_caller]
+pub fn detect_tested_into(
+    image: &Image,
+    params: &TouchParams,
+    significance: Option<&Significance>,
+    scratch: &mut TouchScratch,
+    touches: &mut Vec<Touch>,
+) {
     let [nx, ny] = image.size;
     let n = nx * ny;
     assert!(
@@ -168,15 +240,41 @@ pub fn detect_into(image: &Image, params: &TouchParams, scratch: &mut TouchScrat
         image.values.len(),
         image.inside.len()
     );
-    touches.clear();
-    // The peak over the inside pixels in each press direction asked for; with both, the
-    // threshold is a fraction of the larger, so a weak opposite change is not called a touch.
-    let peak = params.polarity.signs().into_iter().flatten().map(|p| peak_toward(image, p)).fold(0.0, f64::max);
-    if peak <= 0.0 || peak < params.min_peak {
-        return;
+    if let Some(significance) = significance {
+        assert_eq!(significance.inverse_std().len(), n, "a significance map for this raster");
     }
-    for polarity in params.polarity.signs().into_iter().flatten() {
-        regions(image, params, polarity, peak, scratch, touches);
+    touches.clear();
+    scratch.claim.clear();
+    scratch.claim.resize(n, 0);
+    scratch.regions.clear();
+    scratch.stack.clear();
+    scratch.stack.reserve(n); // each pixel is pushed at most once, so the stack never grows past n
+    match params.peak_of {
+        PeakOf::Frame => {
+            // The peak over the inside pixels in each press direction asked for; with both,
+            // the threshold is a fraction of the larger, so a weak opposite change is not a touch.
+            let signs = params.polarity.signs().into_iter().flatten();
+            let peak = signs.map(|p| peak_toward(image, p)).fold(0.0, f64::max);
+            if peak <= 0.0 || peak < params.min_peak {
+                return;
+            }
+            for polarity in params.polarity.signs().into_iter().flatten() {
+                frame_regions(image, params, polarity, peak, scratch);
+            }
+        }
+        PeakOf::Touch => {
+            for polarity in params.polarity.signs().into_iter().flatten() {
+                own_peak_regions(image, params, polarity, significance, scratch);
+            }
+        }
+    }
+    let pixel_area = image.pixel_area();
+    for region in scratch.regions.iter().filter(|r| r.merged_into.is_none()) {
+        let z = significance.map(|s| (s.z(region.peak_index, region.peak), s.threshold()));
+        if z.is_some_and(|(z, threshold)| z < threshold) {
+            continue;
+        }
+        touches.push(region.touch(pixel_area, z.map(|(z, _)| z)));
     }
 
     // Strongest first; equal peaks by the peak's position (top to bottom, left to right), so
@@ -199,26 +297,27 @@ pub const MORE_CONDUCTIVE: u8 = 2;
 /// A label per pixel, row-major from the top: [`LESS_CONDUCTIVE`] or [`MORE_CONDUCTIVE`] where
 /// the pixel belongs to a touch of that sign, else [`BACKGROUND`] (masked pixels included).
 ///
-/// The rule is the touches' own, untuned: a pixel is labelled when its change in a direction
-/// `params.polarity` allows is at least `threshold` × the peak (the larger peak for both
-/// directions), and the peak is above `min_peak`.
+/// The rule is the touches' own, untuned: exactly the pixels of the touches [`detect`] finds.
 pub fn labels(image: &Image, params: &TouchParams) -> Vec<u8> {
-    let mut out = vec![BACKGROUND; image.values.len()];
-    let peak = params.polarity.signs().into_iter().flatten().map(|p| peak_toward(image, p)).fold(0.0, f64::max);
-    if peak <= 0.0 || peak < params.min_peak {
-        return out;
-    }
-    let cutoff = params.threshold * peak;
-    for polarity in params.polarity.signs().into_iter().flatten() {
-        let label = if polarity == Polarity::Decrease { LESS_CONDUCTIVE } else { MORE_CONDUCTIVE };
-        for (i, (&v, &inside)) in image.values.iter().zip(&image.inside).enumerate() {
-            let s = polarity.intensity(v);
-            if inside && s > 0.0 && s >= cutoff {
-                out[i] = label;
+    let mut scratch = TouchScratch::new(image.size);
+    detect_tested_into(image, params, None, &mut scratch, &mut Vec::new());
+    let regions = &scratch.regions;
+    scratch
+        .claim
+        .iter()
+        .map(|&c| {
+            let Some(mut k) = (c as usize).checked_sub(1) else {
+                return BACKGROUND;
+            };
+            while let Some(root) = regions[k].merged_into {
+                k = root;
             }
-        }
-    }
-    out
+            match regions[k].polarity {
+                Polarity::Increase => MORE_CONDUCTIVE,
+                _ => LESS_CONDUCTIVE,
+            }
+        })
+        .collect()
 }
 
 /// The largest change toward `polarity` over the inside pixels, at least 0, in S/m.
@@ -246,58 +345,136 @@ fn peak_toward(image: &Image, polarity: Polarity) -> f64 {
     f64::from(lanes.iter().fold(0.0_f32, |m, &x| if x > m { x } else { m }))
 }
 
-/// Steps 2–4 for one press direction: the regions at or above `threshold × peak`, appended to `touches`.
-fn regions(
-    image: &Image,
-    params: &TouchParams,
-    polarity: Polarity,
-    peak: f64,
-    scratch: &mut TouchScratch,
-    touches: &mut Vec<Touch>,
-) {
+/// The 8 neighbours of pixel `i` (fewer at the edges) in an image `nx` wide and `ny` high.
+fn neighbours(i: usize, nx: usize, ny: usize) -> impl Iterator<Item = usize> {
+    let (col, row) = (i % nx, i / nx);
+    (row.saturating_sub(1)..=(row + 1).min(ny - 1))
+        .flat_map(move |r| (col.saturating_sub(1)..=(col + 1).min(nx - 1)).map(move |c| r * nx + c))
+        .filter(move |&j| j != i)
+}
+
+/// The paper's steps 2–4 for one press direction: the regions at or above `threshold × peak`
+/// (`peak` the frame's), added to the scratch's regions.
+fn frame_regions(image: &Image, params: &TouchParams, polarity: Polarity, peak: f64, scratch: &mut TouchScratch) {
     let [nx, ny] = image.size;
-    let n = nx * ny;
-    let intensity = |i: usize| polarity.intensity(image.values[i]);
     let sign = polarity.intensity(1.0) as f32;
     // 2. Keep the pixels at or above the threshold; a pixel with no change is never kept, so
     //    every kept weight is positive whatever the threshold.
     let cutoff = (params.threshold * peak) as f32;
-    scratch.pending.clear();
-    scratch.pending.extend(
-        // `&`, not `&&`: no branches, so the pass vectorises.
-        image.values.iter().zip(&image.inside).map(|(&v, &inside)| inside & (sign * v >= cutoff) & (sign * v > 0.0)),
-    );
-    scratch.stack.clear();
-    scratch.stack.reserve(n); // each pixel is pushed at most once, so the stack never grows past n
-
+    let kept = |i: usize| image.inside[i] & (sign * image.values[i] >= cutoff) & (sign * image.values[i] > 0.0);
     // 3. Flood-fill each region from its first pixel in row-major order, with an explicit stack.
-    for seed in 0..n {
-        if !scratch.pending[seed] {
+    for seed in 0..nx * ny {
+        if scratch.claim[seed] != 0 || !kept(seed) {
             continue;
         }
-        scratch.pending[seed] = false;
+        let label = scratch.regions.len() as u32 + 1;
+        let mut region = Region::new(polarity);
+        scratch.claim[seed] = label;
         scratch.stack.push(seed);
-        let mut region = Region::new();
         while let Some(i) = scratch.stack.pop() {
             let (col, row) = (i % nx, i / nx);
-            region.add(i, image.pixel_centre(col, row), intensity(i), params.weighted);
-            for r in row.saturating_sub(1)..=(row + 1).min(ny - 1) {
-                for c in col.saturating_sub(1)..=(col + 1).min(nx - 1) {
-                    let j = r * nx + c;
-                    if scratch.pending[j] {
-                        scratch.pending[j] = false;
-                        scratch.stack.push(j);
-                    }
+            region.add(i, image.pixel_centre(col, row), polarity.intensity(image.values[i]), params.weighted);
+            for j in neighbours(i, nx, ny) {
+                if scratch.claim[j] == 0 && kept(j) {
+                    scratch.claim[j] = label;
+                    scratch.stack.push(j);
                 }
             }
         }
         // 4. Centre of gravity and peak of the region.
-        touches.push(region.touch(image.pixel_area(), polarity));
+        scratch.regions.push(region);
+    }
+}
+
+/// The dip, as a fraction of a touch's own peak, that keeps it apart from a stronger touch it
+/// meets; where the noise is known the dip must also be [`SEPARATION_Z`] standard deviations.
+pub const SEPARATION: f64 = 0.1;
+/// The dip, in standard deviations of the noise at a touch's peak, that keeps it apart.
+pub const SEPARATION_Z: f64 = 2.0;
+
+/// Touches by their own peaks for one press direction, added to the scratch's regions.
+///
+/// Seeds are the local maxima (a pixel at least as strong as its 8 neighbours, ties to the
+/// first in row-major order) that reach `min_peak` and, with a significance, its threshold.
+/// From the strongest seed down, each grows downhill (to neighbours no stronger than the pixel
+/// it comes from) over pixels at or above `threshold` × its own peak not yet taken. A touch that
+/// meets a stronger one at a saddle less than [`SEPARATION`] of its peak (and [`SEPARATION_Z`]
+/// σ) below its peak is a shoulder of that one, and joins it.
+fn own_peak_regions(
+    image: &Image,
+    params: &TouchParams,
+    polarity: Polarity,
+    significance: Option<&Significance>,
+    scratch: &mut TouchScratch,
+) {
+    let [nx, ny] = image.size;
+    let sign = polarity.intensity(1.0) as f32;
+    let s = |i: usize| if image.inside[i] { sign * image.values[i] } else { f32::NEG_INFINITY };
+    scratch.seeds.clear();
+    for i in 0..nx * ny {
+        let si = s(i);
+        let strong = si > 0.0 && f64::from(si) >= params.min_peak;
+        if !strong || scratch.claim[i] != 0 || significance.is_some_and(|z| z.z(i, f64::from(si)) < z.threshold()) {
+            continue;
+        }
+        if neighbours(i, nx, ny).all(|j| s(j) < si || (s(j) == si && j > i)) {
+            scratch.seeds.push((si, i));
+        }
+    }
+    scratch.seeds.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    for k in 0..scratch.seeds.len() {
+        let (peak, seed) = scratch.seeds[k];
+        if scratch.claim[seed] != 0 {
+            continue;
+        }
+        let index = scratch.regions.len();
+        let label = index as u32 + 1;
+        let cutoff = (params.threshold * f64::from(peak)) as f32;
+        let mut region = Region::new(polarity);
+        // The highest saddle where this touch meets an earlier one: (height, that region).
+        let mut saddle: Option<(f32, usize)> = None;
+        scratch.claim[seed] = label;
+        scratch.stack.push(seed);
+        while let Some(i) = scratch.stack.pop() {
+            let (col, row) = (i % nx, i / nx);
+            let si = s(i);
+            region.add(i, image.pixel_centre(col, row), f64::from(si), params.weighted);
+            for j in neighbours(i, nx, ny) {
+                let (sj, claim) = (s(j), scratch.claim[j]);
+                if !(sj >= cutoff && sj > 0.0) || claim == label {
+                    continue;
+                }
+                if claim != 0 {
+                    let height = si.min(sj);
+                    if saddle.is_none_or(|(h, _)| height > h) {
+                        saddle = Some((height, claim as usize - 1));
+                    }
+                } else if sj <= si {
+                    scratch.claim[j] = label;
+                    scratch.stack.push(j);
+                }
+            }
+        }
+        if let Some((height, other)) = saddle {
+            let dip = f64::from(peak - height);
+            let noise = significance.map_or(0.0, |z| SEPARATION_Z / f64::from(z.inverse_std()[seed]).max(1e-30));
+            if dip < (SEPARATION * f64::from(peak)).max(noise) {
+                let mut root = other;
+                while let Some(next) = scratch.regions[root].merged_into {
+                    root = next;
+                }
+                scratch.regions[root].absorb(&region);
+                region.merged_into = Some(root);
+            }
+        }
+        scratch.regions.push(region);
     }
 }
 
 /// Running sums over the pixels of one region.
+#[derive(Debug, Clone, Copy)]
 struct Region {
+    polarity: Polarity,
     weight: f64,
     intensity: f64,
     moment: [f64; 2],
@@ -307,11 +484,14 @@ struct Region {
     peak_at: [f64; 2],
     lo: [f64; 2],
     hi: [f64; 2],
+    /// The region it joined, as a shoulder of it.
+    merged_into: Option<usize>,
 }
 
 impl Region {
-    fn new() -> Region {
+    fn new(polarity: Polarity) -> Region {
         Region {
+            polarity,
             weight: 0.0,
             intensity: 0.0,
             moment: [0.0; 2],
@@ -321,6 +501,7 @@ impl Region {
             peak_at: [0.0; 2],
             lo: [f64::INFINITY; 2],
             hi: [f64::NEG_INFINITY; 2],
+            merged_into: None,
         }
     }
 
@@ -342,10 +523,23 @@ impl Region {
         self.hi = [self.hi[0].max(p[0]), self.hi[1].max(p[1])];
     }
 
-    /// The touch this region makes, with pixels of `pixel_area` m².
-    fn touch(&self, pixel_area: f64, polarity: Polarity) -> Touch {
+    /// Takes in the pixels of `other` (a shoulder of this region).
+    fn absorb(&mut self, other: &Region) {
+        self.weight += other.weight;
+        self.intensity += other.intensity;
+        self.moment = [self.moment[0] + other.moment[0], self.moment[1] + other.moment[1]];
+        self.pixels += other.pixels;
+        if other.peak > self.peak {
+            (self.peak, self.peak_index, self.peak_at) = (other.peak, other.peak_index, other.peak_at);
+        }
+        self.lo = [self.lo[0].min(other.lo[0]), self.lo[1].min(other.lo[1])];
+        self.hi = [self.hi[0].max(other.hi[0]), self.hi[1].max(other.hi[1])];
+    }
+
+    /// The touch this region makes, with pixels of `pixel_area` m² and the peak's z.
+    fn touch(&self, pixel_area: f64, significance: Option<f64>) -> Touch {
         Touch {
-            polarity,
+            polarity: self.polarity,
             centre: [self.moment[0] / self.weight, self.moment[1] / self.weight],
             peak: self.peak,
             peak_at: self.peak_at,
@@ -353,6 +547,7 @@ impl Region {
             volume: self.intensity * pixel_area,
             pixels: self.pixels,
             bounding_box: [self.lo, self.hi],
+            significance,
         }
     }
 }
@@ -420,6 +615,57 @@ mod tests {
         assert_eq!(count(MORE_CONDUCTIVE), 0);
         assert_eq!("both".parse(), Ok(Polarity::Both));
         assert!("up".parse::<Polarity>().is_err());
+    }
+
+    /// Each touch by its own peak: a weak press far from a strong one is found, two presses
+    /// with a dip between them stay apart, and a shoulder on a press's flank is not a touch.
+    #[test]
+    fn touches_by_their_own_peaks() {
+        let own = TouchParams { peak_of: PeakOf::Touch, ..TouchParams::default() };
+        let (strong, weak) = ([0.05, -0.05], [-0.04, 0.03]);
+        let mut image = disk();
+        add_gaussian(&mut image, strong, 0.01, -1.0);
+        add_gaussian(&mut image, weak, 0.01, -0.2);
+        assert_eq!(detect(&image, &TouchParams::default()).len(), 1, "under 60 % of the strongest");
+        let touches = detect(&image, &own);
+        assert_eq!(touches.len(), 2, "{touches:?}");
+        assert!(distance(touches[1].centre, weak) < 0.5 * PIXEL && (touches[1].peak - 0.2).abs() < 0.01);
+        assert_eq!(touches[0].significance, None);
+
+        // 25 mm apart, σ 10 mm: the saddle is 88 % of the peaks, so the frame's 60 % joins them.
+        let (a, b) = ([-0.0125, 0.0], [0.0125, 0.0]);
+        let mut image = disk();
+        add_gaussian(&mut image, a, 0.01, -1.0);
+        add_gaussian(&mut image, b, 0.01, -1.0);
+        assert_eq!(detect(&image, &TouchParams::default()).len(), 1);
+        let touches = detect(&image, &own);
+        assert_eq!(touches.len(), 2, "{touches:?}");
+        let near = |t: &Touch, p| distance(t.peak_at, p) < PIXEL;
+        assert!(touches.iter().any(|t| near(t, a)) && touches.iter().any(|t| near(t, b)), "{touches:?}");
+        let labelled = labels(&image, &own);
+        let pixels: usize = touches.iter().map(|t| t.pixels).sum();
+        assert_eq!(labelled.iter().filter(|&&l| l == LESS_CONDUCTIVE).count(), pixels);
+
+        // A small bump on the flank of a press is a local maximum, but a shoulder of the press.
+        let mut image = disk();
+        add_gaussian(&mut image, strong, 0.012, -1.0);
+        add_gaussian(&mut image, [0.05 + 0.014, -0.05], 0.003, -0.1);
+        let touches = detect(&image, &own);
+        assert_eq!(touches.len(), 1, "{touches:?}");
+        assert!(distance(touches[0].peak_at, strong) < PIXEL);
+
+        // Without a floor, noise would start touches everywhere; the noise test keeps the
+        // weak press (z 20) and drops a bump of z 2.
+        let mut image = disk();
+        add_gaussian(&mut image, strong, 0.01, -1.0);
+        add_gaussian(&mut image, weak, 0.01, -0.2);
+        add_gaussian(&mut image, [0.0, -0.07], 0.01, -0.02);
+        let noise = Significance::uniform(image.values.len(), 0.01, 4.5);
+        let mut found = Vec::new();
+        detect_tested_into(&image, &own, Some(&noise), &mut TouchScratch::default(), &mut found);
+        assert_eq!(found.len(), 2, "{found:?}");
+        assert!(found[1].significance.is_some_and(|z| (z - 20.0).abs() < 1.0), "{found:?}");
+        assert_eq!(detect(&image, &own).len(), 3);
     }
 
     #[test]
@@ -596,19 +842,19 @@ mod tests {
         let mut touches = Vec::new();
         detect_into(&image, &params, &mut scratch, &mut touches);
         let first = touches.clone();
-        let capacities = (scratch.pending.capacity(), scratch.stack.capacity(), touches.capacity());
-        let pointers = (scratch.pending.as_ptr(), scratch.stack.as_ptr(), touches.as_ptr());
+        let capacities = (scratch.claim.capacity(), scratch.stack.capacity(), touches.capacity());
+        let pointers = (scratch.claim.as_ptr(), scratch.stack.as_ptr(), touches.as_ptr());
         detect_into(&image, &params, &mut scratch, &mut touches);
         assert_eq!(touches, first);
         assert_eq!(touches, detect(&image, &params));
-        assert_eq!((scratch.pending.capacity(), scratch.stack.capacity(), touches.capacity()), capacities);
-        assert_eq!((scratch.pending.as_ptr(), scratch.stack.as_ptr(), touches.as_ptr()), pointers);
+        assert_eq!((scratch.claim.capacity(), scratch.stack.capacity(), touches.capacity()), capacities);
+        assert_eq!((scratch.claim.as_ptr(), scratch.stack.as_ptr(), touches.as_ptr()), pointers);
 
         // Preallocated buffers do not grow at all.
         let mut scratch = TouchScratch::new(image.size);
-        let sized = (scratch.pending.capacity(), scratch.stack.capacity());
+        let sized = (scratch.claim.capacity(), scratch.stack.capacity());
         detect_into(&image, &params, &mut scratch, &mut touches);
-        assert_eq!((scratch.pending.capacity(), scratch.stack.capacity()), sized);
+        assert_eq!((scratch.claim.capacity(), scratch.stack.capacity()), sized);
         assert_eq!(touches, first);
     }
 

@@ -141,20 +141,7 @@ pub fn mean_of_finite(frames: &[Vec<f64>]) -> Vec<f64> {
 /// each variance is floored at a tenth of the median channel's, so that no channel is
 /// trusted without limit.
 pub fn noise_variance(frames: &[Vec<f64>]) -> Option<Vec<f64>> {
-    let count = frames.first()?.len();
-    let mut variance = vec![f64::NAN; count];
-    for (m, out) in variance.iter_mut().enumerate() {
-        let values: Vec<f64> = frames.iter().filter_map(|f| f.get(m).copied()).filter(|v| v.is_finite()).collect();
-        if values.len() < 2 {
-            continue;
-        }
-        let mean = values.iter().sum::<f64>() / values.len() as f64;
-        let sum: f64 = values.iter().map(|v| ((v - mean) / mean).powi(2)).sum();
-        *out = sum / (values.len() - 1) as f64;
-    }
-    let floored = floored(variance);
-    // Most channels never moved (the median is 0): no usable noise estimate.
-    floored.iter().any(|v| v.is_finite() && *v > 0.0).then_some(floored)
+    crate::noise::NoiseModel::from_frames(frames).map(|model| model.relative_variance())
 }
 
 /// Each finite variance raised to at least a tenth of the median finite one.

@@ -20,6 +20,7 @@ mod linearisation;
 mod prior;
 mod raster;
 
+pub(crate) use channels::floored;
 pub use channels::{mean_frame, mean_of_finite, noise_variance, Channels};
 pub use hyperparameter::{
     choose_hyperparameter, map_hyperparameter, noise_figure, noise_figure_hyperparameter, Hyperparameter,
