@@ -32,9 +32,10 @@
 //! Not for: presses much larger than the indenter, or touches closer together than about two
 //! indenter radii (their responses are then nearly the same vector).
 
-use crate::conductivity::{circle_triangle_area, with_inclusions, Inclusion};
-use crate::forward::ForwardModel;
+use crate::conductivity::circle_triangle_area;
+use crate::forward::{ForwardModel, LowRankUpdate};
 use crate::inverse::InverseError;
+use crate::mesh::Mesh;
 use crate::mesh::PointLocator;
 
 /// A square grid of points over a box: the first at `lo`, row-major.
@@ -75,6 +76,34 @@ impl Grid {
             (at(i + 1, j + 1), fx * fy),
         ]
     }
+}
+
+/// Per point of `grid`, the triangles of `mesh` a disk of `radius` (m) there covers, each with
+/// the share of its area covered (in (0, 1]).
+fn disk_shares(mesh: &Mesh, grid: &Grid, radius: f64) -> Vec<Vec<(usize, f64)>> {
+    let mut shares = vec![Vec::new(); grid.len()];
+    for t in 0..mesh.triangles().len() {
+        let corners = mesh.corners(t);
+        let area = mesh.area(t);
+        // The grid points whose disk can reach the triangle's bounding box.
+        let range = |k: usize| {
+            let (min, max) =
+                corners.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| (a.min(c[k]), b.max(c[k])));
+            let first = ((min - radius - grid.lo[k]) / grid.spacing).floor().max(0.0) as usize;
+            let last = (((max + radius - grid.lo[k]) / grid.spacing).ceil().max(0.0) as usize).min(grid.dims[k] - 1);
+            first..=last
+        };
+        for gj in range(1) {
+            for gi in range(0) {
+                let j = gj * grid.dims[0] + gi;
+                let share = (circle_triangle_area(grid.point(j), radius, corners) / area).min(1.0);
+                if share > 0.0 {
+                    shares[j].push((t, share));
+                }
+            }
+        }
+    }
+    shares
 }
 
 /// Conductivity drops (fractions of the background) of the ladder that undoes the linearisation.
@@ -234,37 +263,17 @@ impl PressModel {
         let measurements = jacobian.nrows();
         let spacing = params.spacing.unwrap_or(params.radius / 4.0);
         let grid = Grid::over(mesh.bounds(), spacing);
-        let (lo, dims, points) = (grid.lo, grid.dims, grid.len());
-        let point = |j: usize| grid.point(j);
+        let points = grid.len();
         let locator = PointLocator::new(mesh);
-        let inside: Vec<bool> = (0..points).map(|j| locator.locate(point(j)).is_some()).collect();
         let mut responses = vec![0.0; points * measurements];
-        for t in 0..mesh.triangles().len() {
-            let corners = mesh.corners(t);
-            let area = mesh.area(t);
-            let column = jacobian.col(t);
-            // The grid points whose disk can reach the triangle's bounding box.
-            let range = |k: usize| {
-                let (min, max) =
-                    corners.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| (a.min(c[k]), b.max(c[k])));
-                let first = ((min - params.radius - lo[k]) / spacing).floor().max(0.0) as usize;
-                let last = (((max + params.radius - lo[k]) / spacing).ceil() as usize).min(dims[k] - 1);
-                first..=last
-            };
-            for gj in range(1) {
-                for gi in range(0) {
-                    let j = gj * dims[0] + gi;
-                    if !inside[j] {
-                        continue;
-                    }
-                    let share = circle_triangle_area(point(j), params.radius, corners) / area;
-                    if share <= 0.0 {
-                        continue;
-                    }
-                    let response = &mut responses[j * measurements..(j + 1) * measurements];
-                    for (r, d) in response.iter_mut().zip(column.iter()) {
-                        *r -= background * share * d;
-                    }
+        for (j, shares) in disk_shares(mesh, &grid, params.radius).iter().enumerate() {
+            if locator.locate(grid.point(j)).is_none() {
+                continue;
+            }
+            let response = &mut responses[j * measurements..(j + 1) * measurements];
+            for &(t, share) in shares {
+                for (r, d) in response.iter_mut().zip(jacobian.col(t).iter()) {
+                    *r -= background * share * d;
                 }
             }
         }
@@ -285,8 +294,9 @@ impl PressModel {
         Ok(press_model)
     }
 
-    /// The contrast fitted, at its own centre, to a full forward solve of a press of each drop
-    /// of [`PressModel::LADDER`] at each coarse grid point (in parallel).
+    /// The contrast fitted, at its own centre, to the exact response of a press of each drop
+    /// of [`PressModel::LADDER`] at each coarse grid point (in parallel), each from the
+    /// background's factorisation by a low-rank update ([`LowRankUpdate`]).
     fn ladder(
         &self,
         model: &ForwardModel,
@@ -295,35 +305,36 @@ impl PressModel {
     ) -> Result<Vec<[f64; LADDER.len()]>, InverseError> {
         use rayon::prelude::*;
         let mesh = model.mesh();
-        let v0 = model.measure(&vec![background; mesh.triangles().len()])?;
-        (0..self.coarse.len())
-            .into_par_iter()
-            .map(|j| {
-                let centre = self.coarse.point(j);
-                let mut contrasts = [f64::NAN; LADDER.len()];
-                let mut g = vec![0.0; self.measurements];
-                if locator.locate(centre).is_none() || !self.response_into(centre, &mut g) {
-                    return Ok(contrasts);
-                }
-                let gg: f64 = g.iter().map(|g| g * g).sum();
-                // The contrast at the two solved drops, then the rational law through them.
-                let mut solved = [0.0; 2];
-                for (c, drop) in solved.iter_mut().zip(SOLVED) {
-                    let press = Inclusion { centre, radius: self.radius, conductivity: (1.0 - drop) * background };
-                    let v = model.measure(&with_inclusions(mesh, background, &[press]))?;
-                    *c = g.iter().zip(v.iter().zip(&v0)).map(|(g, (v, v0))| g * (v - v0)).sum::<f64>() / gg;
-                }
-                let [(d1, c1), (d2, c2)] = [(SOLVED[0], solved[0]), (SOLVED[1], solved[1])];
-                let (y1, y2) = (1.0 - d1 / c1, 1.0 - d2 / c2);
-                let det = d1 * d2 * d2 - d1 * d1 * d2;
-                let (k, q) = ((y1 * d2 * d2 - y2 * d1 * d1) / det, (y2 * d1 - y1 * d2) / det);
-                for (c, d) in contrasts.iter_mut().zip(LADDER) {
-                    let denominator = 1.0 - k * d - q * d * d;
-                    *c = if denominator > 0.0 { d / denominator } else { f64::NAN };
-                }
-                Ok(contrasts)
-            })
-            .collect()
+        let update = LowRankUpdate::new(model, &vec![background; mesh.triangles().len()])?;
+        let covered = disk_shares(mesh, &self.coarse, self.radius);
+        let ladder = (0..self.coarse.len()).into_par_iter().map(|j| {
+            let centre = self.coarse.point(j);
+            let mut contrasts = [f64::NAN; LADDER.len()];
+            let mut g = vec![0.0; self.measurements];
+            if locator.locate(centre).is_none() || covered[j].is_empty() || !self.response_into(centre, &mut g) {
+                return contrasts;
+            }
+            let gg: f64 = g.iter().map(|g| g * g).sum();
+            // The contrast at the two solved drops, then the rational law through them.
+            let local = update.local_rows(covered[j].iter().map(|(t, _)| *t));
+            let mut solved = [0.0; 2];
+            for (c, drop) in solved.iter_mut().zip(SOLVED) {
+                let changes: Vec<(usize, f64)> =
+                    covered[j].iter().map(|&(t, share)| (t, -drop * background * share)).collect();
+                let dv = update.measurement_change_on(&local, &changes);
+                *c = g.iter().zip(&dv).map(|(g, d)| g * d).sum::<f64>() / gg;
+            }
+            let [(d1, c1), (d2, c2)] = [(SOLVED[0], solved[0]), (SOLVED[1], solved[1])];
+            let (y1, y2) = (1.0 - d1 / c1, 1.0 - d2 / c2);
+            let det = d1 * d2 * d2 - d1 * d1 * d2;
+            let (k, q) = ((y1 * d2 * d2 - y2 * d1 * d1) / det, (y2 * d1 - y1 * d2) / det);
+            for (c, d) in contrasts.iter_mut().zip(LADDER) {
+                let denominator = 1.0 - k * d - q * d * d;
+                *c = if denominator > 0.0 { d / denominator } else { f64::NAN };
+            }
+            contrasts
+        });
+        Ok(ladder.collect())
     }
 
     /// The drop (fraction of the background) whose press at `p` (m) fits to `contrast`: piecewise
@@ -510,6 +521,7 @@ impl PressModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::conductivity::{with_inclusions, Inclusion};
     use crate::sim::VirtualSensor;
     use crate::touch::{detect, TouchParams};
     use crate::{Reconstructor, ReconstructorParams, SensorSpec};

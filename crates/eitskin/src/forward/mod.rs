@@ -11,6 +11,9 @@
 
 mod assemble;
 mod jacobian;
+mod low_rank;
+
+pub use low_rank::{LocalRows, LowRankUpdate, DENSE_LIMIT};
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
