@@ -43,7 +43,7 @@ use crate::contrast_map::ContrastMap;
 use crate::image::Image;
 use crate::inverse::{InverseError, Reconstructor};
 use crate::noise::Significance;
-use crate::press_fit::{PressFit, PressModel, PressScratch};
+use crate::press_fit::{PressDetection, PressFit, PressModel, PressScratch};
 use crate::pseudo_array::PseudoArray;
 use crate::strength::{Reading, Strength};
 use crate::touch::{detect_tested_into, Polarity, Touch, TouchParams, TouchScratch};
@@ -136,6 +136,10 @@ pub struct Chain {
     contrast_map: Option<ContrastMap>,
     calibration: Option<(PseudoArray, Calibration)>,
     significance: Option<Significance>,
+    /// Presses found in Δv itself, tested against the noise, instead of touches from the image.
+    press_detection: Option<PressDetection>,
+    whitened: Vec<f64>,
+    detected: Vec<PressFit>,
     image: Image,
     scratch: TouchScratch,
     found: Vec<Touch>,
@@ -152,6 +156,7 @@ impl Chain {
         let image = recon.blank_image();
         let scratch = TouchScratch::new(image.size);
         Chain {
+            whitened: Vec::with_capacity(recon.measurements()),
             difference: vec![0.0; recon.measurements()],
             recon,
             touch,
@@ -161,6 +166,8 @@ impl Chain {
             contrast_map: None,
             calibration: None,
             significance: None,
+            press_detection: None,
+            detected: Vec::with_capacity(MAX_FITTED),
             image,
             scratch,
             found: Vec::with_capacity(MAX_FITTED),
@@ -250,6 +257,18 @@ impl Chain {
         self.significance = significance;
     }
 
+    /// Finds touches as presses in Δv itself from now on, each tested against the noise
+    /// (`None`: touches from the image); needs the chain's press model (whitened by the same
+    /// noise in `detection`) to fit them.
+    pub fn set_press_detection(&mut self, detection: Option<PressDetection>) {
+        self.press_detection = detection;
+    }
+
+    /// The detection of presses in Δv, if one is set.
+    pub fn press_detection(&self) -> Option<&PressDetection> {
+        self.press_detection.as_ref()
+    }
+
     /// The noise test touches pass, if one is set.
     pub fn significance(&self) -> Option<&Significance> {
         self.significance.as_ref()
@@ -321,18 +340,31 @@ impl Chain {
     pub fn process(&mut self, reference: &[f64], frame: &[f64]) -> Result<&[TouchForce], InverseError> {
         self.touches.clear();
         self.recon.image_into(reference, frame, &mut self.image)?;
-        let significance = self.significance.as_ref();
-        detect_tested_into(&self.image, &self.touch, significance, &mut self.scratch, &mut self.found);
         self.fits.clear();
-        if let Some(model) = self.masked_press.as_ref().or(self.press_model.as_ref()) {
+        let channels = self.recon.channels();
+        let model = self.masked_press.as_ref().or(self.press_model.as_ref());
+        if model.is_some() || self.press_detection.is_some() {
             // A dropped channel's Δv is 0 (it may be NaN): the masked model ignores it.
-            let channels = self.recon.channels();
             for (m, (d, (v, r))) in self.difference.iter_mut().zip(frame.iter().zip(reference)).enumerate() {
                 *d = if channels.is_used(m) { v - r } else { 0.0 };
             }
-            self.starts.clear();
-            self.starts.extend(self.found.iter().take(MAX_FITTED).map(|t| t.centre));
-            model.fit_into(&self.difference, &self.starts, &mut self.press_scratch, &mut self.fits)?;
+        }
+        if let Some(detection) = &self.press_detection {
+            detection.detect_into(&self.difference, &mut self.whitened, &mut self.press_scratch, &mut self.detected)?;
+            self.found.clear();
+            let radius = detection.radius();
+            for press in self.detected.iter().take(MAX_FITTED) {
+                self.found.push(touch_of_press(press, radius, &self.image));
+                self.fits.push(Some(*press));
+            }
+        } else {
+            let significance = self.significance.as_ref();
+            detect_tested_into(&self.image, &self.touch, significance, &mut self.scratch, &mut self.found);
+            if let Some(model) = model {
+                self.starts.clear();
+                self.starts.extend(self.found.iter().take(MAX_FITTED).map(|t| t.centre));
+                model.fit_into(&self.difference, &self.starts, &mut self.press_scratch, &mut self.fits)?;
+            }
         }
         for (k, touch) in self.found.iter().enumerate() {
             let press = self.fits.get(k).copied().flatten();
@@ -354,6 +386,27 @@ impl Chain {
             });
         }
         Ok(&self.touches)
+    }
+}
+
+/// The touch a press found in Δv makes: at the press's centre, its peak the image's change
+/// there (in the press direction, at least 0), its region the indenter's disk of `radius` (m),
+/// its significance the press's z.
+fn touch_of_press(press: &PressFit, radius: f64, image: &Image) -> Touch {
+    let pixel = image.pixel_at(press.centre);
+    let peak = pixel.map_or(0.0, |p| Polarity::Decrease.intensity(image.values[p]).max(0.0));
+    let [x, y] = press.centre;
+    let area = std::f64::consts::PI * radius * radius;
+    Touch {
+        polarity: Polarity::Decrease,
+        centre: press.centre,
+        peak,
+        peak_at: press.centre,
+        area,
+        volume: peak * area,
+        pixels: (area / image.pixel_area()).round() as usize,
+        bounding_box: [[x - radius, y - radius], [x + radius, y + radius]],
+        significance: Some(press.z),
     }
 }
 

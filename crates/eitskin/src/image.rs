@@ -58,6 +58,16 @@ impl Image {
         dx * dy
     }
 
+    /// The pixel (row-major index) whose square holds `p` (m), `None` outside the box.
+    pub fn pixel_at(&self, p: [f64; 2]) -> Option<usize> {
+        let [lo, hi] = self.bounds;
+        let [dx, dy] = self.pixel_size();
+        let (col, row) = ((p[0] - lo[0]) / dx, (hi[1] - p[1]) / dy);
+        let [nx, ny] = self.size;
+        let within = col >= 0.0 && row >= 0.0 && (col as usize) < nx && (row as usize) < ny;
+        within.then(|| row as usize * nx + col as usize)
+    }
+
     /// The inside pixel with the largest |Δσ| (row-major index) and its signed value in S/m, or
     /// `None` if no pixel is inside; NaN values are skipped, and ties go to the first pixel.
     pub fn peak(&self) -> Option<(usize, f32)> {

@@ -155,6 +155,15 @@ impl NoiseModel {
         }
     }
 
+    /// Each channel's noise standard deviation in a difference v − v_ref (V, the unit of
+    /// `reference`) or, `normalized`, in v/v_ref − 1, when v is the mean of `averaged` frames:
+    /// the reference's own noise included; NaN for a channel never measured.
+    pub fn difference_std(&self, reference: &[f64], normalized: bool, averaged: usize) -> Vec<f64> {
+        let share = 1.0 / averaged.max(1) as f64 + 1.0 / self.reference_frames.max(1) as f64;
+        let relative = self.relative_variance();
+        relative.iter().zip(reference).map(|(r, v)| (r * share * if normalized { 1.0 } else { v * v }).sqrt()).collect()
+    }
+
     /// Each channel's relative noise variance (ratio²; NaN for a channel never measured), each
     /// raised to at least a tenth of the median channel's, so that no channel is trusted
     /// without limit (few frames estimate a variance badly, and a quantised board can repeat a
@@ -285,23 +294,12 @@ impl Significance {
 /// Each used channel's noise standard deviation in the differences' units (V, or a ratio when
 /// normalised), with the reference's share; 0 for a channel not used.
 fn difference_std(recon: &Reconstructor, v_ref: &[f64], noise: &NoiseModel) -> Vec<f64> {
-    let inflation = 1.0 + 1.0 / noise.reference_frames().max(1) as f64;
-    let normalized = recon.params().normalized;
-    let relative = noise.relative_variance();
-    (0..recon.measurements())
-        .map(|m| {
-            let variance = relative[m] * inflation * if normalized { 1.0 } else { v_ref[m] * v_ref[m] };
-            if recon.channels().is_used(m) && variance.is_finite() && variance > 0.0 {
-                variance.sqrt()
-            } else {
-                0.0
-            }
-        })
-        .collect()
+    let std = noise.difference_std(v_ref, recon.params().normalized, 1);
+    std.iter().enumerate().map(|(m, s)| if recon.channels().is_used(m) && s.is_finite() { *s } else { 0.0 }).collect()
 }
 
 /// The `q` quantile of `values` (the nearest rank).
-fn quantile(values: &[f64], q: f64) -> f64 {
+pub(crate) fn quantile(values: &[f64], q: f64) -> f64 {
     let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
     let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len().max(1)) - 1;

@@ -40,6 +40,7 @@ pub use crate::chain::TouchForce;
 use crate::image::Image;
 use crate::inverse::{mean_of_finite, Channels, InverseError, Reconstructor, DEFAULT_RELATIVE_NOISE};
 use crate::noise::{NoiseModel, Significance};
+use crate::press_fit::PressDetection;
 use crate::pseudo_array::PseudoArray;
 
 /// The most bad channels an error names.
@@ -338,8 +339,19 @@ impl Pipeline {
         self.set_significance()
     }
 
-    /// The noise test of the chain's reconstructor under the noise model, for the floor asked.
+    /// The noise test of the chain's reconstructor under the noise model, for the floor asked;
+    /// with a press model, presses are then found in Δv itself against the same noise.
     fn set_significance(&mut self) -> Result<(), InverseError> {
+        let detection = match (self.params.noise_floor, &self.noise, self.chain.press_model()) {
+            (NoiseFloor::FalseAlarm { rate }, Some(noise), Some(model)) => {
+                let channels = self.chain.reconstructor().channels();
+                let mut std = noise.difference_std(&self.reference, false, self.params.average);
+                std.iter_mut().enumerate().filter(|(m, _)| !channels.is_used(*m)).for_each(|(_, s)| *s = f64::INFINITY);
+                Some(PressDetection::new(model, &std, rate)?)
+            }
+            _ => None,
+        };
+        self.chain.set_press_detection(detection);
         let significance = match (self.params.noise_floor, &self.noise) {
             (NoiseFloor::FalseAlarm { rate }, Some(noise)) => {
                 let polarity = self.chain.touch_params().polarity;
@@ -363,7 +375,7 @@ impl Pipeline {
         too_many_dropped(&used, &self.configured, self.newly_dropped.len())?;
         let derived = recon.derive(recon.params().hyperparameter, recon.channels().clone().masked(&used))?;
         self.chain.set_reconstructor(derived);
-        Ok(())
+        self.set_significance()
     }
 
     /// Adds a frame to the reference, and takes it once enough are collected.

@@ -38,6 +38,10 @@ use crate::inverse::InverseError;
 use crate::mesh::Mesh;
 use crate::mesh::PointLocator;
 
+mod detect;
+
+pub use detect::PressDetection;
+
 /// A square grid of points over a box: the first at `lo`, row-major.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Grid {
@@ -172,6 +176,9 @@ pub struct PressFit {
     /// The conductivity drop under the indenter (fraction of the background) whose full
     /// forward response gives that contrast at that centre; past 0.9 extrapolated.
     pub drop: f64,
+    /// Its response against Δv less the other presses', over the response's norm, gᵀr/|g|:
+    /// with Δv and the model whitened by the noise ([`PressModel::whitened`]) a z-score, else in V.
+    pub z: f64,
 }
 
 /// Settings of [`PressModel::new`].
@@ -197,7 +204,12 @@ pub struct PressScratch {
     residual: Vec<f64>,
     response: Vec<f64>,
     responses: Vec<f64>,
+    /// Detection: the centres of the other presses.
+    centres: Vec<[f64; 2]>,
 }
+
+/// The largest drop a fitted press may have (a fraction of the background): all of it.
+pub const MAX_DROP: f64 = 1.0;
 
 /// Sweeps over the presses when there are several.
 const SWEEPS: usize = 3;
@@ -460,7 +472,8 @@ impl PressModel {
         Ok(())
     }
 
-    /// The score (gᵀΔv)² / gᵀg of grid point `j` for a press (gᵀΔv > 0), or `None`.
+    /// The score (gᵀΔv)² / gᵀg of grid point `j` for a press (gᵀΔv > 0, and a drop of at
+    /// most [`MAX_DROP`]), or `None`.
     fn score(&self, dv: &[f64], j: usize) -> Option<f64> {
         let norm = self.norms[j];
         if norm <= 0.0 {
@@ -468,7 +481,9 @@ impl PressModel {
         }
         let g = &self.responses[j * self.measurements..(j + 1) * self.measurements];
         let c: f64 = g.iter().zip(dv).map(|(g, v)| g * v).sum();
-        (c > 0.0).then(|| c * c / norm)
+        // A press lowers the conductivity by at most all of it: a point that would need more
+        // is a blend of presses elsewhere (a weakly sensitive middle between them), not a press.
+        (c > 0.0 && self.drop(c / norm, self.grid.point(j)) <= MAX_DROP).then(|| c * c / norm)
     }
 
     fn fit_one(&self, dv: &[f64], start: [f64; 2], search: f64, response: &mut [f64]) -> Option<PressFit> {
@@ -514,7 +529,8 @@ impl PressModel {
         }
         let gg: f64 = response.iter().map(|g| g * g).sum();
         let gv: f64 = response.iter().zip(dv).map(|(g, v)| g * v).sum();
-        (gg > 0.0 && gv > 0.0).then(|| PressFit { centre, contrast: gv / gg, drop: self.drop(gv / gg, centre) })
+        let (contrast, z) = (gv / gg, gv / gg.sqrt());
+        (gg > 0.0 && gv > 0.0).then(|| PressFit { centre, contrast, drop: self.drop(contrast, centre), z })
     }
 }
 

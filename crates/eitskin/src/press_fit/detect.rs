@@ -1,0 +1,212 @@
+//! Presses found in Δv itself, one after another, each tested against the measured noise: the
+//! image is a blurred, regularised view in which a weak press beside a strong one, or the side
+//! lobe of a strong one, cannot be told apart; Δv against the model's own responses can.
+//!
+//! With Δv and the responses whitened by the noise (each channel divided by its standard
+//! deviation, [`PressModel::whitened`]), gᵀΔv/|g| is, for a press at any grid point, a z-score
+//! that noise alone draws from N(0, 1) (the matched filter, or generalised likelihood-ratio
+//! test, of one press). [`PressModel::detect_into`] takes the grid point with the largest z over
+//! the whole sheet; if it passes the threshold, a press is fitted there, and then every press
+//! found so far is placed again in turn, anywhere on the sheet, against Δv less the others'
+//! responses (a first pick that fell between two presses moves onto one once the other is
+//! found); then the same on Δv less all their responses, away from the presses found (two
+//! indenter radii: what is left next to a strong press is the linear model's error, not another
+//! press), until the largest z left fails, or 16 presses. A press is kept when its own z
+//! (against Δv less the others') passes too.
+//!
+//! The threshold is for the largest of many correlated z over the grid, so, as for images
+//! ([`crate::noise`]), it comes from the model's own noise: [`PressDetection::new`] draws
+//! [`CALIBRATION_SAMPLES`] whitened noise frames, takes the 90th percentile of their largest z
+//! and extends the tail as a 2-D Gaussian field's, c·z·e^(−z²/2), to the false-alarm rate asked.
+//!
+//! Not for: presses closer together than about two indenter radii (their responses are then
+//! nearly the same vector), or a press much larger than the indenter.
+
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+
+use super::{PressFit, PressModel, PressScratch, MAX_DROP, SWEEPS};
+use crate::inverse::InverseError;
+use crate::noise::{quantile, tail_threshold, CALIBRATION_SAMPLES};
+
+/// The most presses found in one frame.
+pub const MAX_PRESSES: usize = 16;
+
+/// A press model whitened by the measured noise, with the z a press must reach.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PressDetection {
+    model: PressModel,
+    /// Per channel, the noise's standard deviation (the unit of Δv; ∞ for a channel not used).
+    std: Vec<f64>,
+    threshold: f64,
+    false_alarm_rate: f64,
+}
+
+impl PressDetection {
+    /// Detection with `model` under channel noise of standard deviation `std` (one per
+    /// measurement, in Δv's unit; not positive or not finite: the channel is not used), at
+    /// `false_alarm_rate` false presses per frame without one, in (0, 0.5].
+    pub fn new(model: &PressModel, std: &[f64], false_alarm_rate: f64) -> Result<PressDetection, InverseError> {
+        if std.len() != model.measurements() {
+            return Err(InverseError::FrameLength { expected: model.measurements(), got: std.len() });
+        }
+        assert!(false_alarm_rate > 0.0 && false_alarm_rate <= 0.5, "a false-alarm rate in (0, 0.5]");
+        let std: Vec<f64> = std.iter().map(|s| if *s > 0.0 && s.is_finite() { *s } else { f64::INFINITY }).collect();
+        let model = model.whitened(&std);
+        let mut rng = StdRng::seed_from_u64(0x0d37_ec75);
+        let mut noise = vec![0.0; model.measurements()];
+        let maxima: Vec<f64> = (0..CALIBRATION_SAMPLES)
+            .map(|_| {
+                noise.iter_mut().for_each(|n| *n = StandardNormal.sample(&mut rng));
+                model.best_point(&noise, &[]).map_or(0.0, |(_, z)| z)
+            })
+            .collect();
+        let threshold = tail_threshold(quantile(&maxima, 0.9), 0.1, false_alarm_rate);
+        Ok(PressDetection { model, std, threshold, false_alarm_rate })
+    }
+
+    /// The z a press must reach (dimensionless).
+    pub fn threshold(&self) -> f64 {
+        self.threshold
+    }
+
+    /// Radius of the indenter the model fits, in m.
+    pub fn radius(&self) -> f64 {
+        self.model.radius()
+    }
+
+    /// False presses per frame without one that the threshold allows.
+    pub fn false_alarm_rate(&self) -> f64 {
+        self.false_alarm_rate
+    }
+
+    /// The presses in `dv` (Δv in protocol order, in the unit of the noise given), strongest
+    /// first, into `out` (cleared); channels not used are ignored, whatever they hold.
+    /// `whitened` is a buffer of Δv's length. Allocates nothing once the buffers have grown.
+    pub fn detect_into(
+        &self,
+        dv: &[f64],
+        whitened: &mut Vec<f64>,
+        scratch: &mut PressScratch,
+        out: &mut Vec<PressFit>,
+    ) -> Result<(), InverseError> {
+        out.clear();
+        if dv.len() != self.std.len() {
+            return Err(InverseError::FrameLength { expected: self.std.len(), got: dv.len() });
+        }
+        whitened.clear();
+        whitened.extend(dv.iter().zip(&self.std).map(|(d, s)| if s.is_finite() { d / s } else { 0.0 }));
+        self.model.detect_into(whitened, self.threshold, scratch, out)
+    }
+}
+
+impl PressModel {
+    /// The same model for Δv whitened by the noise: each channel's responses divided by its
+    /// standard deviation `std` (∞ for a channel not used: its responses become 0).
+    pub fn whitened(&self, std: &[f64]) -> PressModel {
+        assert_eq!(std.len(), self.measurements, "one standard deviation per measurement");
+        let mut whitened = self.clone();
+        for g in whitened.responses.chunks_exact_mut(self.measurements) {
+            g.iter_mut().zip(std).for_each(|(g, s)| *g /= s);
+        }
+        whitened.norms =
+            whitened.responses.chunks_exact(self.measurements).map(|g| g.iter().map(|x| x * x).sum()).collect();
+        whitened
+    }
+
+    /// The grid point whose press matches `dv` best, with its z = gᵀΔv/|g| (for a press:
+    /// gᵀΔv > 0, and a drop of at most the whole conductivity), leaving out points within two
+    /// indenter radii of `found` (m); `None` if no point's does.
+    pub(crate) fn best_point(&self, dv: &[f64], found: &[[f64; 2]]) -> Option<(usize, f64)> {
+        let mut best: Option<(usize, f64)> = None;
+        let apart = 2.0 * self.radius;
+        for (j, (g, norm)) in self.responses.chunks_exact(self.measurements).zip(&self.norms).enumerate() {
+            if *norm <= 0.0 {
+                continue;
+            }
+            let p = self.grid.point(j);
+            if found.iter().any(|f| (f[0] - p[0]).hypot(f[1] - p[1]) < apart) {
+                continue;
+            }
+            let c: f64 = g.iter().zip(dv).map(|(g, v)| g * v).sum();
+            if c > 0.0 && best.is_none_or(|(_, b)| c * c > b * b * norm) && self.drop(c / norm, p) <= MAX_DROP {
+                best = Some((j, c / norm.sqrt()));
+            }
+        }
+        best
+    }
+
+    /// Presses found one after another in `dv`, each starting where the largest z is left and
+    /// all placed again in turn, until the largest z left is under `threshold` (see the
+    /// [module doc](self)); those whose own z passes, strongest (largest drop) first, into `out`.
+    /// For whitened Δv and model. Allocates nothing once `scratch` and `out` have grown.
+    pub fn detect_into(
+        &self,
+        dv: &[f64],
+        threshold: f64,
+        scratch: &mut PressScratch,
+        out: &mut Vec<PressFit>,
+    ) -> Result<(), InverseError> {
+        out.clear();
+        let m = self.measurements;
+        if dv.len() != m {
+            return Err(InverseError::FrameLength { expected: m, got: dv.len() });
+        }
+        if dv.iter().any(|v| !v.is_finite()) {
+            return Ok(());
+        }
+        let PressScratch { residual, response, responses, centres } = scratch;
+        let mut found: [Option<PressFit>; MAX_PRESSES] = [None; MAX_PRESSES];
+        let mut count = 0;
+        responses.clear();
+        responses.resize(MAX_PRESSES * m, 0.0);
+        residual.resize(m, 0.0);
+        response.resize(m, 0.0);
+        // Δv less every press's response but `skip`'s, into `residual`; the others' centres.
+        let rest = |skip: usize,
+                    count: usize,
+                    residual: &mut Vec<f64>,
+                    centres: &mut Vec<[f64; 2]>,
+                    responses: &[f64],
+                    found: &[Option<PressFit>]| {
+            residual.copy_from_slice(dv);
+            centres.clear();
+            for k in (0..count).filter(|&k| k != skip) {
+                residual.iter_mut().zip(&responses[k * m..(k + 1) * m]).for_each(|(r, g)| *r -= g);
+                centres.extend(found[k].map(|f| f.centre));
+            }
+        };
+        while count < MAX_PRESSES {
+            rest(count, count, residual, centres, responses, &found);
+            let Some((j, z)) = self.best_point(residual, centres) else { break };
+            if z < threshold {
+                break;
+            }
+            // The new press, then each press placed again on Δv less the others (a greedy
+            // pick between two presses moves to one of them once the other is found).
+            let window = 2.0 * self.grid.spacing;
+            let Some(new) = self.fit_one(residual, self.grid.point(j), window, response) else { break };
+            found[count] = Some(new);
+            responses[count * m..(count + 1) * m]
+                .iter_mut()
+                .zip(response.iter())
+                .for_each(|(r, g)| *r = new.contrast * g);
+            count += 1;
+            for _ in 0..SWEEPS {
+                for i in 0..count {
+                    rest(i, count, residual, centres, responses, &found);
+                    let Some((j, _)) = self.best_point(residual, centres) else { continue };
+                    if let Some(fit) = self.fit_one(residual, self.grid.point(j), window, response) {
+                        found[i] = Some(fit);
+                        let g = &mut responses[i * m..(i + 1) * m];
+                        g.iter_mut().zip(response.iter()).for_each(|(r, g)| *r = fit.contrast * g);
+                    }
+                }
+            }
+        }
+        out.extend(found[..count].iter().flatten().filter(|f| f.z >= threshold));
+        out.sort_unstable_by(|a, b| b.drop.total_cmp(&a.drop));
+        Ok(())
+    }
+}

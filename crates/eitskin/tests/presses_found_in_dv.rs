@@ -1,0 +1,99 @@
+//! Presses found in Δv itself by the press model, tested against the measured noise: none on an
+//! untouched sheet beyond the stated rate, a weak press beside a strong one, three at once.
+
+use eitskin::chain::Chain;
+use eitskin::pipeline::{Pipeline, PipelineParams, Status};
+use eitskin::press_fit::{PressModel, PressModelParams};
+use eitskin::sim::{SimParams, VirtualSensor};
+use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
+
+/// The paper's sensor with a press model on a coarse mesh, its virtual skin at 0.05 % noise per
+/// value, and a pipeline (1 false touch per 1,000 frames) after its 10 reference frames; the
+/// skin's untouched clean frame.
+fn setup() -> (Pipeline, VirtualSensor, Vec<f64>) {
+    let mut spec = SensorSpec::square_hydrogel();
+    spec.mesh.triangles = 1500;
+    let model = spec.forward_model().unwrap();
+    let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
+    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
+    let chain = Chain::new(recon, TouchParams::default()).with_press_model(press_model);
+    let params = PipelineParams { auto_hyperparameter: true, ..PipelineParams::default() };
+    let mut pipeline = Pipeline::new(chain, params);
+    let sim = SimParams { noise_relative: 5e-4, ..SimParams::default() };
+    let mut skin = VirtualSensor::with_params(&spec, sim, 17).unwrap();
+    let clean = skin.clean_frame().unwrap();
+    for _ in 0..10 {
+        pipeline.process(&noisy(&mut skin, &clean)).unwrap();
+    }
+    assert!(pipeline.chain().press_detection().is_some());
+    (pipeline, skin, clean)
+}
+
+fn noisy(skin: &mut VirtualSensor, clean: &[f64]) -> Vec<f64> {
+    let mut frame = clean.to_vec();
+    skin.add_noise(&mut frame);
+    frame
+}
+
+fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+/// The presses of `presses` (position m, force N) each matched to the nearest touch found,
+/// frame after frame: per press, the worst distance over `frames` frames, in m; and whether
+/// every frame had exactly as many touches as presses.
+fn worst_distances(
+    pipeline: &mut Pipeline,
+    skin: &mut VirtualSensor,
+    presses: &[([f64; 2], f64)],
+    frames: usize,
+) -> (Vec<f64>, bool) {
+    skin.release();
+    presses.iter().for_each(|(at, force)| skin.press(*at, *force));
+    let clean = skin.clean_frame().unwrap();
+    let (mut worst, mut counted) = (vec![0.0_f64; presses.len()], true);
+    for _ in 0..frames {
+        assert!(pipeline.process(&noisy(skin, &clean)).unwrap().imaged());
+        let touches = pipeline.touches();
+        counted &= touches.len() == presses.len();
+        for (w, (at, _)) in worst.iter_mut().zip(presses) {
+            let nearest = touches.iter().map(|t| distance(t.touch.centre, *at)).fold(f64::INFINITY, f64::min);
+            *w = w.max(nearest);
+        }
+    }
+    (worst, counted)
+}
+
+#[test]
+fn an_untouched_sheet_shows_no_press_beyond_the_rate() {
+    let (mut pipeline, mut skin, clean) = setup();
+    let (frames, mut false_frames) = (2000, 0);
+    for _ in 0..frames {
+        let status = pipeline.process(&noisy(&mut skin, &clean)).unwrap();
+        assert!(matches!(status, Status::Processed | Status::NoiseUpdated));
+        false_frames += usize::from(!pipeline.touches().is_empty());
+    }
+    // 2 expected at 1e-3 per frame.
+    assert!(false_frames <= 6, "{false_frames} of {frames} untouched frames showed a press");
+}
+
+#[test]
+fn weak_strong_and_several_presses_are_each_found() {
+    let (mut pipeline, mut skin, _) = setup();
+    // One press of 2 N (a 27 % drop) anywhere: at the edge within a few mm, in the middle
+    // (the least sensitive place) within 20 mm.
+    for at in [[0.085, 0.0], [-0.03, -0.08], [0.05, 0.05], [0.0, 0.0]] {
+        let (worst, counted) = worst_distances(&mut pipeline, &mut skin, &[(at, 2.0)], 4);
+        let bound = if at[0].hypot(at[1]) < 0.04 { 0.02 } else { 0.006 };
+        assert!(counted && worst[0] < bound, "2 N at {at:?}: {worst:?}, one touch each frame: {counted}");
+    }
+    // 15 N near a corner and 3 N near the middle, which the image's 60 % of the frame's peak
+    // (and its side lobes of the strong press) hide.
+    let (worst, counted) =
+        worst_distances(&mut pipeline, &mut skin, &[([-0.075, -0.07], 15.0), ([0.01, 0.02], 3.0)], 4);
+    assert!(counted && worst[0] < 0.003 && worst[1] < 0.02, "{worst:?}, {counted}");
+    // Three at once, 10, 5 and 3 N: each found.
+    let three = [([-0.03, 0.04], 10.0), ([0.04, -0.02], 5.0), ([0.06, 0.07], 3.0)];
+    let (worst, counted) = worst_distances(&mut pipeline, &mut skin, &three, 4);
+    assert!(counted && worst.iter().all(|w| *w < 0.025), "{worst:?}, {counted}");
+}
