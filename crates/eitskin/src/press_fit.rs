@@ -204,8 +204,9 @@ pub struct PressScratch {
     residual: Vec<f64>,
     response: Vec<f64>,
     responses: Vec<f64>,
-    /// Detection: the centres of the other presses.
+    /// Detection: the centres of the other presses, and each scan point's correlation with Δv.
     centres: Vec<[f64; 2]>,
+    correlations: Vec<f64>,
 }
 
 /// The largest drop a fitted press may have (a fraction of the background): all of it.

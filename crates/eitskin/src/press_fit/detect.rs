@@ -9,7 +9,8 @@
 //! the whole sheet; if it passes the threshold, a press is fitted there, and then every press
 //! found so far is placed again in turn, anywhere on the sheet, against Δv less the others'
 //! responses (a first pick that fell between two presses moves onto one once the other is
-//! found); then the same on Δv less all their responses, away from the presses found (two
+//! found; then twice more near where each is); then the same on Δv less all their responses,
+//! away from the presses found (two
 //! indenter radii: what is left next to a strong press is the linear model's error, not another
 //! press), until the largest z left fails, or 16 presses. A press is kept when its own z
 //! (against Δv less the others') passes too.
@@ -22,6 +23,8 @@
 //! Not for: presses closer together than about two indenter radii (their responses are then
 //! nearly the same vector), or a press much larger than the indenter.
 
+use faer::linalg::matmul::matmul;
+use faer::{Accum, ColMut, ColRef, Mat, Par};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -33,10 +36,36 @@ use crate::noise::{quantile, tail_threshold, CALIBRATION_SAMPLES};
 /// The most presses found in one frame.
 pub const MAX_PRESSES: usize = 16;
 
+/// The responses of the scan grid (every other point of the response grid each way) as one
+/// matrix, points × measurements, so that all their correlations with Δv are one product.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Scan {
+    /// The response-grid index of each row.
+    points: Vec<usize>,
+    matrix: Mat<f64>,
+    norms: Vec<f64>,
+}
+
+impl Scan {
+    fn new(model: &PressModel) -> Scan {
+        let [nx, ny] = model.grid.dims;
+        let points: Vec<usize> = (0..ny)
+            .step_by(2)
+            .flat_map(|row| (0..nx).step_by(2).map(move |col| row * nx + col))
+            .filter(|&j| model.norms[j] > 0.0)
+            .collect();
+        let m = model.measurements;
+        let matrix = Mat::from_fn(points.len(), m, |i, k| model.responses[points[i] * m + k]);
+        let norms = points.iter().map(|&j| model.norms[j]).collect();
+        Scan { points, matrix, norms }
+    }
+}
+
 /// A press model whitened by the measured noise, with the z a press must reach.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PressDetection {
     model: PressModel,
+    scan: Scan,
     /// Per channel, the noise's standard deviation (the unit of Δv; ∞ for a channel not used).
     std: Vec<f64>,
     threshold: f64,
@@ -54,16 +83,17 @@ impl PressDetection {
         assert!(false_alarm_rate > 0.0 && false_alarm_rate <= 0.5, "a false-alarm rate in (0, 0.5]");
         let std: Vec<f64> = std.iter().map(|s| if *s > 0.0 && s.is_finite() { *s } else { f64::INFINITY }).collect();
         let model = model.whitened(&std);
+        let scan = Scan::new(&model);
         let mut rng = StdRng::seed_from_u64(0x0d37_ec75);
-        let mut noise = vec![0.0; model.measurements()];
+        let (mut noise, mut correlations) = (vec![0.0; model.measurements()], Vec::new());
         let maxima: Vec<f64> = (0..CALIBRATION_SAMPLES)
             .map(|_| {
                 noise.iter_mut().for_each(|n| *n = StandardNormal.sample(&mut rng));
-                model.best_point(&noise, &[]).map_or(0.0, |(_, z)| z)
+                model.best_point(&scan, &noise, &[], &mut correlations).map_or(0.0, |(_, z)| z)
             })
             .collect();
         let threshold = tail_threshold(quantile(&maxima, 0.9), 0.1, false_alarm_rate);
-        Ok(PressDetection { model, std, threshold, false_alarm_rate })
+        Ok(PressDetection { model, scan, std, threshold, false_alarm_rate })
     }
 
     /// The z a press must reach (dimensionless).
@@ -97,7 +127,7 @@ impl PressDetection {
         }
         whitened.clear();
         whitened.extend(dv.iter().zip(&self.std).map(|(d, s)| if s.is_finite() { d / s } else { 0.0 }));
-        self.model.detect_into(whitened, self.threshold, scratch, out)
+        self.model.detect_into(&self.scan, whitened, self.threshold, scratch, out)
     }
 }
 
@@ -115,24 +145,31 @@ impl PressModel {
         whitened
     }
 
-    /// The grid point whose press matches `dv` best, with its z = gᵀΔv/|g| (for a press:
+    /// The point of `scan` whose press matches `dv` best, with its z = gᵀΔv/|g| (for a press:
     /// gᵀΔv > 0, and a drop of at most the whole conductivity), leaving out points within two
-    /// indenter radii of `found` (m); `None` if no point's does.
-    pub(crate) fn best_point(&self, dv: &[f64], found: &[[f64; 2]]) -> Option<(usize, f64)> {
-        let mut best: Option<(usize, f64)> = None;
+    /// indenter radii of `found` (m); `None` if no point's does. The fit then refines it on the
+    /// full grid. `correlations` is a buffer.
+    pub(crate) fn best_point(
+        &self,
+        scan: &Scan,
+        dv: &[f64],
+        found: &[[f64; 2]],
+        correlations: &mut Vec<f64>,
+    ) -> Option<(usize, f64)> {
+        correlations.resize(scan.points.len(), 0.0);
+        let c = ColMut::from_slice_mut(correlations);
+        matmul(c.as_mat_mut(), Accum::Replace, scan.matrix.as_ref(), ColRef::from_slice(dv).as_mat(), 1.0, Par::Seq);
         let apart = 2.0 * self.radius;
-        for (j, (g, norm)) in self.responses.chunks_exact(self.measurements).zip(&self.norms).enumerate() {
-            if *norm <= 0.0 {
+        let mut best: Option<(usize, f64)> = None;
+        for ((&j, &c), &norm) in scan.points.iter().zip(correlations.iter()).zip(&scan.norms) {
+            if c <= 0.0 || best.is_some_and(|(_, b)| c * c <= b * b * norm) {
                 continue;
             }
             let p = self.grid.point(j);
-            if found.iter().any(|f| (f[0] - p[0]).hypot(f[1] - p[1]) < apart) {
+            if found.iter().any(|f| (f[0] - p[0]).hypot(f[1] - p[1]) < apart) || self.drop(c / norm, p) > MAX_DROP {
                 continue;
             }
-            let c: f64 = g.iter().zip(dv).map(|(g, v)| g * v).sum();
-            if c > 0.0 && best.is_none_or(|(_, b)| c * c > b * b * norm) && self.drop(c / norm, p) <= MAX_DROP {
-                best = Some((j, c / norm.sqrt()));
-            }
+            best = Some((j, c / norm.sqrt()));
         }
         best
     }
@@ -141,8 +178,9 @@ impl PressModel {
     /// all placed again in turn, until the largest z left is under `threshold` (see the
     /// [module doc](self)); those whose own z passes, strongest (largest drop) first, into `out`.
     /// For whitened Δv and model. Allocates nothing once `scratch` and `out` have grown.
-    pub fn detect_into(
+    pub(crate) fn detect_into(
         &self,
+        scan: &Scan,
         dv: &[f64],
         threshold: f64,
         scratch: &mut PressScratch,
@@ -156,7 +194,7 @@ impl PressModel {
         if dv.iter().any(|v| !v.is_finite()) {
             return Ok(());
         }
-        let PressScratch { residual, response, responses, centres } = scratch;
+        let PressScratch { residual, response, responses, centres, correlations } = scratch;
         let mut found: [Option<PressFit>; MAX_PRESSES] = [None; MAX_PRESSES];
         let mut count = 0;
         responses.clear();
@@ -179,7 +217,7 @@ impl PressModel {
         };
         while count < MAX_PRESSES {
             rest(count, count, residual, centres, responses, &found);
-            let Some((j, z)) = self.best_point(residual, centres) else { break };
+            let Some((j, z)) = self.best_point(scan, residual, centres, correlations) else { break };
             if z < threshold {
                 break;
             }
@@ -193,11 +231,18 @@ impl PressModel {
                 .zip(response.iter())
                 .for_each(|(r, g)| *r = new.contrast * g);
             count += 1;
-            for _ in 0..SWEEPS {
+            for sweep in 0..SWEEPS {
                 for i in 0..count {
                     rest(i, count, residual, centres, responses, &found);
-                    let Some((j, _)) = self.best_point(residual, centres) else { continue };
-                    if let Some(fit) = self.fit_one(residual, self.grid.point(j), window, response) {
+                    // Anywhere on the sheet first, then near where it is.
+                    let start = match (sweep, found[i]) {
+                        (0, _) | (_, None) => match self.best_point(scan, residual, centres, correlations) {
+                            Some((j, _)) => self.grid.point(j),
+                            None => continue,
+                        },
+                        (_, Some(fit)) => fit.centre,
+                    };
+                    if let Some(fit) = self.fit_one(residual, start, window, response) {
                         found[i] = Some(fit);
                         let g = &mut responses[i * m..(i + 1) * m];
                         g.iter_mut().zip(response.iter()).for_each(|(r, g)| *r = fit.contrast * g);
