@@ -141,7 +141,7 @@ pub fn run(args: Args) -> Result<()> {
     let (t_fit, ()) = time(frames, || Ok(press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits)?))?;
     // Three presses at once, found in Δv against 0.05 % noise per value (the reference of 10 frames).
     let std: Vec<f64> = values.iter().map(|v| 5e-4 * v.abs() * 1.1_f64.sqrt()).collect();
-    let (t_detection, detection) = time(n.min(3), || Ok(PressDetection::new(&press_model, &std, 1e-3)?))?;
+    let (t_detection, detection) = time(n.min(3), || Ok(PressDetection::new(&press_model, &std, 9.0, 1e-3)?))?;
     let three = [([-0.3, 0.4], 0.25), ([0.4, -0.2], 0.5), ([0.6, 0.7], 0.6)].map(|(at, drop)| Inclusion {
         centre: [at[0] * half, at[1] * half],
         radius: press_params.radius,

@@ -378,6 +378,7 @@ fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: 
                 threshold,
                 noise: Some(noise),
                 noise_measured: measured,
+                image_noise: pipeline.significance().map(|s| s.typical_std()),
                 detail,
             })
         }
@@ -389,7 +390,8 @@ fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: 
             let detail =
                 format!("noise measured on {frames:.0} frames: {:.3} % per value; λ = {lambda:.4}{z}", 100.0 * noise);
             eprintln!("eitskin run: {detail}");
-            Some(Event::NoiseUpdated { seq, frames, hyperparameter: lambda, threshold, noise, detail })
+            let image_noise = pipeline.significance().map(|s| s.typical_std());
+            Some(Event::NoiseUpdated { seq, frames, hyperparameter: lambda, threshold, noise, image_noise, detail })
         }
         Status::ChannelsDropped { .. } => {
             let channels = one_based(pipeline.newly_dropped());

@@ -58,8 +58,8 @@
 //! | `event`        | fields                                                                       |
 //! |----------------|------------------------------------------------------------------------------|
 //! | `start`        | `format` (`"eitskin-run"`), `version`, `source` (as given), `length_unit` (`"mm"` or `"m"`), `measurements` (values per frame), `reference_frames` (frames averaged into the reference), `normalised` (differences Δv/v_ref), `polarity` (`"decrease"`, `"increase"` or `"both"`: which changes are touches), `average` (frames averaged into each frame imaged), `peak_of` (`"frame"` or `"touch"`: whose peak a touch's threshold is a fraction of), `false_alarm_rate` (false touches allowed per frame without a touch, or `null` without the noise test) |
-//! | `reference_taken` | the reference is taken: `hyperparameter` (λ imaged with), `chosen` (whether λ was chosen from the reference frames' noise), `normalised`, `channels_dropped` (1-based: missing from a reference frame, or with a zero reference when normalised), `threshold` (the z a touch's peak must reach, or `null`), `noise` (the median channel's noise standard deviation relative to its value), `noise_measured` (false: assumed, from a single reference frame), `detail` |
-//! | `noise_updated` | the noise model, grown on the frames without a touch, gave λ, channel weights and the threshold anew after frame `seq`: `frames` (frames behind the noise model), `hyperparameter`, `threshold`, `noise`, `detail` |
+//! | `reference_taken` | the reference is taken: `hyperparameter` (λ imaged with), `chosen` (whether λ was chosen from the reference frames' noise), `normalised`, `channels_dropped` (1-based: missing from a reference frame, or with a zero reference when normalised), `threshold` (the z a touch's peak must reach, or `null`), `noise` (the median channel's noise standard deviation relative to its value), `noise_measured` (false: assumed, from a single reference frame), `image_noise` (the image's noise standard deviation at its median pixel, in S/m: times `threshold`, the change a touch must reach there), `detail` |
+//! | `noise_updated` | the noise model, grown on the frames without a touch, gave λ, channel weights and the threshold anew after frame `seq`: `frames` (frames behind the noise model), `hyperparameter`, `threshold`, `noise`, `image_noise`, `detail` |
 //! | `channels_dropped` | channels went bad (not finite) in frame `seq` and are dropped until the reference is taken again: `channels` (1-based), `dropped` (channels dropped in all), `detail` |
 //! | `bad`          | `seq` (where in the stream, or `null` for bytes that belong to no frame), `reason` (a sentence) |
 //! | `skipped`      | a damaged record of a recording: `line` (from 1, the header is line 1), `torn` (the last record, torn by a crash), `reason` |
@@ -371,6 +371,10 @@ pub enum Event {
         /// Whether the noise was measured (false: assumed, from a single reference frame).
         #[serde(default)]
         noise_measured: bool,
+        /// The image's noise at its median pixel, in S/m: with `threshold`, the change a touch
+        /// must reach there.
+        #[serde(default)]
+        image_noise: Option<f64>,
         /// The same, as a sentence.
         detail: String,
     },
@@ -386,6 +390,8 @@ pub enum Event {
         threshold: Option<f64>,
         /// The median channel's noise standard deviation relative to its value (dimensionless).
         noise: f64,
+        /// The image's noise at its median pixel, in S/m.
+        image_noise: Option<f64>,
         /// The same, as a sentence.
         detail: String,
     },
@@ -581,6 +587,7 @@ mod tests {
                 threshold: Some(4.6),
                 noise: Some(5e-4),
                 noise_measured: true,
+                image_noise: Some(2e-3),
                 detail: "λ".into(),
             },
             Event::NoiseUpdated {
@@ -589,6 +596,7 @@ mod tests {
                 hyperparameter: 2.5,
                 threshold: Some(4.5),
                 noise: 4.9e-4,
+                image_noise: None,
                 detail: "grown".into(),
             },
             Event::ChannelsDropped { seq: 40, channels: vec![7, 9], dropped: 3, detail: "gone".into() },

@@ -347,7 +347,7 @@ impl Pipeline {
                 let channels = self.chain.reconstructor().channels();
                 let mut std = noise.difference_std(&self.reference, false, self.params.average);
                 std.iter_mut().enumerate().filter(|(m, _)| !channels.is_used(*m)).for_each(|(_, s)| *s = f64::INFINITY);
-                Some(PressDetection::new(model, &std, rate)?)
+                Some(PressDetection::new(model, &std, noise.frames(), rate)?)
             }
             _ => None,
         };

@@ -27,7 +27,7 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, ColMut, ColRef, Mat, Par};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
-use rand_distr::{Distribution, StandardNormal};
+use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 use super::{PressFit, PressModel, PressScratch, MAX_DROP, SWEEPS};
 use crate::inverse::InverseError;
@@ -74,9 +74,21 @@ pub struct PressDetection {
 
 impl PressDetection {
     /// Detection with `model` under channel noise of standard deviation `std` (one per
-    /// measurement, in Δv's unit; not positive or not finite: the channel is not used), at
-    /// `false_alarm_rate` false presses per frame without one, in (0, 0.5].
-    pub fn new(model: &PressModel, std: &[f64], false_alarm_rate: f64) -> Result<PressDetection, InverseError> {
+    /// measurement, in Δv's unit; not positive or not finite: the channel is not used), each
+    /// estimated with `dof` degrees of freedom (frames less one; `f64::INFINITY` for a noise
+    /// known exactly), at `false_alarm_rate` false presses per frame without one, in (0, 0.5].
+    ///
+    /// A standard deviation estimated from few frames is off by a factor that stays for every
+    /// frame, and a press near an electrode rests on a few channels: so the noise frames the
+    /// threshold is taken from are drawn with each channel's estimate off as a χ² of `dof` says
+    /// (the whitened noise of a channel is N(0, 1)·√(ν/χ²_ν)), and the threshold holds on average
+    /// over what the estimate could have been.
+    pub fn new(
+        model: &PressModel,
+        std: &[f64],
+        dof: f64,
+        false_alarm_rate: f64,
+    ) -> Result<PressDetection, InverseError> {
         if std.len() != model.measurements() {
             return Err(InverseError::FrameLength { expected: model.measurements(), got: std.len() });
         }
@@ -86,9 +98,14 @@ impl PressDetection {
         let scan = Scan::new(&model);
         let mut rng = StdRng::seed_from_u64(0x0d37_ec75);
         let (mut noise, mut correlations) = (vec![0.0; model.measurements()], Vec::new());
+        let misestimate = ChiSquared::new(dof).ok().filter(|_| dof.is_finite() && dof > 0.0);
         let maxima: Vec<f64> = (0..CALIBRATION_SAMPLES)
             .map(|_| {
-                noise.iter_mut().for_each(|n| *n = StandardNormal.sample(&mut rng));
+                for n in noise.iter_mut() {
+                    let scale = misestimate.map_or(1.0, |chi| (dof / chi.sample(&mut rng)).sqrt());
+                    let normal: f64 = StandardNormal.sample(&mut rng);
+                    *n = scale * normal;
+                }
                 model.best_point(&scan, &noise, &[], &mut correlations).map_or(0.0, |(_, z)| z)
             })
             .collect();
