@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use eitskin::study::sweep::{self, SweepParams, SweepReport};
 use eitskin::study::{run as run_study, StudyParams, StudyReport};
 
 use crate::{load, plot, report};
@@ -30,6 +31,13 @@ pub struct Args {
     /// Noisy frames per calibration press (15 in the paper).
     #[arg(long)]
     repeats: Option<usize>,
+    /// Noise sweep: frames with one press per press kind and level (half as many with two, and
+    /// with three), 0–10,000; 0 leaves the sweep out.
+    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(0..=10_000))]
+    sweep_presses: u32,
+    /// Noise sweep: untouched frames per level, for the false touches, 1–100,000.
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    sweep_untouched: u32,
 }
 
 /// Runs `eitskin study`.
@@ -54,13 +62,32 @@ pub fn run(args: Args) -> Result<()> {
         }
     };
     let study = run_study(&spec, &params, &mut progress)?;
+    let sweep = match args.sweep_presses as usize {
+        0 => None,
+        n => {
+            let sweep_params = SweepParams {
+                scenes: [n, n.div_ceil(2), n.div_ceil(2)],
+                untouched: args.sweep_untouched as usize,
+                seed: args.seed,
+                ..SweepParams::default()
+            };
+            Some(sweep::run(&spec, &sweep_params, &mut progress)?)
+        }
+    };
     let seconds = start.elapsed().as_secs_f64();
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     write_figures(&study, &args)?;
-    let json = report::json(&study, &params, seconds);
+    let mut json = report::json(&study, &params, seconds);
+    if let (Some(sweep), Some(object)) = (&sweep, json.as_object_mut()) {
+        object.insert("sweep".into(), report::sweep_json(sweep));
+        write_sweep_figures(sweep, &args, spec.length_unit.metres())?;
+    }
     std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
     write_frames(&study, &args, spec.length_unit.metres())?;
-    let markdown = report::markdown(&study, &params, spec.length_unit, seconds);
+    let mut markdown = report::markdown(&study, &params, spec.length_unit, seconds);
+    if let Some(sweep) = &sweep {
+        markdown += &report::sweep_markdown(sweep, spec.length_unit);
+    }
     std::fs::write(args.out.join("report.md"), &markdown)?;
     println!("{markdown}");
     eprintln!("wrote {} in {seconds:.1} s", args.out.display());
@@ -132,4 +159,34 @@ fn write_figures(study: &StudyReport, args: &Args) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// The sweep's figures: position error and force RMS of single presses found in Δv against the
+/// noise, one line per press kind (single frames only).
+fn write_sweep_figures(sweep: &SweepReport, args: &Args, metres: f64) -> Result<()> {
+    let kinds: Vec<&str> = sweep::press_kinds().iter().map(|k| k.name).collect();
+    let line = |kind: &str, value: &dyn Fn(&sweep::SweepRow) -> f64| plot::Series {
+        name: kind.to_string(),
+        points: sweep
+            .rows
+            .iter()
+            .filter(|r| r.kind == kind && r.presses == 1 && r.method == "presses in Δv" && r.level.average == 1)
+            .map(|r| (r.level.db, value(r)))
+            .collect(),
+        line: true,
+    };
+    let position: Vec<plot::Series> = kinds.iter().map(|k| line(k, &|r| r.position_error / metres)).collect();
+    plot::chart(
+        &args.out.join("sweep_position.png"),
+        "One press found in Δv: position error against noise",
+        ("noise [dB below each value]", "mean position error [spec units]"),
+        &position,
+    )?;
+    let force: Vec<plot::Series> = kinds.iter().map(|k| line(k, &|r| 100.0 * r.force_rms / sweep.max_force)).collect();
+    plot::chart(
+        &args.out.join("sweep_force.png"),
+        "One press: force RMS against noise (one curve of the fitted drop)",
+        ("noise [dB below each value]", "force RMS [% of the largest force]"),
+        &force,
+    )
 }

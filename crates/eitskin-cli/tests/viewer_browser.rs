@@ -172,7 +172,17 @@ fn calibration(dir: &Scratch) -> PathBuf {
     let study = dir.join("study");
     let status = dir
         .command()
-        .args(["study", "--out", study.to_str().unwrap(), "--validation", "20", "--repeats", "2"])
+        .args([
+            "study",
+            "--out",
+            study.to_str().unwrap(),
+            "--validation",
+            "20",
+            "--repeats",
+            "2",
+            "--sweep-presses",
+            "0",
+        ])
         .stdout(Stdio::null())
         .status()
         .unwrap();

@@ -325,7 +325,7 @@ impl PressModel {
             let mut contrasts = [f64::NAN; LADDER.len()];
             let mut g = vec![0.0; self.measurements];
             if locator.locate(centre).is_none() || covered[j].is_empty() || !self.response_into(centre, &mut g) {
-                return contrasts;
+                return Ok(contrasts);
             }
             let gg: f64 = g.iter().map(|g| g * g).sum();
             // The contrast at the two solved drops, then the rational law through them.
@@ -334,7 +334,7 @@ impl PressModel {
             for (c, drop) in solved.iter_mut().zip(SOLVED) {
                 let changes: Vec<(usize, f64)> =
                     covered[j].iter().map(|&(t, share)| (t, -drop * background * share)).collect();
-                let dv = update.measurement_change_on(&local, &changes);
+                let dv = update.measurement_change_on(&local, &changes)?;
                 *c = g.iter().zip(&dv).map(|(g, d)| g * d).sum::<f64>() / gg;
             }
             let [(d1, c1), (d2, c2)] = [(SOLVED[0], solved[0]), (SOLVED[1], solved[1])];
@@ -345,9 +345,9 @@ impl PressModel {
                 let denominator = 1.0 - k * d - q * d * d;
                 *c = if denominator > 0.0 { d / denominator } else { f64::NAN };
             }
-            contrasts
+            Ok(contrasts)
         });
-        Ok(ladder.collect())
+        ladder.collect()
     }
 
     /// The drop (fraction of the background) whose press at `p` (m) fits to `contrast`: piecewise

@@ -8,7 +8,9 @@
 //!
 //! so 16 N lowers it by 85 % (inside the paper's 0.1–0.9 C₀ range, section 2.1.2) and the
 //! response flattens at large forces as the paper's hydrogel does (its Fig. 9, Table 2).
-//! Triangles cut by the indenter's rim get the area-weighted value.
+//! Triangles cut by the indenter's rim get the area-weighted value. Presses unlike that, to
+//! test methods on what they do not assume: a smooth, Hertz-like [`Profile`] whose contact
+//! radius grows with force, another [`ForceLaw`], another indenter radius.
 //!
 //! **Noise.** Each value gets independent Gaussian noise of standard deviation
 //! `noise_relative`·|v_m|; the default 1e-4 (80 dB) is argued from the AD5940's datasheet
@@ -29,27 +31,75 @@ use crate::conductivity::{with_inclusions, Inclusion};
 use crate::forward::{ForwardError, ForwardModel};
 use crate::spec::{SensorSpec, SpecError};
 
-/// How the gel answers a press: drop d(F) = `max_drop`·(1 − e^(−F/`force_scale`)).
+/// How the gel answers a press: the drop d(F) by its [`ForceLaw`], spread under the indenter
+/// by its [`Profile`]; `Default` is the flat 10 mm indenter and the saturating law, what the
+/// press model assumes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hydrogel {
     /// The largest relative conductivity drop, approached at large force (dimensionless).
     pub max_drop: f64,
-    /// Force scale F₀ of the saturation, in N.
+    /// Force scale F₀ of the law, in N.
     pub force_scale: f64,
     /// Radius of the indenter, in m.
     pub indenter_radius: f64,
+    /// How the drop follows the force.
+    pub law: ForceLaw,
+    /// How the drop is spread under the indenter.
+    pub profile: Profile,
+}
+
+/// How a press's conductivity drop follows its force F.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ForceLaw {
+    /// d = d_max·(1 − e^(−F/F₀)): saturating, as the paper's gel (its Fig. 9).
+    #[default]
+    Saturating,
+    /// d = d_max·F/(F + F₀): slower to saturate (another gel).
+    Hyperbolic,
+}
+
+/// How a press's drop is spread under the indenter.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Profile {
+    /// Uniform over a disk of the indenter's radius (a flat punch).
+    #[default]
+    Disk,
+    /// A sphere pressed into the gel (Hertz): d(r) = d·√(1 − r²/a²) inside the contact radius
+    /// a = r_indenter·(F/`reference_force`)^(1/3), which grows with the force.
+    Hertz {
+        /// The force at which the contact radius is the indenter's radius, in N.
+        reference_force: f64,
+    },
 }
 
 impl Default for Hydrogel {
     fn default() -> Self {
-        Hydrogel { max_drop: 0.9, force_scale: 5.54, indenter_radius: 0.010 }
+        Hydrogel {
+            max_drop: 0.9,
+            force_scale: 5.54,
+            indenter_radius: 0.010,
+            law: ForceLaw::Saturating,
+            profile: Profile::Disk,
+        }
     }
 }
 
 impl Hydrogel {
-    /// The relative conductivity drop under the indenter at `force` (N); 0 for no force.
+    /// The relative conductivity drop under the indenter (at its centre) at `force` (N); 0 for no force.
     pub fn drop(&self, force: f64) -> f64 {
-        self.max_drop * (1.0 - (-force.max(0.0) / self.force_scale).exp())
+        let f = force.max(0.0);
+        match self.law {
+            ForceLaw::Saturating => self.max_drop * (1.0 - (-f / self.force_scale).exp()),
+            ForceLaw::Hyperbolic => self.max_drop * f / (f + self.force_scale),
+        }
+    }
+
+    /// The radius over which a press of `force` (N) lowers the conductivity, in m.
+    pub fn contact_radius(&self, force: f64) -> f64 {
+        match self.profile {
+            Profile::Disk => self.indenter_radius,
+            Profile::Hertz { reference_force } => self.indenter_radius * (force.max(0.0) / reference_force).cbrt(),
+        }
     }
 
     /// [`Hydrogel::drop`] as a calibration curve of the drop against force up to `max_force`
@@ -57,6 +107,22 @@ impl Hydrogel {
     pub fn drop_curve(&self, max_force: f64) -> crate::calibration::Curve {
         let (a, b, c) = (-self.max_drop, self.force_scale, self.max_drop);
         crate::calibration::Curve { a, b, c, r_squared: 1.0, force_range: [0.0, max_force], samples: 0 }
+    }
+}
+
+/// The midpoint of `a` and `b`.
+fn mid(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]
+}
+
+/// The drop of press `p` at `q` (m) for the Hertz profile of gel `h`.
+fn hertz(h: &Hydrogel, p: &Press, q: [f64; 2]) -> f64 {
+    let a = h.contact_radius(p.force);
+    let r2 = (q[0] - p.position[0]).powi(2) + (q[1] - p.position[1]).powi(2);
+    if a <= 0.0 || r2 >= a * a {
+        0.0
+    } else {
+        h.drop(p.force) * (1.0 - r2 / (a * a)).sqrt()
     }
 }
 
@@ -164,15 +230,37 @@ impl VirtualSensor {
     pub fn conductivity_with(&self, presses: &[Press]) -> Vec<f64> {
         let background = self.background();
         let h = self.params.hydrogel;
-        let inclusions: Vec<Inclusion> = presses
-            .iter()
-            .map(|p| Inclusion {
-                centre: p.position,
-                radius: h.indenter_radius,
-                conductivity: background * (1.0 - h.drop(p.force)),
-            })
-            .collect();
-        with_inclusions(self.model.mesh(), background, &inclusions)
+        match h.profile {
+            Profile::Disk => {
+                let inclusions: Vec<Inclusion> = presses
+                    .iter()
+                    .map(|p| Inclusion {
+                        centre: p.position,
+                        radius: h.indenter_radius,
+                        conductivity: background * (1.0 - h.drop(p.force)),
+                    })
+                    .collect();
+                with_inclusions(self.model.mesh(), background, &inclusions)
+            }
+            Profile::Hertz { .. } => {
+                // Each triangle takes the mean of the profile at its centroid and at the
+                // midpoints between the centroid and its corners (the triangles are small).
+                let mesh = self.model.mesh();
+                (0..mesh.triangles().len())
+                    .map(|t| {
+                        let c = mesh.corners(t);
+                        let g = [(c[0][0] + c[1][0] + c[2][0]) / 3.0, (c[0][1] + c[1][1] + c[2][1]) / 3.0];
+                        let points = [g, mid(g, c[0]), mid(g, c[1]), mid(g, c[2])];
+                        let kept: f64 = points
+                            .iter()
+                            .map(|q| presses.iter().map(|p| 1.0 - hertz(&h, p, *q)).product::<f64>())
+                            .sum::<f64>()
+                            / points.len() as f64;
+                        background * kept
+                    })
+                    .collect()
+            }
+        }
     }
 
     /// The noise-free frame now, in V at 1 A.
@@ -292,6 +380,34 @@ mod tests {
         assert!(
             !random.presses.is_empty() && random.presses.iter().all(|p| p.2.position[0].hypot(p.2.position[1]) <= 0.1)
         );
+    }
+
+    /// A Hertz press lowers the middle most, over a contact that grows with the force, and
+    /// another law saturates more slowly.
+    #[test]
+    fn presses_unlike_the_flat_indenter() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 3000;
+        let hydrogel = Hydrogel { profile: Profile::Hertz { reference_force: 8.0 }, ..Hydrogel::default() };
+        assert!((hydrogel.contact_radius(1.0) - 0.005).abs() < 1e-12);
+        let params = SimParams { hydrogel, ..SimParams::default() };
+        let skin = VirtualSensor::with_params(&spec, params, 1).unwrap();
+        let sigma = skin.conductivity_with(&[Press { position: [0.0, 0.0], force: 8.0 }]);
+        let mesh = skin.model().mesh();
+        let at = |r: f64| {
+            let locator = crate::PointLocator::new(mesh);
+            sigma[locator.locate([r, 0.0]).unwrap()]
+        };
+        assert!(
+            at(0.0) < at(0.006) && at(0.006) < at(0.012) && at(0.012) == 1.0,
+            "{} {} {}",
+            at(0.0),
+            at(0.006),
+            at(0.012)
+        );
+        assert!((1.0 - at(0.0) - hydrogel.drop(8.0)).abs() < 0.1);
+        let hyperbolic = Hydrogel { law: ForceLaw::Hyperbolic, ..Hydrogel::default() };
+        assert!(hyperbolic.drop(16.0) < Hydrogel::default().drop(16.0) && hyperbolic.drop(1e6) > 0.89);
     }
 
     #[test]

@@ -22,6 +22,8 @@
 //! the chain's, with the fitted calibration, on the validation frames. `eitskin calibrate` and
 //! `evaluate` on the frames the study writes give the same numbers.
 
+pub mod sweep;
+
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use thiserror::Error;

@@ -16,7 +16,9 @@
 //!
 //! G_RR is |R| columns of K₀⁻¹. A model of up to [`DENSE_LIMIT`] unknowns keeps K₀⁻¹ whole (one
 //! solve of the identity at setup, then a change costs no sparse solve); a larger one solves
-//! the |R| columns per change.
+//! the |R| columns per change, unless they are more than [`SOLVED_ROWS`]: then a new
+//! factorisation costs less than that many solves, and the change is solved in full (exact
+//! either way).
 //!
 //! ```
 //! use eitskin::conductivity::{with_inclusions, Inclusion};
@@ -30,7 +32,7 @@
 //! let sigma = with_inclusions(model.mesh(), 1.0, &[press]);
 //! let changes: Vec<(usize, f64)> =
 //!     sigma.iter().enumerate().filter(|(_, s)| **s != 1.0).map(|(t, s)| (t, s - 1.0)).collect();
-//! let dv = update.measurement_change(&changes);
+//! let dv = update.measurement_change(&changes)?;
 //! let solved = model.measure(&sigma)?;
 //! let (m, v0) = (7, update.background_measurements()[7]);
 //! assert!((dv[m] - (solved[m] - v0)).abs() < 1e-9 * solved[m].abs());
@@ -47,6 +49,9 @@ use super::{Factor, ForwardError, ForwardModel};
 /// 72 MB at the limit).
 pub const DENSE_LIMIT: usize = 3000;
 
+/// Rows of a change beyond which, without the whole inverse, it is solved in full instead.
+pub const SOLVED_ROWS: usize = 64;
+
 /// Local corner pairs of a triangle's stiffness entries, in the order of the stored coefficients.
 const LOCAL: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
@@ -60,6 +65,8 @@ pub struct LowRankUpdate {
     /// K₀⁻¹ whole, for models of at most [`DENSE_LIMIT`] unknowns.
     inverse: Option<Mat<f64>>,
     background: Vec<f64>,
+    /// The background conductivity per triangle, S/m (for changes solved in full).
+    conductivity: Vec<f64>,
 }
 
 /// The rows a change touches, and what the update needs of them.
@@ -67,8 +74,8 @@ pub struct LowRankUpdate {
 pub struct LocalRows {
     /// The unknowns (rows of the system) of the changed triangles' nodes, ground left out.
     rows: Vec<usize>,
-    /// G_RR, |R| × |R|.
-    green: Mat<f64>,
+    /// G_RR, |R| × |R|; `None` where the change is cheaper solved in full.
+    green: Option<Mat<f64>>,
     /// U_R, |R| × (L − 1).
     fields: Mat<f64>,
 }
@@ -85,7 +92,8 @@ impl LowRankUpdate {
             factor.llt.solve_in_place(identity.as_mut());
             identity
         });
-        Ok(LowRankUpdate { model: model.clone(), factor, fields: solution.fields, inverse, background })
+        let conductivity = conductivity.to_vec();
+        Ok(LowRankUpdate { model: model.clone(), factor, fields: solution.fields, inverse, background, conductivity })
     }
 
     /// The forward model.
@@ -114,13 +122,14 @@ impl LowRankUpdate {
         rows.dedup();
         let s = rows.len();
         let green = match &self.inverse {
-            Some(inverse) => Mat::from_fn(s, s, |i, j| inverse[(rows[i], rows[j])]),
-            None => {
+            Some(inverse) => Some(Mat::from_fn(s, s, |i, j| inverse[(rows[i], rows[j])])),
+            None if s <= SOLVED_ROWS => {
                 let mut columns = Mat::<f64>::zeros(self.model.system_size(), s);
                 rows.iter().enumerate().for_each(|(j, &r)| columns[(r, j)] = 1.0);
                 self.factor.llt.solve_in_place(columns.as_mut());
-                Mat::from_fn(s, s, |i, j| columns[(rows[i], j)])
+                Some(Mat::from_fn(s, s, |i, j| columns[(rows[i], j)]))
             }
+            None => None,
         };
         let fields = Mat::from_fn(s, self.fields.ncols(), |i, p| self.fields[(rows[i], p)]);
         LocalRows { rows, green, fields }
@@ -128,7 +137,7 @@ impl LowRankUpdate {
 
     /// The exact change of every measurement (V, protocol order) when triangle t's
     /// conductivity changes by δσ (S/m), for each (t, δσ) of `changes`.
-    pub fn measurement_change(&self, changes: &[(usize, f64)]) -> Vec<f64> {
+    pub fn measurement_change(&self, changes: &[(usize, f64)]) -> Result<Vec<f64>, ForwardError> {
         let local = self.local_rows(changes.iter().map(|(t, _)| *t));
         self.measurement_change_on(&local, changes)
     }
@@ -136,8 +145,15 @@ impl LowRankUpdate {
     /// [`LowRankUpdate::measurement_change`] for changes on the triangles of `local` (from
     /// [`LowRankUpdate::local_rows`]), so that several changes of one place share its solve.
     /// Panics if a changed triangle's rows are not in `local` (a caller contract).
+    /// A change of many rows is solved in full (an error only if that solve fails).
     #[track_caller]
-    pub fn measurement_change_on(&self, local: &LocalRows, changes: &[(usize, f64)]) -> Vec<f64> {
+    pub fn measurement_change_on(&self, local: &LocalRows, changes: &[(usize, f64)]) -> Result<Vec<f64>, ForwardError> {
+        let Some(green) = &local.green else {
+            let mut sigma = self.conductivity.clone();
+            changes.iter().for_each(|&(t, delta)| sigma[t] += delta);
+            let solved = self.model.measure(&sigma)?;
+            return Ok(solved.iter().zip(&self.background).map(|(v, v0)| v - v0).collect());
+        };
         let s = local.rows.len();
         let index = |row: usize| {
             local.rows.binary_search(&row).unwrap_or_else(|_| panic!("row {row} is not among the local rows"))
@@ -160,12 +176,12 @@ impl LowRankUpdate {
             }
         }
         // X = (I + G·ΔK)⁻¹·U_R, then ΔV = −U_Rᵀ·ΔK·X.
-        let system = Mat::<f64>::identity(s, s) + &local.green * &dk;
+        let system = Mat::<f64>::identity(s, s) + green * &dk;
         let x = system.partial_piv_lu().solve(&local.fields);
         let change = -(local.fields.transpose() * (&dk * &x));
         let protocol = self.model.protocol();
         let basis = change.nrows();
-        protocol
+        Ok(protocol
             .measurements()
             .iter()
             .map(|m| {
@@ -176,7 +192,7 @@ impl LowRankUpdate {
                 }
                 value
             })
-            .collect()
+            .collect())
     }
 }
 
@@ -203,6 +219,8 @@ mod tests {
                 Inclusion { centre: [-0.05, 0.04], radius: 0.01, conductivity: 0.3 },
                 Inclusion { centre: [0.04, 0.05], radius: 0.015, conductivity: 2.0 },
             ],
+            // More rows than SOLVED_ROWS: without the whole inverse, solved in full.
+            vec![Inclusion { centre: [0.0, 0.02], radius: 0.05, conductivity: 0.5 }],
         ];
         assert!(model.mesh().triangles().iter().any(|t| t.contains(&model.ground_node())));
         for dense in [true, false] {
@@ -213,7 +231,7 @@ mod tests {
                 let sigma = with_inclusions(model.mesh(), 1.0, inclusions);
                 let changes: Vec<(usize, f64)> =
                     sigma.iter().enumerate().filter(|(_, s)| **s != 1.0).map(|(t, s)| (t, s - 1.0)).collect();
-                let dv = update.measurement_change(&changes);
+                let dv = update.measurement_change(&changes).unwrap();
                 let solved = model.measure(&sigma).unwrap();
                 let scale = dv.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
                 for (m, (d, (v, v0))) in dv.iter().zip(solved.iter().zip(update.background_measurements())).enumerate()

@@ -1,0 +1,378 @@
+//! The study's noise sweep: presses the methods do not assume, one to three at once, from 50
+//! to 90 dB of noise, through the frame path a user runs ([`Pipeline`]).
+//!
+//! Noise is the standard deviation of each value relative to it, in dB below the value:
+//! 10^(−dB/20), so 50 dB is 0.32 %, 54 dB 0.2 %, 66 dB 0.05 %, 80 dB 0.01 %. The OpenEIT
+//! captures vary 0.3–0.5 % from frame to frame (46–50 dB); the AD5940's converter alone is far
+//! quieter (see [`crate::sim`]), so 80 dB is a best case of wiring and contact.
+//!
+//! Presses ([`PressKind`]): the flat 10 mm indenter and saturating law the press model assumes;
+//! a smooth, Hertz-like profile whose contact radius grows with force; another force law; and a
+//! 15 mm indenter (reported apart: its force is ambiguous for any method calibrated with 10 mm).
+//! Each kind is pressed alone, in pairs and in threes, at random places at least 50 mm apart
+//! with random forces from 2 to 16 N, simulated on the virtual sensor's own finer mesh.
+//!
+//! Methods: touches from the image (the paper's 60 % of the frame's peak, tested against the
+//! noise) and presses found in Δv by the press model ([`crate::press_fit::PressDetection`]),
+//! the latter with forces through one curve of the fitted drop, calibrated at each level on
+//! single presses of the same kind (a user calibrates their own gel and indenter), except the
+//! 15 mm indenter, read through the 10 mm one's calibration. A press is found when a touch lies within [`MATCH_DISTANCE`] of
+//! it (each touch matched once, nearest first); touches left over are false, and so is any
+//! touch on an untouched frame.
+//!
+//! Not for: the paper's design (that is [`super::run`]).
+
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+
+use super::{Progress, StudyError};
+use crate::calibration::Calibration;
+use crate::chain::{Chain, LabelledFrame};
+use crate::inverse::{Reconstructor, ReconstructorParams};
+use crate::pipeline::{Pipeline, PipelineParams};
+use crate::press_fit::{PressModel, PressModelParams};
+use crate::pseudo_array::PseudoArray;
+use crate::sim::{ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
+use crate::spec::SensorSpec;
+use crate::strength::Strength;
+use crate::TouchParams;
+
+/// A touch counts for a press within this distance of it, in m.
+pub const MATCH_DISTANCE: f64 = 0.02;
+
+/// Presses closer than this to each other are not placed together, in m.
+pub const APART: f64 = 0.05;
+
+/// A noise level of the sweep.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Level {
+    /// Noise in dB below each value: relative standard deviation 10^(−dB/20).
+    pub db: f64,
+    /// Frames averaged into each frame imaged.
+    pub average: usize,
+}
+
+impl Level {
+    /// The relative standard deviation per value (dimensionless).
+    pub fn relative(&self) -> f64 {
+        10f64.powf(-self.db / 20.0)
+    }
+}
+
+/// A kind of press, by the gel and indenter that make it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PressKind {
+    /// Its name in the report.
+    pub name: &'static str,
+    /// The gel and indenter.
+    pub hydrogel: Hydrogel,
+}
+
+/// The kinds pressed: the model's first.
+pub fn press_kinds() -> Vec<PressKind> {
+    let model = Hydrogel::default();
+    vec![
+        PressKind { name: "flat 10 mm (the model's)", hydrogel: model },
+        PressKind {
+            name: "Hertz-like, contact 10 mm at 8 N",
+            hydrogel: Hydrogel { profile: Profile::Hertz { reference_force: 8.0 }, ..model },
+        },
+        PressKind { name: "another force law", hydrogel: Hydrogel { law: ForceLaw::Hyperbolic, ..model } },
+        PressKind { name: "flat 15 mm indenter", hydrogel: Hydrogel { indenter_radius: 0.015, ..model } },
+    ]
+}
+
+/// Settings of the sweep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepParams {
+    /// Noise levels.
+    pub levels: Vec<Level>,
+    /// Frames with one, two and three presses, per kind.
+    pub scenes: [usize; 3],
+    /// Untouched frames per level, for the false touches.
+    pub untouched: usize,
+    /// Calibration presses (of the model's kind) per level.
+    pub calibration: usize,
+    /// Frames in each reference.
+    pub reference_frames: usize,
+    /// False touches per frame without one that the noise tests allow.
+    pub false_alarm_rate: f64,
+    /// Seed of the places, forces and noise.
+    pub seed: u64,
+}
+
+impl Default for SweepParams {
+    fn default() -> Self {
+        let level = |db, average| Level { db, average };
+        SweepParams {
+            levels: vec![
+                level(50.0, 1),
+                level(54.0, 1),
+                level(54.0, 16),
+                level(60.0, 1),
+                level(66.0, 1),
+                level(70.0, 1),
+                level(80.0, 1),
+                level(90.0, 1),
+            ],
+            scenes: [30, 15, 15],
+            untouched: 1000,
+            calibration: 60,
+            reference_frames: 10,
+            false_alarm_rate: 1e-3,
+            seed: 7,
+        }
+    }
+}
+
+/// What one method did on one kind of scene at one level.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepRow {
+    /// The level.
+    pub level: Level,
+    /// The kind of press (empty for untouched frames).
+    pub kind: &'static str,
+    /// Presses per frame (0: untouched frames).
+    pub presses: usize,
+    /// The method: `image` or `presses in Δv`.
+    pub method: &'static str,
+    /// Frames.
+    pub frames: usize,
+    /// Share of the presses found (NaN for untouched frames).
+    pub detection: f64,
+    /// Touches that matched no press, per 1,000 frames.
+    pub false_per_1000: f64,
+    /// Mean distance of a found press's touch from it, in m (NaN if none found).
+    pub position_error: f64,
+    /// RMS force error of the found presses, in N (NaN without forces).
+    pub force_rms: f64,
+}
+
+/// Everything the sweep measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepReport {
+    /// One row per level, kind, press count and method.
+    pub rows: Vec<SweepRow>,
+    /// The largest force the calibration and scenes use, in N.
+    pub max_force: f64,
+}
+
+/// Forces of the scenes and the calibration, in N.
+const FORCES: [f64; 2] = [2.0, 16.0];
+
+/// Runs the sweep on `spec`'s sensor.
+pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> Result<SweepReport, StudyError> {
+    progress("sweep: setting up", 0, 1);
+    let model = spec.forward_model()?;
+    let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
+    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?;
+    let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [1, 1])?;
+    let mut rng = StdRng::seed_from_u64(params.seed);
+
+    // Clean frames, once: the untouched sheet, calibration presses of the model's kind, scenes.
+    let kinds = press_kinds();
+    let mut skins = Vec::new();
+    for kind in &kinds {
+        let sim = SimParams { hydrogel: kind.hydrogel, ..SimParams::default() };
+        skins.push(VirtualSensor::with_params(spec, sim, params.seed)?);
+    }
+    let untouched = skins[0].clean_frame()?;
+    let calibration_presses: Vec<Vec<Press>> = (0..params.calibration).map(|_| scene(spec, &mut rng, 1)).collect();
+    let mut calibration_clean = Vec::new();
+    for (kind, skin) in kinds.iter().zip(&skins) {
+        let own = kind.hydrogel.indenter_radius == Hydrogel::default().indenter_radius;
+        calibration_clean.push(if own { Some(skin.clean_frames(&calibration_presses)?) } else { None });
+    }
+    let mut scenes = Vec::new(); // (kind, presses, clean frame)
+    for (k, skin) in skins.iter().enumerate() {
+        for (n, &count) in params.scenes.iter().enumerate() {
+            progress("sweep: simulating presses", k * 3 + n, kinds.len() * 3);
+            let cases: Vec<Vec<Press>> = (0..count).map(|_| scene(spec, &mut rng, n + 1)).collect();
+            let frames = skin.clean_frames(&cases)?;
+            scenes.extend(cases.into_iter().zip(frames).map(|(presses, frame)| (k, presses, frame)));
+        }
+    }
+
+    let mut rows = Vec::new();
+    for (l, level) in params.levels.iter().enumerate() {
+        progress("sweep: noise levels", l, params.levels.len());
+        // The virtual sensor's noise: independent, Gaussian, relative to each value.
+        let mut noise_rng = StdRng::seed_from_u64(params.seed ^ (l as u64 + 1).wrapping_mul(0x9e37_79b9));
+        let relative = level.relative();
+        let mut noisy = |clean: &[f64]| -> Vec<f64> {
+            clean
+                .iter()
+                .map(|v| {
+                    let n: f64 = StandardNormal.sample(&mut noise_rng);
+                    v + relative * v.abs() * n
+                })
+                .collect()
+        };
+        let reference: Vec<Vec<f64>> = (0..params.reference_frames).map(|_| noisy(&untouched)).collect();
+        let pipeline_params = PipelineParams {
+            reference_frames: params.reference_frames,
+            noise_floor: crate::pipeline::NoiseFloor::FalseAlarm { rate: params.false_alarm_rate },
+            auto_hyperparameter: true,
+            average: level.average,
+            ..PipelineParams::default()
+        };
+        // The press method's calibration: one curve of the fitted drop per kind, from presses of
+        // that kind (a user calibrates their own gel and indenter); the 15 mm indenter is read
+        // through the 10 mm one's, as a user pressing with another indenter would.
+        let mut fitting = Pipeline::new(
+            Chain::new(recon.clone(), TouchParams::default()).with_press_model(press_model.clone()),
+            pipeline_params,
+        );
+        for frame in &reference {
+            fitting.process(frame)?;
+        }
+        let mean_reference = fitting.reference().map(<[f64]>::to_vec).unwrap_or_default();
+        let mut calibrations: Vec<Calibration> = Vec::new();
+        for clean in &calibration_clean {
+            let Some(clean) = clean else {
+                calibrations.push(calibrations[0].clone());
+                continue;
+            };
+            let labelled: Vec<LabelledFrame> = calibration_presses
+                .iter()
+                .zip(clean)
+                .map(|(p, clean)| LabelledFrame {
+                    position: p[0].position,
+                    force: p[0].force,
+                    frame: averaged(&mut noisy, clean, level.average),
+                })
+                .collect();
+            let mut chain = fitting.chain().clone().with_strength(Strength::FittedDrop)?;
+            let samples: Vec<_> = chain.samples(&mean_reference, &array, &labelled)?.into_iter().flatten().collect();
+            calibrations.push(Calibration::fit_strength(&samples, 1, Strength::FittedDrop)?);
+        }
+        let presses_in_dv = |calibration: Calibration| -> Result<Chain, StudyError> {
+            Ok(Chain::new(recon.clone(), TouchParams::default())
+                .with_press_model(press_model.clone())
+                .with_calibration(array.clone(), calibration)?)
+        };
+        let image = || Chain::new(recon.clone(), TouchParams::default());
+        let mut methods: Vec<(&'static str, Vec<Chain>)> = vec![("image", vec![image(); kinds.len()])];
+        methods.push(("presses in Δv", calibrations.into_iter().map(presses_in_dv).collect::<Result<_, _>>()?));
+        for (method, chains) in methods {
+            // One pipeline per kind (its own calibration), each from the same reference frames.
+            let mut pipelines: Vec<Pipeline> = chains.into_iter().map(|c| Pipeline::new(c, pipeline_params)).collect();
+            for pipeline in &mut pipelines {
+                for frame in &reference {
+                    pipeline.process(frame)?;
+                }
+            }
+            // Untouched frames.
+            let mut tally = Tally::default();
+            for _ in 0..params.untouched {
+                let frame = noisy(&untouched);
+                pipelines[0].process(&frame)?;
+                tally.frame(&[], pipelines[0].touches());
+            }
+            rows.push(tally.row(*level, "", 0, method));
+            // Pressed frames, each after `average` frames of its press so the mean holds it alone.
+            for (k, (kind, pipeline)) in kinds.iter().zip(&mut pipelines).enumerate() {
+                for count in 1..=3 {
+                    let mut tally = Tally::default();
+                    for (_, presses, clean) in scenes.iter().filter(|(s, p, _)| *s == k && p.len() == count) {
+                        for _ in 0..level.average.max(1) {
+                            pipeline.process(&noisy(clean))?;
+                        }
+                        tally.frame(presses, pipeline.touches());
+                    }
+                    rows.push(tally.row(*level, kind.name, count, method));
+                }
+            }
+        }
+    }
+    Ok(SweepReport { rows, max_force: FORCES[1] })
+}
+
+/// The mean of `average` noisy frames of `clean`.
+fn averaged(noisy: &mut impl FnMut(&[f64]) -> Vec<f64>, clean: &[f64], average: usize) -> Vec<f64> {
+    let n = average.max(1);
+    let mut sum = vec![0.0; clean.len()];
+    for _ in 0..n {
+        sum.iter_mut().zip(noisy(clean)).for_each(|(s, v)| *s += v / n as f64);
+    }
+    sum
+}
+
+/// `count` presses at random places inside `spec`'s outline, kept 20 mm from its edges and
+/// [`APART`] from each other, with random forces from 2 to 16 N.
+fn scene(spec: &SensorSpec, rng: &mut StdRng, count: usize) -> Vec<Press> {
+    let [lo, hi] = spec.outline.bounds();
+    let margin = 0.02;
+    let inside = |p: [f64; 2]| {
+        [[margin, 0.0], [-margin, 0.0], [0.0, margin], [0.0, -margin]]
+            .iter()
+            .all(|d| spec.outline.contains([p[0] + d[0], p[1] + d[1]]))
+    };
+    let mut presses: Vec<Press> = Vec::with_capacity(count);
+    while presses.len() < count {
+        let position = [rng.random_range(lo[0]..hi[0]), rng.random_range(lo[1]..hi[1])];
+        let apart = presses.iter().all(|p| (p.position[0] - position[0]).hypot(p.position[1] - position[1]) >= APART);
+        if inside(position) && apart {
+            presses.push(Press { position, force: rng.random_range(FORCES[0]..FORCES[1]) });
+        }
+    }
+    presses
+}
+
+/// Running counts of one method on one kind of frame.
+#[derive(Debug, Default)]
+struct Tally {
+    frames: usize,
+    presses: usize,
+    found: usize,
+    false_touches: usize,
+    distance: f64,
+    force_error: Vec<f64>,
+}
+
+impl Tally {
+    /// Matches the touches of a frame to its presses, nearest pairs first.
+    fn frame(&mut self, presses: &[Press], touches: &[crate::chain::TouchForce]) {
+        self.frames += 1;
+        self.presses += presses.len();
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        for (i, p) in presses.iter().enumerate() {
+            for (j, t) in touches.iter().enumerate() {
+                let d = (t.touch.centre[0] - p.position[0]).hypot(t.touch.centre[1] - p.position[1]);
+                if d <= MATCH_DISTANCE {
+                    pairs.push((d, i, j));
+                }
+            }
+        }
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (mut press_used, mut touch_used) = (vec![false; presses.len()], vec![false; touches.len()]);
+        for (d, i, j) in pairs {
+            if press_used[i] || touch_used[j] {
+                continue;
+            }
+            (press_used[i], touch_used[j]) = (true, true);
+            self.found += 1;
+            self.distance += d;
+            if let Some(force) = touches[j].force {
+                self.force_error.push(force.newtons - presses[i].force);
+            }
+        }
+        self.false_touches += touch_used.iter().filter(|u| !**u).count();
+    }
+
+    fn row(&self, level: Level, kind: &'static str, presses: usize, method: &'static str) -> SweepRow {
+        let rms = (self.force_error.iter().map(|e| e * e).sum::<f64>() / self.force_error.len() as f64).sqrt();
+        SweepRow {
+            level,
+            kind,
+            presses,
+            method,
+            frames: self.frames,
+            detection: if self.presses > 0 { self.found as f64 / self.presses as f64 } else { f64::NAN },
+            false_per_1000: 1000.0 * self.false_touches as f64 / self.frames.max(1) as f64,
+            position_error: if self.found > 0 { self.distance / self.found as f64 } else { f64::NAN },
+            force_rms: if self.force_error.is_empty() { f64::NAN } else { rms },
+        }
+    }
+}
