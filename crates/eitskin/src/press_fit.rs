@@ -83,7 +83,7 @@ impl Grid {
 }
 
 /// Per point of `grid`, the triangles of `mesh` a disk of `radius` (m) there covers, each with
-/// the share of its area covered (in (0, 1]).
+/// the share of its area covered (in (1e-9, 1]).
 fn disk_shares(mesh: &Mesh, grid: &Grid, radius: f64) -> Vec<Vec<(usize, f64)>> {
     let mut shares = vec![Vec::new(); grid.len()];
     for t in 0..mesh.triangles().len() {
@@ -101,7 +101,8 @@ fn disk_shares(mesh: &Mesh, grid: &Grid, radius: f64) -> Vec<Vec<(usize, f64)>> 
             for gi in range(0) {
                 let j = gj * grid.dims[0] + gi;
                 let share = (circle_triangle_area(grid.point(j), radius, corners) / area).min(1.0);
-                if share > 0.0 {
+                // Rounding leaves a share of about 1e-16 on some triangles the disk misses.
+                if share > 1e-9 {
                     shares[j].push((t, share));
                 }
             }
@@ -318,7 +319,16 @@ impl PressModel {
     ) -> Result<Vec<[f64; LADDER.len()]>, InverseError> {
         use rayon::prelude::*;
         let mesh = model.mesh();
-        let update = LowRankUpdate::new(model, &vec![background; mesh.triangles().len()])?;
+        // A press's nodes lie within its radius and a triangle's longest edge of its centre, so
+        // within twice that of each other.
+        let longest = (0..mesh.triangles().len())
+            .map(|t| {
+                let c = mesh.corners(t);
+                (0..3).map(|k| crate::geometry::dist(c[k], c[(k + 1) % 3])).fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max);
+        let reach = 2.5 * (self.radius + longest); // with room to spare: 2× is the bound
+        let update = LowRankUpdate::with_reach(model, &vec![background; mesh.triangles().len()], reach)?;
         let covered = disk_shares(mesh, &self.coarse, self.radius);
         let ladder = (0..self.coarse.len()).into_par_iter().map(|j| {
             let centre = self.coarse.point(j);

@@ -64,10 +64,33 @@ pub struct LowRankUpdate {
     fields: Mat<f64>,
     /// K₀⁻¹ whole, for models of at most [`DENSE_LIMIT`] unknowns.
     inverse: Option<Mat<f64>>,
+    /// K₀⁻¹ between nodes near each other, for larger models made [`LowRankUpdate::with_reach`].
+    near: Option<NearGreen>,
     background: Vec<f64>,
     /// The background conductivity per triangle, S/m (for changes solved in full).
     conductivity: Vec<f64>,
 }
+
+/// K₀⁻¹ between the rows of nodes at most a reach apart: per row (CSR), the rows near it,
+/// sorted, and the values.
+#[derive(Debug, Clone)]
+struct NearGreen {
+    start: Vec<usize>,
+    rows: Vec<usize>,
+    values: Vec<f64>,
+}
+
+impl NearGreen {
+    /// G[i, j], if rows i and j are near each other.
+    fn get(&self, i: usize, j: usize) -> Option<f64> {
+        let (from, to) = (*self.start.get(j)?, *self.start.get(j + 1)?);
+        let k = self.rows[from..to].binary_search(&i).ok()?;
+        Some(self.values[from + k])
+    }
+}
+
+/// Columns of K₀⁻¹ solved at once when the near part of it is built.
+const BATCH: usize = 256;
 
 /// The rows a change touches, and what the update needs of them.
 #[derive(Debug, Clone)]
@@ -93,7 +116,93 @@ impl LowRankUpdate {
             identity
         });
         let conductivity = conductivity.to_vec();
-        Ok(LowRankUpdate { model: model.clone(), factor, fields: solution.fields, inverse, background, conductivity })
+        let fields = solution.fields;
+        Ok(LowRankUpdate { model: model.clone(), factor, fields, inverse, near: None, background, conductivity })
+    }
+
+    /// [`LowRankUpdate::new`], keeping for a model of more than [`DENSE_LIMIT`] unknowns the
+    /// part of K₀⁻¹ between nodes at most `reach` (m) apart: every column is solved once, in
+    /// batches (in parallel), and a change whose nodes lie within `reach` of each other then
+    /// needs no sparse solve.
+    pub fn with_reach(model: &ForwardModel, conductivity: &[f64], reach: f64) -> Result<LowRankUpdate, ForwardError> {
+        let mut update = LowRankUpdate::new(model, conductivity)?;
+        if update.inverse.is_none() && reach > 0.0 && reach.is_finite() {
+            update.near = Some(update.near_green(reach));
+        }
+        Ok(update)
+    }
+
+    /// The part of K₀⁻¹ between node rows at most `reach` (m) apart.
+    fn near_green(&self, reach: f64) -> NearGreen {
+        use rayon::prelude::*;
+        let model = &self.model;
+        let mesh = model.mesh();
+        let n = model.system_size();
+        // The node of each row (electrode unknowns have none).
+        let mut node_of_row = vec![usize::MAX; n];
+        for (node, &row) in model.row_of_node.iter().enumerate() {
+            if row != GROUNDED {
+                node_of_row[row] = node;
+            }
+        }
+        // Rows near each row, by a grid of cells `reach` wide.
+        let [lo, hi] = mesh.bounds();
+        let cells = |k: usize| (((hi[k] - lo[k]) / reach).floor() as usize + 1).min(4096);
+        let (nx, ny) = (cells(0), cells(1));
+        let cell_of = |p: [f64; 2]| {
+            let c = |k: usize, n: usize| (((p[k] - lo[k]) / reach).floor().max(0.0) as usize).min(n - 1);
+            (c(0, nx), c(1, ny))
+        };
+        let mut bucket: Vec<Vec<usize>> = vec![Vec::new(); nx * ny];
+        for (row, &node) in node_of_row.iter().enumerate().filter(|(_, n)| **n != usize::MAX) {
+            let (cx, cy) = cell_of(mesh.nodes()[node]);
+            bucket[cy * nx + cx].push(row);
+        }
+        let near_rows = |row: usize| -> Vec<usize> {
+            let node = node_of_row[row];
+            if node == usize::MAX {
+                return Vec::new();
+            }
+            let p = mesh.nodes()[node];
+            let (cx, cy) = cell_of(p);
+            let mut near: Vec<usize> = (cy.saturating_sub(1)..=(cy + 1).min(ny - 1))
+                .flat_map(|y| (cx.saturating_sub(1)..=(cx + 1).min(nx - 1)).map(move |x| y * nx + x))
+                .flat_map(|cell| bucket[cell].iter().copied())
+                .filter(|&other| crate::geometry::dist(p, mesh.nodes()[node_of_row[other]]) <= reach)
+                .collect();
+            near.sort_unstable();
+            near
+        };
+        let factor = &self.factor;
+        let batches: Vec<(Vec<usize>, Vec<f64>, Vec<usize>)> = (0..n)
+            .step_by(BATCH)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|first| {
+                let columns = first..(first + BATCH).min(n);
+                let mut rhs = Mat::<f64>::zeros(n, columns.len());
+                columns.clone().enumerate().for_each(|(k, j)| rhs[(j, k)] = 1.0);
+                factor.llt.solve_in_place(rhs.as_mut());
+                let (mut counts, mut rows, mut values) = (Vec::new(), Vec::new(), Vec::new());
+                for (k, j) in columns.enumerate() {
+                    let near = near_rows(j);
+                    counts.push(near.len());
+                    values.extend(near.iter().map(|&i| rhs[(i, k)]));
+                    rows.extend(near);
+                }
+                (rows, values, counts)
+            })
+            .collect();
+        let mut near = NearGreen { start: vec![0], rows: Vec::new(), values: Vec::new() };
+        for (rows, values, counts) in batches {
+            for count in counts {
+                let last = *near.start.last().unwrap_or(&0);
+                near.start.push(last + count);
+            }
+            near.rows.extend(rows);
+            near.values.extend(values);
+        }
+        near
     }
 
     /// The forward model.
@@ -121,15 +230,25 @@ impl LowRankUpdate {
         rows.sort_unstable();
         rows.dedup();
         let s = rows.len();
-        let green = match &self.inverse {
-            Some(inverse) => Some(Mat::from_fn(s, s, |i, j| inverse[(rows[i], rows[j])])),
-            None if s <= SOLVED_ROWS => {
+        let near = self.near.as_ref().and_then(|near| {
+            let mut green = Mat::<f64>::zeros(s, s);
+            for j in 0..s {
+                for i in 0..s {
+                    green[(i, j)] = near.get(rows[i], rows[j])?;
+                }
+            }
+            Some(green)
+        });
+        let green = match (&self.inverse, near) {
+            (Some(inverse), _) => Some(Mat::from_fn(s, s, |i, j| inverse[(rows[i], rows[j])])),
+            (None, Some(green)) => Some(green),
+            (None, None) if s <= SOLVED_ROWS => {
                 let mut columns = Mat::<f64>::zeros(self.model.system_size(), s);
                 rows.iter().enumerate().for_each(|(j, &r)| columns[(r, j)] = 1.0);
                 self.factor.llt.solve_in_place(columns.as_mut());
                 Some(Mat::from_fn(s, s, |i, j| columns[(rows[i], j)]))
             }
-            None => None,
+            (None, None) => None,
         };
         let fields = Mat::from_fn(s, self.fields.ncols(), |i, p| self.fields[(rows[i], p)]);
         LocalRows { rows, green, fields }
@@ -223,8 +342,17 @@ mod tests {
             vec![Inclusion { centre: [0.0, 0.02], radius: 0.05, conductivity: 0.5 }],
         ];
         assert!(model.mesh().triangles().iter().any(|t| t.contains(&model.ground_node())));
-        for dense in [true, false] {
-            if !dense {
+        let mut near = LowRankUpdate::new(&model, &background).unwrap();
+        near.inverse = None;
+        near.near = Some(near.near_green(0.08));
+        // A 10 mm press's nodes are near each other: no sparse solve.
+        let press = with_inclusions(model.mesh(), 1.0, &cases[0]);
+        let local = near.local_rows((0..press.len()).filter(|&t| press[t] < 0.999));
+        assert!(local.green.is_some() && local.rows.len() > 3);
+        for (path, dense) in [("dense", true), ("column solves", false), ("near", false)] {
+            if path == "near" {
+                update = near.clone();
+            } else if !dense {
                 update.inverse = None;
             }
             for inclusions in &cases {
