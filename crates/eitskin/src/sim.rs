@@ -282,6 +282,14 @@ impl VirtualSensor {
         Ok(v)
     }
 
+    /// A copy of the clean frame `clean` with the sensor's measurement noise (for repeated
+    /// frames of one press).
+    pub fn noisy(&mut self, clean: &[f64]) -> Vec<f64> {
+        let mut frame = clean.to_vec();
+        self.add_noise(&mut frame);
+        frame
+    }
+
     /// Adds the sensor's measurement noise to a clean frame (for repeated frames of one press).
     pub fn add_noise(&mut self, frame: &mut [f64]) {
         let k = self.params.noise_relative;

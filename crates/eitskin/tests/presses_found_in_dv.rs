@@ -23,16 +23,10 @@ fn setup() -> (Pipeline, VirtualSensor, Vec<f64>) {
     let mut skin = VirtualSensor::with_params(&spec, sim, 17).unwrap();
     let clean = skin.clean_frame().unwrap();
     for _ in 0..10 {
-        pipeline.process(&noisy(&mut skin, &clean)).unwrap();
+        pipeline.process(&skin.noisy(&clean)).unwrap();
     }
     assert!(pipeline.chain().press_detection().is_some());
     (pipeline, skin, clean)
-}
-
-fn noisy(skin: &mut VirtualSensor, clean: &[f64]) -> Vec<f64> {
-    let mut frame = clean.to_vec();
-    skin.add_noise(&mut frame);
-    frame
 }
 
 fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -53,7 +47,7 @@ fn worst_distances(
     let clean = skin.clean_frame().unwrap();
     let (mut worst, mut counted) = (vec![0.0_f64; presses.len()], true);
     for _ in 0..frames {
-        assert!(pipeline.process(&noisy(skin, &clean)).unwrap().imaged());
+        assert!(pipeline.process(&skin.noisy(&clean)).unwrap().imaged());
         let touches = pipeline.touches();
         counted &= touches.len() == presses.len();
         for (w, (at, _)) in worst.iter_mut().zip(presses) {
@@ -69,7 +63,7 @@ fn an_untouched_sheet_shows_no_press_beyond_the_rate() {
     let (mut pipeline, mut skin, clean) = setup();
     let (frames, mut false_frames) = (2000, 0);
     for _ in 0..frames {
-        let status = pipeline.process(&noisy(&mut skin, &clean)).unwrap();
+        let status = pipeline.process(&skin.noisy(&clean)).unwrap();
         assert!(matches!(status, Status::Processed | Status::NoiseUpdated));
         false_frames += usize::from(!pipeline.touches().is_empty());
     }

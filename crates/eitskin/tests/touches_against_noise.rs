@@ -24,13 +24,6 @@ fn setup(noise: f64, average: usize, peak_of: PeakOf) -> (Pipeline, VirtualSenso
     (Pipeline::new(Chain::new(recon, touch), params), VirtualSensor::with_params(&spec, sim, 17).unwrap())
 }
 
-/// A frame of the skin as it is pressed now, with fresh noise, from its clean frame.
-fn noisy(skin: &mut VirtualSensor, clean: &[f64]) -> Vec<f64> {
-    let mut frame = clean.to_vec();
-    skin.add_noise(&mut frame);
-    frame
-}
-
 fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
@@ -39,7 +32,7 @@ fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
 fn reference(pipeline: &mut Pipeline, skin: &mut VirtualSensor) -> Vec<f64> {
     let clean = skin.clean_frame().unwrap();
     for _ in 0..10 {
-        pipeline.process(&noisy(skin, &clean)).unwrap();
+        pipeline.process(&skin.noisy(&clean)).unwrap();
     }
     assert!(pipeline.noise_measured() && pipeline.significance().is_some());
     clean
@@ -51,7 +44,7 @@ fn an_untouched_sheet_shows_false_touches_at_the_stated_rate_at_most() {
     let clean = reference(&mut pipeline, &mut skin);
     let (frames, mut false_frames, mut updates) = (3000, 0, 0);
     for _ in 0..frames {
-        let status = pipeline.process(&noisy(&mut skin, &clean)).unwrap();
+        let status = pipeline.process(&skin.noisy(&clean)).unwrap();
         updates += usize::from(status == Status::NoiseUpdated);
         false_frames += usize::from(!pipeline.touches().is_empty());
     }
@@ -78,7 +71,7 @@ fn weak_presses_pass_the_noise_test() {
             skin.press(at, 2.0);
             let clean = skin.clean_frame().unwrap();
             for _ in 0..5 {
-                pipeline.process(&noisy(&mut skin, &clean)).unwrap();
+                pipeline.process(&skin.noisy(&clean)).unwrap();
                 tried += 1;
                 found += usize::from(pipeline.touches().iter().any(|t| distance(t.touch.centre, at) < 0.03));
             }
