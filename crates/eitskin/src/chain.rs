@@ -10,6 +10,8 @@
 //!    the measured noise where a [`Significance`] is set ([`touch::detect_tested_into`](crate::touch::detect_tested_into)),
 //!    strongest first;
 //! 3. with a [`PressModel`], one press fitted to Δv from each touch's centre (at most 16, jointly);
+//!    or, with a [`PressDetection`] set (the pipeline sets one from the measured noise), steps 2
+//!    and 3 are the presses found in Δv itself, each a touch at its centre;
 //! 4. the strength of each touch ([`Strength::read`]: the peak, the fitted drop, or a reading
 //!    of the [`ContrastMap`]);
 //! 5. with a calibration, the unit and area its reading falls in and the force

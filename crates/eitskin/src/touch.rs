@@ -13,6 +13,10 @@
 //! Touches come strongest first. [`detect`] is the easy form; [`detect_into`] writes into
 //! buffers the caller owns and allocates nothing once they have grown, for the per-frame path.
 //!
+//! Past the paper: [`PeakOf::Touch`] takes each touch's threshold from its own peak (a weak press
+//! beside a strong one is kept), and [`detect_tested_into`] keeps only the touches whose peak
+//! passes the noise test of a [`Significance`] (a stated false-alarm rate), each with its z.
+//!
 //! ```
 //! use eitskin::{image::Image, touch::{self, TouchParams}};
 //! let mut image = Image::new([32, 32], [[0.0, 0.0], [0.2, 0.2]], vec![true; 32 * 32]);
