@@ -37,7 +37,7 @@
 //!     .map(|k| v_ref.iter().enumerate().map(|(m, v)| v * (1.0 + 1e-3 * (((m * 7 + k * 13) % 11) as f64 - 5.0) / 3.2)).collect())
 //!     .collect();
 //! let noise = NoiseModel::from_frames(&frames).expect("frames that vary");
-//! let significance = Significance::new(&recon, &v_ref, &noise, Polarity::Decrease, 1e-3)?;
+//! let significance = Significance::new(&recon, &v_ref, &noise, 1, Polarity::Decrease, 1e-3)?;
 //! assert!(significance.threshold() > 3.0 && significance.threshold() < 6.0);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -189,12 +189,14 @@ pub struct Significance {
 
 impl Significance {
     /// The significance of `recon`'s images against the reference `v_ref` (protocol order) under
-    /// the noise of `noise`, for touches of `polarity`, at `false_alarm_rate` (false touches
-    /// per no-touch frame, in (0, 0.5]). About [`CALIBRATION_SAMPLES`] images of setup work.
+    /// the noise of `noise`, for frames that are the mean of `averaged` frames (1: single
+    /// frames), for touches of `polarity`, at `false_alarm_rate` (false touches per no-touch
+    /// frame, in (0, 0.5]). About [`CALIBRATION_SAMPLES`] images of setup work.
     pub fn new(
         recon: &Reconstructor,
         v_ref: &[f64],
         noise: &NoiseModel,
+        averaged: usize,
         polarity: Polarity,
         false_alarm_rate: f64,
     ) -> Result<Significance, InverseError> {
@@ -204,7 +206,7 @@ impl Significance {
             return Err(InverseError::FrameLength { expected: m, got });
         }
         assert!(false_alarm_rate > 0.0 && false_alarm_rate <= 0.5, "a false-alarm rate in (0, 0.5]");
-        let sd = difference_std(recon, v_ref, noise);
+        let sd = difference_std(recon, v_ref, noise, averaged);
         let pixels = recon.blank_image().values.len();
         let mut variance = vec![0.0_f64; pixels];
         for (column, s) in recon.matrix().chunks_exact(pixels).zip(&sd) {
@@ -216,8 +218,7 @@ impl Significance {
         let mut significance =
             Significance { inverse_std, threshold: f64::INFINITY, false_alarm_rate, fitted_at: f64::NAN };
         let maxima = significance.noise_maxima(recon, v_ref, &sd, polarity)?;
-        significance.fitted_at = quantile(&maxima, 1.0 - FIT_EXCEEDANCE);
-        significance.threshold = tail_threshold(significance.fitted_at, FIT_EXCEEDANCE, false_alarm_rate);
+        (significance.fitted_at, significance.threshold) = threshold_of(&maxima, false_alarm_rate);
         Ok(significance)
     }
 
@@ -246,14 +247,6 @@ impl Significance {
         let mut std: Vec<f32> = self.inverse_std.iter().filter(|x| **x > 0.0).map(|x| 1.0 / x).collect();
         std.sort_by(f32::total_cmp);
         std.get(std.len() / 2).map_or(0.0, |s| f64::from(*s))
-    }
-
-    /// The same significance for frames that are the mean of `frames` frames (noise variance
-    /// 1/`frames` of one frame's; the reference's share is kept), at the same rate.
-    pub fn averaged(&self, frames: usize, reference_frames: usize) -> Significance {
-        let n = reference_frames.max(1) as f64;
-        let scale = ((1.0 + 1.0 / n) / (1.0 / frames.max(1) as f64 + 1.0 / n)).sqrt() as f32;
-        Significance { inverse_std: self.inverse_std.iter().map(|x| x * scale).collect(), ..self.clone() }
     }
 
     /// A map of `pixels` pixels all with noise `std` (S/m) and a threshold `threshold` (z), for tests.
@@ -292,14 +285,23 @@ impl Significance {
 }
 
 /// Each used channel's noise standard deviation in the differences' units (V, or a ratio when
-/// normalised), with the reference's share; 0 for a channel not used.
-fn difference_std(recon: &Reconstructor, v_ref: &[f64], noise: &NoiseModel) -> Vec<f64> {
-    let std = noise.difference_std(v_ref, recon.params().normalized, 1);
+/// normalised) for frames that are the mean of `averaged`, with the reference's share; 0 for a
+/// channel not used.
+fn difference_std(recon: &Reconstructor, v_ref: &[f64], noise: &NoiseModel, averaged: usize) -> Vec<f64> {
+    let std = noise.difference_std(v_ref, recon.params().normalized, averaged);
     std.iter().enumerate().map(|(m, s)| if recon.channels().is_used(m) && s.is_finite() { *s } else { 0.0 }).collect()
 }
 
+/// The z for `rate` false alarms per frame from the largest z of each of many noise frames
+/// `maxima`: their value z₁ at exceedance [`FIT_EXCEEDANCE`], and the tail extended from it
+/// ([`tail_threshold`]). Returns (z₁, threshold).
+pub(crate) fn threshold_of(maxima: &[f64], rate: f64) -> (f64, f64) {
+    let fitted_at = quantile(maxima, 1.0 - FIT_EXCEEDANCE);
+    (fitted_at, tail_threshold(fitted_at, FIT_EXCEEDANCE, rate))
+}
+
 /// The `q` quantile of `values` (the nearest rank).
-pub(crate) fn quantile(values: &[f64], q: f64) -> f64 {
+fn quantile(values: &[f64], q: f64) -> f64 {
     let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
     let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len().max(1)) - 1;
@@ -391,7 +393,7 @@ mod tests {
             mean: vec![0.0; v_ref.len()],
             reference_frames: 1_000_000,
         };
-        let significance = Significance::new(&recon, &v_ref, &noise, Polarity::Decrease, 1e-3).unwrap();
+        let significance = Significance::new(&recon, &v_ref, &noise, 1, Polarity::Decrease, 1e-3).unwrap();
         let mut rng = StdRng::seed_from_u64(11);
         let samples = 2000;
         let mut sum_sq = vec![0.0_f64; 24 * 24];
@@ -416,7 +418,7 @@ mod tests {
         let relative = vec![1e-3; v_ref.len()];
         let noise = NoiseModel::assumed(1e-3, v_ref.len(), 1_000_000);
         let rate = 0.01;
-        let significance = Significance::new(&recon, &v_ref, &noise, Polarity::Decrease, rate).unwrap();
+        let significance = Significance::new(&recon, &v_ref, &noise, 1, Polarity::Decrease, rate).unwrap();
         assert!(significance.threshold() > significance.fitted_at);
         let mut rng = StdRng::seed_from_u64(5);
         let trials = 6000;

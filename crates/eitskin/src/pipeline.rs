@@ -355,11 +355,8 @@ impl Pipeline {
         let significance = match (self.params.noise_floor, &self.noise) {
             (NoiseFloor::FalseAlarm { rate }, Some(noise)) => {
                 let polarity = self.chain.touch_params().polarity;
-                let single = Significance::new(self.chain.reconstructor(), &self.reference, noise, polarity, rate)?;
-                Some(match self.params.average {
-                    0 | 1 => single,
-                    n => single.averaged(n, noise.reference_frames()),
-                })
+                let recon = self.chain.reconstructor();
+                Some(Significance::new(recon, &self.reference, noise, self.params.average, polarity, rate)?)
             }
             _ => None,
         };

@@ -24,8 +24,9 @@
 //! Not for: reconstruction (use [`crate::Reconstructor`] on the spec's own mesh).
 
 use rand::rngs::StdRng;
+use rand::Rng;
 use rand::SeedableRng;
-use rand_distr::{Distribution, Normal};
+use rand_distr::{Distribution, StandardNormal};
 
 use crate::conductivity::{with_inclusions, Inclusion};
 use crate::forward::{ForwardError, ForwardModel};
@@ -110,6 +111,15 @@ impl Hydrogel {
     }
 }
 
+/// Adds to each value of `frame` independent Gaussian noise of standard deviation `relative`
+/// (dimensionless) times its magnitude: the virtual sensor's measurement noise.
+pub fn add_relative_noise(frame: &mut [f64], relative: f64, rng: &mut impl Rng) {
+    for v in frame.iter_mut() {
+        let n: f64 = StandardNormal.sample(rng);
+        *v += relative * v.abs() * n;
+    }
+}
+
 /// The midpoint of `a` and `b`.
 fn mid(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
     [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]
@@ -163,7 +173,6 @@ pub struct VirtualSensor {
     presses: Vec<Press>,
     hours: f64,
     rng: StdRng,
-    noise: Normal<f64>,
 }
 
 impl VirtualSensor {
@@ -178,8 +187,6 @@ impl VirtualSensor {
         fine.mesh.triangles = spec.mesh.triangles * params.refine.max(1);
         fine.mesh.max_element_size = spec.mesh.max_element_size.map(|h| h / (params.refine.max(1) as f64).sqrt());
         let model = fine.forward_model()?;
-        // A standard deviation of 1 is always valid.
-        let noise = Normal::new(0.0, 1.0).map_err(|_| SpecError::NotPositive { key: "noise", value: 1.0 })?;
         Ok(VirtualSensor {
             model,
             background: spec.conductivity,
@@ -187,7 +194,6 @@ impl VirtualSensor {
             presses: Vec::new(),
             hours: 0.0,
             rng: StdRng::seed_from_u64(seed),
-            noise,
         })
     }
 
@@ -292,10 +298,7 @@ impl VirtualSensor {
 
     /// Adds the sensor's measurement noise to a clean frame (for repeated frames of one press).
     pub fn add_noise(&mut self, frame: &mut [f64]) {
-        let k = self.params.noise_relative;
-        for v in frame.iter_mut() {
-            *v += k * v.abs() * self.noise.sample(&mut self.rng);
-        }
+        add_relative_noise(frame, self.params.noise_relative, &mut self.rng);
     }
 }
 

@@ -31,7 +31,7 @@ use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 use super::{PressFit, PressModel, PressScratch, MAX_DROP, SWEEPS};
 use crate::inverse::InverseError;
-use crate::noise::{quantile, tail_threshold, CALIBRATION_SAMPLES};
+use crate::noise::{threshold_of, CALIBRATION_SAMPLES};
 
 /// The most presses found in one frame.
 pub const MAX_PRESSES: usize = 16;
@@ -115,7 +115,7 @@ impl PressDetection {
                 model.best_point(&scan, &noise, &[], &mut correlations).map_or(0.0, |(_, z)| z)
             })
             .collect();
-        let threshold = tail_threshold(quantile(&maxima, 0.9), 0.1, false_alarm_rate);
+        let (_, threshold) = threshold_of(&maxima, false_alarm_rate);
         Ok(PressDetection { model, scan, std, threshold, false_alarm_rate })
     }
 

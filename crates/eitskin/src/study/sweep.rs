@@ -24,7 +24,6 @@
 
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
-use rand_distr::{Distribution, StandardNormal};
 
 use super::{Progress, StudyError};
 use crate::calibration::Calibration;
@@ -33,7 +32,7 @@ use crate::inverse::{Reconstructor, ReconstructorParams};
 use crate::pipeline::{Pipeline, PipelineParams};
 use crate::press_fit::{PressModel, PressModelParams};
 use crate::pseudo_array::PseudoArray;
-use crate::sim::{ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
+use crate::sim::{add_relative_noise, ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
 use crate::spec::SensorSpec;
 use crate::strength::Strength;
 use crate::TouchParams;
@@ -201,13 +200,9 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
         let mut noise_rng = StdRng::seed_from_u64(params.seed ^ (l as u64 + 1).wrapping_mul(0x9e37_79b9));
         let relative = level.relative();
         let mut noisy = |clean: &[f64]| -> Vec<f64> {
-            clean
-                .iter()
-                .map(|v| {
-                    let n: f64 = StandardNormal.sample(&mut noise_rng);
-                    v + relative * v.abs() * n
-                })
-                .collect()
+            let mut frame = clean.to_vec();
+            add_relative_noise(&mut frame, relative, &mut noise_rng);
+            frame
         };
         let reference: Vec<Vec<f64>> = (0..params.reference_frames).map(|_| noisy(&untouched)).collect();
         let pipeline_params = PipelineParams {
