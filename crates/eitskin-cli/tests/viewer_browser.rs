@@ -313,10 +313,9 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
     let pressed = wait_for(60, "the page to show the press", || {
         let state = browser.js(
             "const s = window.eitskin; if (!s.touches.length) return null;
-             const [cx, cy] = s.toCanvas(...s.peakAt);
-             const p = document.getElementById('heatmap').getContext('2d').getImageData(Math.round(cx), Math.round(cy), 1, 1).data;
+             const p = s.raster.getContext('2d').getImageData(s.peakPixel[0], s.peakPixel[1], 1, 1).data;
              return {seq: s.seq, peak: s.peak, checksum: s.checksum, touches: s.touches, pixel: Array.from(p),
-                     floor: s.floor, scale: s.scale,
+                     floor: s.floor, scale: s.scale, expected: colour(s.peak / s.scale),
                      shown: Array.from(document.querySelectorAll('#touches tbody tr')).map(r => Array.from(r.cells).map(c => c.textContent)),
                      history: s.history};",
         );
@@ -335,13 +334,17 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
     assert!(floor > 0.0 && pressed["scale"].as_f64().unwrap() >= floor, "{pressed}");
     let quiet = before.iter().map(|h| h["peak"].as_f64().unwrap().abs()).fold(0.0, f64::max);
     assert!(quiet < floor, "an untouched frame's peak {quiet} S/m is drawn at full colour (floor {floor} S/m)");
-    // The strongest change is a decrease, drawn in the press colour (blue; pale, since the scale
-    // is at least twice what a touch must reach and this image's peak is under that). At the
-    // calibration's λ, 0.1, the image is too noisy on this mesh to place it at the press: the
-    // touch comes from Δv.
+    // The strongest change is a decrease, drawn at its pixel of the raster in the colour of its
+    // value on the scale (blue for a decrease). At the calibration's λ, 0.1, the image is too
+    // noisy on this mesh to place it at the press: the touch comes from Δv.
     assert!(pressed["peak"].as_f64().unwrap() < 0.0, "{pressed}");
     let [r, g, b] = [0, 1, 2].map(|i| pressed["pixel"][i].as_i64().unwrap());
-    assert!(b > r + 20 && b > g, "the heat map at its peak is {r},{g},{b}, not the press colour (blue)");
+    let want = [0, 1, 2].map(|i| pressed["expected"][i].as_i64().unwrap());
+    assert!(want[2] > want[0], "a decrease is drawn blue: {want:?}");
+    assert!(
+        [r, g, b].iter().zip(want).all(|(got, want)| (got - want).abs() <= 1),
+        "the heat map at its peak is {r},{g},{b}, not {want:?}, the colour of its value"
+    );
 
     // The touch shown is the stdout line's for the same frame: position, unit, force.
     let seq = pressed["seq"].as_u64().unwrap();

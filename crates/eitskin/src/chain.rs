@@ -346,9 +346,13 @@ impl Chain {
         let channels = self.recon.channels();
         let model = self.masked_press.as_ref().or(self.press_model.as_ref());
         if model.is_some() || self.press_detection.is_some() {
+            // Δv in the model's volts: each channel's relative change times the model's own
+            // value (v/v_ref − 1)·v₀, so a board's unit and gains do not scale the fitted drop.
             // A dropped channel's Δv is 0 (it may be NaN): the masked model ignores it.
-            for (m, (d, (v, r))) in self.difference.iter_mut().zip(frame.iter().zip(reference)).enumerate() {
-                *d = if channels.is_used(m) { v - r } else { 0.0 };
+            let model_values = self.recon.linearisation().background();
+            let values = frame.iter().zip(reference).zip(model_values);
+            for (m, (d, ((v, r), v0))) in self.difference.iter_mut().zip(values).enumerate() {
+                *d = if channels.is_used(m) && *r != 0.0 { (v - r) * v0 / r } else { 0.0 };
             }
         }
         if let Some(detection) = &self.press_detection {

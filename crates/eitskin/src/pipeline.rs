@@ -345,7 +345,9 @@ impl Pipeline {
         let detection = match (self.params.noise_floor, &self.noise, self.chain.press_model()) {
             (NoiseFloor::FalseAlarm { rate }, Some(noise), Some(model)) => {
                 let channels = self.chain.reconstructor().channels();
-                let mut std = noise.difference_std(&self.reference, false, self.params.average);
+                // In the model's volts, as the chain gives the press fit its Δv.
+                let model_values = self.chain.reconstructor().linearisation().background();
+                let mut std = noise.difference_std(model_values, false, self.params.average);
                 std.iter_mut().enumerate().filter(|(m, _)| !channels.is_used(*m)).for_each(|(_, s)| *s = f64::INFINITY);
                 Some(PressDetection::new(model, &std, noise.frames(), rate)?)
             }

@@ -11,6 +11,11 @@ use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 /// value, and a pipeline (1 false touch per 1,000 frames) after its 10 reference frames; the
 /// skin's untouched clean frame.
 fn setup() -> (Pipeline, VirtualSensor, Vec<f64>) {
+    setup_in(|frame| frame.to_vec())
+}
+
+/// [`setup`], with every frame the pipeline sees passed through `board` (a board's unit, gains).
+fn setup_in(board: impl Fn(&[f64]) -> Vec<f64>) -> (Pipeline, VirtualSensor, Vec<f64>) {
     let mut spec = SensorSpec::square_hydrogel();
     spec.mesh.triangles = 1500;
     let model = spec.forward_model().unwrap();
@@ -23,7 +28,7 @@ fn setup() -> (Pipeline, VirtualSensor, Vec<f64>) {
     let mut skin = VirtualSensor::with_params(&spec, sim, 17).unwrap();
     let clean = skin.clean_frame().unwrap();
     for _ in 0..10 {
-        pipeline.process(&skin.noisy(&clean)).unwrap();
+        pipeline.process(&board(&skin.noisy(&clean))).unwrap();
     }
     assert!(pipeline.chain().press_detection().is_some());
     (pipeline, skin, clean)
@@ -90,4 +95,26 @@ fn weak_strong_and_several_presses_are_each_found() {
     let three = [([-0.03, 0.04], 10.0), ([0.04, -0.02], 5.0), ([0.06, 0.07], 3.0)];
     let (worst, counted) = worst_distances(&mut pipeline, &mut skin, &three, 4);
     assert!(counted && worst.iter().all(|w| *w < 0.025), "{worst:?}, {counted}");
+}
+
+/// A board in its own counts with gains of ±20 % per channel finds the same presses, with the
+/// same drops: the press fit takes each channel's relative change, in the model's volts.
+#[test]
+fn a_boards_unit_and_gains_change_nothing() {
+    let gains: Vec<f64> = (0..120).map(|m| 250.0 * (1.0 + 0.2 * ((m * 37 % 11) as f64 / 5.0 - 1.0))).collect();
+    let in_counts = |frame: &[f64]| -> Vec<f64> { frame.iter().zip(&gains).map(|(v, g)| v * g).collect() };
+    let (mut volts, mut skin, _) = setup();
+    let (mut counts, _, _) = setup_in(in_counts);
+    skin.press([-0.075, -0.07], 15.0);
+    skin.press([0.01, 0.02], 3.0);
+    let pressed = skin.clean_frame().unwrap();
+    for _ in 0..3 {
+        let frame = skin.noisy(&pressed);
+        volts.process(&frame).unwrap();
+        counts.process(&in_counts(&frame)).unwrap();
+        let drops = |p: &Pipeline| p.touches().iter().filter_map(|t| t.press.map(|f| f.drop)).collect::<Vec<_>>();
+        let (a, b) = (drops(&volts), drops(&counts));
+        assert!(a.len() == 2 && b.len() == 2, "volts {a:?}, counts {b:?}");
+        assert!(a.iter().zip(&b).all(|(a, b)| (a - b).abs() < 0.05), "volts {a:?}, counts {b:?}");
+    }
 }
