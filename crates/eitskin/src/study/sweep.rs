@@ -177,7 +177,8 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
         skins.push(VirtualSensor::with_params(spec, sim, params.seed)?);
     }
     let untouched = skins[0].clean_frame()?;
-    let calibration_presses: Vec<Vec<Press>> = (0..params.calibration).map(|_| scene(spec, &mut rng, 1)).collect();
+    let calibration_presses: Vec<Vec<Press>> =
+        (0..params.calibration).filter_map(|_| scene(spec, &mut rng, 1)).collect();
     let mut calibration_clean = Vec::new();
     for (kind, skin) in kinds.iter().zip(&skins) {
         let own = kind.hydrogel.indenter_radius == Hydrogel::default().indenter_radius;
@@ -187,7 +188,7 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     for (k, skin) in skins.iter().enumerate() {
         for (n, &count) in params.scenes.iter().enumerate() {
             progress("sweep: simulating presses", k * 3 + n, kinds.len() * 3);
-            let cases: Vec<Vec<Press>> = (0..count).map(|_| scene(spec, &mut rng, n + 1)).collect();
+            let cases: Vec<Vec<Press>> = (0..count).filter_map(|_| scene(spec, &mut rng, n + 1)).collect();
             let frames = skin.clean_frames(&cases)?;
             scenes.extend(cases.into_iter().zip(frames).map(|(presses, frame)| (k, presses, frame)));
         }
@@ -294,9 +295,13 @@ fn averaged(noisy: &mut impl FnMut(&[f64]) -> Vec<f64>, clean: &[f64], average: 
     sum
 }
 
+/// Draws of a place tried for one scene before it is given up (a sheet too small for it).
+const DRAWS: usize = 10_000;
+
 /// `count` presses at random places inside `spec`'s outline, kept 20 mm from its edges and
-/// [`APART`] from each other, with random forces from 2 to 16 N.
-fn scene(spec: &SensorSpec, rng: &mut StdRng, count: usize) -> Vec<Press> {
+/// [`APART`] from each other, with random forces from 2 to 16 N; `None` if [`DRAWS`] places
+/// were not enough (the sheet is too small for them).
+fn scene(spec: &SensorSpec, rng: &mut StdRng, count: usize) -> Option<Vec<Press>> {
     let [lo, hi] = spec.outline.bounds();
     let margin = 0.02;
     let inside = |p: [f64; 2]| {
@@ -305,14 +310,17 @@ fn scene(spec: &SensorSpec, rng: &mut StdRng, count: usize) -> Vec<Press> {
             .all(|d| spec.outline.contains([p[0] + d[0], p[1] + d[1]]))
     };
     let mut presses: Vec<Press> = Vec::with_capacity(count);
-    while presses.len() < count {
+    for _ in 0..DRAWS {
+        if presses.len() == count {
+            break;
+        }
         let position = [rng.random_range(lo[0]..hi[0]), rng.random_range(lo[1]..hi[1])];
         let apart = presses.iter().all(|p| (p.position[0] - position[0]).hypot(p.position[1] - position[1]) >= APART);
         if inside(position) && apart {
             presses.push(Press { position, force: rng.random_range(FORCES[0]..FORCES[1]) });
         }
     }
-    presses
+    (presses.len() == count).then_some(presses)
 }
 
 /// Running counts of one method on one kind of frame.
@@ -369,5 +377,28 @@ impl Tally {
             position_error: if self.found > 0 { self.distance / self.found as f64 } else { f64::NAN },
             force_rms: if self.force_error.is_empty() { f64::NAN } else { rms },
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Outline;
+
+    /// Presses are placed apart and inside; a sheet too small for them gives up, never hangs.
+    #[test]
+    fn scenes_fit_the_sheet_or_are_given_up() {
+        let mut rng = StdRng::seed_from_u64(1);
+        let square = SensorSpec::square_hydrogel();
+        let three = scene(&square, &mut rng, 3).unwrap();
+        for (i, a) in three.iter().enumerate() {
+            assert!(square.outline.contains(a.position) && (FORCES[0]..FORCES[1]).contains(&a.force));
+            for b in &three[i + 1..] {
+                assert!((a.position[0] - b.position[0]).hypot(a.position[1] - b.position[1]) >= APART);
+            }
+        }
+        let small = SensorSpec { outline: Outline::Circle { radius: 0.04 }, ..square };
+        assert!(scene(&small, &mut rng, 1).is_some());
+        assert_eq!(scene(&small, &mut rng, 3), None, "three presses 50 mm apart do not fit a 40 mm disk kept 20 mm in");
     }
 }
