@@ -1,6 +1,7 @@
 //! The press-model cache: a built [`PressModel`] (its response table and ladder, seconds of
 //! forward solves) saved to a file named by a hash of the spec, protocol, mesh settings, the
-//! model's parameters and this crate's version, so a second start loads it.
+//! model's parameters and this crate's version, so a second start loads it (and factors the
+//! forward model again for the exact responses, [`PressModel::with_exact`]).
 //!
 //! File layout (little-endian): `EITSKINP`, format version (u32), the 32-byte key, lo (2 × f64),
 //! spacing (f64), dims (2 × u32), measurements (u32), radius, search (f64), the responses
@@ -39,7 +40,14 @@ pub fn load_or_build_press_model(
         let model = spec.forward_model()?;
         Ok(PressModel::new(&model, spec.conductivity, params)?)
     };
-    cached(&cache_file(dir, "press-model", &key), &key, decode_press_model, build, encode_press_model)
+    let (press_model, hit) =
+        cached(&cache_file(dir, "press-model", &key), &key, decode_press_model, build, encode_press_model)?;
+    // The table is cached; the exact responses are one factorisation, made again.
+    let press_model = match hit {
+        true => press_model.with_exact(&spec.forward_model()?, spec.conductivity)?,
+        false => press_model,
+    };
+    Ok((press_model, hit))
 }
 
 /// The bytes of a cache file.
@@ -101,6 +109,7 @@ mod tests {
         let (loaded, hit) = load_or_build_press_model(&dir, &spec, &params).unwrap();
         assert!(hit, "the second start must come from the cache");
         assert_eq!(loaded.table().responses, built.table().responses);
+        assert!(loaded.exact().is_some(), "a loaded model fits presses exactly too");
         let dv: Vec<f64> = built.table().responses[..120].to_vec();
         assert_eq!(loaded.fit(&dv, [0.0, 0.0]), built.fit(&dv, [0.0, 0.0]));
 

@@ -24,13 +24,20 @@
 //! a starting point (the image's touch centre) at twice the spacing, then the neighbours of the
 //! best point, then places the centre at the vertex of a parabola through the scores.
 //!
-//! Several presses are fitted in turn, each against Δv less the others' linear responses, for a
-//! few sweeps. Since a strong press's response differs a little in shape from the linear one,
-//! each biases the others (two presses of drop 0.5 and 0.3, 140 mm apart: about 3 mm and 0.05
-//! in drop, against 0.2 mm and 0.02 alone; test `two_presses_are_fitted_together`).
+//! Several presses are fitted in turn ([`PressModel::fit_into`]), each against Δv less the
+//! others' linear responses, for a few sweeps. Since a strong press's response differs a little
+//! in shape from the linear one, each biases the others (two presses of drop 0.5 and 0.3, 140 mm
+//! apart: about 3 mm and 0.05 in drop, against 0.2 mm and 0.02 alone; test
+//! `two_presses_are_fitted_together`). Presses found in Δv ([`PressDetection`]) are therefore
+//! fitted together with their exact responses ([`ExactPresses`], [`refine()`]), which a model
+//! made from a forward model carries.
 //!
 //! Not for: presses much larger than the indenter, or touches closer together than about two
 //! indenter radii (their responses are then nearly the same vector).
+
+use std::sync::Arc;
+
+use faer::Mat;
 
 use crate::conductivity::circle_triangle_area;
 use crate::forward::{ForwardModel, LowRankUpdate};
@@ -39,8 +46,13 @@ use crate::mesh::Mesh;
 use crate::mesh::PointLocator;
 
 mod detect;
+mod exact;
+mod joint;
+mod refine;
 
 pub use detect::PressDetection;
+pub use exact::{Disk, DiskParameter, ExactPresses, ExactScratch};
+pub use refine::{refine, RefineParams, RefineScratch, DEEPEST};
 
 /// A square grid of points over a box: the first at `lo`, row-major.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -122,8 +134,10 @@ const SOLVED: [f64; 2] = [0.5, 0.9];
 
 /// The response table of presses: Δv of a full-depth press (σ = 0 under the indenter) at
 /// each point of a grid over the sheet, linearised at the background; and, on a second grid,
-/// the contrast the linear fit gives for each drop of [`PressModel::LADDER`], from full forward solves.
-#[derive(Debug, Clone, PartialEq)]
+/// the contrast the linear fit gives for each drop of [`PressModel::LADDER`], from full forward solves;
+/// and, when made from a forward model, the exact responses ([`ExactPresses`]) that presses
+/// found are fitted with.
+#[derive(Debug, Clone)]
 pub struct PressModel {
     grid: Grid,
     measurements: usize,
@@ -139,6 +153,26 @@ pub struct PressModel {
     /// Per coarse point, the contrast fitted to a press of each drop of [`PressModel::LADDER`] there; NaN
     /// outside the outline.
     ladder: Vec<[f64; LADDER.len()]>,
+    /// The exact responses, shared by the model's copies (`None` for one read from its table).
+    exact: Option<Arc<ExactPresses>>,
+}
+
+impl PartialEq for PressModel {
+    /// Equal tables (the exact responses follow from the same sensor).
+    fn eq(&self, other: &Self) -> bool {
+        (self.grid, self.measurements, self.radius, self.search, &self.responses, &self.norms, self.coarse)
+            == (
+                other.grid,
+                other.measurements,
+                other.radius,
+                other.search,
+                &other.responses,
+                &other.norms,
+                other.coarse,
+            )
+            && self.ladder.len() == other.ladder.len()
+            && self.ladder.iter().flatten().zip(other.ladder.iter().flatten()).all(|(a, b)| a.to_bits() == b.to_bits())
+    }
 }
 
 /// A [`PressModel`] as plain data, for saving and loading it (`eitskin-io` caches it).
@@ -171,6 +205,8 @@ pub struct PressTable {
 pub struct PressFit {
     /// Centre of the indenter, in m.
     pub centre: [f64; 2],
+    /// Radius of the press, in m: the model's indenter's, or fitted.
+    pub radius: f64,
     /// Linearised conductivity drop under the indenter, as a fraction of the background
     /// (dimensionless, positive for a press).
     pub contrast: f64,
@@ -200,7 +236,7 @@ impl Default for PressModelParams {
 }
 
 /// Buffers for [`PressModel::fit_into`], so that it allocates nothing once they have grown.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct PressScratch {
     residual: Vec<f64>,
     response: Vec<f64>,
@@ -208,6 +244,37 @@ pub struct PressScratch {
     /// Detection: the centres of the other presses, and each scan point's correlation with Δv.
     centres: Vec<[f64; 2]>,
     correlations: Vec<f64>,
+    /// The exact fit: the presses as disks, its buffers, and a set of presses kept aside.
+    disks: Vec<Disk>,
+    refine: RefineScratch,
+    saved: Vec<PressFit>,
+    saved_responses: Vec<f64>,
+    rejected: Vec<[f64; 2]>,
+    /// The scan for a new press next to fitted ones: an orthonormal basis of their Jacobian,
+    /// each scan point's projection on it, and what of its gᵀg is left.
+    basis: Mat<f64>,
+    projections: Mat<f64>,
+    unexplained: Vec<f64>,
+}
+
+impl Default for PressScratch {
+    fn default() -> Self {
+        PressScratch {
+            residual: Vec::new(),
+            response: Vec::new(),
+            responses: Vec::new(),
+            centres: Vec::new(),
+            correlations: Vec::new(),
+            disks: Vec::new(),
+            refine: RefineScratch::default(),
+            saved: Vec::new(),
+            saved_responses: Vec::new(),
+            rejected: Vec::new(),
+            basis: Mat::zeros(0, 0),
+            projections: Mat::zeros(0, 0),
+            unexplained: Vec::new(),
+        }
+    }
 }
 
 /// The largest drop a fitted press may have (a fraction of the background): all of it.
@@ -262,7 +329,7 @@ impl PressModel {
             return None;
         }
         let norms = responses.chunks_exact(measurements).map(|g| g.iter().map(|x| x * x).sum()).collect();
-        Some(PressModel { grid, measurements, radius, search, responses, norms, coarse, ladder })
+        Some(PressModel { grid, measurements, radius, search, responses, norms, coarse, ladder, exact: None })
     }
 
     /// Tabulates the responses of `model` linearised at the homogeneous `background` (S/m).
@@ -303,21 +370,36 @@ impl PressModel {
             norms,
             coarse,
             ladder: Vec::new(),
+            exact: None,
         };
-        press_model.ladder = press_model.ladder(model, background, &locator)?;
+        let update = press_model.update(model, background)?;
+        press_model.ladder = press_model.ladder(&update, background, &locator)?;
+        press_model.exact = Some(Arc::new(ExactPresses::new(update, background)));
         Ok(press_model)
     }
 
-    /// The contrast fitted, at its own centre, to the exact response of a press of each drop
-    /// of [`PressModel::LADDER`] at each coarse grid point (in parallel), each from the
-    /// background's factorisation by a low-rank update ([`LowRankUpdate`]).
-    fn ladder(
-        &self,
-        model: &ForwardModel,
-        background: f64,
-        locator: &PointLocator<'_>,
-    ) -> Result<Vec<[f64; LADDER.len()]>, InverseError> {
-        use rayon::prelude::*;
+    /// The same model with the exact responses of `model` at the homogeneous `background`
+    /// (S/m), the sensor it was made for (a model read from its table has none).
+    pub fn with_exact(mut self, model: &ForwardModel, background: f64) -> Result<PressModel, InverseError> {
+        if model.protocol().measurements().len() != self.measurements {
+            return Err(InverseError::FrameLength {
+                expected: self.measurements,
+                got: model.protocol().measurements().len(),
+            });
+        }
+        let update = self.update(model, background)?;
+        self.exact = Some(Arc::new(ExactPresses::new(update, background)));
+        Ok(self)
+    }
+
+    /// The exact responses it fits presses with, if it has them.
+    pub fn exact(&self) -> Option<&ExactPresses> {
+        self.exact.as_deref()
+    }
+
+    /// The background's factorisation, ready for the presses' low-rank updates: with the part
+    /// of K₀⁻¹ between nodes a press can join (on a model too large to keep it whole).
+    fn update(&self, model: &ForwardModel, background: f64) -> Result<LowRankUpdate, InverseError> {
         let mesh = model.mesh();
         // A press's nodes lie within its radius and a triangle's longest edge of its centre, so
         // within twice that of each other.
@@ -328,7 +410,20 @@ impl PressModel {
             })
             .fold(0.0, f64::max);
         let reach = 2.5 * (self.radius + longest); // with room to spare: 2× is the bound
-        let update = LowRankUpdate::with_reach(model, &vec![background; mesh.triangles().len()], reach)?;
+        Ok(LowRankUpdate::with_reach(model, &vec![background; mesh.triangles().len()], reach)?)
+    }
+
+    /// The contrast fitted, at its own centre, to the exact response of a press of each drop
+    /// of [`PressModel::LADDER`] at each coarse grid point (in parallel), each from the
+    /// background's factorisation by a low-rank update ([`LowRankUpdate`]).
+    fn ladder(
+        &self,
+        update: &LowRankUpdate,
+        background: f64,
+        locator: &PointLocator<'_>,
+    ) -> Result<Vec<[f64; LADDER.len()]>, InverseError> {
+        use rayon::prelude::*;
+        let mesh = update.model().mesh();
         let covered = disk_shares(mesh, &self.coarse, self.radius);
         let ladder = (0..self.coarse.len()).into_par_iter().map(|j| {
             let centre = self.coarse.point(j);
@@ -541,7 +636,8 @@ impl PressModel {
         let gg: f64 = response.iter().map(|g| g * g).sum();
         let gv: f64 = response.iter().zip(dv).map(|(g, v)| g * v).sum();
         let (contrast, z) = (gv / gg, gv / gg.sqrt());
-        (gg > 0.0 && gv > 0.0).then(|| PressFit { centre, contrast, drop: self.drop(contrast, centre), z })
+        let drop = self.drop(contrast, centre);
+        (gg > 0.0 && gv > 0.0).then_some(PressFit { centre, radius: self.radius, contrast, drop, z })
     }
 }
 

@@ -39,8 +39,12 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::lu::partial_pivoting::factor::{lu_in_place, lu_in_place_scratch};
+use faer::linalg::lu::partial_pivoting::solve::{solve_in_place, solve_in_place_scratch};
+use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
-use faer::Mat;
+use faer::{Accum, Mat, MatRef, Par};
 
 use super::assemble::GROUNDED;
 use super::{Factor, ForwardError, ForwardModel};
@@ -69,6 +73,33 @@ pub struct LowRankUpdate {
     background: Vec<f64>,
     /// The background conductivity per triangle, S/m (for changes solved in full).
     conductivity: Vec<f64>,
+    readout: Readout,
+}
+
+/// Each measurement as a sum of basis voltages: Δv_m = Σ w_a·I_p·ΔV[a, p] over its electrodes'
+/// weights w and its stimulation's currents I on the basis (both sparse), flattened.
+#[derive(Debug, Clone)]
+struct Readout {
+    /// Per measurement, where its terms start (one more entry than measurements).
+    start: Vec<usize>,
+    /// (a, p, w_a·I_p).
+    terms: Vec<(usize, usize, f64)>,
+}
+
+impl Readout {
+    fn new(protocol: &crate::Protocol, basis: usize) -> Readout {
+        let mut readout = Readout { start: vec![0], terms: Vec::new() };
+        for m in protocol.measurements() {
+            let current = &protocol.stimulations()[m.stimulation][..basis];
+            for (a, w) in m.weights[..basis].iter().enumerate().filter(|(_, w)| **w != 0.0) {
+                for (p, i) in current.iter().enumerate().filter(|(_, i)| **i != 0.0) {
+                    readout.terms.push((a, p, w * i));
+                }
+            }
+            readout.start.push(readout.terms.len());
+        }
+        readout
+    }
 }
 
 /// K₀⁻¹ between the rows of nodes at most a reach apart: per row (CSR), the rows near it,
@@ -117,7 +148,17 @@ impl LowRankUpdate {
         });
         let conductivity = conductivity.to_vec();
         let fields = solution.fields;
-        Ok(LowRankUpdate { model: model.clone(), factor, fields, inverse, near: None, background, conductivity })
+        let readout = Readout::new(model.protocol(), fields.ncols());
+        Ok(LowRankUpdate {
+            model: model.clone(),
+            factor,
+            fields,
+            inverse,
+            near: None,
+            background,
+            conductivity,
+            readout,
+        })
     }
 
     /// [`LowRankUpdate::new`], keeping for a model of more than [`DENSE_LIMIT`] unknowns the
@@ -257,8 +298,162 @@ impl LowRankUpdate {
     /// The exact change of every measurement (V, protocol order) when triangle t's
     /// conductivity changes by δσ (S/m), for each (t, δσ) of `changes`.
     pub fn measurement_change(&self, changes: &[(usize, f64)]) -> Result<Vec<f64>, ForwardError> {
-        let local = self.local_rows(changes.iter().map(|(t, _)| *t));
-        self.measurement_change_on(&local, changes)
+        let mut out = vec![0.0; self.background.len()];
+        self.measurement_change_into(changes, &mut ChangeScratch::default(), &mut out)?;
+        Ok(out)
+    }
+
+    /// [`LowRankUpdate::measurement_change`] into `out` (one value per measurement; a
+    /// triangle may appear more than once, its changes add). Allocates nothing once `scratch`
+    /// has grown, where G_RR needs no sparse solve (the inverse kept whole, or its near part
+    /// covers the change's rows); otherwise it solves as [`LowRankUpdate::local_rows`] says.
+    pub fn measurement_change_into(
+        &self,
+        changes: &[(usize, f64)],
+        scratch: &mut ChangeScratch,
+        out: &mut [f64],
+    ) -> Result<(), ForwardError> {
+        let ChangeScratch { rows, green, dk, fields, system, x, change, lu, solved } = scratch;
+        *solved = false;
+        rows.clear();
+        for &(t, _) in changes {
+            let nodes = self.model.mesh.triangles()[t];
+            rows.extend(nodes.iter().map(|&n| self.model.row_of_node[n]).filter(|&r| r != GROUNDED));
+        }
+        rows.sort_unstable();
+        rows.dedup();
+        let s = rows.len();
+        let basis = self.fields.ncols();
+        green.resize_with(s, s, |_, _| 0.0);
+        let found = match (&self.inverse, &self.near) {
+            (Some(inverse), _) => {
+                for j in 0..s {
+                    for i in 0..s {
+                        green[(i, j)] = inverse[(rows[i], rows[j])];
+                    }
+                }
+                true
+            }
+            (None, Some(near)) => {
+                (0..s).all(|j| (0..s).all(|i| near.get(rows[i], rows[j]).map(|g| green[(i, j)] = g).is_some()))
+            }
+            (None, None) => false,
+        };
+        if !found {
+            let local = self.local_rows(changes.iter().map(|(t, _)| *t));
+            let dv = self.measurement_change_on(&local, changes)?;
+            out.copy_from_slice(&dv);
+            return Ok(());
+        }
+        fields.resize_with(s, basis, |i, p| self.fields[(rows[i], p)]);
+        for i in 0..s {
+            for p in 0..basis {
+                fields[(i, p)] = self.fields[(rows[i], p)];
+            }
+        }
+        self.stiffness_change(changes, rows, dk);
+        // X = (I + G·ΔK)⁻¹·U_R by an LU in place, then ΔV = −U_Rᵀ·ΔK·X.
+        system.resize_with(s, s, |_, _| 0.0);
+        matmul(system.as_mut(), Accum::Replace, green.as_ref(), dk.as_ref(), 1.0, Par::Seq);
+        for i in 0..s {
+            system[(i, i)] += 1.0;
+        }
+        x.resize_with(s, basis, |_, _| 0.0);
+        x.copy_from(fields.as_ref());
+        lu.solve_in_place(system.as_mut(), x.as_mut());
+        // ΔK·X into `green` (no longer needed), then the basis change.
+        green.resize_with(s, basis, |_, _| 0.0);
+        matmul(green.as_mut(), Accum::Replace, dk.as_ref(), x.as_ref(), 1.0, Par::Seq);
+        change.resize_with(basis, basis, |_, _| 0.0);
+        matmul(change.as_mut(), Accum::Replace, fields.transpose(), green.as_ref(), -1.0, Par::Seq);
+        self.measurements_of(change.as_ref(), out);
+        *solved = true;
+        Ok(())
+    }
+
+    /// Whether it keeps K₀⁻¹ whole, so that changes far apart are solved together exactly.
+    pub fn keeps_inverse(&self) -> bool {
+        self.inverse.is_some()
+    }
+
+    /// The derivative of every measurement (V per unit, protocol order) along `direction`
+    /// ((t, ∂σ_t) in S/m per unit), at the conductivity the last
+    /// [`LowRankUpdate::measurement_change_into`] with `scratch` solved: −Xᵀ·∂K·X, X the fields
+    /// there (the adjoint Jacobian, exact, from the same solve). A triangle whose nodes are not
+    /// all among that change's rows is left out: the direction must change no triangle outside
+    /// it, as a press's edge moving does not to first order. `false` (and `out` untouched) if
+    /// the last change was solved in full, not by the update.
+    pub fn derivative_into(&self, direction: &[(usize, f64)], scratch: &mut ChangeScratch, out: &mut [f64]) -> bool {
+        let ChangeScratch { rows, green: dkx, x, change, solved, .. } = scratch;
+        if !*solved {
+            return false;
+        }
+        let (s, basis) = (rows.len(), x.ncols());
+        dkx.resize_with(s, basis, |_, _| 0.0);
+        dkx.fill(0.0);
+        for &(t, delta) in direction {
+            let nodes = self.model.mesh.triangles()[t];
+            let local = nodes.map(|n| {
+                let row = self.model.row_of_node[n];
+                if row == GROUNDED {
+                    Some(None)
+                } else {
+                    rows.binary_search(&row).ok().map(Some)
+                }
+            });
+            if local.iter().any(Option::is_none) {
+                continue;
+            }
+            let coefs = self.model.pattern.triangle_coefs[t];
+            for (&(a, b), coef) in LOCAL.iter().zip(coefs) {
+                let (Some(Some(i)), Some(Some(j))) = (local[a], local[b]) else { continue };
+                let c = delta * coef;
+                for p in 0..basis {
+                    dkx[(i, p)] += c * x[(j, p)];
+                }
+                if i != j {
+                    for p in 0..basis {
+                        dkx[(j, p)] += c * x[(i, p)];
+                    }
+                }
+            }
+        }
+        change.resize_with(basis, basis, |_, _| 0.0);
+        matmul(change.as_mut(), Accum::Replace, x.transpose(), dkx.as_ref(), -1.0, Par::Seq);
+        self.measurements_of(change.as_ref(), out);
+        true
+    }
+
+    /// ΔK_RR (rows `rows`, sorted) of `changes`, into `dk`, from the triangles' stiffness.
+    fn stiffness_change(&self, changes: &[(usize, f64)], rows: &[usize], dk: &mut Mat<f64>) {
+        let s = rows.len();
+        dk.resize_with(s, s, |_, _| 0.0);
+        dk.fill(0.0);
+        for &(t, delta) in changes {
+            let nodes = self.model.mesh.triangles()[t];
+            let coefs = self.model.pattern.triangle_coefs[t];
+            for (&(a, b), coef) in LOCAL.iter().zip(coefs) {
+                let (ra, rb) = (self.model.row_of_node[nodes[a]], self.model.row_of_node[nodes[b]]);
+                if ra == GROUNDED || rb == GROUNDED {
+                    continue;
+                }
+                let (Ok(i), Ok(j)) = (rows.binary_search(&ra), rows.binary_search(&rb)) else {
+                    panic!("rows {ra}, {rb} are not among the local rows")
+                };
+                dk[(i, j)] += delta * coef;
+                if i != j {
+                    dk[(j, i)] += delta * coef;
+                }
+            }
+        }
+    }
+
+    /// Every measurement (V, protocol order) of a change `change` of the basis voltages
+    /// ((L − 1) × (L − 1): electrode a's voltage under basis pattern p), into `out`.
+    fn measurements_of(&self, change: MatRef<'_, f64>, out: &mut [f64]) {
+        for (o, terms) in out.iter_mut().zip(self.readout.start.windows(2)) {
+            *o = self.readout.terms[terms[0]..terms[1]].iter().map(|&(a, p, c)| c * change[(a, p)]).sum();
+        }
     }
 
     /// [`LowRankUpdate::measurement_change`] for changes on the triangles of `local` (from
@@ -273,45 +468,94 @@ impl LowRankUpdate {
             let solved = self.model.measure(&sigma)?;
             return Ok(solved.iter().zip(&self.background).map(|(v, v0)| v - v0).collect());
         };
-        let s = local.rows.len();
-        let index = |row: usize| {
-            local.rows.binary_search(&row).unwrap_or_else(|_| panic!("row {row} is not among the local rows"))
-        };
-        // ΔK_RR, assembled from the changed triangles' stiffness.
-        let mut dk = Mat::<f64>::zeros(s, s);
-        for &(t, delta) in changes {
-            let nodes = self.model.mesh.triangles()[t];
-            let coefs = self.model.pattern.triangle_coefs[t];
-            for (&(a, b), coef) in LOCAL.iter().zip(coefs) {
-                let (ra, rb) = (self.model.row_of_node[nodes[a]], self.model.row_of_node[nodes[b]]);
-                if ra == GROUNDED || rb == GROUNDED {
-                    continue;
-                }
-                let (i, j) = (index(ra), index(rb));
-                dk[(i, j)] += delta * coef;
-                if i != j {
-                    dk[(j, i)] += delta * coef;
-                }
-            }
-        }
-        // X = (I + G·ΔK)⁻¹·U_R, then ΔV = −U_Rᵀ·ΔK·X.
-        let system = Mat::<f64>::identity(s, s) + green * &dk;
+        let mut dk = Mat::zeros(0, 0);
+        self.stiffness_change(changes, &local.rows, &mut dk);
+        let system = Mat::<f64>::identity(local.rows.len(), local.rows.len()) + green * &dk;
         let x = system.partial_piv_lu().solve(&local.fields);
         let change = -(local.fields.transpose() * (&dk * &x));
-        let protocol = self.model.protocol();
-        let basis = change.nrows();
-        Ok(protocol
-            .measurements()
-            .iter()
-            .map(|m| {
-                let current = &protocol.stimulations()[m.stimulation][..basis];
-                let mut value = 0.0;
-                for (a, w) in m.weights[..basis].iter().enumerate().filter(|(_, w)| **w != 0.0) {
-                    value += w * (0..basis).map(|p| change[(a, p)] * current[p]).sum::<f64>();
-                }
-                value
-            })
-            .collect())
+        let mut out = vec![0.0; self.background.len()];
+        self.measurements_of(change.as_ref(), &mut out);
+        Ok(out)
+    }
+}
+
+/// Buffers of [`LowRankUpdate::measurement_change_into`].
+#[derive(Debug)]
+pub struct ChangeScratch {
+    rows: Vec<usize>,
+    green: Mat<f64>,
+    dk: Mat<f64>,
+    fields: Mat<f64>,
+    system: Mat<f64>,
+    x: Mat<f64>,
+    change: Mat<f64>,
+    lu: DenseLu,
+    /// Whether `rows` and `x` hold the last change's solve.
+    solved: bool,
+}
+
+impl Default for ChangeScratch {
+    fn default() -> Self {
+        let empty = || Mat::zeros(0, 0);
+        let (green, dk, fields, system, x, change) = (empty(), empty(), empty(), empty(), empty(), empty());
+        ChangeScratch { rows: Vec::new(), green, dk, fields, system, x, change, lu: DenseLu::default(), solved: false }
+    }
+}
+
+impl Clone for ChangeScratch {
+    /// Buffers are not worth copying: a clone starts empty.
+    fn clone(&self) -> Self {
+        ChangeScratch::default()
+    }
+}
+
+/// Solves small dense systems in place by LU with partial pivoting (faer's), keeping its
+/// buffers, so that a solve allocates nothing once they have grown.
+pub(crate) struct DenseLu {
+    perm: Vec<usize>,
+    perm_inv: Vec<usize>,
+    stack: MemBuffer,
+    /// Bytes `stack` holds.
+    stack_bytes: usize,
+}
+
+impl Default for DenseLu {
+    fn default() -> Self {
+        DenseLu { perm: Vec::new(), perm_inv: Vec::new(), stack: MemBuffer::new(StackReq::EMPTY), stack_bytes: 0 }
+    }
+}
+
+impl std::fmt::Debug for DenseLu {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DenseLu").field("size", &self.perm.len()).finish_non_exhaustive()
+    }
+}
+
+impl DenseLu {
+    /// Overwrites `rhs` with `a`⁻¹·`rhs` (`a` square, overwritten by its factors).
+    pub(crate) fn solve_in_place(&mut self, mut a: faer::MatMut<'_, f64>, rhs: faer::MatMut<'_, f64>) {
+        let n = a.nrows();
+        let need = lu_in_place_scratch::<usize, f64>(n, n, Par::Seq, Default::default()).or(solve_in_place_scratch::<
+            usize,
+            f64,
+        >(
+            n, rhs.ncols(), Par::Seq
+        ));
+        if self.stack_bytes < need.unaligned_bytes_required() {
+            self.stack = MemBuffer::new(need);
+            self.stack_bytes = need.unaligned_bytes_required();
+        }
+        self.perm.resize(n, 0);
+        self.perm_inv.resize(n, 0);
+        let (_, permutation) = lu_in_place(
+            a.as_mut(),
+            &mut self.perm,
+            &mut self.perm_inv,
+            Par::Seq,
+            MemStack::new(&mut self.stack),
+            Default::default(),
+        );
+        solve_in_place(a.as_ref(), a.as_ref(), permutation, rhs, Par::Seq, MemStack::new(&mut self.stack));
     }
 }
 

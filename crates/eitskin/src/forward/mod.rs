@@ -13,7 +13,8 @@ mod assemble;
 mod jacobian;
 mod low_rank;
 
-pub use low_rank::{LocalRows, LowRankUpdate, DENSE_LIMIT};
+pub(crate) use low_rank::DenseLu;
+pub use low_rank::{ChangeScratch, LocalRows, LowRankUpdate, DENSE_LIMIT};
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};

@@ -2,10 +2,11 @@
 
 use super::Mesh;
 
-/// Finds the triangle that holds a point, through a uniform grid of triangle buckets.
-#[derive(Debug, Clone)]
-pub struct PointLocator<'a> {
-    mesh: &'a Mesh,
+/// The triangles of a mesh by the cells of a uniform grid over its box (about one triangle per
+/// cell), each listed in every cell its bounding box meets; owns its data, so that it can live
+/// beside the mesh it was built from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriangleBuckets {
     lo: [f64; 2],
     cell: [f64; 2],
     dims: [usize; 2],
@@ -13,9 +14,9 @@ pub struct PointLocator<'a> {
     items: Vec<usize>,
 }
 
-impl<'a> PointLocator<'a> {
-    /// Buckets the triangles of `mesh`, about one triangle per bucket.
-    pub fn new(mesh: &'a Mesh) -> PointLocator<'a> {
+impl TriangleBuckets {
+    /// Buckets the triangles of `mesh`.
+    pub fn new(mesh: &Mesh) -> TriangleBuckets {
         let [lo, hi] = mesh.bounds();
         let side = (mesh.triangles().len() as f64).sqrt().ceil().max(1.0) as usize;
         let dims = [side, side];
@@ -23,19 +24,23 @@ impl<'a> PointLocator<'a> {
             ((hi[0] - lo[0]) / side as f64).max(f64::MIN_POSITIVE),
             ((hi[1] - lo[1]) / side as f64).max(f64::MIN_POSITIVE),
         ];
-        let mut locator = PointLocator { mesh, lo, cell, dims, start: vec![0; side * side + 1], items: Vec::new() };
+        let mut buckets = TriangleBuckets { lo, cell, dims, start: vec![0; side * side + 1], items: Vec::new() };
         // Two passes (count, then fill) give a compressed bucket list without per-bucket vectors.
         for pass in 0..2 {
-            let mut fill = locator.start.clone();
+            let mut fill = buckets.start.clone();
             for t in 0..mesh.triangles().len() {
-                let [(i0, i1), (j0, j1)] = locator.cell_range(t);
+                let corners = mesh.corners(t);
+                let (min, max) = corners.iter().fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(a, b), c| {
+                    ([a[0].min(c[0]), a[1].min(c[1])], [b[0].max(c[0]), b[1].max(c[1])])
+                });
+                let [(i0, i1), (j0, j1)] = buckets.cell_range(min, max);
                 for j in j0..=j1 {
                     for i in i0..=i1 {
                         let b = j * side + i;
                         if pass == 0 {
-                            locator.start[b + 1] += 1;
+                            buckets.start[b + 1] += 1;
                         } else {
-                            locator.items[fill[b]] = t;
+                            buckets.items[fill[b]] = t;
                             fill[b] += 1;
                         }
                     }
@@ -43,12 +48,12 @@ impl<'a> PointLocator<'a> {
             }
             if pass == 0 {
                 for b in 0..side * side {
-                    locator.start[b + 1] += locator.start[b];
+                    buckets.start[b + 1] += buckets.start[b];
                 }
-                locator.items = vec![0; locator.start[side * side]];
+                buckets.items = vec![0; buckets.start[side * side]];
             }
         }
-        locator
+        buckets
     }
 
     fn cell_of(&self, p: [f64; 2]) -> Option<(usize, usize)> {
@@ -62,27 +67,56 @@ impl<'a> PointLocator<'a> {
         Some((clamp(fx, self.dims[0]), clamp(fy, self.dims[1])))
     }
 
-    fn cell_range(&self, t: usize) -> [(usize, usize); 2] {
-        let p = self.mesh.corners(t);
+    /// The cells `[(first, last) in x, (first, last) in y]` the box `[min, max]` (m) meets.
+    fn cell_range(&self, min: [f64; 2], max: [f64; 2]) -> [(usize, usize); 2] {
         let clamp = |f: f64, n: usize| (f.max(0.0) as usize).min(n - 1);
         let axis = |k: usize| {
-            let lo = p.iter().map(|q| q[k]).fold(f64::INFINITY, f64::min);
-            let hi = p.iter().map(|q| q[k]).fold(f64::NEG_INFINITY, f64::max);
             let f = |v: f64| (v - self.lo[k]) / self.cell[k];
-            (clamp(f(lo) - 1e-9, self.dims[k]), clamp(f(hi) + 1e-9, self.dims[k]))
+            (clamp(f(min[k]) - 1e-9, self.dims[k]), clamp(f(max[k]) + 1e-9, self.dims[k]))
         };
         [axis(0), axis(1)]
+    }
+
+    /// The triangles listed in the cells of `p` (m); empty outside the grid.
+    fn at(&self, p: [f64; 2]) -> &[usize] {
+        match self.cell_of(p) {
+            Some((i, j)) => {
+                let b = j * self.dims[0] + i;
+                &self.items[self.start[b]..self.start[b + 1]]
+            }
+            None => &[],
+        }
+    }
+
+    /// Every triangle whose bounding box may meet the box `[min, max]` (m), some more than
+    /// once (a triangle is listed in each cell it meets), into `out` (cleared).
+    pub fn near_into(&self, min: [f64; 2], max: [f64; 2], out: &mut Vec<usize>) {
+        out.clear();
+        let [(i0, i1), (j0, j1)] = self.cell_range(min, max);
+        for j in j0..=j1 {
+            let (from, to) = (self.start[j * self.dims[0] + i0], self.start[j * self.dims[0] + i1 + 1]);
+            out.extend_from_slice(&self.items[from..to]);
+        }
+    }
+}
+
+/// Finds the triangle that holds a point, through a uniform grid of triangle buckets.
+#[derive(Debug, Clone)]
+pub struct PointLocator<'a> {
+    mesh: &'a Mesh,
+    buckets: TriangleBuckets,
+}
+
+impl<'a> PointLocator<'a> {
+    /// Buckets the triangles of `mesh`, about one triangle per bucket.
+    pub fn new(mesh: &'a Mesh) -> PointLocator<'a> {
+        PointLocator { mesh, buckets: TriangleBuckets::new(mesh) }
     }
 
     /// The triangle holding `p` (in m), or `None` outside the mesh; a point on a shared edge
     /// goes to one of its triangles.
     pub fn locate(&self, p: [f64; 2]) -> Option<usize> {
-        let (i, j) = self.cell_of(p)?;
-        let b = j * self.dims[0] + i;
-        self.items[self.start[b]..self.start[b + 1]]
-            .iter()
-            .copied()
-            .find(|&t| barycentric(self.mesh.corners(t), p).iter().all(|&w| w >= -1e-12))
+        self.buckets.at(p).iter().copied().find(|&t| barycentric(self.mesh.corners(t), p).iter().all(|&w| w >= -1e-12))
     }
 }
 

@@ -9,7 +9,7 @@ mod generate;
 mod locate;
 
 pub use generate::MeshParams;
-pub use locate::{PointLocator, RasterMap};
+pub use locate::{barycentric, PointLocator, RasterMap, TriangleBuckets};
 
 use std::collections::HashMap;
 use thiserror::Error;

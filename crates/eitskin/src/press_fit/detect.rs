@@ -13,7 +13,9 @@
 //! away from the presses found (two
 //! indenter radii: what is left next to a strong press is the linear model's error, not another
 //! press), until the largest z left fails, or 16 presses. A press is kept when its own z
-//! (against Δv less the others') passes too, and its drop is at least [`MIN_DROP`].
+//! (against Δv less the others') passes too, and its drop is at least [`MIN_DROP`]. With the
+//! model's exact responses ([`super::ExactPresses`]), the presses are then fitted together with
+//! them and the set corrected by what that fit shows (`joint.rs`).
 //!
 //! The threshold is for the largest of many correlated z over the grid, so, as for images
 //! ([`crate::noise`]), it comes from the model's own noise: [`PressDetection::new`] draws
@@ -29,6 +31,7 @@ use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
+use super::exact::ExactPresses;
 use super::{PressFit, PressModel, PressScratch, MAX_DROP, SWEEPS};
 use crate::inverse::InverseError;
 use crate::noise::{threshold_of, CALIBRATION_SAMPLES};
@@ -48,8 +51,8 @@ pub const MIN_DROP: f64 = 0.05;
 pub(crate) struct Scan {
     /// The response-grid index of each row.
     points: Vec<usize>,
-    matrix: Mat<f64>,
-    norms: Vec<f64>,
+    pub(crate) matrix: Mat<f64>,
+    pub(crate) norms: Vec<f64>,
 }
 
 impl Scan {
@@ -67,6 +70,15 @@ impl Scan {
     }
 }
 
+/// The exact fit of presses found: their exact responses, Δv (V) and each channel's weight
+/// (1/std, 0 for a channel not used).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Exact<'a> {
+    pub(crate) presses: &'a ExactPresses,
+    pub(crate) dv: &'a [f64],
+    pub(crate) weights: &'a [f64],
+}
+
 /// A press model whitened by the measured noise, with the z a press must reach.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PressDetection {
@@ -74,6 +86,8 @@ pub struct PressDetection {
     scan: Scan,
     /// Per channel, the noise's standard deviation (the unit of Δv; ∞ for a channel not used).
     std: Vec<f64>,
+    /// Per channel, 1/std (0 for a channel not used): the weights of the exact fit.
+    weights: Vec<f64>,
     threshold: f64,
     false_alarm_rate: f64,
 }
@@ -116,7 +130,8 @@ impl PressDetection {
             })
             .collect();
         let (_, threshold) = threshold_of(&maxima, false_alarm_rate);
-        Ok(PressDetection { model, scan, std, threshold, false_alarm_rate })
+        let weights = std.iter().map(|s| 1.0 / s).collect();
+        Ok(PressDetection { model, scan, std, weights, threshold, false_alarm_rate })
     }
 
     /// The z a press must reach (dimensionless).
@@ -150,7 +165,8 @@ impl PressDetection {
         }
         whitened.clear();
         whitened.extend(dv.iter().zip(&self.std).map(|(d, s)| if s.is_finite() { d / s } else { 0.0 }));
-        self.model.detect_into(&self.scan, whitened, self.threshold, scratch, out)
+        let exact = self.model.exact.as_deref().map(|presses| Exact { presses, dv, weights: &self.weights });
+        self.model.detect_into(&self.scan, whitened, self.threshold, exact, scratch, out)
     }
 }
 
@@ -179,20 +195,34 @@ impl PressModel {
         found: &[[f64; 2]],
         correlations: &mut Vec<f64>,
     ) -> Option<(usize, f64)> {
+        self.best_point_in(scan, dv, found, &scan.norms, correlations)
+    }
+
+    /// [`PressModel::best_point`] with z = gᵀΔv/√`unexplained`: per scan point, the part of gᵀg
+    /// the presses already fitted cannot take up by moving (for a Δv orthogonal to what they can).
+    pub(crate) fn best_point_in(
+        &self,
+        scan: &Scan,
+        dv: &[f64],
+        found: &[[f64; 2]],
+        unexplained: &[f64],
+        correlations: &mut Vec<f64>,
+    ) -> Option<(usize, f64)> {
         correlations.resize(scan.points.len(), 0.0);
         let c = ColMut::from_slice_mut(correlations);
         matmul(c.as_mat_mut(), Accum::Replace, scan.matrix.as_ref(), ColRef::from_slice(dv).as_mat(), 1.0, Par::Seq);
         let apart = 2.0 * self.radius;
         let mut best: Option<(usize, f64)> = None;
-        for ((&j, &c), &norm) in scan.points.iter().zip(correlations.iter()).zip(&scan.norms) {
-            if c <= 0.0 || best.is_some_and(|(_, b)| c * c <= b * b * norm) {
+        let points = scan.points.iter().zip(correlations.iter()).zip(scan.norms.iter().zip(unexplained));
+        for ((&j, &c), (&norm, &left)) in points {
+            if c <= 0.0 || best.is_some_and(|(_, b)| c * c <= b * b * left) {
                 continue;
             }
             let p = self.grid.point(j);
             if found.iter().any(|f| (f[0] - p[0]).hypot(f[1] - p[1]) < apart) || self.drop(c / norm, p) > MAX_DROP {
                 continue;
             }
-            best = Some((j, c / norm.sqrt()));
+            best = Some((j, c / left.sqrt()));
         }
         best
     }
@@ -206,6 +236,7 @@ impl PressModel {
         scan: &Scan,
         dv: &[f64],
         threshold: f64,
+        exact: Option<Exact<'_>>,
         scratch: &mut PressScratch,
         out: &mut Vec<PressFit>,
     ) -> Result<(), InverseError> {
@@ -217,7 +248,7 @@ impl PressModel {
         if dv.iter().any(|v| !v.is_finite()) {
             return Ok(());
         }
-        let PressScratch { residual, response, responses, centres, correlations } = scratch;
+        let PressScratch { residual, response, responses, centres, correlations, .. } = scratch;
         let mut found: [Option<PressFit>; MAX_PRESSES] = [None; MAX_PRESSES];
         let mut count = 0;
         responses.clear();
@@ -273,7 +304,14 @@ impl PressModel {
                 }
             }
         }
-        out.extend(found[..count].iter().flatten().filter(|f| f.z >= threshold && f.drop >= MIN_DROP));
+        match exact {
+            // Then all fitted together with their exact responses, the set corrected by them.
+            Some(exact) => {
+                out.extend(found[..count].iter().flatten());
+                self.fit_jointly(scan, dv, threshold, exact, out, scratch)?;
+            }
+            None => out.extend(found[..count].iter().flatten().filter(|f| f.z >= threshold && f.drop >= MIN_DROP)),
+        }
         out.sort_unstable_by(|a, b| b.drop.total_cmp(&a.drop));
         Ok(())
     }

@@ -1,0 +1,272 @@
+//! The exact Δv of flat presses anywhere on the sheet, at any depth and size: the background's
+//! one factorisation updated on the triangles under them ([`LowRankUpdate`]), so that presses
+//! are fitted to Δv with the physics' own response rather than its linearisation read off a grid.
+//!
+//! The linear table ([`super::PressModel`]) is what finds presses: a scan of the whole sheet is
+//! one product. But next to the electrodes a press's response changes within a grid step, and a
+//! strong press's response differs in shape from its linearisation, both by 10–50 % of its
+//! norm with each channel weighed by its noise; what is left of a strong press then looks like
+//! another, weak one, and biases every other press's drop. The exact response leaves nothing
+//! of a flat press.
+
+use crate::conductivity::circle_triangle_area;
+use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
+use crate::mesh::TriangleBuckets;
+
+/// A flat press: a disk where the conductivity is lowered by a share of the background.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Disk {
+    /// Centre, in m.
+    pub centre: [f64; 2],
+    /// Radius, in m.
+    pub radius: f64,
+    /// Conductivity drop under it, as a fraction of the background (0 to 1).
+    pub drop: f64,
+}
+
+/// Exact responses of flat presses on one sensor at a homogeneous background.
+#[derive(Debug, Clone)]
+pub struct ExactPresses {
+    update: LowRankUpdate,
+    buckets: TriangleBuckets,
+    background: f64,
+}
+
+/// Buffers of [`ExactPresses::response_into`] and [`ExactPresses::derivative_into`].
+#[derive(Debug, Clone, Default)]
+pub struct ExactScratch {
+    /// One solve per group of presses solved together (all of them, or each alone).
+    groups: Vec<ChangeScratch>,
+    changes: Vec<(usize, f64)>,
+    near: Vec<usize>,
+    part: Vec<f64>,
+}
+
+/// A parameter of a [`Disk`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DiskParameter {
+    /// Centre x, in m.
+    X,
+    /// Centre y, in m.
+    Y,
+    /// Drop (fraction of the background).
+    Drop,
+    /// Radius, in m.
+    Radius,
+}
+
+/// Step of the central difference of a triangle's covered share along a length, in m.
+const SHARE_STEP: f64 = 1e-6;
+
+impl ExactPresses {
+    /// The exact responses of `model`'s presses at the homogeneous `background` (S/m), from
+    /// `update` (made at that background).
+    pub fn new(update: LowRankUpdate, background: f64) -> ExactPresses {
+        let buckets = TriangleBuckets::new(update.model().mesh());
+        ExactPresses { update, buckets, background }
+    }
+
+    /// The forward model.
+    pub fn model(&self) -> &ForwardModel {
+        self.update.model()
+    }
+
+    /// The measurements at the background, in V (protocol order).
+    pub fn background_measurements(&self) -> &[f64] {
+        self.update.background_measurements()
+    }
+
+    /// Whether presses are solved together, each one's field on the others included (the
+    /// inverse is kept whole); else each alone and their responses added.
+    pub fn joint(&self) -> bool {
+        self.update.keeps_inverse()
+    }
+
+    /// The triangles `disk` covers with the share of each covered, after `share` maps the
+    /// disk (centre, radius) to the value pushed with each triangle, appended to `out`.
+    fn each_triangle(
+        &self,
+        disk: &Disk,
+        margin: f64,
+        near: &mut Vec<usize>,
+        mut push: impl FnMut(usize, [[f64; 2]; 3], f64),
+    ) {
+        let mesh = self.update.model().mesh();
+        let [x, y] = disk.centre;
+        let r = disk.radius + margin;
+        self.buckets.near_into([x - r, y - r], [x + r, y + r], near);
+        near.sort_unstable();
+        near.dedup();
+        for &t in near.iter() {
+            push(t, mesh.corners(t), mesh.area(t));
+        }
+    }
+
+    /// Δv (V, protocol order) of `disks` pressed together, into `out`. Allocates nothing once
+    /// `scratch` has grown (on a model whose inverse is kept, see [`LowRankUpdate`]).
+    pub fn response_into(
+        &self,
+        disks: &[Disk],
+        scratch: &mut ExactScratch,
+        out: &mut [f64],
+    ) -> Result<(), ForwardError> {
+        let ExactScratch { groups, changes, near, part } = scratch;
+        let groups_needed = if self.joint() { 1 } else { disks.len() };
+        if groups.len() < groups_needed {
+            groups.resize_with(groups_needed, ChangeScratch::default);
+        }
+        out.fill(0.0);
+        part.resize(out.len(), 0.0);
+        for (g, group) in groups.iter_mut().enumerate().take(groups_needed) {
+            let members = if self.joint() { disks } else { &disks[g..g + 1] };
+            changes.clear();
+            for disk in members {
+                self.each_triangle(disk, 0.0, near, |t, corners, area| {
+                    let share = (circle_triangle_area(disk.centre, disk.radius, corners) / area).min(1.0);
+                    // Rounding leaves a share of about 1e-16 on some triangles the disk misses.
+                    if share > 1e-9 {
+                        changes.push((t, -self.background * disk.drop * share));
+                    }
+                });
+            }
+            if changes.is_empty() {
+                continue;
+            }
+            self.update.measurement_change_into(changes, group, part)?;
+            out.iter_mut().zip(part.iter()).for_each(|(o, p)| *o += p);
+        }
+        Ok(())
+    }
+
+    /// The derivative of Δv (V per unit of the parameter, protocol order) along `parameter`
+    /// of `disks[i]`, into `out`, at the `disks` the last [`ExactPresses::response_into`] with
+    /// `scratch` was given (exact: the adjoint Jacobian from that solve; the covered shares by
+    /// a central difference). `false` if that solve was done in full, not by the update.
+    pub fn derivative_into(
+        &self,
+        disks: &[Disk],
+        i: usize,
+        parameter: DiskParameter,
+        scratch: &mut ExactScratch,
+        out: &mut [f64],
+    ) -> bool {
+        let ExactScratch { groups, changes, near, .. } = scratch;
+        let disk = disks[i];
+        let Some(group) = groups.get_mut(if self.joint() { 0 } else { i }) else { return false };
+        let scale = -self.background;
+        changes.clear();
+        let h = SHARE_STEP;
+        self.each_triangle(&disk, h, near, |t, corners, area| {
+            let share = |centre: [f64; 2], radius: f64| (circle_triangle_area(centre, radius, corners) / area).min(1.0);
+            let [x, y] = disk.centre;
+            let rate = match parameter {
+                DiskParameter::Drop => share(disk.centre, disk.radius),
+                // A triangle the disk's edge does not cross, within the step, keeps its share.
+                _ if !crosses(corners, disk.centre, disk.radius, h) => 0.0,
+                DiskParameter::X => {
+                    disk.drop * (share([x + h, y], disk.radius) - share([x - h, y], disk.radius)) / (2.0 * h)
+                }
+                DiskParameter::Y => {
+                    disk.drop * (share([x, y + h], disk.radius) - share([x, y - h], disk.radius)) / (2.0 * h)
+                }
+                DiskParameter::Radius => {
+                    disk.drop * (share(disk.centre, disk.radius + h) - share(disk.centre, disk.radius - h)) / (2.0 * h)
+                }
+            };
+            if rate.abs() > 0.0 {
+                changes.push((t, scale * rate));
+            }
+        });
+        self.update.derivative_into(changes, group, out)
+    }
+}
+
+/// Whether the circle (`centre`, `radius`), grown or shrunk by up to `margin` (m), can cross the
+/// triangle `corners`: neither all its corners well inside, nor all of it well outside.
+fn crosses(corners: [[f64; 2]; 3], centre: [f64; 2], radius: f64, margin: f64) -> bool {
+    let distance = |p: [f64; 2]| (p[0] - centre[0]).hypot(p[1] - centre[1]);
+    if corners.iter().all(|&c| distance(c) < radius - margin) {
+        return false; // inside
+    }
+    // Outside: the centre is farther than the radius from each edge and not in the triangle.
+    let edge_distance = |a: [f64; 2], b: [f64; 2]| {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let t = (((centre[0] - a[0]) * dx + (centre[1] - a[1]) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
+        distance([a[0] + t * dx, a[1] + t * dy])
+    };
+    let near_edge = (0..3).any(|k| edge_distance(corners[k], corners[(k + 1) % 3]) <= radius + margin);
+    near_edge || crate::mesh::barycentric(corners, centre).iter().all(|&w| w >= 0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::conductivity::{with_inclusions, Inclusion};
+    use crate::SensorSpec;
+
+    /// Against full solves of the same presses: one, two at once, at an edge, a wide one.
+    #[test]
+    fn responses_are_full_solves() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 800;
+        let model = spec.forward_model().unwrap();
+        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let exact = ExactPresses::new(update, 1.0);
+        let v0 = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let disk = |centre, radius, drop| Disk { centre, radius, drop };
+        let cases = [
+            vec![disk([0.01, -0.02], 0.01, 0.8)],
+            vec![disk([-0.05, 0.04], 0.01, 0.3), disk([0.04, 0.05], 0.015, 0.6)],
+            vec![disk([0.095, -0.06], 0.008, 0.5)],
+        ];
+        let mut scratch = ExactScratch::default();
+        let mut dv = vec![0.0; v0.len()];
+        for disks in &cases {
+            exact.response_into(disks, &mut scratch, &mut dv).unwrap();
+            let inclusions: Vec<Inclusion> = disks
+                .iter()
+                .map(|d| Inclusion { centre: d.centre, radius: d.radius, conductivity: 1.0 - d.drop })
+                .collect();
+            let solved = model.measure(&with_inclusions(model.mesh(), 1.0, &inclusions)).unwrap();
+            let scale = dv.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+            assert!(scale > 0.0);
+            for (m, (d, (v, v0))) in dv.iter().zip(solved.iter().zip(&v0)).enumerate() {
+                assert!((d - (v - v0)).abs() < 1e-9 * scale, "{disks:?}, m {m}: {d} vs {}", v - v0);
+            }
+        }
+        // Derivatives against central differences of the responses themselves.
+        let disks = [disk([0.02, -0.01], 0.01, 0.7), disk([-0.05, 0.03], 0.012, 0.4)];
+        let (mut up, mut down, mut derivative) = (dv.clone(), dv.clone(), dv.clone());
+        for i in 0..2 {
+            for (parameter, h) in [
+                (DiskParameter::X, 1e-5),
+                (DiskParameter::Y, 1e-5),
+                (DiskParameter::Drop, 1e-5),
+                (DiskParameter::Radius, 1e-5),
+            ] {
+                let nudged = |sign: f64| {
+                    let mut d = disks;
+                    match parameter {
+                        DiskParameter::X => d[i].centre[0] += sign * h,
+                        DiskParameter::Y => d[i].centre[1] += sign * h,
+                        DiskParameter::Drop => d[i].drop += sign * h,
+                        DiskParameter::Radius => d[i].radius += sign * h,
+                    }
+                    d
+                };
+                exact.response_into(&nudged(1.0), &mut scratch, &mut up).unwrap();
+                exact.response_into(&nudged(-1.0), &mut scratch, &mut down).unwrap();
+                exact.response_into(&disks, &mut scratch, &mut dv).unwrap();
+                assert!(exact.derivative_into(&disks, i, parameter, &mut scratch, &mut derivative));
+                let scale = derivative.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+                for (m, (d, (u, w))) in derivative.iter().zip(up.iter().zip(&down)).enumerate() {
+                    let difference = (u - w) / (2.0 * h);
+                    assert!((d - difference).abs() < 1e-4 * scale, "{i} {parameter:?} m {m}: {d} vs {difference}");
+                }
+            }
+        }
+        // Nothing pressed: no change.
+        exact.response_into(&[], &mut scratch, &mut dv).unwrap();
+        assert!(dv.iter().all(|d| *d == 0.0));
+    }
+}

@@ -1,0 +1,278 @@
+//! Presses fitted together to Δv with their exact responses ([`ExactPresses`]): each press's
+//! centre and drop (and, if asked, its radius) by Levenberg–Marquardt on the noise-weighted
+//! misfit |w⊙(Δv − F(presses))|², F the exact Δv of all presses at once (so one press's field
+//! on another's is in it), its Jacobian exact from the same solve ([`ExactPresses::derivative_into`]):
+//! one solve per iteration.
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatMut, MatRef, Par};
+
+use super::exact::{Disk, DiskParameter, ExactPresses, ExactScratch};
+use crate::forward::{DenseLu, ForwardError};
+
+/// Largest drop a refined press may take (a fraction of the background): at 1 the nodes under
+/// it would lose their conductance and the update its meaning.
+pub const DEEPEST: f64 = 0.98;
+
+/// Levenberg–Marquardt iterations at most.
+const ITERATIONS: usize = 12;
+
+/// Tries of a larger damping per iteration before it gives up.
+const TRIES: usize = 8;
+
+/// A step smaller than this, in centre and radius (m) and in drop, ends the iterations.
+const TOLERANCE: [f64; 2] = [1e-5, 1e-4];
+
+/// The parameters of a disk, in the order of the Jacobian's rows.
+const ALL: [DiskParameter; 4] = [DiskParameter::X, DiskParameter::Y, DiskParameter::Drop, DiskParameter::Radius];
+
+/// What is fitted, and within which bounds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefineParams {
+    /// Fit each press's radius too (else it keeps the one given).
+    pub fit_radius: bool,
+    /// Radii a press may take when they are fitted, in m.
+    pub radius_range: [f64; 2],
+    /// Box the centres stay in, `[min, max]` in m.
+    pub bounds: [[f64; 2]; 2],
+}
+
+/// Buffers of [`refine`].
+#[derive(Debug)]
+pub struct RefineScratch {
+    exact: ExactScratch,
+    trial: Vec<Disk>,
+    single: Vec<Disk>,
+    /// Weighted: the joint response, the residual, each press's own response, one perturbed.
+    joint: Vec<f64>,
+    residual: Vec<f64>,
+    own: Vec<f64>,
+    perturbed: Vec<f64>,
+    /// Parameters × measurements, each row ∂F/∂θ (weighted).
+    jacobian: Mat<f64>,
+    normal: Mat<f64>,
+    damped: Mat<f64>,
+    step: Mat<f64>,
+    lu: DenseLu,
+}
+
+impl Default for RefineScratch {
+    fn default() -> Self {
+        let empty = || Mat::zeros(0, 0);
+        RefineScratch {
+            exact: ExactScratch::default(),
+            trial: Vec::new(),
+            single: Vec::new(),
+            joint: Vec::new(),
+            residual: Vec::new(),
+            own: Vec::new(),
+            perturbed: Vec::new(),
+            jacobian: empty(),
+            normal: empty(),
+            damped: empty(),
+            step: empty(),
+            lu: DenseLu::default(),
+        }
+    }
+}
+
+impl Clone for RefineScratch {
+    /// Buffers are not worth copying: a clone starts empty.
+    fn clone(&self) -> Self {
+        RefineScratch::default()
+    }
+}
+
+impl RefineScratch {
+    /// Each press's own exact response, weighted, as the last [`refine`] left them (presses ×
+    /// measurements, row by row).
+    pub fn own_responses(&self) -> &[f64] {
+        &self.own
+    }
+
+    /// The Jacobian of the last [`refine`]'s last iteration, weighted: one row per parameter
+    /// (each press's x, y, drop and, if fitted, radius), one column per measurement.
+    pub fn jacobian(&self) -> MatRef<'_, f64> {
+        self.jacobian.as_ref()
+    }
+}
+
+/// The misfit |w⊙(Δv − F(disks))|² and the weighted residual into `residual`.
+fn misfit(
+    exact: &ExactPresses,
+    dv: &[f64],
+    weights: &[f64],
+    disks: &[Disk],
+    scratch: &mut ExactScratch,
+    joint: &mut [f64],
+    residual: &mut [f64],
+) -> Result<f64, ForwardError> {
+    exact.response_into(disks, scratch, joint)?;
+    let mut cost = 0.0;
+    for ((r, (f, v)), w) in residual.iter_mut().zip(joint.iter().zip(dv)).zip(weights) {
+        *r = w * (v - f);
+        cost += *r * *r;
+    }
+    Ok(cost)
+}
+
+/// Moves `disks` to the least noise-weighted misfit with `dv` (Δv in V, protocol order;
+/// `weights` one per measurement, the inverse of its noise's standard deviation, 0 for a channel
+/// not used); returns the misfit left (a χ² for whitened weights). Allocates nothing once
+/// `scratch` has grown.
+pub fn refine(
+    exact: &ExactPresses,
+    dv: &[f64],
+    weights: &[f64],
+    disks: &mut [Disk],
+    params: &RefineParams,
+    scratch: &mut RefineScratch,
+) -> Result<f64, ForwardError> {
+    let m = dv.len();
+    let k = disks.len();
+    let parameters: &[DiskParameter] = if params.fit_radius { &ALL } else { &ALL[..3] };
+    let per = parameters.len();
+    let n = k * per;
+    let RefineScratch { exact: ex, trial, single, joint, residual, own, perturbed, jacobian, normal, damped, step, lu } =
+        scratch;
+    joint.resize(m, 0.0);
+    residual.resize(m, 0.0);
+    own.resize(k * m, 0.0);
+    perturbed.resize(m, 0.0);
+    jacobian.resize_with(n, m, |_, _| 0.0);
+    normal.resize_with(n, n, |_, _| 0.0);
+    damped.resize_with(n, n, |_, _| 0.0);
+    step.resize_with(n, 1, |_, _| 0.0);
+    let mut cost = misfit(exact, dv, weights, disks, ex, joint, residual)?;
+    let mut damping = 1e-3;
+    'iterations: for _ in 0..ITERATIONS {
+        if k == 0 {
+            break;
+        }
+        // The Jacobian at `disks`, from the solve that gave their misfit.
+        for (i, _) in disks.iter().enumerate() {
+            for (p, &parameter) in parameters.iter().enumerate() {
+                // A press solved in full (too wide for the update) stays where it is.
+                if !exact.derivative_into(disks, i, parameter, ex, perturbed) {
+                    break 'iterations;
+                }
+                for (q, (d, w)) in perturbed.iter().zip(weights).enumerate() {
+                    jacobian[(i * per + p, q)] = w * d;
+                }
+            }
+        }
+        // Normal equations JᵀJ·δ = Jᵀr, damped on the diagonal (Marquardt's scaling).
+        let j = jacobian.as_ref();
+        matmul(normal.as_mut(), Accum::Replace, j, j.transpose(), 1.0, Par::Seq);
+        let largest = (0..n).map(|a| normal[(a, a)]).fold(0.0, f64::max);
+        if largest <= 0.0 {
+            break;
+        }
+        let mut moved_little = false;
+        let mut accepted = false;
+        for _ in 0..TRIES {
+            damped.copy_from(normal.as_ref());
+            for a in 0..n {
+                damped[(a, a)] += damping * normal[(a, a)].max(1e-12 * largest);
+            }
+            gradient_into(j, residual, step.as_mut());
+            lu.solve_in_place(damped.as_mut(), step.as_mut());
+            trial.clear();
+            trial.extend(disks.iter().enumerate().map(|(i, d)| moved(d, step.as_ref(), i * per, per, params)));
+            moved_little = disks.iter().zip(trial.iter()).all(|(a, b)| {
+                let shift =
+                    (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]).max((a.radius - b.radius).abs());
+                shift < TOLERANCE[0] && (a.drop - b.drop).abs() < TOLERANCE[1]
+            });
+            let trial_cost = misfit(exact, dv, weights, trial, ex, joint, perturbed)?;
+            if trial_cost <= cost {
+                cost = trial_cost;
+                disks.copy_from_slice(trial);
+                residual.copy_from_slice(perturbed);
+                damping = (damping / 3.0).max(1e-9);
+                accepted = true;
+                break;
+            }
+            damping *= 4.0;
+        }
+        if !accepted || moved_little {
+            break;
+        }
+    }
+    // Each press's own response at the final place.
+    for (i, disk) in disks.iter().enumerate() {
+        single.clear();
+        single.push(*disk);
+        let own_i = &mut own[i * m..(i + 1) * m];
+        exact.response_into(single, ex, own_i)?;
+        own_i.iter_mut().zip(weights).for_each(|(f, w)| *f *= w);
+    }
+    Ok(cost)
+}
+
+/// Jᵀr into `out` (parameters × 1).
+fn gradient_into(jacobian: MatRef<'_, f64>, residual: &[f64], mut out: MatMut<'_, f64>) {
+    for a in 0..jacobian.nrows() {
+        out[(a, 0)] = (0..residual.len()).map(|q| jacobian[(a, q)] * residual[q]).sum();
+    }
+}
+
+/// `disk` moved by its `per` parameters of `step` from `first`, within the bounds.
+fn moved(disk: &Disk, step: MatRef<'_, f64>, first: usize, per: usize, params: &RefineParams) -> Disk {
+    let [lo, hi] = params.bounds;
+    let mut d = *disk;
+    d.centre[0] = (d.centre[0] + step[(first, 0)]).clamp(lo[0], hi[0]);
+    d.centre[1] = (d.centre[1] + step[(first + 1, 0)]).clamp(lo[1], hi[1]);
+    d.drop = (d.drop + step[(first + 2, 0)]).clamp(0.0, DEEPEST);
+    if per == 4 {
+        d.radius = (d.radius + step[(first + 3, 0)]).clamp(params.radius_range[0], params.radius_range[1]);
+    }
+    d
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::conductivity::{with_inclusions, Inclusion};
+    use crate::forward::LowRankUpdate;
+    use crate::SensorSpec;
+
+    /// Two presses of the model's kind on the model's own mesh, started a few mm and 0.1 in drop
+    /// off: back to where they are, to 1e-4 m and 1e-3 in drop; the radius too when asked.
+    #[test]
+    fn presses_return_to_their_place_and_drop() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 1200;
+        let model = spec.forward_model().unwrap();
+        let sigma = vec![1.0; model.mesh().triangles().len()];
+        let exact = ExactPresses::new(LowRankUpdate::new(&model, &sigma).unwrap(), 1.0);
+        let v0 = model.measure(&sigma).unwrap();
+        let truth = [
+            Disk { centre: [0.07, -0.05], radius: 0.01, drop: 0.85 },
+            Disk { centre: [-0.02, 0.03], radius: 0.012, drop: 0.3 },
+        ];
+        let inclusions: Vec<Inclusion> = truth
+            .iter()
+            .map(|d| Inclusion { centre: d.centre, radius: d.radius, conductivity: 1.0 - d.drop })
+            .collect();
+        let v = model.measure(&with_inclusions(model.mesh(), 1.0, &inclusions)).unwrap();
+        let dv: Vec<f64> = v.iter().zip(&v0).map(|(v, v0)| v - v0).collect();
+        let weights: Vec<f64> = v0.iter().map(|v| 1.0 / (1e-3 * v.abs())).collect();
+        let bounds = model.mesh().bounds();
+        for fit_radius in [false, true] {
+            let mut disks = [
+                Disk { centre: [0.074, -0.053], radius: 0.01, drop: 0.7 },
+                Disk { centre: [-0.024, 0.027], radius: if fit_radius { 0.01 } else { 0.012 }, drop: 0.4 },
+            ];
+            let params = RefineParams { fit_radius, radius_range: [0.004, 0.025], bounds };
+            let mut scratch = RefineScratch::default();
+            let cost = refine(&exact, &dv, &weights, &mut disks, &params, &mut scratch).unwrap();
+            assert!(cost < 1e-6, "fit_radius {fit_radius}: misfit {cost}");
+            for (d, t) in disks.iter().zip(&truth) {
+                let off = (d.centre[0] - t.centre[0]).hypot(d.centre[1] - t.centre[1]);
+                assert!(off < 1e-4 && (d.drop - t.drop).abs() < 1e-3, "{d:?} for {t:?}");
+                assert!((d.radius - t.radius).abs() < 1e-4, "{d:?} for {t:?}");
+            }
+        }
+    }
+}
