@@ -250,6 +250,8 @@ pub struct PressScratch {
     saved: Vec<PressFit>,
     saved_responses: Vec<f64>,
     rejected: Vec<[f64; 2]>,
+    sizes: Vec<joint::Size>,
+    exact: ExactScratch,
     /// The scan for a new press next to fitted ones: an orthonormal basis of their Jacobian,
     /// each scan point's projection on it, and what of its gᵀg is left.
     basis: Mat<f64>,
@@ -270,6 +272,8 @@ impl Default for PressScratch {
             saved: Vec::new(),
             saved_responses: Vec::new(),
             rejected: Vec::new(),
+            sizes: Vec::new(),
+            exact: ExactScratch::default(),
             basis: Mat::zeros(0, 0),
             projections: Mat::zeros(0, 0),
             unexplained: Vec::new(),

@@ -324,7 +324,7 @@ impl LowRankUpdate {
         rows.dedup();
         let s = rows.len();
         let basis = self.fields.ncols();
-        green.resize_with(s, s, |_, _| 0.0);
+        grow(green, s, s);
         let found = match (&self.inverse, &self.near) {
             (Some(inverse), _) => {
                 for j in 0..s {
@@ -345,7 +345,7 @@ impl LowRankUpdate {
             out.copy_from_slice(&dv);
             return Ok(());
         }
-        fields.resize_with(s, basis, |i, p| self.fields[(rows[i], p)]);
+        grow(fields, s, basis);
         for i in 0..s {
             for p in 0..basis {
                 fields[(i, p)] = self.fields[(rows[i], p)];
@@ -353,18 +353,18 @@ impl LowRankUpdate {
         }
         self.stiffness_change(changes, rows, dk);
         // X = (I + G·ΔK)⁻¹·U_R by an LU in place, then ΔV = −U_Rᵀ·ΔK·X.
-        system.resize_with(s, s, |_, _| 0.0);
+        grow(system, s, s);
         matmul(system.as_mut(), Accum::Replace, green.as_ref(), dk.as_ref(), 1.0, Par::Seq);
         for i in 0..s {
             system[(i, i)] += 1.0;
         }
-        x.resize_with(s, basis, |_, _| 0.0);
+        grow(x, s, basis);
         x.copy_from(fields.as_ref());
         lu.solve_in_place(system.as_mut(), x.as_mut());
         // ΔK·X into `green` (no longer needed), then the basis change.
-        green.resize_with(s, basis, |_, _| 0.0);
+        grow(green, s, basis);
         matmul(green.as_mut(), Accum::Replace, dk.as_ref(), x.as_ref(), 1.0, Par::Seq);
-        change.resize_with(basis, basis, |_, _| 0.0);
+        grow(change, basis, basis);
         matmul(change.as_mut(), Accum::Replace, fields.transpose(), green.as_ref(), -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
         *solved = true;
@@ -389,7 +389,7 @@ impl LowRankUpdate {
             return false;
         }
         let (s, basis) = (rows.len(), x.ncols());
-        dkx.resize_with(s, basis, |_, _| 0.0);
+        grow(dkx, s, basis);
         dkx.fill(0.0);
         for &(t, delta) in direction {
             let nodes = self.model.mesh.triangles()[t];
@@ -418,7 +418,7 @@ impl LowRankUpdate {
                 }
             }
         }
-        change.resize_with(basis, basis, |_, _| 0.0);
+        grow(change, basis, basis);
         matmul(change.as_mut(), Accum::Replace, x.transpose(), dkx.as_ref(), -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
         true
@@ -427,7 +427,7 @@ impl LowRankUpdate {
     /// ΔK_RR (rows `rows`, sorted) of `changes`, into `dk`, from the triangles' stiffness.
     fn stiffness_change(&self, changes: &[(usize, f64)], rows: &[usize], dk: &mut Mat<f64>) {
         let s = rows.len();
-        dk.resize_with(s, s, |_, _| 0.0);
+        grow(dk, s, s);
         dk.fill(0.0);
         for &(t, delta) in changes {
             let nodes = self.model.mesh.triangles()[t];
@@ -494,6 +494,13 @@ pub struct ChangeScratch {
     solved: bool,
 }
 
+impl ChangeScratch {
+    /// Room for changes touching up to `rows` rows of the system.
+    pub fn reserve(&mut self, rows: usize) {
+        room(&mut self.rows, rows);
+    }
+}
+
 impl Default for ChangeScratch {
     fn default() -> Self {
         let empty = || Mat::zeros(0, 0);
@@ -507,6 +514,19 @@ impl Clone for ChangeScratch {
     fn clone(&self) -> Self {
         ChangeScratch::default()
     }
+}
+
+/// Resizes `mat` to `rows` × `cols` (new entries 0), its capacity a power of two each way: sizes
+/// that vary from frame to frame (a press's rows as it moves) then settle after a few
+/// doublings, and the frame path stops allocating.
+pub(crate) fn grow(mat: &mut Mat<f64>, rows: usize, cols: usize) {
+    mat.reserve(rows.max(8).next_power_of_two(), cols.max(8).next_power_of_two());
+    mat.resize_with(rows, cols, |_, _| 0.0);
+}
+
+/// Makes room in `v` for `total` elements in all (`Vec::reserve` counts beyond its length).
+pub(crate) fn room<T>(v: &mut Vec<T>, total: usize) {
+    v.reserve(total.saturating_sub(v.len()));
 }
 
 /// Solves small dense systems in place by LU with partial pivoting (faer's), keeping its
@@ -542,8 +562,9 @@ impl DenseLu {
             n, rhs.ncols(), Par::Seq
         ));
         if self.stack_bytes < need.unaligned_bytes_required() {
-            self.stack = MemBuffer::new(need);
-            self.stack_bytes = need.unaligned_bytes_required();
+            let twice = need.and(need); // room for larger systems to come
+            self.stack = MemBuffer::new(twice);
+            self.stack_bytes = twice.unaligned_bytes_required();
         }
         self.perm.resize(n, 0);
         self.perm_inv.resize(n, 0);

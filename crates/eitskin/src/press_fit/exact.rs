@@ -10,7 +10,7 @@
 //! of a flat press.
 
 use crate::conductivity::circle_triangle_area;
-use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
+use crate::forward::{room, ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
 use crate::mesh::TriangleBuckets;
 
 /// A flat press: a disk where the conductivity is lowered by a share of the background.
@@ -76,6 +76,18 @@ impl ExactPresses {
         self.update.background_measurements()
     }
 
+    /// Grows `scratch` at once to what any presses can need (every triangle changed), so that the
+    /// frame path does not allocate when a press first grows wider.
+    pub fn reserve(&self, scratch: &mut ExactScratch) {
+        let triangles = self.update.model().mesh().triangles().len();
+        room(&mut scratch.changes, triangles);
+        room(&mut scratch.near, triangles);
+        room(&mut scratch.part, self.update.background_measurements().len());
+        for group in &mut scratch.groups {
+            group.reserve(self.update.model().system_size());
+        }
+    }
+
     /// Whether presses are solved together, each one's field on the others included (the
     /// inverse is kept whole); else each alone and their responses added.
     pub fn joint(&self) -> bool {
@@ -112,8 +124,10 @@ impl ExactPresses {
     ) -> Result<(), ForwardError> {
         let ExactScratch { groups, changes, near, part } = scratch;
         let groups_needed = if self.joint() { 1 } else { disks.len() };
-        if groups.len() < groups_needed {
-            groups.resize_with(groups_needed, ChangeScratch::default);
+        while groups.len() < groups_needed {
+            let mut group = ChangeScratch::default();
+            group.reserve(self.update.model().system_size());
+            groups.push(group);
         }
         out.fill(0.0);
         part.resize(out.len(), 0.0);

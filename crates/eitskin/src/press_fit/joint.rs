@@ -7,15 +7,19 @@
 //!   whose drop is under [`MIN_DROP`], goes;
 //! - each press is placed again where the largest z is left once the others are taken off, if
 //!   that is elsewhere, and kept there if the misfit falls;
+//! - each press's radius is fitted too, if that lowers the misfit by more than chance would
+//!   ([`SIZE_TEST`]): a wider or narrower indenter, or a profile whose contact grows with force,
+//!   is then one press of its own size, not several of the indenter's;
 //! - a new press is placed where the largest z is left, if it passes (not where a press was
 //!   taken off);
 //!
 //! until none of these changes anything.
 
 use super::detect::{Exact, Scan, MAX_PRESSES, MIN_DROP};
-use super::exact::Disk;
+use super::exact::{Disk, DiskParameter};
 use super::refine::{refine, RefineParams, DEEPEST};
 use super::{PressFit, PressModel, PressScratch};
+use crate::forward::{grow, room};
 use crate::inverse::InverseError;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Par};
@@ -27,11 +31,27 @@ use faer::{Accum, Par};
 /// fitted again: a weak press whose signal a strong one has partly taken up (by moving towards
 /// it and deepening) is still found.
 fn unexplained_into(scan: &Scan, scratch: &mut PressScratch) {
-    let PressScratch { refine: refining, basis, projections, unexplained, .. } = scratch;
+    let rank = orthonormal_rows(scratch);
+    let PressScratch { basis, projections, unexplained, .. } = scratch;
+    let points = scan.matrix.nrows();
+    grow(projections, points, rank);
+    let q = basis.as_ref().subrows(0, rank);
+    matmul(projections.as_mut(), Accum::Replace, scan.matrix.as_ref(), q.transpose(), 1.0, Par::Seq);
+    unexplained.clear();
+    unexplained.extend((0..points).map(|p| {
+        let taken: f64 = (0..rank).map(|k| projections[(p, k)].powi(2)).sum();
+        (scan.norms[p] - taken).max(UNEXPLAINED_FLOOR * scan.norms[p])
+    }));
+}
+
+/// An orthonormal basis of the rows of the last exact fit's Jacobian into the scratch's
+/// `basis` (its first rows); their number. Modified Gram–Schmidt, twice for orthogonality; a row
+/// that adds nothing is left out.
+fn orthonormal_rows(scratch: &mut PressScratch) -> usize {
+    let PressScratch { refine: refining, basis, .. } = scratch;
     let jacobian = refining.jacobian();
     let (n, m) = (jacobian.nrows(), jacobian.ncols());
-    basis.resize_with(n, m, |_, _| 0.0);
-    // Modified Gram–Schmidt on the rows, twice for orthogonality; a row that adds nothing is 0.
+    grow(basis, n, m);
     let mut rank = 0;
     for a in 0..n {
         for q in 0..m {
@@ -54,20 +74,55 @@ fn unexplained_into(scan: &Scan, scratch: &mut PressScratch) {
             rank += 1;
         }
     }
-    let points = scan.matrix.nrows();
-    projections.resize_with(points, rank, |_, _| 0.0);
-    let q = basis.as_ref().subrows(0, rank);
-    matmul(projections.as_mut(), Accum::Replace, scan.matrix.as_ref(), q.transpose(), 1.0, Par::Seq);
-    unexplained.clear();
-    unexplained.extend((0..points).map(|p| {
-        let taken: f64 = (0..rank).map(|k| projections[(p, k)].powi(2)).sum();
-        (scan.norms[p] - taken).max(UNEXPLAINED_FLOOR * scan.norms[p])
-    }));
+    rank
 }
 
 /// The least share of a response's gᵀg counted as not taken up by the presses fitted (z grows
 /// by at most 1/√ of it): right beside a press, what is left of g is mostly noise in the fit.
 const UNEXPLAINED_FLOOR: f64 = 0.25;
+
+/// Whether a press's radius is its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Size {
+    /// Not tested yet: the indenter's.
+    Untested,
+    /// The indenter's: the data do not ask for another.
+    Nominal,
+    /// Fitted.
+    Fitted,
+}
+
+/// The fall of the misfit (χ², whitened) for which a press's radius is fitted: χ²₁ at a
+/// probability of 1e-3 is 10.8, doubled against the misfit the model's mesh leaves of a press
+/// of the model's kind.
+const SIZE_TEST: f64 = 25.0;
+
+/// Radii a press's size is fitted from, as multiples of its radius.
+const SIZE_STARTS: [f64; 2] = [1.0, 1.6];
+
+/// Radii a fitted press may take, as multiples of the indenter's.
+const RADII: [f64; 2] = [0.5, 2.5];
+
+/// The presses whose radius is fitted, bit i for press i.
+fn fitted(sizes: &[Size]) -> u32 {
+    sizes.iter().take(32).enumerate().filter(|(_, s)| **s == Size::Fitted).fold(0, |bits, (i, _)| bits | 1 << i)
+}
+
+/// Keeps `presses` and their responses aside.
+fn save(presses: &[PressFit], scratch: &mut PressScratch, m: usize) {
+    scratch.saved.clear();
+    scratch.saved.extend_from_slice(presses);
+    scratch.saved_responses.clear();
+    scratch.saved_responses.extend_from_slice(&scratch.responses[..presses.len() * m]);
+}
+
+/// The presses and responses [`save`] kept.
+fn restore(presses: &mut Vec<PressFit>, scratch: &mut PressScratch, m: usize) {
+    presses.clear();
+    presses.extend_from_slice(&scratch.saved);
+    let k = presses.len() * m;
+    scratch.responses[..k].copy_from_slice(&scratch.saved_responses);
+}
 
 /// Rounds of corrections at most.
 const ROUNDS: usize = 2 * MAX_PRESSES;
@@ -87,10 +142,20 @@ impl PressModel {
     ) -> Result<(), InverseError> {
         let m = self.measurements;
         let window = 2.0 * self.grid.spacing;
+        scratch.refine.reserve(exact.presses, MAX_PRESSES, m);
+        exact.presses.reserve(&mut scratch.exact);
+        room(&mut scratch.saved, MAX_PRESSES);
+        room(&mut scratch.saved_responses, MAX_PRESSES * m);
+        room(&mut scratch.rejected, ROUNDS);
+        room(&mut scratch.sizes, MAX_PRESSES);
+        room(&mut scratch.disks, MAX_PRESSES);
+        scratch.sizes.clear();
+        scratch.sizes.resize(presses.len(), Size::Untested);
         let mut cost = self.refit(exact, dv, presses, scratch)?;
         scratch.rejected.clear();
         for _ in 0..ROUNDS {
             if let Some(weaker) = self.overlapping(presses) {
+                scratch.sizes.remove(weaker);
                 scratch.rejected.push(presses.remove(weaker).centre);
                 cost = self.refit(exact, dv, presses, scratch)?;
                 continue;
@@ -101,11 +166,12 @@ impl PressModel {
                 .filter(|(_, p)| p.z < threshold || p.drop < MIN_DROP)
                 .min_by(|a, b| a.1.z.total_cmp(&b.1.z));
             if let Some((i, _)) = failing {
+                scratch.sizes.remove(i);
                 scratch.rejected.push(presses.remove(i).centre);
                 cost = self.refit(exact, dv, presses, scratch)?;
                 continue;
             }
-            let mut changed = false;
+            let (mut changed, mut stale) = (false, false);
             for i in 0..presses.len() {
                 self.others_into(dv, presses, i, scratch);
                 let PressScratch { residual, response, centres, correlations, .. } = &mut *scratch;
@@ -115,20 +181,68 @@ impl PressModel {
                     continue;
                 }
                 let Some(candidate) = self.fit_one(residual, p, window, response) else { continue };
-                scratch.saved.clear();
-                scratch.saved.extend_from_slice(presses);
-                scratch.saved_responses.clear();
-                scratch.saved_responses.extend_from_slice(&scratch.responses[..presses.len() * m]);
+                save(presses, scratch, m);
                 presses[i] = candidate;
+                let size = std::mem::replace(&mut scratch.sizes[i], Size::Untested);
                 let moved = self.refit(exact, dv, presses, scratch)?;
-                if moved < cost {
+                // Clearly better, not the same place to rounding.
+                if moved < cost - 1.0 {
                     (cost, changed) = (moved, true);
                 } else {
-                    presses.clear();
-                    presses.extend_from_slice(&scratch.saved);
-                    let k = presses.len() * m;
-                    scratch.responses[..k].copy_from_slice(&scratch.saved_responses);
+                    scratch.sizes[i] = size;
+                    restore(presses, scratch, m);
+                    stale = true;
                 }
+            }
+            if changed {
+                continue;
+            }
+            // Each press's size, once: a wider press that the linear search split in two is one
+            // press again if the weaker neighbour within four radii goes and the misfit grows by
+            // less than that press's own test; else fitted where the misfit falls by more than
+            // a wider or narrower press could by chance.
+            // The sizes' test reads the last fit's misfit and Jacobian: of these presses.
+            if stale {
+                cost = self.refit(exact, dv, presses, scratch)?;
+            }
+            let rank = orthonormal_rows(scratch);
+            for i in 0..presses.len() {
+                if scratch.sizes[i] != Size::Untested {
+                    continue;
+                }
+                // The score test first (one derivative): only a press whose misfit leans on its
+                // size is fitted for it.
+                let zz = self.size_z(exact, presses, i, rank, scratch)?;
+                if zz.powi(2) < SIZE_TEST {
+                    scratch.sizes[i] = Size::Nominal;
+                    continue;
+                }
+                save(presses, scratch, m);
+                if let Some(j) = self.weaker_neighbour(presses, i) {
+                    let size_j = scratch.sizes.remove(j);
+                    presses.remove(j);
+                    let i = if j < i { i - 1 } else { i };
+                    let (merged, press) = self.sized(exact, dv, presses, i, scratch)?;
+                    if merged < cost + threshold * threshold {
+                        presses[i] = press;
+                        scratch.sizes[i] = Size::Fitted;
+                        cost = self.refit(exact, dv, presses, scratch)?;
+                        changed = true;
+                        break;
+                    }
+                    restore(presses, scratch, m);
+                    scratch.sizes.insert(j, size_j);
+                }
+                let (sized, press) = self.sized(exact, dv, presses, i, scratch)?;
+                if cost - sized > SIZE_TEST {
+                    presses[i] = press;
+                    scratch.sizes[i] = Size::Fitted;
+                    changed = true;
+                } else {
+                    scratch.sizes[i] = Size::Nominal;
+                }
+                // Back to these presses' own fit (and misfit and Jacobian).
+                cost = self.refit(exact, dv, presses, scratch)?;
             }
             if changed {
                 continue;
@@ -146,6 +260,7 @@ impl PressModel {
                 });
                 if let Some(new) = new {
                     presses.push(new);
+                    scratch.sizes.push(Size::Untested);
                     cost = self.refit(exact, dv, presses, scratch)?;
                     continue;
                 }
@@ -155,6 +270,81 @@ impl PressModel {
         // Should the rounds run out, what is returned still passes.
         presses.retain(|p| p.z >= threshold && p.drop >= MIN_DROP);
         Ok(())
+    }
+
+    /// The score test of press `i`'s radius at the last exact fit: ∂χ²/∂r over its standard
+    /// deviation, (∂F/∂r)ᵀr / |∂F/∂r less its part in the span of the fit's Jacobian (the first
+    /// `rank` rows of the scratch's basis)|, r the whitened misfit; N(0, 1) if the indenter's
+    /// radius is the press's.
+    fn size_z(
+        &self,
+        exact: Exact<'_>,
+        presses: &[PressFit],
+        i: usize,
+        rank: usize,
+        scratch: &mut PressScratch,
+    ) -> Result<f64, InverseError> {
+        let PressScratch { disks, exact: ex, response, refine: refining, basis, .. } = scratch;
+        let residual = refining.residual();
+        disks.clear();
+        disks.extend(presses.iter().map(|f| Disk {
+            centre: f.centre,
+            radius: f.radius,
+            drop: f.drop.clamp(0.0, DEEPEST),
+        }));
+        exact.presses.response_into(disks, ex, response)?;
+        if !exact.presses.derivative_into(disks, i, DiskParameter::Radius, ex, response) {
+            return Ok(0.0);
+        }
+        response.iter_mut().zip(exact.weights).for_each(|(d, w)| *d *= w);
+        let along: f64 = response.iter().zip(residual.iter()).map(|(d, r)| d * r).sum();
+        let mut left: f64 = response.iter().map(|d| d * d).sum();
+        for k in 0..rank {
+            let dot: f64 = response.iter().enumerate().map(|(q, d)| d * basis[(k, q)]).sum();
+            left -= dot * dot;
+        }
+        Ok(if left > 0.0 { along / left.sqrt() } else { 0.0 })
+    }
+
+    /// The least misfit with press `i`'s radius fitted too (and the other presses' as they are
+    /// fitted), and press `i` there; `presses` are left as they were. From its radius and from
+    /// a wider one of the same d·r²: a strong press fitted too narrow sits at the deepest drop,
+    /// where the fit cannot widen it.
+    fn sized(
+        &self,
+        exact: Exact<'_>,
+        dv: &[f64],
+        presses: &mut [PressFit],
+        i: usize,
+        scratch: &mut PressScratch,
+    ) -> Result<(f64, PressFit), InverseError> {
+        let k = presses.len().min(MAX_PRESSES);
+        let mut base = [presses[i]; MAX_PRESSES];
+        base[..k].copy_from_slice(&presses[..k]);
+        let mut best = (f64::INFINITY, presses[i]);
+        for widen in SIZE_STARTS {
+            presses[..k].copy_from_slice(&base[..k]);
+            presses[i].radius *= widen;
+            presses[i].drop /= widen * widen;
+            let cost = self.refit_with(exact, dv, presses, fitted(&scratch.sizes) | 1 << i, scratch)?;
+            if cost < best.0 {
+                best = (cost, presses[i]);
+            }
+        }
+        presses[..k].copy_from_slice(&base[..k]);
+        Ok(best)
+    }
+
+    /// The press with a smaller z than press `i` nearest to it within four indenter radii, if any.
+    fn weaker_neighbour(&self, presses: &[PressFit], i: usize) -> Option<usize> {
+        let at = presses[i].centre;
+        let distance = |p: &PressFit| (p.centre[0] - at[0]).hypot(p.centre[1] - at[1]);
+        presses
+            .iter()
+            .enumerate()
+            .filter(|(j, p)| *j != i && p.z < presses[i].z && distance(p) < 4.0 * self.radius)
+            .min_by(|a, b| distance(a.1).total_cmp(&distance(b.1)))
+            .map(|(j, _)| j)
     }
 
     /// The index of the weaker (smaller z) of the first two presses nearer than two indenter
@@ -195,6 +385,18 @@ impl PressModel {
         presses: &mut [PressFit],
         scratch: &mut PressScratch,
     ) -> Result<f64, InverseError> {
+        self.refit_with(exact, dv, presses, fitted(&scratch.sizes), scratch)
+    }
+
+    /// [`PressModel::refit`] with the radii of `free_radii` (bit i: press i) fitted.
+    fn refit_with(
+        &self,
+        exact: Exact<'_>,
+        dv: &[f64],
+        presses: &mut [PressFit],
+        free_radii: u32,
+        scratch: &mut PressScratch,
+    ) -> Result<f64, InverseError> {
         let m = self.measurements;
         let PressScratch { disks, refine: refining, responses, .. } = &mut *scratch;
         disks.clear();
@@ -204,8 +406,8 @@ impl PressModel {
             drop: f.drop.clamp(0.0, DEEPEST),
         }));
         let params = RefineParams {
-            fit_radius: false,
-            radius_range: [self.radius, self.radius],
+            free_radii,
+            radius_range: [RADII[0] * self.radius, RADII[1] * self.radius],
             bounds: [self.grid.lo, self.grid.point(self.grid.len() - 1)],
         };
         let cost = refine(exact.presses, exact.dv, exact.weights, disks, &params, refining)?;
