@@ -51,7 +51,7 @@ mod joint;
 mod refine;
 
 pub use detect::PressDetection;
-pub use exact::{Disk, DiskParameter, ExactPresses, ExactScratch};
+pub use exact::{Disk, DiskParameter, ExactPresses, ExactScratch, JOINT_PRESSES};
 pub use refine::{refine, RefineParams, RefineScratch, DEEPEST};
 
 /// A square grid of points over a box: the first at `lo`, row-major.
@@ -252,6 +252,8 @@ pub struct PressScratch {
     rejected: Vec<[f64; 2]>,
     sizes: Vec<joint::Size>,
     exact: ExactScratch,
+    /// Exact fits made in this frame.
+    refits: usize,
     /// The scan for a new press next to fitted ones: an orthonormal basis of their Jacobian,
     /// each scan point's projection on it, and what of its gᵀg is left.
     basis: Mat<f64>,
@@ -274,6 +276,7 @@ impl Default for PressScratch {
             rejected: Vec::new(),
             sizes: Vec::new(),
             exact: ExactScratch::default(),
+            refits: 0,
             basis: Mat::zeros(0, 0),
             projections: Mat::zeros(0, 0),
             unexplained: Vec::new(),

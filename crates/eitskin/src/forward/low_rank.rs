@@ -371,6 +371,15 @@ impl LowRankUpdate {
         Ok(())
     }
 
+    /// The same update keeping only the near part of K₀⁻¹ (`reach` in m), as a model too large
+    /// for the whole inverse would: for tests of that path on a small model.
+    #[cfg(test)]
+    pub(crate) fn near_only(mut self, reach: f64) -> LowRankUpdate {
+        self.near = Some(self.near_green(reach));
+        self.inverse = None;
+        self
+    }
+
     /// Whether it keeps K₀⁻¹ whole, so that changes far apart are solved together exactly.
     pub fn keeps_inverse(&self) -> bool {
         self.inverse.is_some()

@@ -124,6 +124,10 @@ fn restore(presses: &mut Vec<PressFit>, scratch: &mut PressScratch, m: usize) {
     scratch.responses[..k].copy_from_slice(&scratch.saved_responses);
 }
 
+/// Exact fits per frame at most (each a few solves per iteration): past them the presses stay
+/// as the last fit left them. A frame of three presses of the study's kinds takes 1–6.
+const REFITS: usize = 16;
+
 /// Rounds of corrections at most.
 const ROUNDS: usize = 2 * MAX_PRESSES;
 
@@ -153,7 +157,12 @@ impl PressModel {
         scratch.sizes.resize(presses.len(), Size::Untested);
         let mut cost = self.refit(exact, dv, presses, scratch)?;
         scratch.rejected.clear();
+        scratch.refits = 0;
         for _ in 0..ROUNDS {
+            // Each fit costs a few solves per iteration; a frame's work is bounded.
+            if scratch.refits >= REFITS {
+                break;
+            }
             if let Some(weaker) = self.overlapping(presses) {
                 scratch.sizes.remove(weaker);
                 scratch.rejected.push(presses.remove(weaker).centre);
@@ -173,6 +182,9 @@ impl PressModel {
             }
             let (mut changed, mut stale) = (false, false);
             for i in 0..presses.len() {
+                if scratch.refits >= REFITS {
+                    break;
+                }
                 self.others_into(dv, presses, i, scratch);
                 let PressScratch { residual, response, centres, correlations, .. } = &mut *scratch;
                 let Some((j, _)) = self.best_point(scan, residual, centres, correlations) else { continue };
@@ -207,7 +219,7 @@ impl PressModel {
             }
             let rank = orthonormal_rows(scratch);
             for i in 0..presses.len() {
-                if scratch.sizes[i] != Size::Untested {
+                if scratch.sizes[i] != Size::Untested || scratch.refits >= REFITS {
                     continue;
                 }
                 // The score test first (one derivative): only a press whose misfit leans on its
@@ -398,6 +410,7 @@ impl PressModel {
         scratch: &mut PressScratch,
     ) -> Result<f64, InverseError> {
         let m = self.measurements;
+        scratch.refits += 1;
         let PressScratch { disks, refine: refining, responses, .. } = &mut *scratch;
         disks.clear();
         disks.extend(presses.iter().map(|f| Disk {

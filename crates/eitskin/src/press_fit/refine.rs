@@ -18,7 +18,7 @@ pub const DEEPEST: f64 = 0.98;
 const ITERATIONS: usize = 12;
 
 /// Tries of a larger damping per iteration before it gives up.
-const TRIES: usize = 8;
+const TRIES: usize = 6;
 
 /// A step smaller than this, in centre and radius (m) and in drop, ends the iterations.
 const TOLERANCE: [f64; 2] = [1e-5, 1e-4];
