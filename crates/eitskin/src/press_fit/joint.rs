@@ -103,6 +103,11 @@ const SIZE_STARTS: [f64; 2] = [1.0, 1.6];
 /// Radii a fitted press may take, as multiples of the indenter's.
 const RADII: [f64; 2] = [0.5, 2.5];
 
+/// The disk a press found is, its drop within what the exact fit takes.
+fn disk_of(press: &PressFit) -> Disk {
+    Disk { centre: press.centre, radius: press.radius, drop: press.drop.clamp(0.0, DEEPEST) }
+}
+
 /// The presses whose radius is fitted, bit i for press i.
 fn fitted(sizes: &[Size]) -> u32 {
     sizes.iter().take(32).enumerate().filter(|(_, s)| **s == Size::Fitted).fold(0, |bits, (i, _)| bits | 1 << i)
@@ -299,11 +304,7 @@ impl PressModel {
         let PressScratch { disks, exact: ex, response, refine: refining, basis, .. } = scratch;
         let residual = refining.residual();
         disks.clear();
-        disks.extend(presses.iter().map(|f| Disk {
-            centre: f.centre,
-            radius: f.radius,
-            drop: f.drop.clamp(0.0, DEEPEST),
-        }));
+        disks.extend(presses.iter().map(disk_of));
         exact.presses.response_into(disks, ex, response)?;
         if !exact.presses.derivative_into(disks, i, DiskParameter::Radius, ex, response) {
             return Ok(0.0);
@@ -413,11 +414,7 @@ impl PressModel {
         scratch.refits += 1;
         let PressScratch { disks, refine: refining, responses, .. } = &mut *scratch;
         disks.clear();
-        disks.extend(presses.iter().map(|f| Disk {
-            centre: f.centre,
-            radius: f.radius,
-            drop: f.drop.clamp(0.0, DEEPEST),
-        }));
+        disks.extend(presses.iter().map(disk_of));
         let params = RefineParams {
             free_radii,
             radius_range: [RADII[0] * self.radius, RADII[1] * self.radius],
