@@ -19,7 +19,7 @@ use eitskin::chain::Chain;
 use eitskin::conductivity::{with_inclusions, Inclusion};
 use eitskin::inverse::Channels;
 use eitskin::pipeline::{Pipeline, PipelineParams};
-use eitskin::press_fit::{PressDetection, PressModel, PressModelParams, PressScratch};
+use eitskin::press_fit::{exact_model_for, PressDetection, PressModel, PressModelParams, PressScratch};
 use eitskin::touch::{detect_into, TouchScratch};
 use eitskin::{Reconstructor, ReconstructorParams, TouchParams};
 use eitskin_io::codec::{Decoder, Event, LinesDecoder};
@@ -134,7 +134,12 @@ pub fn run(args: Args) -> Result<()> {
         Ok(())
     })?;
     let press_params = PressModelParams::default();
-    let (t_press_model, press_model) = time(n.min(3), || Ok(PressModel::new(&model, background, &press_params)?))?;
+    // The press model with its exact responses, on a coarser mesh of the sensor when this one is
+    // too fine to keep its inverse whole (that mesh's build is counted).
+    let (t_press_model, press_model) = time(n.min(3), || {
+        let exact = exact_model_for(&spec, &model)?;
+        Ok(PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), background, &press_params)?)
+    })?;
     let dv: Vec<f64> = frame.iter().zip(&values).map(|(v, r)| v - r).collect();
     let starts: Vec<[f64; 2]> = touches.iter().map(|t| t.centre).collect();
     let (mut press_scratch, mut fits) = (PressScratch::default(), Vec::with_capacity(16));

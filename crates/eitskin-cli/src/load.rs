@@ -92,7 +92,7 @@ pub fn press_model(spec: &SensorSpec) -> anyhow::Result<eitskin::press_fit::Pres
     let params = eitskin::press_fit::PressModelParams::default();
     Ok(match cache_dir() {
         Some(dir) => eitskin_io::load_or_build_press_model(&dir, spec, &params)?.0,
-        None => eitskin::press_fit::PressModel::new(&spec.forward_model()?, spec.conductivity, &params)?,
+        None => eitskin_io::build_press_model(spec, &params)?,
     })
 }
 

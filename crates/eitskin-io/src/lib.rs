@@ -61,7 +61,9 @@ pub use calibration_file::{
 pub use contrast_map_file::{contrast_map_path, decode_contrast_map, encode_contrast_map, load_or_build_contrast_map};
 pub use frame_file::{parse_frame, read_frame};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
-pub use press_model_file::{decode_press_model, encode_press_model, load_or_build_press_model, press_model_path};
+pub use press_model_file::{
+    build_press_model, decode_press_model, encode_press_model, load_or_build_press_model, press_model_path,
+};
 pub use protocol_file::{parse_protocol, read_protocol};
 pub use raster_file::{write_elements_csv, write_labels_csv, write_labels_npy, write_raster_csv, write_raster_npy};
 pub use reconstructor_file::{cache_key, cache_path, decode_linearisation, encode_linearisation, load_or_build};

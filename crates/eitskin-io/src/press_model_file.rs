@@ -10,7 +10,7 @@
 
 use std::path::{Path, PathBuf};
 
-use eitskin::press_fit::{PressModel, PressModelParams, PressTable};
+use eitskin::press_fit::{exact_model_for, PressModel, PressModelParams, PressTable};
 use eitskin::SensorSpec;
 
 use crate::reconstructor_file::{cache_file, cached, key_of, Reader};
@@ -36,18 +36,29 @@ pub fn load_or_build_press_model(
     params: &PressModelParams,
 ) -> Result<(PressModel, bool), Error> {
     let key = press_model_key(spec, params)?;
-    let build = || {
-        let model = spec.forward_model()?;
-        Ok(PressModel::new(&model, spec.conductivity, params)?)
-    };
+    let build = || build_press_model(spec, params);
     let (press_model, hit) =
         cached(&cache_file(dir, "press-model", &key), &key, decode_press_model, build, encode_press_model)?;
     // The table is cached; the exact responses are one factorisation, made again.
     let press_model = match hit {
-        true => press_model.with_exact(&spec.forward_model()?, spec.conductivity)?,
+        true => {
+            let model = spec.forward_model()?;
+            let values =
+                model.measure(&spec.homogeneous(model.mesh())).map_err(eitskin::inverse::InverseError::from)?;
+            let exact = exact_model_for(spec, &model)?;
+            press_model.with_exact(exact.as_ref().unwrap_or(&model), spec.conductivity, &values)?
+        }
         false => press_model,
     };
     Ok((press_model, hit))
+}
+
+/// The press model of `spec`, its exact responses on [`exact_model_for`]'s mesh when the spec's
+/// own is too fine to keep its inverse whole.
+pub fn build_press_model(spec: &SensorSpec, params: &PressModelParams) -> Result<PressModel, Error> {
+    let model = spec.forward_model()?;
+    let exact = exact_model_for(spec, &model)?;
+    Ok(PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), spec.conductivity, params)?)
 }
 
 /// The bytes of a cache file.

@@ -284,6 +284,28 @@ impl Default for PressScratch {
     }
 }
 
+/// Triangles of the mesh the exact responses are solved on when the sensor's own mesh is too
+/// fine to keep its inverse whole ([`crate::forward::DENSE_LIMIT`] unknowns): a 10 mm press is
+/// resolved at 4,000 (the study's mesh; its presses are simulated on a mesh 3× finer).
+pub const EXACT_TRIANGLES: usize = 5000;
+
+/// The model the exact responses of `spec`'s presses are solved on, if not `model` (the spec's
+/// own): when `model` is too fine to keep its inverse whole, the spec meshed at
+/// [`EXACT_TRIANGLES`] (building the part of the inverse a fine model needs takes every column
+/// of it: 82 s at 100k triangles).
+pub fn exact_model_for(
+    spec: &crate::SensorSpec,
+    model: &ForwardModel,
+) -> Result<Option<ForwardModel>, crate::SpecError> {
+    if model.system_size() <= crate::forward::DENSE_LIMIT {
+        return Ok(None);
+    }
+    let mut coarse = spec.clone();
+    coarse.mesh.triangles = EXACT_TRIANGLES;
+    coarse.mesh.max_element_size = None;
+    coarse.forward_model().map(Some)
+}
+
 /// The largest drop a fitted press may have (a fraction of the background): all of it.
 pub const MAX_DROP: f64 = 1.0;
 
@@ -341,6 +363,18 @@ impl PressModel {
 
     /// Tabulates the responses of `model` linearised at the homogeneous `background` (S/m).
     pub fn new(model: &ForwardModel, background: f64, params: &PressModelParams) -> Result<PressModel, InverseError> {
+        PressModel::with_exact_model(model, model, background, params)
+    }
+
+    /// [`PressModel::new`], its exact responses (and ladder) solved on `exact_model`: another
+    /// mesh of the same sensor and protocol, scaled channel by channel to `model`'s values (see
+    /// [`exact_model_for`]: a coarser one when `model` is too fine to keep its inverse whole).
+    pub fn with_exact_model(
+        model: &ForwardModel,
+        exact_model: &ForwardModel,
+        background: f64,
+        params: &PressModelParams,
+    ) -> Result<PressModel, InverseError> {
         if !(params.radius > 0.0 && params.radius.is_finite()) {
             return Err(InverseError::IndenterRadius(params.radius));
         }
@@ -379,23 +413,38 @@ impl PressModel {
             ladder: Vec::new(),
             exact: None,
         };
-        let update = press_model.update(model, background)?;
-        press_model.ladder = press_model.ladder(&update, background, &locator)?;
-        press_model.exact = Some(Arc::new(ExactPresses::new(update, background)));
+        let values = solution.measurements(model.protocol());
+        let exact = press_model.exact_of(exact_model, background, &values)?;
+        press_model.ladder = press_model.ladder(&exact, &locator)?;
+        press_model.exact = Some(Arc::new(exact));
         Ok(press_model)
     }
 
-    /// The same model with the exact responses of `model` at the homogeneous `background`
-    /// (S/m), the sensor it was made for (a model read from its table has none).
-    pub fn with_exact(mut self, model: &ForwardModel, background: f64) -> Result<PressModel, InverseError> {
-        if model.protocol().measurements().len() != self.measurements {
-            return Err(InverseError::FrameLength {
-                expected: self.measurements,
-                got: model.protocol().measurements().len(),
-            });
+    /// The exact responses of `exact_model` at `background`, scaled to `values` (V, the table's
+    /// model's measurements); an error if its protocol has another number of values.
+    fn exact_of(
+        &self,
+        exact_model: &ForwardModel,
+        background: f64,
+        values: &[f64],
+    ) -> Result<ExactPresses, InverseError> {
+        let got = exact_model.protocol().measurements().len();
+        if got != self.measurements {
+            return Err(InverseError::FrameLength { expected: self.measurements, got });
         }
-        let update = self.update(model, background)?;
-        self.exact = Some(Arc::new(ExactPresses::new(update, background)));
+        Ok(ExactPresses::new(self.update(exact_model, background)?, background).scaled_to(values))
+    }
+
+    /// The same model with the exact responses of `exact_model` at the homogeneous `background`
+    /// (S/m), scaled to `values` (V, the measurements of the model the table was made from, at
+    /// that background): a model read from its table has none.
+    pub fn with_exact(
+        mut self,
+        exact_model: &ForwardModel,
+        background: f64,
+        values: &[f64],
+    ) -> Result<PressModel, InverseError> {
+        self.exact = Some(Arc::new(self.exact_of(exact_model, background, values)?));
         Ok(self)
     }
 
@@ -425,28 +474,23 @@ impl PressModel {
     /// background's factorisation by a low-rank update ([`LowRankUpdate`]).
     fn ladder(
         &self,
-        update: &LowRankUpdate,
-        background: f64,
+        exact: &ExactPresses,
         locator: &PointLocator<'_>,
     ) -> Result<Vec<[f64; LADDER.len()]>, InverseError> {
         use rayon::prelude::*;
-        let mesh = update.model().mesh();
-        let covered = disk_shares(mesh, &self.coarse, self.radius);
-        let ladder = (0..self.coarse.len()).into_par_iter().map(|j| {
+        let ladder = (0..self.coarse.len()).into_par_iter().map_init(ExactScratch::default, |scratch, j| {
             let centre = self.coarse.point(j);
             let mut contrasts = [f64::NAN; LADDER.len()];
             let mut g = vec![0.0; self.measurements];
-            if locator.locate(centre).is_none() || covered[j].is_empty() || !self.response_into(centre, &mut g) {
+            if locator.locate(centre).is_none() || !self.response_into(centre, &mut g) {
                 return Ok(contrasts);
             }
             let gg: f64 = g.iter().map(|g| g * g).sum();
             // The contrast at the two solved drops, then the rational law through them.
-            let local = update.local_rows(covered[j].iter().map(|(t, _)| *t));
             let mut solved = [0.0; 2];
+            let mut dv = vec![0.0; self.measurements];
             for (c, drop) in solved.iter_mut().zip(SOLVED) {
-                let changes: Vec<(usize, f64)> =
-                    covered[j].iter().map(|&(t, share)| (t, -drop * background * share)).collect();
-                let dv = update.measurement_change_on(&local, &changes)?;
+                exact.response_into(&[Disk { centre, radius: self.radius, drop }], scratch, &mut dv)?;
                 *c = g.iter().zip(&dv).map(|(g, d)| g * d).sum::<f64>() / gg;
             }
             let [(d1, c1), (d2, c2)] = [(SOLVED[0], solved[0]), (SOLVED[1], solved[1])];

@@ -30,6 +30,9 @@ pub struct ExactPresses {
     update: LowRankUpdate,
     buckets: TriangleBuckets,
     background: f64,
+    /// Per channel, the factor from this model's values to those Δv is given in (1 unless
+    /// [`ExactPresses::scaled_to`] another mesh of the sensor).
+    scale: Vec<f64>,
 }
 
 /// Buffers of [`ExactPresses::response_into`] and [`ExactPresses::derivative_into`].
@@ -67,7 +70,20 @@ impl ExactPresses {
     /// `update` (made at that background).
     pub fn new(update: LowRankUpdate, background: f64) -> ExactPresses {
         let buckets = TriangleBuckets::new(update.model().mesh());
-        ExactPresses { update, buckets, background }
+        let scale = vec![1.0; update.background_measurements().len()];
+        ExactPresses { update, buckets, background, scale }
+    }
+
+    /// The same responses in the units of `values`, another model's measurements of the same
+    /// sensor at the same background (V): each channel's response times its value there over v₀, so a
+    /// coarser mesh's exact responses serve a finer model's Δv. A channel whose value here is 0
+    /// or not finite keeps its scale of 1.
+    pub fn scaled_to(mut self, values: &[f64]) -> ExactPresses {
+        for ((s, v), own) in self.scale.iter_mut().zip(values).zip(self.update.background_measurements()) {
+            let ratio = v / own;
+            *s = if ratio.is_finite() && ratio != 0.0 { ratio } else { 1.0 };
+        }
+        self
     }
 
     /// The forward model.
@@ -160,6 +176,7 @@ impl ExactPresses {
             self.update.measurement_change_into(changes, group, part)?;
             out.iter_mut().zip(part.iter()).for_each(|(o, p)| *o += p);
         }
+        out.iter_mut().zip(&self.scale).for_each(|(o, s)| *o *= s);
         Ok(())
     }
 
@@ -202,7 +219,9 @@ impl ExactPresses {
                 changes.push((t, scale * rate));
             }
         });
-        self.update.derivative_into(changes, group, out)
+        let done = self.update.derivative_into(changes, group, out);
+        out.iter_mut().zip(&self.scale).for_each(|(o, s)| *o *= s);
+        done
     }
 }
 
