@@ -2,8 +2,9 @@
 //! untouched sheet beyond the stated rate, a weak press beside a strong one, three at once.
 
 use eitskin::chain::Chain;
+use eitskin::forward::ForwardModel;
 use eitskin::pipeline::{Pipeline, PipelineParams, Status};
-use eitskin::press_fit::{exact_model_for, PressDetection, PressModel, PressModelParams, PressScratch};
+use eitskin::press_fit::{exact_model_for, PressDetection, PressFit, PressModel, PressModelParams, PressScratch};
 use eitskin::sim::{Hydrogel, SimParams, VirtualSensor};
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 
@@ -177,22 +178,11 @@ fn a_wider_press_is_one_press_of_its_own_size() {
     spec.mesh.triangles = 4000;
     let model = spec.forward_model().unwrap();
     let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
-    let v0 = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
-    let std: Vec<f64> = v0.iter().map(|v| 5e-4 * v.abs()).collect();
-    let detection = PressDetection::new(&press_model, &std, f64::INFINITY, 1e-3).unwrap();
     for (radius, sized) in [(0.015, true), (0.010, false)] {
         let hydrogel = Hydrogel { indenter_radius: radius, ..Hydrogel::default() };
         let sim = SimParams { hydrogel, noise_relative: 5e-4, ..SimParams::default() };
         let mut skin = VirtualSensor::with_params(&spec, sim, 3).unwrap();
-        let reference = skin.clean_frame().unwrap();
-        skin.press([0.03, -0.02], 10.0);
-        let pressed = skin.clean_frame().unwrap();
-        let (mut whitened, mut scratch, mut found) = (Vec::new(), PressScratch::default(), Vec::new());
-        for _ in 0..3 {
-            let frame = skin.noisy(&pressed);
-            // Δv in the model's volts, as the chain gives it.
-            let dv: Vec<f64> = frame.iter().zip(&reference).zip(&v0).map(|((v, r), v0)| (v - r) * v0 / r).collect();
-            detection.detect_into(&dv, &mut whitened, &mut scratch, &mut found).unwrap();
+        for found in presses_found(&model, &press_model, &mut skin, &[([0.03, -0.02], 10.0)], 3) {
             assert_eq!(found.len(), 1, "{radius} m: {found:?}");
             let press = found[0];
             assert!(distance(press.centre, [0.03, -0.02]) < 0.002, "{radius} m: {press:?}");
@@ -203,6 +193,34 @@ fn a_wider_press_is_one_press_of_its_own_size() {
             }
         }
     }
+}
+
+/// The presses `press_model` (made on `model`) finds in each of `frames` noisy frames of `skin`
+/// pressed by `presses` (position m, force N), against its untouched clean frame, with the
+/// noise of 0.05 % per value known exactly; Δv in the model's volts, as the chain gives it.
+fn presses_found(
+    model: &ForwardModel,
+    press_model: &PressModel,
+    skin: &mut VirtualSensor,
+    presses: &[([f64; 2], f64)],
+    frames: usize,
+) -> Vec<Vec<PressFit>> {
+    let v0 = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
+    let std: Vec<f64> = v0.iter().map(|v| 5e-4 * v.abs()).collect();
+    let detection = PressDetection::new(press_model, &std, f64::INFINITY, 1e-3).unwrap();
+    skin.release();
+    let reference = skin.clean_frame().unwrap();
+    presses.iter().for_each(|(at, force)| skin.press(*at, *force));
+    let pressed = skin.clean_frame().unwrap();
+    let (mut whitened, mut scratch, mut found) = (Vec::new(), PressScratch::default(), Vec::new());
+    (0..frames)
+        .map(|_| {
+            let frame = skin.noisy(&pressed);
+            let dv: Vec<f64> = frame.iter().zip(&reference).zip(&v0).map(|((v, r), v0)| (v - r) * v0 / r).collect();
+            detection.detect_into(&dv, &mut whitened, &mut scratch, &mut found).unwrap();
+            found.clone()
+        })
+        .collect()
 }
 
 /// A model too fine to keep its inverse whole takes its exact responses from the sensor meshed
@@ -217,20 +235,10 @@ fn a_fine_model_fits_presses_with_a_coarser_meshs_exact_responses() {
     let exact = exact_model_for(&spec, &model).unwrap().expect("12,000 triangles are too many to keep the inverse");
     assert!(exact.mesh().triangles().len() < 6000);
     let press_model = PressModel::with_exact_model(&model, &exact, 1.0, &PressModelParams::default()).unwrap();
-    let v0 = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
-    let std: Vec<f64> = v0.iter().map(|v| 5e-4 * v.abs()).collect();
-    let detection = PressDetection::new(&press_model, &std, f64::INFINITY, 1e-3).unwrap();
     let sim = SimParams { noise_relative: 5e-4, refine: 1, ..SimParams::default() };
     let mut skin = VirtualSensor::with_params(&spec, sim, 5).unwrap();
-    let reference = skin.clean_frame().unwrap();
     let presses = [([0.04, -0.05], 12.0), ([-0.03, 0.04], 4.0)];
-    presses.iter().for_each(|(at, force)| skin.press(*at, *force));
-    let pressed = skin.clean_frame().unwrap();
-    let (mut whitened, mut scratch, mut found) = (Vec::new(), PressScratch::default(), Vec::new());
-    for _ in 0..3 {
-        let frame = skin.noisy(&pressed);
-        let dv: Vec<f64> = frame.iter().zip(&reference).zip(&v0).map(|((v, r), v0)| (v - r) * v0 / r).collect();
-        detection.detect_into(&dv, &mut whitened, &mut scratch, &mut found).unwrap();
+    for found in presses_found(&model, &press_model, &mut skin, &presses, 3) {
         assert_eq!(found.len(), 2, "{found:?}");
         for (at, force) in presses {
             let press =
