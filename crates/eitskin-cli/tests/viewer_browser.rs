@@ -352,7 +352,12 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
         lines.lock().unwrap().iter().find(|l| l["seq"] == seq && l.get("event").is_none()).cloned()
     });
     let (page, printed) = (&pressed["touches"][0], &line["touches"][0]);
-    assert_eq!(pressed["touches"], line["touches"], "frame {seq}: the page's touches differ from stdout's");
+    // Numbers compared as numbers: the page's JSON writes 10.0 as 10.
+    assert_eq!(
+        as_floats(&pressed["touches"]),
+        as_floats(&line["touches"]),
+        "frame {seq}: the page's touches differ from stdout's"
+    );
     let (tx, ty) = (printed["x"].as_f64().unwrap(), printed["y"].as_f64().unwrap());
     assert!((tx - x).hypot(ty - y) < 15.0, "the touch is at ({tx}, {ty}) mm, pressed at ({x}, {y})");
     let printed_force = printed["force"].as_f64().expect("a force, with the calibration");
@@ -393,4 +398,15 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
         (browser.js("return window.eitskin.status;") == "referencing").then_some(())
     });
     drop(guard);
+}
+
+/// `value` with every number as an f64 (JavaScript writes a whole float as an integer).
+fn as_floats(value: &serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    match value {
+        Value::Number(n) => n.as_f64().map_or(Value::Null, |x| serde_json::json!(x)),
+        Value::Array(items) => Value::Array(items.iter().map(as_floats).collect()),
+        Value::Object(fields) => Value::Object(fields.iter().map(|(k, v)| (k.clone(), as_floats(v))).collect()),
+        other => other.clone(),
+    }
 }

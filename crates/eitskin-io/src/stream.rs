@@ -5,7 +5,7 @@
 //! # Version
 //!
 //! The stream says its version once, in its first line, the [`Start`] event: format
-//! `"eitskin-run"`, [`VERSION`] 3, with what a reader needs to understand the rest (the length
+//! `"eitskin-run"`, [`VERSION`] 4, with what a reader needs to understand the rest (the length
 //! unit, the number of measurements). One line at the start rather than a field in every line:
 //! frames stay short, and the unit, which the numbers cannot carry, is stated once. The version
 //! goes up whenever a field or an event is added, removed or changes meaning, so the types here,
@@ -15,7 +15,8 @@
 //! decrease, which was then the only kind. Version 3 added the noise test: the start line's
 //! `average`, `peak_of` and `false_alarm_rate`, each touch's `z`, the `reference_taken` event's
 //! `threshold`, `noise` and `noise_measured`, and the `noise_updated` event; read from an older
-//! line they are absent (`null`, or 1 frame averaged and the frame's peak).
+//! line they are absent (`null`, or 1 frame averaged and the frame's peak). Version 4 added the
+//! press's `radius` (the indenter's, or fitted where the data ask for it); absent before.
 //!
 //! # Lines
 //!
@@ -23,9 +24,9 @@
 //! order; events come where they happened, between frames.
 //!
 //! ```text
-//! {"event":"start","format":"eitskin-run","version":3,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"normalised":false,"polarity":"decrease","average":1,"peak_of":"frame","false_alarm_rate":0.001}
+//! {"event":"start","format":"eitskin-run","version":4,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"normalised":false,"polarity":"decrease","average":1,"peak_of":"frame","false_alarm_rate":0.001}
 //! {"event":"reference_taken","hyperparameter":0.031,"chosen":true,"normalised":false,"channels_dropped":[],"threshold":4.6,"noise":0.0005,"noise_measured":true,"detail":"…"}
-//! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"z":48.2,"unit":7,"area":2,"force":8.7,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41}}],"counters":{"frames":11,"bad":0},"recorded":true}
+//! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"z":48.2,"unit":7,"area":2,"force":8.7,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41,"radius":10.0}}],"counters":{"frames":11,"bad":0},"recorded":true}
 //! {"event":"bad","seq":11,"reason":"frame 11 has 3 values, expected 120; …"}
 //! ```
 //!
@@ -98,7 +99,7 @@ use crate::source::Acquired;
 pub const FORMAT: &str = "eitskin-run";
 
 /// The version of the stream this crate writes and reads.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 /// Any line of the stream, for readers: an event if it has an `event` field, else a frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -258,7 +259,12 @@ impl Touch {
             area: t.area.map(|a| a + 1),
             force: t.force.map(|f| f.newtons),
             saturated: t.force.map(|f| f.saturated),
-            press: t.press.map(|p| Press { x: p.centre[0] / metres, y: p.centre[1] / metres, drop: p.drop }),
+            press: t.press.map(|p| Press {
+                x: p.centre[0] / metres,
+                y: p.centre[1] / metres,
+                drop: p.drop,
+                radius: Some(p.radius / metres),
+            }),
         }
     }
 }
@@ -294,6 +300,10 @@ pub struct Press {
     pub y: f64,
     /// The conductivity drop under the indenter, as a fraction of the background.
     pub drop: f64,
+    /// Radius of the press, in the length unit: the indenter's, or fitted (absent before
+    /// version 4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
 }
 
 /// How many frames were processed and how much input was skipped, so far.
@@ -524,7 +534,7 @@ mod tests {
             area: Some(2),
             force: Some(8.5),
             saturated: Some(false),
-            press: Some(Press { x: -50.0, y: 41.0, drop: 0.4 }),
+            press: Some(Press { x: -50.0, y: 41.0, drop: 0.4, radius: Some(10.0) }),
         };
         FrameLine {
             seq: 12,
@@ -549,7 +559,7 @@ mod tests {
         assert_eq!(
             line,
             "{\"seq\":12,\"t\":0.6,\"status\":\"ok\",\"touches\":[{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"z\":null,\"unit\":7,\
-             \"area\":2,\"force\":8.5,\"saturated\":false,\"press\":{\"x\":-50.0,\"y\":41.0,\"drop\":0.4}}],\
+             \"area\":2,\"force\":8.5,\"saturated\":false,\"press\":{\"x\":-50.0,\"y\":41.0,\"drop\":0.4,\"radius\":10.0}}],\
              \"counters\":{\"frames\":13,\"bad\":1}}\n"
         );
         assert_eq!(Line::parse(line.trim_end()).unwrap(), Line::Frame(frame()));
