@@ -125,7 +125,7 @@ const BATCH: usize = 256;
 
 /// The rows a change touches, and what the update needs of them.
 #[derive(Debug, Clone)]
-pub struct LocalRows {
+struct LocalRows {
     /// The unknowns (rows of the system) of the changed triangles' nodes, ground left out.
     rows: Vec<usize>,
     /// G_RR, |R| × |R|; `None` where the change is cheaper solved in full.
@@ -258,7 +258,7 @@ impl LowRankUpdate {
 
     /// What a change on `triangles` needs: their rows, G_RR and U_R (one sparse solve of |R|
     /// columns, or none when the inverse is kept).
-    pub fn local_rows(&self, triangles: impl IntoIterator<Item = usize>) -> LocalRows {
+    fn local_rows(&self, triangles: impl IntoIterator<Item = usize>) -> LocalRows {
         let mut rows: Vec<usize> = Vec::new();
         for t in triangles {
             for node in self.model.mesh.triangles()[t] {
@@ -306,7 +306,8 @@ impl LowRankUpdate {
     /// [`LowRankUpdate::measurement_change`] into `out` (one value per measurement; a
     /// triangle may appear more than once, its changes add). Allocates nothing once `scratch`
     /// has grown, where G_RR needs no sparse solve (the inverse kept whole, or its near part
-    /// covers the change's rows); otherwise it solves as [`LowRankUpdate::local_rows`] says.
+    /// covers the change's rows); otherwise it solves the rows' columns of K₀⁻¹, or, past
+    /// 64 of them (`SOLVED_ROWS`), the whole changed system.
     pub fn measurement_change_into(
         &self,
         changes: &[(usize, f64)],
@@ -466,11 +467,11 @@ impl LowRankUpdate {
     }
 
     /// [`LowRankUpdate::measurement_change`] for changes on the triangles of `local` (from
-    /// [`LowRankUpdate::local_rows`]), so that several changes of one place share its solve.
+    /// `local_rows`), so that several changes of one place share its solve.
     /// Panics if a changed triangle's rows are not in `local` (a caller contract).
     /// A change of many rows is solved in full (an error only if that solve fails).
     #[track_caller]
-    pub fn measurement_change_on(&self, local: &LocalRows, changes: &[(usize, f64)]) -> Result<Vec<f64>, ForwardError> {
+    fn measurement_change_on(&self, local: &LocalRows, changes: &[(usize, f64)]) -> Result<Vec<f64>, ForwardError> {
         let Some(green) = &local.green else {
             let mut sigma = self.conductivity.clone();
             changes.iter().for_each(|&(t, delta)| sigma[t] += delta);

@@ -14,7 +14,7 @@ mod jacobian;
 mod low_rank;
 
 pub(crate) use low_rank::{grow, room, DenseLu};
-pub use low_rank::{ChangeScratch, LocalRows, LowRankUpdate, DENSE_LIMIT};
+pub use low_rank::{ChangeScratch, LowRankUpdate, DENSE_LIMIT};
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};

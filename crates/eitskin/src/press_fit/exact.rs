@@ -120,8 +120,8 @@ impl ExactPresses {
         self.joint() && count <= JOINT_PRESSES
     }
 
-    /// The triangles `disk` covers with the share of each covered, after `share` maps the
-    /// disk (centre, radius) to the value pushed with each triangle, appended to `out`.
+    /// Calls `push` with each triangle (index, corners, area) whose bounding box may meet `disk`
+    /// grown by `margin` (m), each once; `near` is a buffer.
     fn each_triangle(
         &self,
         disk: &Disk,
