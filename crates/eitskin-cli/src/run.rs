@@ -69,8 +69,9 @@ pub struct Args {
     /// Stop after this many frames (default: at the end of the source, never for `sim`).
     #[arg(long)]
     frames: Option<u64>,
-    /// Frames averaged into the reference; with two or more, each channel's noise is measured
-    /// from them (and then from every frame without a touch).
+    /// Frames averaged into the reference, counted in frames imaged (with `--average N`, N times
+    /// as many are taken); with two or more, each channel's noise is measured from them (and
+    /// then from every frame without a touch).
     #[arg(long, default_value_t = 10)]
     reference_frames: usize,
     /// False touches allowed per frame without a touch, in (0, 0.5]: a touch's peak must stand
@@ -194,7 +195,11 @@ pub fn run(args: Args) -> Result<()> {
         } else {
             String::new()
         };
-        eprintln!("eitskin run: averaging {} frames delays a change by {frames} frames on average{at}", args.average);
+        eprintln!(
+            "eitskin run: averaging {} frames delays a change by {frames} frames on average{at}; the reference takes {} frames",
+            args.average,
+            params.frames_in_reference()
+        );
     }
     let kind = match args.values.as_str() {
         "magnitude" => ValueKind::Magnitude,
@@ -235,7 +240,7 @@ pub fn run(args: Args) -> Result<()> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     let mut start =
-        Start::new(args.source.to_string(), spec.length_unit.symbol(), protocol.len(), args.reference_frames);
+        Start::new(args.source.to_string(), spec.length_unit.symbol(), protocol.len(), params.frames_in_reference());
     start.normalised = imaging.normalized;
     start.polarity = args.polarity.name().to_owned();
     start.average = usize::from(args.average);

@@ -71,7 +71,10 @@ pub enum NoiseFloor {
 /// touches at 1 false touch per 1,000 frames, images single frames and keeps the chain's λ.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PipelineParams {
-    /// Frames averaged into the reference.
+    /// Frames averaged into the reference, counted in frames imaged: with [`average`](Self::average)
+    /// N the reference is the mean of `reference_frames` × N frames
+    /// ([`frames_in_reference`](Self::frames_in_reference)), so that it stays as much quieter
+    /// than a frame imaged as without averaging (its noise is in every Δv).
     pub reference_frames: usize,
     /// Baseline update weight α per frame without a touch (0 = off), dimensionless.
     pub baseline_rate: f64,
@@ -94,6 +97,13 @@ impl Default for PipelineParams {
             auto_hyperparameter: false,
             average: 1,
         }
+    }
+}
+
+impl PipelineParams {
+    /// The frames the reference is the mean of: `reference_frames` × `average` (each at least 1).
+    pub fn frames_in_reference(&self) -> usize {
+        self.reference_frames.max(1).saturating_mul(self.average.max(1))
     }
 }
 
@@ -170,7 +180,7 @@ impl Pipeline {
             chain,
             params,
             reference: Vec::new(),
-            collected: Vec::with_capacity(params.reference_frames.max(1)),
+            collected: Vec::with_capacity(params.frames_in_reference()),
             missing: vec![false; count],
             noise_peak: 0.0,
             newly_dropped: Vec::with_capacity(count),
@@ -379,7 +389,7 @@ impl Pipeline {
 
     /// Adds a frame to the reference, and takes it once enough are collected.
     fn collect(&mut self, frame: &[f64]) -> Result<Status, InverseError> {
-        let needed = self.params.reference_frames.max(1);
+        let needed = self.params.frames_in_reference();
         let used: Vec<bool> = self.missing.iter().zip(frame).map(|(missing, v)| !missing && v.is_finite()).collect();
         let lost = |m: usize| self.configured[m] && !self.missing[m] && !frame[m].is_finite();
         let new = (0..frame.len()).filter(|&m| lost(m)).count();
@@ -586,6 +596,21 @@ mod tests {
             pipeline.process(&skin.frame().unwrap()).unwrap();
         }
         assert!(pipeline.dropped_channels().is_empty());
+    }
+
+    /// Averaging N frames takes a reference N times as long: its noise, in every Δv, stays the
+    /// same share of a frame imaged's.
+    #[test]
+    fn averaging_lengthens_the_reference() {
+        let (pipeline, mut skin) = setup();
+        let params = PipelineParams { reference_frames: 3, average: 4, ..PipelineParams::default() };
+        let mut pipeline = Pipeline::new(pipeline.chain().clone(), params);
+        for k in 1..=12 {
+            let status = pipeline.process(&skin.frame().unwrap()).unwrap();
+            assert_eq!(status, Status::Referencing { collected: k, needed: 12 });
+        }
+        assert_eq!(pipeline.noise().map(|n| n.reference_frames()), Some(12));
+        assert_eq!(pipeline.process(&skin.frame().unwrap()).unwrap(), Status::Processed);
     }
 
     #[test]

@@ -93,7 +93,7 @@ pub struct SweepParams {
     pub untouched: usize,
     /// Calibration presses (of the model's kind) per level.
     pub calibration: usize,
-    /// Frames in each reference.
+    /// Frames in each reference, counted in frames imaged (×`average` frames taken).
     pub reference_frames: usize,
     /// False touches per frame without one that the noise tests allow.
     pub false_alarm_rate: f64,
@@ -205,7 +205,6 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
             add_relative_noise(&mut frame, relative, &mut noise_rng);
             frame
         };
-        let reference: Vec<Vec<f64>> = (0..params.reference_frames).map(|_| noisy(&untouched)).collect();
         let pipeline_params = PipelineParams {
             reference_frames: params.reference_frames,
             noise_floor: crate::pipeline::NoiseFloor::FalseAlarm { rate: params.false_alarm_rate },
@@ -213,6 +212,7 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
             average: level.average,
             ..PipelineParams::default()
         };
+        let reference: Vec<Vec<f64>> = (0..pipeline_params.frames_in_reference()).map(|_| noisy(&untouched)).collect();
         // The press method's calibration: one curve of the fitted drop per kind, from presses of
         // that kind (a user calibrates their own gel and indenter); the 15 mm indenter is read
         // through the 10 mm one's, as a user pressing with another indenter would.
