@@ -68,6 +68,11 @@ impl Scan {
         let norms = points.iter().map(|&j| model.norms[j]).collect();
         Scan { points, matrix, norms }
     }
+
+    /// The row of response-grid point `point`, if it is a scan point.
+    pub(crate) fn row(&self, point: usize) -> Option<usize> {
+        self.points.binary_search(&point).ok()
+    }
 }
 
 /// The exact fit of presses found: their exact responses, Δv (V) and each channel's weight

@@ -10,8 +10,9 @@
 //! - each press's radius is fitted too, if that lowers the misfit by more than chance would
 //!   ([`SIZE_TEST`]): a wider or narrower indenter, or a profile whose contact grows with force,
 //!   is then one press of its own size, not several of the indenter's;
-//! - a new press is placed where the largest z is left, if it passes (not where a press was
-//!   taken off);
+//! - a new press is placed where the largest z of the fit's misfit is left, if it passes (not
+//!   where a press was taken off), and kept if the misfit falls by as much (χ² by threshold²,
+//!   the likelihood-ratio test);
 //!
 //! until none of these changes anything.
 
@@ -160,7 +161,7 @@ impl PressModel {
         room(&mut scratch.disks, MAX_PRESSES);
         scratch.sizes.clear();
         scratch.sizes.resize(presses.len(), Size::Untested);
-        let mut cost = self.refit(exact, dv, presses, scratch)?;
+        let mut cost = self.refit(exact, presses, scratch)?;
         scratch.rejected.clear();
         scratch.refits = 0;
         for _ in 0..ROUNDS {
@@ -171,7 +172,7 @@ impl PressModel {
             if let Some(weaker) = self.overlapping(presses) {
                 scratch.sizes.remove(weaker);
                 scratch.rejected.push(presses.remove(weaker).centre);
-                cost = self.refit(exact, dv, presses, scratch)?;
+                cost = self.refit(exact, presses, scratch)?;
                 continue;
             }
             let failing = presses
@@ -182,7 +183,7 @@ impl PressModel {
             if let Some((i, _)) = failing {
                 scratch.sizes.remove(i);
                 scratch.rejected.push(presses.remove(i).centre);
-                cost = self.refit(exact, dv, presses, scratch)?;
+                cost = self.refit(exact, presses, scratch)?;
                 continue;
             }
             let (mut changed, mut stale) = (false, false);
@@ -201,7 +202,7 @@ impl PressModel {
                 save(presses, scratch, m);
                 presses[i] = candidate;
                 let size = std::mem::replace(&mut scratch.sizes[i], Size::Untested);
-                let moved = self.refit(exact, dv, presses, scratch)?;
+                let moved = self.refit(exact, presses, scratch)?;
                 // Clearly better, not the same place to rounding.
                 if moved < cost - 1.0 {
                     (cost, changed) = (moved, true);
@@ -220,7 +221,7 @@ impl PressModel {
             // a wider or narrower press could by chance.
             // The sizes' test reads the last fit's misfit and Jacobian: of these presses.
             if stale {
-                cost = self.refit(exact, dv, presses, scratch)?;
+                cost = self.refit(exact, presses, scratch)?;
             }
             let rank = orthonormal_rows(scratch);
             for i in 0..presses.len() {
@@ -239,18 +240,18 @@ impl PressModel {
                     let size_j = scratch.sizes.remove(j);
                     presses.remove(j);
                     let i = if j < i { i - 1 } else { i };
-                    let (merged, press) = self.sized(exact, dv, presses, i, scratch)?;
+                    let (merged, press) = self.sized(exact, presses, i, scratch)?;
                     if merged < cost + threshold * threshold {
                         presses[i] = press;
                         scratch.sizes[i] = Size::Fitted;
-                        cost = self.refit(exact, dv, presses, scratch)?;
+                        cost = self.refit(exact, presses, scratch)?;
                         changed = true;
                         break;
                     }
                     restore(presses, scratch, m);
                     scratch.sizes.insert(j, size_j);
                 }
-                let (sized, press) = self.sized(exact, dv, presses, i, scratch)?;
+                let (sized, press) = self.sized(exact, presses, i, scratch)?;
                 if cost - sized > SIZE_TEST {
                     presses[i] = press;
                     scratch.sizes[i] = Size::Fitted;
@@ -259,26 +260,51 @@ impl PressModel {
                     scratch.sizes[i] = Size::Nominal;
                 }
                 // Back to these presses' own fit (and misfit and Jacobian).
-                cost = self.refit(exact, dv, presses, scratch)?;
+                cost = self.refit(exact, presses, scratch)?;
             }
             if changed {
                 continue;
             }
             if presses.len() < MAX_PRESSES {
                 // Not where a press was taken off: it would only come back.
-                self.others_into(dv, presses, usize::MAX, scratch);
+                // The fit's own misfit: Δv less the presses' joint response (less the sum of
+                // their own responses would leave how strong presses change each other's
+                // field, which looks like a press between them).
+                let PressScratch { residual, refine: refining, centres, .. } = &mut *scratch;
+                residual.clear();
+                residual.extend_from_slice(refining.residual());
+                centres.clear();
+                centres.extend(presses.iter().map(|p| p.centre));
                 unexplained_into(scan, scratch);
                 let PressScratch { residual, response, centres, correlations, unexplained, rejected, .. } =
                     &mut *scratch;
                 centres.extend_from_slice(rejected);
                 let best = self.best_point_in(scan, residual, centres, unexplained, correlations);
                 let new = best.filter(|(_, z)| *z >= threshold).and_then(|(j, _)| {
-                    self.fit_one(residual, self.grid.point(j), window, response).filter(|f| f.drop >= MIN_DROP)
+                    let mut press = self.fit_one(residual, self.grid.point(j), window, response)?;
+                    // Its contrast in the presses' joint fit, linearised: the others give back
+                    // what they took of it, so it grows by gᵀg over the part they cannot take.
+                    let row = scan.row(j)?;
+                    press.contrast *= scan.norms[row] / unexplained[row];
+                    press.drop = self.drop(press.contrast, press.centre);
+                    (press.drop >= MIN_DROP).then_some(press)
                 });
                 if let Some(new) = new {
+                    // Kept if the presses fitted with it explain Δv better by as much as the
+                    // z test asks (the likelihood ratio: χ² falls by at least threshold²).
+                    save(presses, scratch, m);
                     presses.push(new);
                     scratch.sizes.push(Size::Untested);
-                    cost = self.refit(exact, dv, presses, scratch)?;
+                    let with = self.refit(exact, presses, scratch)?;
+                    if with <= cost - threshold * threshold {
+                        cost = with;
+                    } else {
+                        scratch.sizes.pop();
+                        restore(presses, scratch, m);
+                        scratch.rejected.push(new.centre);
+                        // The sizes' test and the next scan read the fit of these presses.
+                        cost = self.refit(exact, presses, scratch)?;
+                    }
                     continue;
                 }
             }
@@ -326,7 +352,6 @@ impl PressModel {
     fn sized(
         &self,
         exact: Exact<'_>,
-        dv: &[f64],
         presses: &mut [PressFit],
         i: usize,
         scratch: &mut PressScratch,
@@ -339,7 +364,7 @@ impl PressModel {
             presses[..k].copy_from_slice(&base[..k]);
             presses[i].radius *= widen;
             presses[i].drop /= widen * widen;
-            let cost = self.refit_with(exact, dv, presses, fitted(&scratch.sizes) | 1 << i, scratch)?;
+            let cost = self.refit_with(exact, presses, fitted(&scratch.sizes) | 1 << i, scratch)?;
             if cost < best.0 {
                 best = (cost, presses[i]);
             }
@@ -389,23 +414,22 @@ impl PressModel {
     }
 
     /// Fits `presses` together with their exact responses, in place: each one's whitened exact
-    /// response into its row of the scratch's responses, and its z against Δv less the
-    /// others'. The misfit left (χ²).
+    /// response (alone) into its row of the scratch's responses, and its z against Δv less the
+    /// others as fitted together (the misfit with its own response put back). The misfit left
+    /// (χ²).
     fn refit(
         &self,
         exact: Exact<'_>,
-        dv: &[f64],
         presses: &mut [PressFit],
         scratch: &mut PressScratch,
     ) -> Result<f64, InverseError> {
-        self.refit_with(exact, dv, presses, fitted(&scratch.sizes), scratch)
+        self.refit_with(exact, presses, fitted(&scratch.sizes), scratch)
     }
 
     /// [`PressModel::refit`] with the radii of `free_radii` (bit i: press i) fitted.
     fn refit_with(
         &self,
         exact: Exact<'_>,
-        dv: &[f64],
         presses: &mut [PressFit],
         free_radii: u32,
         scratch: &mut PressScratch,
@@ -427,12 +451,14 @@ impl PressModel {
         for (press, disk) in presses.iter_mut().zip(disks.iter()) {
             (press.centre, press.radius, press.drop) = (disk.centre, disk.radius, disk.drop);
         }
-        for i in 0..presses.len() {
-            self.others_into(dv, presses, i, scratch);
+        // Each press's z against the fit's misfit with its own response put back: Δv less the
+        // others as they are together.
+        let misfit = scratch.refine.residual();
+        for (i, press) in presses.iter_mut().enumerate() {
             let g = &scratch.responses[i * m..(i + 1) * m];
             let gg: f64 = g.iter().map(|g| g * g).sum();
-            let gr: f64 = g.iter().zip(&scratch.residual).map(|(g, r)| g * r).sum();
-            presses[i].z = if gg > 0.0 { gr / gg.sqrt() } else { 0.0 };
+            let gr: f64 = g.iter().zip(misfit).map(|(g, r)| g * (r + g)).sum();
+            press.z = if gg > 0.0 { gr / gg.sqrt() } else { 0.0 };
         }
         Ok(cost)
     }
