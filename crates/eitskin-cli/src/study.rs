@@ -32,8 +32,9 @@ pub struct Args {
     #[arg(long)]
     repeats: Option<usize>,
     /// Noise sweep: frames with one press per press kind and level (half as many with two, and
-    /// with three), 0–10,000; 0 leaves the sweep out.
-    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(0..=10_000))]
+    /// with three: 60 presses each, so that one press missed is 1.7 %), 0–10,000; 0 leaves the
+    /// sweep out.
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u32).range(0..=10_000))]
     sweep_presses: u32,
     /// Noise sweep: untouched frames per level, for the false touches, 1–100,000.
     #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(1..=100_000))]

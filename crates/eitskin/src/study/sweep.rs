@@ -20,10 +20,14 @@
 //! it (each touch matched once, nearest first); touches left over are false, and so is any
 //! touch on an untouched frame.
 //!
+//! The levels run at once, one per thread; each draws its own noise, so the numbers do not
+//! depend on the thread count.
+//!
 //! Not for: the paper's design (that is [`super::run`]).
 
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
+use rayon::prelude::*;
 
 use super::{Progress, StudyError};
 use crate::calibration::Calibration;
@@ -115,7 +119,7 @@ impl Default for SweepParams {
                 level(80.0, 1),
                 level(90.0, 1),
             ],
-            scenes: [30, 15, 15],
+            scenes: [60, 30, 30],
             untouched: 1000,
             calibration: 60,
             reference_frames: 10,
@@ -194,95 +198,153 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
         }
     }
 
-    let mut rows = Vec::new();
-    for (l, level) in params.levels.iter().enumerate() {
-        progress("sweep: noise levels", l, params.levels.len());
-        // The virtual sensor's noise: independent, Gaussian, relative to each value.
-        let mut noise_rng = StdRng::seed_from_u64(params.seed ^ (l as u64 + 1).wrapping_mul(0x9e37_79b9));
-        let relative = level.relative();
-        let mut noisy = |clean: &[f64]| -> Vec<f64> {
-            let mut frame = clean.to_vec();
-            add_relative_noise(&mut frame, relative, &mut noise_rng);
-            frame
-        };
-        let pipeline_params = PipelineParams {
-            reference_frames: params.reference_frames,
-            noise_floor: crate::pipeline::NoiseFloor::FalseAlarm { rate: params.false_alarm_rate },
-            auto_hyperparameter: true,
-            average: level.average,
-            ..PipelineParams::default()
-        };
-        let reference: Vec<Vec<f64>> = (0..pipeline_params.frames_in_reference()).map(|_| noisy(&untouched)).collect();
-        // The press method's calibration: one curve of the fitted drop per kind, from presses of
-        // that kind (a user calibrates their own gel and indenter); the 15 mm indenter is read
-        // through the 10 mm one's, as a user pressing with another indenter would.
-        let mut fitting = Pipeline::new(
-            Chain::new(recon.clone(), TouchParams::default()).with_press_model(press_model.clone()),
-            pipeline_params,
-        );
-        for frame in &reference {
-            fitting.process(frame)?;
-        }
-        let mean_reference = fitting.reference().map(<[f64]>::to_vec).unwrap_or_default();
-        let mut calibrations: Vec<Calibration> = Vec::new();
-        for clean in &calibration_clean {
-            let Some(clean) = clean else {
-                calibrations.push(calibrations[0].clone());
-                continue;
-            };
-            let labelled: Vec<LabelledFrame> = calibration_presses
-                .iter()
-                .zip(clean)
-                .map(|(p, clean)| LabelledFrame {
-                    position: p[0].position,
-                    force: p[0].force,
-                    frame: averaged(&mut noisy, clean, level.average),
+    // The levels at once, each on its own thread (their noise is drawn per level, so the rows
+    // are the same however many threads there are); progress as each level ends.
+    let setup = Setup { params, recon: &recon, press_model: &press_model, array: &array, kinds: &kinds };
+    let (untouched, calibration_presses) = (&untouched, &calibration_presses);
+    let (calibration_clean, scenes) = (&calibration_clean, &scenes);
+    let levels = params.levels.len();
+    progress("sweep: noise levels", 0, levels);
+    let (done, finished) = std::sync::mpsc::channel();
+    let per_level = std::thread::scope(|threads| {
+        let work = threads.spawn(move || {
+            params
+                .levels
+                .par_iter()
+                .enumerate()
+                .map_with(done, |done, (l, level)| {
+                    let rows = level_rows(&setup, l, level, untouched, calibration_presses, calibration_clean, scenes);
+                    let _ = done.send(());
+                    rows
                 })
-                .collect();
-            let mut chain = fitting.chain().clone().with_strength(Strength::FittedDrop)?;
-            let samples: Vec<_> = chain.samples(&mean_reference, &array, &labelled)?.into_iter().flatten().collect();
-            calibrations.push(Calibration::fit_strength(&samples, 1, Strength::FittedDrop)?);
+                .collect::<Vec<_>>()
+        });
+        for k in 0..levels {
+            if finished.recv().is_err() {
+                break;
+            }
+            progress("sweep: noise levels", k + 1, levels);
         }
-        let presses_in_dv = |calibration: Calibration| -> Result<Chain, StudyError> {
-            Ok(Chain::new(recon.clone(), TouchParams::default())
-                .with_press_model(press_model.clone())
-                .with_calibration(array.clone(), calibration)?)
+        work.join()
+    });
+    // A level that panicked panics here, as it would have without the threads.
+    let per_level = per_level.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+    let mut rows = Vec::new();
+    for level in per_level {
+        rows.extend(level?);
+    }
+    Ok(SweepReport { rows, max_force: FORCES[1] })
+}
+
+/// What every level's rows are made from: the sweep's settings, the chains' parts and the
+/// kinds of press.
+struct Setup<'a> {
+    params: &'a SweepParams,
+    recon: &'a Reconstructor,
+    press_model: &'a PressModel,
+    array: &'a PseudoArray,
+    kinds: &'a [PressKind],
+}
+
+/// The rows of level `l`: every method on untouched frames and on each kind's scenes (kind,
+/// presses, clean frame), calibrated on `calibration_presses` (their clean frames per kind, or
+/// `None` for a kind read through the model's calibration).
+fn level_rows(
+    setup: &Setup<'_>,
+    l: usize,
+    level: &Level,
+    untouched: &[f64],
+    calibration_presses: &[Vec<Press>],
+    calibration_clean: &[Option<Vec<Vec<f64>>>],
+    scenes: &[(usize, Vec<Press>, Vec<f64>)],
+) -> Result<Vec<SweepRow>, StudyError> {
+    let Setup { params, recon, press_model, array, kinds } = *setup;
+    let mut rows = Vec::new();
+    // The virtual sensor's noise: independent, Gaussian, relative to each value.
+    let mut noise_rng = StdRng::seed_from_u64(params.seed ^ (l as u64 + 1).wrapping_mul(0x9e37_79b9));
+    let relative = level.relative();
+    let mut noisy = |clean: &[f64]| -> Vec<f64> {
+        let mut frame = clean.to_vec();
+        add_relative_noise(&mut frame, relative, &mut noise_rng);
+        frame
+    };
+    let pipeline_params = PipelineParams {
+        reference_frames: params.reference_frames,
+        noise_floor: crate::pipeline::NoiseFloor::FalseAlarm { rate: params.false_alarm_rate },
+        auto_hyperparameter: true,
+        average: level.average,
+        ..PipelineParams::default()
+    };
+    let reference: Vec<Vec<f64>> = (0..pipeline_params.frames_in_reference()).map(|_| noisy(untouched)).collect();
+    // The press method's calibration: one curve of the fitted drop per kind, from presses of
+    // that kind (a user calibrates their own gel and indenter); the 15 mm indenter is read
+    // through the 10 mm one's, as a user pressing with another indenter would.
+    let mut fitting = Pipeline::new(
+        Chain::new(recon.clone(), TouchParams::default()).with_press_model(press_model.clone()),
+        pipeline_params,
+    );
+    for frame in &reference {
+        fitting.process(frame)?;
+    }
+    let mean_reference = fitting.reference().map(<[f64]>::to_vec).unwrap_or_default();
+    let mut calibrations: Vec<Calibration> = Vec::new();
+    for clean in calibration_clean {
+        let Some(clean) = clean else {
+            calibrations.push(calibrations[0].clone());
+            continue;
         };
-        let image = || Chain::new(recon.clone(), TouchParams::default());
-        let mut methods: Vec<(&'static str, Vec<Chain>)> = vec![("image", vec![image(); kinds.len()])];
-        methods.push(("presses in Δv", calibrations.into_iter().map(presses_in_dv).collect::<Result<_, _>>()?));
-        for (method, chains) in methods {
-            // One pipeline per kind (its own calibration), each from the same reference frames.
-            let mut pipelines: Vec<Pipeline> = chains.into_iter().map(|c| Pipeline::new(c, pipeline_params)).collect();
-            for pipeline in &mut pipelines {
-                for frame in &reference {
-                    pipeline.process(frame)?;
-                }
+        let labelled: Vec<LabelledFrame> = calibration_presses
+            .iter()
+            .zip(clean)
+            .map(|(p, clean)| LabelledFrame {
+                position: p[0].position,
+                force: p[0].force,
+                frame: averaged(&mut noisy, clean, level.average),
+            })
+            .collect();
+        let mut chain = fitting.chain().clone().with_strength(Strength::FittedDrop)?;
+        let samples: Vec<_> = chain.samples(&mean_reference, array, &labelled)?.into_iter().flatten().collect();
+        calibrations.push(Calibration::fit_strength(&samples, 1, Strength::FittedDrop)?);
+    }
+    let presses_in_dv = |calibration: Calibration| -> Result<Chain, StudyError> {
+        Ok(Chain::new(recon.clone(), TouchParams::default())
+            .with_press_model(press_model.clone())
+            .with_calibration(array.clone(), calibration)?)
+    };
+    let image = || Chain::new(recon.clone(), TouchParams::default());
+    let mut methods: Vec<(&'static str, Vec<Chain>)> = vec![("image", vec![image(); kinds.len()])];
+    methods.push(("presses in Δv", calibrations.into_iter().map(presses_in_dv).collect::<Result<_, _>>()?));
+    for (method, chains) in methods {
+        // One pipeline per kind (its own calibration), each from the same reference frames.
+        let mut pipelines: Vec<Pipeline> = chains.into_iter().map(|c| Pipeline::new(c, pipeline_params)).collect();
+        for pipeline in &mut pipelines {
+            for frame in &reference {
+                pipeline.process(frame)?;
             }
-            // Untouched frames.
-            let mut tally = Tally::default();
-            for _ in 0..params.untouched {
-                let frame = noisy(&untouched);
-                pipelines[0].process(&frame)?;
-                tally.frame(&[], pipelines[0].touches());
-            }
-            rows.push(tally.row(*level, "", 0, method));
-            // Pressed frames, each after `average` frames of its press so the mean holds it alone.
-            for (k, (kind, pipeline)) in kinds.iter().zip(&mut pipelines).enumerate() {
-                for count in 1..=3 {
-                    let mut tally = Tally::default();
-                    for (_, presses, clean) in scenes.iter().filter(|(s, p, _)| *s == k && p.len() == count) {
-                        for _ in 0..level.average.max(1) {
-                            pipeline.process(&noisy(clean))?;
-                        }
-                        tally.frame(presses, pipeline.touches());
+        }
+        // Untouched frames.
+        let mut tally = Tally::default();
+        for _ in 0..params.untouched {
+            let frame = noisy(untouched);
+            pipelines[0].process(&frame)?;
+            tally.frame(&[], pipelines[0].touches());
+        }
+        rows.push(tally.row(*level, "", 0, method));
+        // Pressed frames, each after `average` frames of its press so the mean holds it alone.
+        for (k, (kind, pipeline)) in kinds.iter().zip(&mut pipelines).enumerate() {
+            for count in 1..=3 {
+                let mut tally = Tally::default();
+                for (_, presses, clean) in scenes.iter().filter(|(s, p, _)| *s == k && p.len() == count) {
+                    for _ in 0..level.average.max(1) {
+                        pipeline.process(&noisy(clean))?;
                     }
-                    rows.push(tally.row(*level, kind.name, count, method));
+                    tally.frame(presses, pipeline.touches());
                 }
+                rows.push(tally.row(*level, kind.name, count, method));
             }
         }
     }
-    Ok(SweepReport { rows, max_force: FORCES[1] })
+    Ok(rows)
 }
 
 /// The mean of `average` noisy frames of `clean`.
