@@ -8,7 +8,7 @@
 //! | strength | value | unit looked up at | needs |
 //! |---|---|---|---|
 //! | [`Strength::Peak`] | the image's peak, S/m (the paper's) | touch centre | — |
-//! | [`Strength::FittedDrop`] | drop of the press fitted to Δv (0 if none fits) | press centre | [`PressModel`](crate::press_fit::PressModel) |
+//! | [`Strength::FittedDrop`] | drop of the press fitted to Δv, at the indenter's radius (0 if none fits) | press centre | [`PressModel`](crate::press_fit::PressModel) |
 //! | [`Strength::Sensitivity`] | peak ÷ S(centre), S(x) the peak of a reference press there | touch centre | [`ContrastMap`] |
 //! | [`Strength::ContrastPeak`] | the drop whose simulated peak at the centre is the peak | touch centre | [`ContrastMap`] |
 //! | [`Strength::ContrastVolume`] | the same from the touch's volume | touch centre | [`ContrastMap`] |
@@ -33,7 +33,8 @@ pub enum Strength {
     /// The peak of the touch's image, in S/m (the paper's).
     #[default]
     Peak,
-    /// The drop of the press fitted to Δv ([`crate::press_fit`]), a fraction of the background;
+    /// The drop of the press fitted to Δv ([`crate::press_fit`]), a fraction of the background,
+    /// as a press of the indenter's radius ([`PressFit::equivalent_drop`](crate::press_fit::PressFit::equivalent_drop));
     /// its unit is looked up at the fitted centre.
     FittedDrop,
     /// The peak divided by the sensitivity S(x) at the touch's centre (dimensionless): the
@@ -114,9 +115,10 @@ impl Strength {
             Strength::Peak => touch.peak,
             // A touch with nothing in Δv that looks like a press has no drop.
             Strength::FittedDrop => {
-                return Some(
-                    press.map_or(Reading { centre: at, value: 0.0 }, |p| Reading { centre: p.centre, value: p.drop }),
-                )
+                return Some(press.map_or(Reading { centre: at, value: 0.0 }, |p| Reading {
+                    centre: p.centre,
+                    value: p.equivalent_drop,
+                }))
             }
             Strength::Sensitivity => touch.peak / map?.sensitivity(at),
             Strength::ContrastPeak => map?.drop(touch.peak, at, false),

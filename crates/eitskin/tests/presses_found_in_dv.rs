@@ -170,8 +170,8 @@ fn several_presses_keep_their_own_drops() {
 /// A 15 mm indenter on a model of 10 mm: a strong press is one press, wider than the indenter
 /// (the linear search may split it in two; the exact fit merges and sizes it). At 0.05 % noise
 /// its size is only roughly known: the misfit changes little along d·r² = constant, so the
-/// radius found is 12–21 mm and its drop is not asserted. A 10 mm press keeps the indenter's
-/// radius (its misfit does not ask for another) and the gel's drop.
+/// radius found is 12–21 mm; its drop × area is known better than its drop. A 10 mm press keeps
+/// the indenter's radius (its misfit does not ask for another) and the gel's drop.
 #[test]
 fn a_wider_press_is_one_press_of_its_own_size() {
     let mut spec = SensorSpec::square_hydrogel();
@@ -187,7 +187,11 @@ fn a_wider_press_is_one_press_of_its_own_size() {
             let press = found[0];
             assert!(distance(press.centre, [0.03, -0.02]) < 0.002, "{radius} m: {press:?}");
             if sized {
-                assert!(press.radius > 0.012, "{radius} m: {press:?}");
+                // The drop × area varies less along the misfit's valley than either: as a 10 mm
+                // press, 2.25 times the drop, found within 20 % (the drop alone 26–35 % off).
+                let equivalent = hydrogel.drop(10.0) * (radius / 0.01).powi(2);
+                let off = press.equivalent_drop / equivalent - 1.0;
+                assert!(press.radius > 0.012 && off.abs() < 0.25, "{radius} m: {press:?}, {off}");
             } else {
                 assert!(press.radius == radius && (press.drop - hydrogel.drop(10.0)).abs() < 0.03, "{press:?}");
             }
