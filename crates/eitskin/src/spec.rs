@@ -22,6 +22,18 @@ pub enum SpecError {
         /// The value found (SI units).
         value: f64,
     },
+    /// A point whose coordinates are not both finite numbers.
+    #[error("`{key}`: point {point} is ({x}, {y}); both coordinates must be finite numbers")]
+    NotFinitePoint {
+        /// `outline.points` or `electrodes.positions`.
+        key: &'static str,
+        /// 1-based point.
+        point: usize,
+        /// Its x, as given.
+        x: f64,
+        /// Its y, as given.
+        y: f64,
+    },
     /// A polygon needs three corners.
     #[error("`outline.points` needs at least 3 points, got {got}")]
     TooFewPoints {
@@ -486,6 +498,7 @@ impl SensorSpec {
                 if positions.len() != count {
                     return Err(SpecError::PositionCount { expected: count, got: positions.len() });
                 }
+                finite_points("electrodes.positions", positions)?;
                 positions
                     .iter()
                     .enumerate()
@@ -514,6 +527,7 @@ impl SensorSpec {
             }
             Outline::Circle { radius } => positive("outline.radius", *radius),
             Outline::Polygon { points } => {
+                finite_points("outline.points", points)?;
                 if points.len() < 3 {
                     return Err(SpecError::TooFewPoints { got: points.len() });
                 }
@@ -586,6 +600,15 @@ impl SensorSpec {
     }
 }
 
+/// Every point of `points` finite: a NaN corner passes every comparison the geometry makes
+/// (no crossing, no orientation), and the mesher's triangulation then never ends.
+fn finite_points(key: &'static str, points: &[[f64; 2]]) -> Result<(), SpecError> {
+    match points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
+        Some(k) => Err(SpecError::NotFinitePoint { key, point: k + 1, x: points[k][0], y: points[k][1] }),
+        None => Ok(()),
+    }
+}
+
 fn positive(key: &'static str, value: f64) -> Result<(), SpecError> {
     if value > 0.0 && value.is_finite() {
         Ok(())
@@ -627,6 +650,27 @@ mod tests {
     fn with(outline: Outline, placement: Placement, numbering: Numbering) -> SensorSpec {
         let paper = SensorSpec::square_hydrogel();
         SensorSpec { outline, electrodes: ElectrodeSpec { placement, numbering, ..paper.electrodes }, ..paper }
+    }
+
+    /// A corner or an electrode that is not a finite number is named before any geometry is
+    /// built (a NaN corner used to send the mesher's triangulation into a loop).
+    #[test]
+    fn a_point_that_is_not_finite_is_named() {
+        let square: Vec<[f64; 2]> = vec![[-0.1, -0.1], [0.1, -0.1], [0.1, 0.1], [-0.1, 0.1]];
+        let mut corners = square.clone();
+        corners[2] = [f64::NAN, 0.1];
+        let equal = Placement::Equal { start_angle_deg: 0.0 };
+        let spec = with(Outline::Polygon { points: corners }, equal, Numbering::CounterClockwise);
+        let error = spec.mesh().unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "`outline.points`: point 3 is (NaN, 0.1); both coordinates must be finite numbers"
+        );
+        let mut positions: Vec<[f64; 2]> = (0..16).map(|k| [-0.1 + 0.0125 * k as f64, -0.1]).collect();
+        positions[15] = [0.05, f64::INFINITY];
+        let outline = Outline::Polygon { points: square };
+        let spec = with(outline, Placement::Explicit { positions }, Numbering::CounterClockwise);
+        assert!(matches!(spec.mesh(), Err(SpecError::NotFinitePoint { key: "electrodes.positions", point: 16, .. })));
     }
 
     #[test]
