@@ -69,10 +69,10 @@ pub struct Args {
     /// Stop after this many frames (default: at the end of the source, never for `sim`).
     #[arg(long)]
     frames: Option<u64>,
-    /// Frames averaged into the reference, counted in frames imaged (with `--average N`, N times
-    /// as many are taken); with two or more, each channel's noise is measured from them (and
-    /// then from every frame without a touch).
-    #[arg(long, default_value_t = 10)]
+    /// Frames averaged into the reference, 1–10,000, counted in frames imaged (with
+    /// `--average N`, N times as many are taken); with two or more, each channel's noise is
+    /// measured from them (and then from every frame without a touch).
+    #[arg(long, default_value_t = 10, value_parser = parse_reference_frames)]
     reference_frames: usize,
     /// False touches allowed per frame without a touch, in (0, 0.5]: a touch's peak must stand
     /// out from the measured noise by the z this rate calls for (about 4.6 at 0.001).
@@ -87,8 +87,9 @@ pub struct Args {
     /// test: a weak press beside a strong one is found, but so is a strong press's side lobe).
     #[arg(long, default_value = "frame")]
     peak_of: PeakOf,
-    /// Baseline update weight per frame without a touch (0 = off).
-    #[arg(long, default_value_t = 0.0)]
+    /// Baseline update weight per frame without a touch, in [0, 1] (0 = off, 1 = the last
+    /// untouched frame is the reference).
+    #[arg(long, default_value_t = 0.0, value_parser = parse_baseline_rate)]
     baseline_rate: f64,
     /// A calibration (JSON, from `eitskin calibrate`): forces in N per touch.
     #[arg(long)]
@@ -419,6 +420,23 @@ fn noise_figures(pipeline: &Pipeline) -> (Option<f64>, f64) {
     relative.retain(|v| v.is_finite());
     relative.sort_by(f64::total_cmp);
     (threshold, relative.get(relative.len() / 2).map_or(0.0, |v| v.sqrt()))
+}
+
+/// `--reference-frames`: a whole number from 1 to 10,000 (none would leave no reference, and
+/// every frame would be imaged against nothing).
+fn parse_reference_frames(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(frames) if (1..=10_000).contains(&frames) => Ok(frames),
+        _ => Err(format!("\"{text}\" is not a number of reference frames: give a whole number from 1 to 10000")),
+    }
+}
+
+/// `--baseline-rate`: a number in [0, 1] (a weight of the new frame against the reference).
+fn parse_baseline_rate(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(rate) if (0.0..=1.0).contains(&rate) => Ok(rate),
+        _ => Err(format!("\"{text}\" is not a baseline rate: give a number in [0, 1], e.g. 0.01")),
+    }
 }
 
 /// `--false-alarm-rate`: a number in (0, 0.5].
