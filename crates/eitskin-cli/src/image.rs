@@ -11,7 +11,7 @@ use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::{FrameLayout, FrameSelect, FrameTable};
 use serde::Serialize;
 
-use crate::{load, plot};
+use crate::{load, plot, ranges};
 
 /// What `image` and `segment` read, and how they reconstruct: the flags they share.
 #[derive(Debug, clap::Args)]
@@ -67,7 +67,7 @@ pub struct Input {
     #[arg(long, default_value = "decrease")]
     polarity: Polarity,
     /// Keep pixels at or above this fraction of the peak, in (0, 1].
-    #[arg(long, default_value_t = 0.6)]
+    #[arg(long, default_value_t = 0.6, value_parser = ranges::number("a fraction of the peak", "(0, 1]", "0.6", |f| f > 0.0 && f <= 1.0))]
     threshold: f64,
     /// Mesh with about this many triangles instead of the spec's count.
     #[arg(long)]

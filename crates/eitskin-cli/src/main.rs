@@ -10,6 +10,7 @@ mod image;
 mod load;
 mod mesh;
 mod plot;
+mod ranges;
 mod report;
 mod run;
 mod segment;

@@ -37,8 +37,8 @@ use eitskin_io::replay::Speed;
 use eitskin_io::source::{Acquired, Codec, Source, SourceError, SourceSettings, SourceSpec};
 use eitskin_io::stream::{self, Counters, Event, FrameLine, Raster, Recorded, Start};
 
-use crate::load;
 use crate::viewer::{self, Viewer};
+use crate::{load, ranges};
 
 /// Items a source that can wait may have ready before processing takes them.
 const QUEUE_ITEMS: usize = 64;
@@ -72,11 +72,11 @@ pub struct Args {
     /// Frames averaged into the reference, 1–10,000, counted in frames imaged (with
     /// `--average N`, N times as many are taken); with two or more, each channel's noise is
     /// measured from them (and then from every frame without a touch).
-    #[arg(long, default_value_t = 10, value_parser = parse_reference_frames)]
+    #[arg(long, default_value_t = 10, value_parser = ranges::whole("a number of reference frames", 1, 10_000))]
     reference_frames: usize,
     /// False touches allowed per frame without a touch, in (0, 0.5]: a touch's peak must stand
     /// out from the measured noise by the z this rate calls for (about 4.6 at 0.001).
-    #[arg(long, default_value = "0.001", value_parser = parse_false_alarm_rate)]
+    #[arg(long, default_value = "0.001", value_parser = ranges::number("a false-alarm rate", "(0, 0.5]", "0.001", |r| r > 0.0 && r <= 0.5))]
     false_alarm_rate: f64,
     /// Image the mean of the last N frames, 1–1000: the noise falls by √N, and a change shows
     /// (N − 1)/2 frames late on average.
@@ -89,7 +89,7 @@ pub struct Args {
     peak_of: PeakOf,
     /// Baseline update weight per frame without a touch, in [0, 1] (0 = off, 1 = the last
     /// untouched frame is the reference).
-    #[arg(long, default_value_t = 0.0, value_parser = parse_baseline_rate)]
+    #[arg(long, default_value_t = 0.0, value_parser = ranges::number("a baseline rate", "[0, 1]", "0.01", |r| (0.0..=1.0).contains(&r)))]
     baseline_rate: f64,
     /// A calibration (JSON, from `eitskin calibrate`): forces in N per touch.
     #[arg(long)]
@@ -420,31 +420,6 @@ fn noise_figures(pipeline: &Pipeline) -> (Option<f64>, f64) {
     relative.retain(|v| v.is_finite());
     relative.sort_by(f64::total_cmp);
     (threshold, relative.get(relative.len() / 2).map_or(0.0, |v| v.sqrt()))
-}
-
-/// `--reference-frames`: a whole number from 1 to 10,000 (none would leave no reference, and
-/// every frame would be imaged against nothing).
-fn parse_reference_frames(text: &str) -> Result<usize, String> {
-    match text.parse::<usize>() {
-        Ok(frames) if (1..=10_000).contains(&frames) => Ok(frames),
-        _ => Err(format!("\"{text}\" is not a number of reference frames: give a whole number from 1 to 10000")),
-    }
-}
-
-/// `--baseline-rate`: a number in [0, 1] (a weight of the new frame against the reference).
-fn parse_baseline_rate(text: &str) -> Result<f64, String> {
-    match text.parse::<f64>() {
-        Ok(rate) if (0.0..=1.0).contains(&rate) => Ok(rate),
-        _ => Err(format!("\"{text}\" is not a baseline rate: give a number in [0, 1], e.g. 0.01")),
-    }
-}
-
-/// `--false-alarm-rate`: a number in (0, 0.5].
-fn parse_false_alarm_rate(text: &str) -> Result<f64, String> {
-    match text.parse::<f64>() {
-        Ok(rate) if rate > 0.0 && rate <= 0.5 => Ok(rate),
-        _ => Err(format!("\"{text}\" is not a false-alarm rate: give a number in (0, 0.5], e.g. 0.001")),
-    }
 }
 
 /// Puts the pipeline's image into `line` (in units of `metres` m) when `on`, reusing its memory;

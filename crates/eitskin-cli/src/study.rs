@@ -9,7 +9,7 @@ use anyhow::{Context, Result};
 use eitskin::study::sweep::{self, SweepParams, SweepReport};
 use eitskin::study::{run as run_study, StudyParams, StudyReport};
 
-use crate::{load, plot, report};
+use crate::{load, plot, ranges, report};
 
 /// Flags of `eitskin study`.
 #[derive(Debug, clap::Args)]
@@ -22,14 +22,15 @@ pub struct Args {
     /// Seed of the noise and the validation presses.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Measurement noise, relative standard deviation per value (default 1e-4 = 80 dB).
-    #[arg(long)]
+    /// Measurement noise, relative standard deviation per value, in [0, 0.1] (default 1e-4 =
+    /// 80 dB).
+    #[arg(long, value_parser = ranges::number("a relative noise", "[0, 0.1]", "1e-4", |n| (0.0..=0.1).contains(&n)))]
     noise: Option<f64>,
-    /// Validation presses (475 in the paper).
-    #[arg(long)]
+    /// Validation presses, 1–100,000 (475 in the paper).
+    #[arg(long, value_parser = ranges::whole("a number of validation presses", 1, 100_000))]
     validation: Option<usize>,
-    /// Noisy frames per calibration press (15 in the paper).
-    #[arg(long)]
+    /// Noisy frames per calibration press, 1–1,000 (15 in the paper).
+    #[arg(long, value_parser = ranges::whole("a number of frames per press", 1, 1000))]
     repeats: Option<usize>,
     /// Noise sweep: frames with one press per press kind and level (half as many with two, and
     /// with three: 60 presses each, so that one press missed is 1.7 %), 0–10,000; 0 leaves the

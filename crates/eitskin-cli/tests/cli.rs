@@ -142,23 +142,31 @@ fn bad_input_fails_with_a_message_that_says_where() {
 }
 
 /// A flag out of its range is refused before anything runs, with the range it takes: no
-/// reference at all imaged every frame against nothing (touches on an untouched sheet), and a
-/// baseline weight above 1 was taken as it was.
+/// reference at all imaged every frame against nothing (touches on an untouched sheet), a
+/// baseline weight above 1 or a threshold of NaN was taken as it was, and a study without
+/// validation presses wrote a report of NaN.
 #[test]
-fn run_flags_out_of_range_are_refused_with_their_range() {
-    let dir = scratch("run-flags");
-    for (flag, value, says) in [
-        ("--reference-frames", "0", "\"0\" is not a number of reference frames: give a whole number from 1 to 10000"),
-        ("--baseline-rate", "2", "\"2\" is not a baseline rate: give a number in [0, 1], e.g. 0.01"),
-        ("--baseline-rate", "nan", "\"nan\" is not a baseline rate: give a number in [0, 1], e.g. 0.01"),
+fn flags_out_of_range_are_refused_with_their_range() {
+    let dir = scratch("flags");
+    let frames = "is not a number of reference frames: give a whole number from 1 to 10000";
+    let baseline = "is not a baseline rate: give a number in [0, 1], e.g. 0.01";
+    let threshold = "is not a fraction of the peak: give a number in (0, 1], e.g. 0.6";
+    for (command, flag, value, says) in [
+        ("run", "--reference-frames", "0", frames),
+        ("run", "--baseline-rate", "2", baseline),
+        ("run", "--baseline-rate", "nan", baseline),
+        ("image", "--threshold", "nan", threshold),
+        ("image", "--threshold", "1.5", threshold),
+        ("study", "--validation", "0", "is not a number of validation presses: give a whole number from 1 to 100000"),
+        ("study", "--noise", "-1", "is not a relative noise: give a number in [0, 0.1], e.g. 1e-4"),
     ] {
-        let out = dir.eitskin(&["run", "--frames", "1", flag, value]);
+        let out = dir.eitskin(&[command, &format!("{flag}={value}")]);
         let upper = flag.trim_start_matches('-').replace('-', "_").to_uppercase();
         assert_eq!(
             String::from_utf8_lossy(&out.stderr),
-            format!("error: invalid value '{value}' for '{flag} <{upper}>': {says}\n\nFor more information, try '--help'.\n")
+            format!("error: invalid value '{value}' for '{flag} <{upper}>': \"{value}\" {says}\n\nFor more information, try '--help'.\n")
         );
-        assert_eq!(out.status.code(), Some(2));
+        assert_eq!(out.status.code(), Some(2), "{command} {flag}={value}");
     }
 }
 

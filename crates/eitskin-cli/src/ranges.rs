@@ -1,0 +1,52 @@
+//! Value parsers for numeric flags: each takes a number in its stated range and refuses any
+//! other (not a number, NaN, infinite, out of range) before work starts, quoting the value as
+//! written and naming the range.
+
+/// A parser of a finite number for which `within` holds, described as `what` (e.g. "a baseline
+/// rate"), its range as written in the help (e.g. "[0, 1]") and an example value.
+pub fn number(
+    what: &'static str,
+    range: &'static str,
+    example: &'static str,
+    within: fn(f64) -> bool,
+) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync + 'static {
+    move |text: &str| match text.trim().parse::<f64>() {
+        Ok(value) if value.is_finite() && within(value) => Ok(value),
+        _ => Err(format!("\"{text}\" is not {what}: give a number in {range}, e.g. {example}")),
+    }
+}
+
+/// A parser of a whole number from `lo` to `hi`, described as `what` (e.g. "a number of
+/// reference frames").
+pub fn whole(
+    what: &'static str,
+    lo: usize,
+    hi: usize,
+) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
+    move |text: &str| match text.trim().parse::<usize>() {
+        Ok(value) if (lo..=hi).contains(&value) => Ok(value),
+        _ => Err(format!("\"{text}\" is not {what}: give a whole number from {lo} to {hi}")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_outside_their_range_are_named_with_it() {
+        let rate = number("a baseline rate", "[0, 1]", "0.01", |v| (0.0..=1.0).contains(&v));
+        assert_eq!(rate("0.5"), Ok(0.5));
+        for bad in ["nan", "inf", "-0.1", "1.5", "1e300", "x", ""] {
+            assert_eq!(rate(bad), Err(format!("\"{bad}\" is not a baseline rate: give a number in [0, 1], e.g. 0.01")));
+        }
+        let frames = whole("a number of frames", 1, 10);
+        assert_eq!(frames("10"), Ok(10));
+        for bad in ["0", "11", "-1", "2.5", "nan"] {
+            assert_eq!(
+                frames(bad),
+                Err(format!("\"{bad}\" is not a number of frames: give a whole number from 1 to 10"))
+            );
+        }
+    }
+}
