@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 
 use crate::{load, plot};
 
@@ -21,6 +21,16 @@ pub struct Args {
 
 /// Runs `eitskin mesh`.
 pub fn run(args: Args) -> Result<()> {
+    let png = args.out.with_extension("png");
+    if png == args.out {
+        bail!(
+            "--out {}: the mesh's picture goes beside it with a .png extension and would overwrite it; give the mesh a .json name",
+            args.out.display()
+        );
+    }
+    if let Some(spec) = args.spec.as_ref().filter(|spec| **spec == args.out || **spec == png) {
+        bail!("--out {}: would overwrite the spec {}", args.out.display(), spec.display());
+    }
     let mut spec = load::spec(args.spec.as_deref())?;
     if let Some(n) = args.triangles {
         spec.mesh.triangles = n;
@@ -28,7 +38,6 @@ pub fn run(args: Args) -> Result<()> {
     let mesh = spec.mesh()?;
     std::fs::write(&args.out, eitskin_io::mesh_to_json(&mesh))
         .with_context(|| format!("writing {}", args.out.display()))?;
-    let png = args.out.with_extension("png");
     plot::mesh_png(&mesh, &png)?;
     println!(
         "{} nodes, {} triangles, smallest angle {:.1}°: wrote {} and {}",

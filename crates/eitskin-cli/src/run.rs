@@ -325,6 +325,17 @@ pub fn run(args: Args) -> Result<()> {
     if acquisition.join().is_err() {
         bail!("the acquisition thread panicked");
     }
+    // An end before anything was imaged is said, not left to an empty stream.
+    if frames == 0 {
+        bail!("{}: the source ended without a frame ({bad} bad or skipped)", args.source);
+    }
+    if pipeline.reference().is_none() {
+        eprintln!(
+            "warning: {}: the source ended after {frames} frames, before the reference ({} frames) was taken: nothing was imaged",
+            args.source,
+            params.frames_in_reference()
+        );
+    }
     Ok(())
 }
 

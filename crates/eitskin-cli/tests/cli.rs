@@ -170,6 +170,25 @@ fn flags_out_of_range_are_refused_with_their_range() {
     }
 }
 
+/// `mesh --out m.png` wrote the mesh's JSON to m.png and then the picture over it ("wrote m.png
+/// and m.png"): refused before any work, as is an output over the spec.
+#[test]
+fn mesh_outputs_never_overwrite_each_other_or_the_spec() {
+    let dir = scratch("mesh-out");
+    let out = dir.eitskin(&["mesh", "--out", "m.png"]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "error: --out m.png: the mesh's picture goes beside it with a .png extension and would overwrite it; give the mesh a .json name\n"
+    );
+    let spec = dir.join("paper.toml");
+    std::fs::write(&spec, dir.eitskin(&["spec"]).stdout).unwrap();
+    let json = spec.with_extension("json");
+    let out = dir.eitskin(&["mesh", spec.to_str().unwrap(), "--out", spec.to_str().unwrap()]);
+    let says = format!("error: --out {0}: would overwrite the spec {0}\n", spec.display());
+    assert_eq!(String::from_utf8_lossy(&out.stderr), says);
+    assert!(!json.exists() && std::fs::read_to_string(&spec).unwrap().contains("[outline]"));
+}
+
 #[test]
 fn image_finds_a_simulated_press_from_forward_output() {
     let dir = scratch("image");

@@ -204,6 +204,29 @@ fn the_virtual_sensor_pressed_by_a_script_gives_a_touch_where_and_when_pressed()
     }
 }
 
+/// A source that ends before anything was imaged says so: an empty file is an error (it used
+/// to end with the start line alone and exit 0), and a run that ends before its reference is
+/// taken warns that nothing was imaged.
+#[test]
+fn a_source_that_ends_before_an_image_says_so() {
+    let dir = scratch("empty");
+    let empty = dir.join("empty.txt");
+    std::fs::write(&empty, "").unwrap();
+    let source = format!("file:{}", empty.display());
+    let out = dir.eitskin(&["run", "--source", &source, "--triangles", "800"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.ends_with(&format!("error: {source}: the source ended without a frame (0 bad or skipped)\n")),
+        "{stderr}"
+    );
+    let out = dir.eitskin(&["run", "--frames", "3", "--fast", "--triangles", "800"]);
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let warning = "warning: sim: the source ended after 3 frames, before the reference (10 frames) was taken: nothing was imaged\n";
+    assert!(stderr.ends_with(warning), "{stderr}");
+}
+
 #[test]
 fn a_file_with_bad_lines_reports_each_and_goes_on() {
     let dir = scratch("file");
