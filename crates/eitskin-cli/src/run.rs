@@ -55,9 +55,9 @@ pub struct Args {
     /// e.g. serial:/dev/ttyACM0@921600; frames decoded with --codec).
     #[arg(long, value_name = "SOURCE", default_value = "sim")]
     source: SourceSpec,
-    /// Frames per second of the virtual sensor, or of a capture file, which has no times (0: a
-    /// capture as fast as possible).
-    #[arg(long, default_value_t = 20.0)]
+    /// Frames per second of the virtual sensor, or of a capture file, which has no times, in
+    /// [0, 100000] (0: a capture as fast as possible).
+    #[arg(long, default_value_t = 20.0, value_parser = ranges::number("a frame rate", "[0, 100000] frames/s", "20", |r| (0.0..=1e5).contains(&r)))]
     rate: f64,
     /// Do not wait between frames (the virtual sensor's clock still advances at --rate; a
     /// recording replays as fast as possible).

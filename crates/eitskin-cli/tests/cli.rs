@@ -153,6 +153,7 @@ fn flags_out_of_range_are_refused_with_their_range() {
     let threshold = "is not a fraction of the peak: give a number in (0, 1], e.g. 0.6";
     for (command, flag, value, says) in [
         ("run", "--reference-frames", "0", frames),
+        ("run", "--rate", "1e300", "is not a frame rate: give a number in [0, 100000] frames/s, e.g. 20"),
         ("run", "--baseline-rate", "2", baseline),
         ("run", "--baseline-rate", "nan", baseline),
         ("image", "--threshold", "nan", threshold),
