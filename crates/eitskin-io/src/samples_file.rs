@@ -2,7 +2,7 @@
 //! its touch or the raw frame.
 //!
 //! Columns, by name: `unit` (counted from 1) or `x`, `y` (in the spec's units, from the
-//! outline's centre); `force` (N); then either `peak` (S/m) or the frame's measurements in
+//! outline's centre); `force` (N, 0 or more); then either `peak` (S/m) or the frame's measurements in
 //! protocol order in all remaining columns. Lines starting with `#` are comments.
 
 use std::path::Path;
@@ -95,7 +95,12 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
                 (0..fields.len()).filter(|k| !used.contains(k)).map(number).collect::<Result<Vec<f64>, Error>>()?,
             ),
         };
-        rows.push(SampleRow { location, force: number(force)?, measured });
+        let newtons = number(force)?;
+        if newtons < 0.0 {
+            let text = fields.get(force).copied().unwrap_or("");
+            return Err(fail(n + 1, format!("force {text} N is negative: a press's force is 0 N or more")));
+        }
+        rows.push(SampleRow { location, force: newtons, measured });
     }
     Ok(rows)
 }
@@ -120,5 +125,7 @@ mod tests {
         let err = parse_samples("unit,force,peak\n0,2,1\n", 1.0).unwrap_err().to_string();
         assert!(err.contains("count from 1"), "{err}");
         assert!(parse_samples("force,peak\n1,2\n", 1.0).unwrap_err().to_string().contains("`unit` column"));
+        let err = parse_samples("unit,force,peak\n1,2,1\n2,-0.5,1\n", 1.0).unwrap_err().to_string();
+        assert_eq!(err, "`samples` line 3: force -0.5 N is negative: a press's force is 0 N or more");
     }
 }
