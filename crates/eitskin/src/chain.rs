@@ -374,7 +374,10 @@ impl Chain {
         }
         for (k, touch) in self.found.iter().enumerate() {
             let press = self.fits.get(k).copied().flatten();
-            let reading = self.strength.read(touch, press.as_ref(), self.contrast_map.as_ref());
+            // The radius of the model that fitted it: the detection's when presses are found in Δv.
+            let indenter = self.press_detection.as_ref().map(PressDetection::radius).or(model.map(PressModel::radius));
+            let fitted = press.as_ref().zip(indenter);
+            let reading = self.strength.read(touch, fitted, self.contrast_map.as_ref());
             // Calibrations are fitted on presses: a conductivity increase gets no unit or force.
             let located = match (&self.calibration, reading) {
                 (Some((array, calibration)), Some(reading)) if touch.polarity == Polarity::Decrease => {

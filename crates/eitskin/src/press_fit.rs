@@ -213,15 +213,20 @@ pub struct PressFit {
     /// The conductivity drop under the indenter (fraction of the background) whose full
     /// forward response gives that contrast at that centre; past 0.9 extrapolated.
     pub drop: f64,
-    /// The drop of a press of the model's indenter radius with the same drop × area,
+    /// Its response against Δv less the other presses', over the response's norm, gᵀr/|g|:
+    /// with Δv and the model whitened by the noise ([`PressModel::whitened`]) a z-score, else in V.
+    pub z: f64,
+}
+
+impl PressFit {
+    /// The drop of a press of radius `indenter_radius` (m) with the same drop × area,
     /// d·(r/r₀)²: what Δv fixes best when the radius is fitted too (a wider press of a smaller
     /// drop changes Δv much as a narrower, deeper one), so the strength a force is read from
     /// ([`Strength::FittedDrop`](crate::strength::Strength::FittedDrop)); the drop itself at
     /// the indenter's radius.
-    pub equivalent_drop: f64,
-    /// Its response against Δv less the other presses', over the response's norm, gᵀr/|g|:
-    /// with Δv and the model whitened by the noise ([`PressModel::whitened`]) a z-score, else in V.
-    pub z: f64,
+    pub fn equivalent_drop(&self, indenter_radius: f64) -> f64 {
+        self.drop * (self.radius / indenter_radius).powi(2)
+    }
 }
 
 /// Settings of [`PressModel::new`].
@@ -694,14 +699,7 @@ impl PressModel {
         let gv: f64 = response.iter().zip(dv).map(|(g, v)| g * v).sum();
         let (contrast, z) = (gv / gg, gv / gg.sqrt());
         let drop = self.drop(contrast, centre);
-        (gg > 0.0 && gv > 0.0).then_some(PressFit {
-            centre,
-            radius: self.radius,
-            contrast,
-            drop,
-            equivalent_drop: drop,
-            z,
-        })
+        (gg > 0.0 && gv > 0.0).then_some(PressFit { centre, radius: self.radius, contrast, drop, z })
     }
 }
 

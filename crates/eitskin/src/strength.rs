@@ -107,17 +107,18 @@ impl Strength {
         )
     }
 
-    /// The reading of `touch`, with the press fitted from it (`None`: none fitted) and the
-    /// contrast map; `None` when this strength needs a contrast map and none is given.
-    pub fn read(self, touch: &Touch, press: Option<&PressFit>, map: Option<&ContrastMap>) -> Option<Reading> {
+    /// The reading of `touch`, with the press fitted from it and its model's indenter radius in
+    /// m (`None`: none fitted) and the contrast map; `None` when this strength needs a contrast
+    /// map and none is given.
+    pub fn read(self, touch: &Touch, press: Option<(&PressFit, f64)>, map: Option<&ContrastMap>) -> Option<Reading> {
         let at = touch.centre;
         let value = match self {
             Strength::Peak => touch.peak,
             // A touch with nothing in Δv that looks like a press has no drop.
             Strength::FittedDrop => {
-                return Some(press.map_or(Reading { centre: at, value: 0.0 }, |p| Reading {
+                return Some(press.map_or(Reading { centre: at, value: 0.0 }, |(p, indenter)| Reading {
                     centre: p.centre,
-                    value: p.equivalent_drop,
+                    value: p.equivalent_drop(indenter),
                 }))
             }
             Strength::Sensitivity => touch.peak / map?.sensitivity(at),

@@ -190,7 +190,7 @@ fn a_wider_press_is_one_press_of_its_own_size() {
                 // The drop × area varies less along the misfit's valley than either: as a 10 mm
                 // press, 2.25 times the drop, found within 20 % (the drop alone 26–35 % off).
                 let equivalent = hydrogel.drop(10.0) * (radius / 0.01).powi(2);
-                let off = press.equivalent_drop / equivalent - 1.0;
+                let off = press.equivalent_drop(0.01) / equivalent - 1.0;
                 assert!(press.radius > 0.012 && off.abs() < 0.25, "{radius} m: {press:?}, {off}");
             } else {
                 assert!(press.radius == radius && (press.drop - hydrogel.drop(10.0)).abs() < 0.03, "{press:?}");

@@ -287,7 +287,6 @@ impl PressModel {
                     let row = scan.row(j)?;
                     press.contrast *= scan.norms[row] / unexplained[row];
                     press.drop = self.drop(press.contrast, press.centre);
-                    press.equivalent_drop = press.drop;
                     (press.drop >= MIN_DROP).then_some(press)
                 });
                 if let Some(new) = new {
@@ -451,7 +450,6 @@ impl PressModel {
         responses[..presses.len() * m].copy_from_slice(&own[..presses.len() * m]);
         for (press, disk) in presses.iter_mut().zip(disks.iter()) {
             (press.centre, press.radius, press.drop) = (disk.centre, disk.radius, disk.drop);
-            press.equivalent_drop = disk.drop * (disk.radius / self.radius).powi(2);
         }
         // Each press's z against the fit's misfit with its own response put back: Δv less the
         // others as they are together.
