@@ -18,24 +18,26 @@ use anyhow::Result;
 use eitskin::chain::Chain;
 use eitskin::conductivity::{with_inclusions, Inclusion};
 use eitskin::inverse::Channels;
+use eitskin::memory::Stage;
 use eitskin::pipeline::{Pipeline, PipelineParams};
 use eitskin::press_fit::{exact_model_for, PressDetection, PressModel, PressModelParams, PressScratch};
 use eitskin::touch::{detect_into, TouchScratch};
 use eitskin::{Reconstructor, ReconstructorParams, TouchParams};
 use eitskin_io::codec::{Decoder, Event, LinesDecoder};
 
-use crate::load;
+use crate::{load, ranges};
 
 /// Flags of `eitskin bench`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
-    /// Mesh with about this many triangles instead of the spec's count.
-    #[arg(long)]
+    /// Mesh with about this many triangles instead of the spec's count, 1–100,000,000 (refused
+    /// when the mesh and what is built on it would not fit in the memory available).
+    #[arg(long, value_parser = ranges::triangles())]
     triangles: Option<usize>,
-    /// Runs per stage; the median is reported.
-    #[arg(long, default_value_t = 15)]
+    /// Runs per stage, 1–10,000; the median is reported.
+    #[arg(long, default_value_t = 15, value_parser = ranges::whole("a number of runs", 1, 10_000))]
     repeat: usize,
     /// Print one JSON object with a field per stage, in seconds.
     #[arg(long)]
@@ -93,10 +95,7 @@ fn replay(recon: &Reconstructor, rest: &[f64], pressed: &[f64]) -> Result<(f64, 
 
 /// Runs `eitskin bench`.
 pub fn run(args: Args) -> Result<()> {
-    let mut spec = load::spec(args.spec.as_deref())?;
-    if let Some(n) = args.triangles {
-        spec.mesh.triangles = n;
-    }
+    let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
     let n = args.repeat;
     let (t_mesh, mesh) = time(n, || Ok(spec.mesh()?))?;
     let (t_model, model) = time(n, || Ok(spec.forward_model_on(mesh.clone())?))?;

@@ -11,7 +11,7 @@ use eitskin::strength::Strength;
 use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::{CalibrationFile, Imaging, Location, Measured, SampleRow};
 
-use crate::load;
+use crate::{load, outputs, ranges};
 
 /// Flags of `eitskin calibrate`.
 #[derive(Debug, clap::Args)]
@@ -25,7 +25,7 @@ pub struct CalibrateArgs {
     #[arg(long)]
     out: PathBuf,
     /// Units per side of the pseudo-array.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of units per side", 1, 100))]
     grid: usize,
     /// Reference (no-touch) frame, needed when the samples hold raw frames.
     #[arg(long)]
@@ -71,6 +71,10 @@ pub struct EvaluateArgs {
 
 /// Runs `eitskin calibrate`.
 pub fn calibrate(args: CalibrateArgs) -> Result<()> {
+    let mut read = vec![("--samples", args.samples.as_path())];
+    read.extend(args.reference.as_deref().map(|p| ("--reference", p)));
+    read.extend(args.spec.as_deref().map(|p| ("the spec", p)));
+    outputs::check(&[("--out", &args.out)], &read)?;
     let spec = load::spec(args.spec.as_deref())?;
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [args.grid; 2])?;
     let strength = args.strength;

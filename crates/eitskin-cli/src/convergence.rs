@@ -5,9 +5,10 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Result};
 use eitskin::convergence::{default_inclusion, study};
+use eitskin::memory::Stage;
 use serde::Serialize;
 
-use crate::load;
+use crate::{load, ranges};
 
 /// Flags of `eitskin convergence`.
 #[derive(Debug, clap::Args)]
@@ -15,10 +16,11 @@ pub struct Args {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
     /// Triangle counts to mesh at, comma-separated, coarse to fine.
-    #[arg(long, value_delimiter = ',', default_value = "500,1000,2000,4000,8000,16000,32000,64000,128000")]
+    #[arg(long, value_delimiter = ',', default_value = "500,1000,2000,4000,8000,16000,32000,64000,128000", value_parser = ranges::triangles())]
     triangles: Vec<usize>,
-    /// Override the mesh grading toward electrode edges (1 = uniform).
-    #[arg(long)]
+    /// Override the mesh grading toward electrode edges: the element size there as a fraction
+    /// of the interior's, in (0, 1] (1 = uniform).
+    #[arg(long, value_parser = ranges::number("a grading", "(0, 1]", "0.2", |g| g > 0.0 && g <= 1.0))]
     grading: Option<f64>,
     /// Protocol: two-terminal, adjacent, adjacent-all, opposite, skip-S, skip-S-all (S = 0, 1, …),
     /// or a protocol JSON file.
@@ -58,6 +60,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.protocol {
         spec.protocol = eitskin_io::protocol_by_name(p, std::path::Path::new("."))?;
     }
+    load::sized(spec.clone(), args.triangles.iter().max().copied(), Stage::ForwardModel)?;
     let inclusion = match &args.inclusion {
         Some(text) => load::inclusion(text, &spec)?,
         None => default_inclusion(&spec),

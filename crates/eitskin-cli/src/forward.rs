@@ -4,9 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use eitskin::conductivity::with_inclusions;
+use eitskin::memory::Stage;
 use serde::Serialize;
 
-use crate::load;
+use crate::{load, ranges};
 
 /// Flags of `eitskin forward`.
 #[derive(Debug, clap::Args)]
@@ -23,8 +24,9 @@ pub struct Args {
     /// Use this mesh file (JSON, as `eitskin mesh` writes it or EIDORS exports it).
     #[arg(long)]
     mesh: Option<PathBuf>,
-    /// Mesh with about this many triangles instead of the spec's count.
-    #[arg(long)]
+    /// Mesh with about this many triangles instead of the spec's count, 1–100,000,000 (refused
+    /// when the mesh and what is built on it would not fit in the memory available).
+    #[arg(long, value_parser = ranges::triangles())]
     triangles: Option<usize>,
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Json)]
@@ -56,9 +58,8 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.protocol {
         spec.protocol = eitskin_io::protocol_by_name(p, std::path::Path::new("."))?;
     }
-    if let Some(n) = args.triangles {
-        spec.mesh.triangles = n;
-    }
+    // A mesh file sets the size itself: nothing is meshed.
+    let spec = if args.mesh.is_none() { load::sized(spec, args.triangles, Stage::ForwardModel)? } else { spec };
     let inclusions = args.inclusion.iter().map(|t| load::inclusion(t, &spec)).collect::<Result<Vec<_>>>()?;
     let model = match &args.mesh {
         Some(path) => spec.forward_model_on(eitskin_io::read_mesh(path)?)?,

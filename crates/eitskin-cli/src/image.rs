@@ -1,17 +1,18 @@
 //! `eitskin image`: reconstruct one frame against a reference, print its touches, draw it.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use eitskin::image::Image;
 use eitskin::inverse::{mean_frame, noise_variance, Channels, Hyperparameter};
+use eitskin::memory::Stage;
 use eitskin::touch::{detect, Polarity, Touch};
 use eitskin::values::{signed_from_magnitudes, Component, Gains};
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::{FrameLayout, FrameSelect, FrameTable};
 use serde::Serialize;
 
-use crate::{load, plot, ranges};
+use crate::{load, outputs, plot, ranges};
 
 /// What `image` and `segment` read, and how they reconstruct: the flags they share.
 #[derive(Debug, clap::Args)]
@@ -69,8 +70,9 @@ pub struct Input {
     /// Keep pixels at or above this fraction of the peak, in (0, 1].
     #[arg(long, default_value_t = 0.6, value_parser = ranges::number("a fraction of the peak", "(0, 1]", "0.6", |f| f > 0.0 && f <= 1.0))]
     threshold: f64,
-    /// Mesh with about this many triangles instead of the spec's count.
-    #[arg(long)]
+    /// Mesh with about this many triangles instead of the spec's count, 1–100,000,000 (refused
+    /// when the mesh and what is built on it would not fit in the memory available).
+    #[arg(long, value_parser = ranges::triangles())]
     triangles: Option<usize>,
     /// The raster's pixels across and down, `NX` (square) or `NXxNY`, each in [4, 1024], over
     /// the mesh's bounding box.
@@ -100,6 +102,15 @@ pub struct Args {
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
+}
+
+impl Input {
+    /// The files read: the spec (when given), the reference and the frame, each with its flag.
+    pub fn files(&self) -> Vec<(&'static str, &Path)> {
+        let mut files = vec![("--reference", self.reference.as_path()), ("--frame", self.frame.as_path())];
+        files.extend(self.spec.as_deref().map(|s| ("the spec", s)));
+        files
+    }
 }
 
 /// One frame reconstructed against its reference, with what was found on the way.
@@ -177,10 +188,7 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
     if !(input.threshold > 0.0 && input.threshold <= 1.0) {
         anyhow::bail!("--threshold {}: must be in (0, 1], a fraction of the peak", input.threshold);
     }
-    let mut spec = load::spec(input.spec.as_deref())?;
-    if let Some(n) = input.triangles {
-        spec.mesh.triangles = n;
-    }
+    let spec = load::sized(load::spec(input.spec.as_deref())?, input.triangles, Stage::Reconstructor)?;
     let layout = match input.layout.as_str() {
         "rows" => FrameLayout::Rows,
         "columns" => FrameLayout::Columns,
@@ -291,6 +299,9 @@ const PATTERN_FIT_WARNING: f64 = 0.5;
 
 /// Runs `eitskin image`.
 pub fn run(args: Args) -> Result<()> {
+    let written = [("--out", &args.out), ("--elements", &args.elements), ("--png", &args.png)];
+    let written: Vec<_> = written.iter().filter_map(|(flag, p)| p.as_deref().map(|p| (*flag, p))).collect();
+    outputs::check(&written, &args.input.files())?;
     let Reconstruction { spec, recon, v_ref, v, image, touches, report, .. } = reconstruct(&args.input)?;
     let k = 1.0 / spec.length_unit.metres();
     let out = Output {

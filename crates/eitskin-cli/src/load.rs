@@ -7,6 +7,7 @@ use eitskin::chain::Chain;
 use eitskin::conductivity::Inclusion;
 use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
 use eitskin::inverse::Channels;
+use eitskin::memory::{self, Stage};
 use eitskin::strength::Strength;
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 
@@ -16,6 +17,57 @@ pub fn spec(path: Option<&Path>) -> Result<SensorSpec> {
         Some(p) => eitskin_io::read_spec(p)?,
         None => SensorSpec::square_hydrogel(),
     })
+}
+
+/// `spec` meshed with about `triangles` triangles when given, checked to fit in the memory
+/// available for building `stage`.
+pub fn sized(mut spec: SensorSpec, triangles: Option<usize>, stage: Stage) -> Result<SensorSpec> {
+    if let Some(n) = triangles {
+        spec.mesh.triangles = n;
+    }
+    check_memory(&spec, stage)?;
+    Ok(spec)
+}
+
+/// Refuses to build `stage` for `spec` when its estimated peak memory exceeds what the system
+/// has available, saying what it would need and the most triangles that would fit.
+pub fn check_memory(spec: &SensorSpec, stage: Stage) -> Result<()> {
+    match eitskin_io::available_memory() {
+        Some(available) => fits(spec, stage, available),
+        None => Ok(()),
+    }
+}
+
+/// [`check_memory`] with `available` bytes.
+fn fits(spec: &SensorSpec, stage: Stage, available: f64) -> Result<()> {
+    let triangles = spec.expected_triangles();
+    let measurements = spec.protocol()?.measurements().len();
+    let needed = memory::needed_bytes(stage, triangles, measurements);
+    if needed > available {
+        let most = memory::most_triangles(stage, available, measurements);
+        bail!(
+            "{} on about {} triangles needs about {:.1} GB of memory, and {:.1} GB is available: ask for at most about {} triangles ({})",
+            stage.name(),
+            round_count(triangles),
+            needed / 1e9,
+            available / 1e9,
+            round_count(most),
+            match spec.mesh.max_element_size {
+                Some(_) => "the spec's mesh.max_element_size sets the size: make it larger",
+                None => "--triangles, or the spec's mesh.triangles",
+            }
+        );
+    }
+    Ok(())
+}
+
+/// A count rounded to three significant figures, for a message.
+fn round_count(n: f64) -> u64 {
+    if n < 1000.0 {
+        return n.round() as u64;
+    }
+    let unit = 10f64.powi(n.log10().floor() as i32 - 2);
+    ((n / unit).floor() * unit) as u64
 }
 
 /// An inclusion from `x,y,r,sigma`: centre and radius in the spec's units (relative to the
@@ -108,6 +160,24 @@ pub fn cache_dir() -> Option<std::path::PathBuf> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_job_larger_than_the_memory_is_refused_with_its_size() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 50_000_000;
+        assert!(fits(&spec, Stage::Mesh, 40e9).is_ok());
+        assert_eq!(
+            fits(&spec, Stage::Mesh, 16e9).unwrap_err().to_string(),
+            "a mesh on about 50000000 triangles needs about 32.6 GB of memory, and 16.0 GB is available: ask for at most about 24500000 triangles (--triangles, or the spec's mesh.triangles)"
+        );
+        spec.mesh.triangles = 4000;
+        spec.mesh.max_element_size = Some(1e-5);
+        let err = fits(&spec, Stage::Reconstructor, 16e9).unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "a reconstructor on about 923000000 triangles needs about 6965.2 GB of memory, and 16.0 GB is available: ask for at most about 2110000 triangles (the spec's mesh.max_element_size sets the size: make it larger)"
+        );
+    }
 
     #[test]
     fn inclusion_converts_millimetres_and_refuses_garbage() {

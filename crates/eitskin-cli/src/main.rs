@@ -4,11 +4,13 @@
 mod bench;
 mod calibrate;
 mod convergence;
-
+#[cfg(test)]
+mod flag_ranges;
 mod forward;
 mod image;
 mod load;
 mod mesh;
+mod outputs;
 mod plot;
 mod ranges;
 mod report;
@@ -20,11 +22,16 @@ mod viewer;
 
 use std::path::PathBuf;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 /// EIT tactile skins: sensor model, forward solver, images, touches and forces.
 #[derive(Debug, Parser)]
-#[command(name = "eitskin", version, about)]
+#[command(
+    name = "eitskin",
+    version,
+    about = "EIT tactile skins: sensor model, forward model, images, touches and forces",
+    after_help = "Run `eitskin run` for the live chain on the built-in virtual sensor; `eitskin COMMAND --help` for a command's flags and their ranges."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -61,8 +68,16 @@ enum Command {
     Convergence(convergence::Args),
 }
 
+/// The command line, with every flag that takes a value also taking a negative number, so that
+/// `--rate -1` reaches the flag's range check instead of reading as an unknown flag `-1`.
+fn command() -> clap::Command {
+    Cli::command().mut_subcommands(|sub| {
+        sub.mut_args(|arg| if arg.get_action().takes_values() { arg.allow_negative_numbers(true) } else { arg })
+    })
+}
+
 fn main() {
-    let cli = Cli::parse();
+    let cli = Cli::from_arg_matches(&command().get_matches()).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
         Command::Spec { spec } => load::spec(spec.as_deref()).map(|s| print!("{}", eitskin_io::spec_to_toml(&s))),
         Command::Mesh(args) => mesh::run(args),

@@ -3,8 +3,9 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
+use eitskin::memory::Stage;
 
-use crate::{load, plot};
+use crate::{load, outputs, plot, ranges};
 
 /// Flags of `eitskin mesh`.
 #[derive(Debug, clap::Args)]
@@ -14,8 +15,9 @@ pub struct Args {
     /// Where to write the mesh (JSON); the picture goes beside it with a .png extension.
     #[arg(long, short, default_value = "mesh.json")]
     out: PathBuf,
-    /// Mesh with about this many triangles instead of the spec's count.
-    #[arg(long)]
+    /// Mesh with about this many triangles instead of the spec's count, 1–100,000,000 (refused
+    /// when the mesh and what is built on it would not fit in the memory available).
+    #[arg(long, value_parser = ranges::triangles())]
     triangles: Option<usize>,
 }
 
@@ -28,13 +30,9 @@ pub fn run(args: Args) -> Result<()> {
             args.out.display()
         );
     }
-    if let Some(spec) = args.spec.as_ref().filter(|spec| **spec == args.out || **spec == png) {
-        bail!("--out {}: would overwrite the spec {}", args.out.display(), spec.display());
-    }
-    let mut spec = load::spec(args.spec.as_deref())?;
-    if let Some(n) = args.triangles {
-        spec.mesh.triangles = n;
-    }
+    let spec: Vec<_> = args.spec.iter().map(|s| ("the spec", s.as_path())).collect();
+    outputs::check(&[("--out", &args.out), ("--out's picture", &png)], &spec)?;
+    let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Mesh)?;
     let mesh = spec.mesh()?;
     std::fs::write(&args.out, eitskin_io::mesh_to_json(&mesh))
         .with_context(|| format!("writing {}", args.out.display()))?;

@@ -29,6 +29,23 @@ pub fn whole(
     }
 }
 
+/// The parser of `--triangles`: about how many triangles to mesh with, 1 to 100,000,000 (what
+/// the mesh and the models built on it would need is checked against the memory available
+/// before any is built).
+pub fn triangles() -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
+    whole("a triangle count", 1, MAX_TRIANGLES)
+}
+
+/// The most triangles `--triangles` takes.
+pub const MAX_TRIANGLES: usize = 100_000_000;
+
+/// The parser of `--seed`: any whole number from 0 to 2⁶⁴ − 1.
+pub fn seed(text: &str) -> Result<u64, String> {
+    text.trim()
+        .parse::<u64>()
+        .map_err(|_| format!("\"{text}\" is not a seed: give a whole number from 0 to {}", u64::MAX))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

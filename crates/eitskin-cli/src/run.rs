@@ -21,12 +21,13 @@ mod imaging;
 use std::borrow::Cow;
 use std::io::Write;
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 
 use anyhow::{bail, Result};
 use eitskin::calibration::Strength;
 use eitskin::inverse::Hyperparameter;
+use eitskin::memory::Stage;
 use eitskin::pipeline::{NoiseFloor, Pipeline, PipelineParams, Status};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::touch::{PeakOf, Polarity};
@@ -38,7 +39,7 @@ use eitskin_io::source::{Acquired, Codec, Source, SourceError, SourceSettings, S
 use eitskin_io::stream::{self, Counters, Event, FrameLine, Raster, Recorded, Start};
 
 use crate::viewer::{self, Viewer};
-use crate::{load, ranges};
+use crate::{load, outputs, ranges};
 
 /// Items a source that can wait may have ready before processing takes them.
 const QUEUE_ITEMS: usize = 64;
@@ -63,12 +64,13 @@ pub struct Args {
     /// recording replays as fast as possible).
     #[arg(long)]
     fast: bool,
-    /// Mesh with about this many triangles instead of the spec's count.
-    #[arg(long)]
+    /// Mesh with about this many triangles instead of the spec's count, 1–100,000,000 (refused
+    /// when the mesh and what is built on it would not fit in the memory available).
+    #[arg(long, value_parser = ranges::triangles())]
     triangles: Option<usize>,
-    /// Stop after this many frames (default: at the end of the source, never for `sim`).
-    #[arg(long)]
-    frames: Option<u64>,
+    /// Stop after this many frames, 1 to 10¹² (default: at the end of the source, never for `sim`).
+    #[arg(long, value_parser = ranges::whole("a number of frames", 1, 1_000_000_000_000))]
+    frames: Option<usize>,
     /// Frames averaged into the reference, 1–10,000, counted in frames imaged (with
     /// `--average N`, N times as many are taken); with two or more, each channel's noise is
     /// measured from them (and then from every frame without a touch).
@@ -80,8 +82,8 @@ pub struct Args {
     false_alarm_rate: f64,
     /// Image the mean of the last N frames, 1–1000: the noise falls by √N, and a change shows
     /// (N − 1)/2 frames late on average.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=1000))]
-    average: u16,
+    #[arg(long, default_value_t = 1, value_parser = ranges::whole("a number of frames", 1, 1000))]
+    average: usize,
     /// Whose peak a touch's 60 % threshold is a fraction of: `frame` (the strongest touch's, the
     /// paper's rule) or `touch` (each touch's own, from each local maximum that passes the noise
     /// test: a weak press beside a strong one is found, but so is a strong press's side lobe).
@@ -99,7 +101,7 @@ pub struct Args {
     #[arg(long)]
     fit: bool,
     /// Seed of the virtual sensor's noise and random presses.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     seed: u64,
     /// How a serial board (or a capture file of its bytes) encodes frames: `lines` (text) or
     /// `binary` (framed, with counter and CRC).
@@ -142,12 +144,32 @@ pub struct Args {
     component: Component,
 }
 
+/// Refuses a recording path before any work: one that exists (a recording is never written
+/// over), whose folder does not exist, or that is one of the files read.
+fn check_record(path: &Path, args: &Args) -> Result<()> {
+    if path.exists() {
+        bail!(
+            "--record {}: the file exists; record into another file (a recording is never written over)",
+            path.display()
+        );
+    }
+    let mut read = Vec::new();
+    read.extend(args.spec.as_deref().map(|p| ("the spec", p)));
+    read.extend(args.calibration.as_deref().map(|p| ("--calibration", p)));
+    match &args.source {
+        SourceSpec::File(p) => read.push(("--source", p.as_path())),
+        SourceSpec::Sim { script: Some(p) } => read.push(("--source", p.as_path())),
+        _ => {}
+    }
+    outputs::check(&[("--record", path)], &read)
+}
+
 /// Runs `eitskin run`.
 pub fn run(args: Args) -> Result<()> {
-    let mut spec = load::spec(args.spec.as_deref())?;
-    if let Some(n) = args.triangles {
-        spec.mesh.triangles = n;
+    if let Some(path) = &args.record {
+        check_record(path, &args)?;
     }
+    let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
     let calibration = match &args.calibration {
         Some(path) => Some((path, eitskin_io::read_calibration_file(path, &spec)?)),
         None => None,
@@ -186,7 +208,7 @@ pub fn run(args: Args) -> Result<()> {
         baseline_rate: args.baseline_rate,
         auto_hyperparameter: imaging.hyperparameter == Hyperparameter::Auto,
         noise_floor: NoiseFloor::FalseAlarm { rate: args.false_alarm_rate },
-        average: usize::from(args.average),
+        average: args.average,
     };
     let mut pipeline = Pipeline::new(chain, params);
     if args.average > 1 {
@@ -231,7 +253,7 @@ pub fn run(args: Args) -> Result<()> {
     let settings = SourceSettings {
         rate: args.rate,
         speed: if args.fast || args.rate <= 0.0 { Speed::AsFastAsPossible } else { Speed::Recorded },
-        frames: args.frames,
+        frames: args.frames.map(|n| n as u64),
         codec: args.codec,
         seed: args.seed,
         values_per_measurement: kind.per_measurement(),
@@ -244,7 +266,7 @@ pub fn run(args: Args) -> Result<()> {
         Start::new(args.source.to_string(), spec.length_unit.symbol(), protocol.len(), params.frames_in_reference());
     start.normalised = imaging.normalized;
     start.polarity = args.polarity.name().to_owned();
-    start.average = usize::from(args.average);
+    start.average = args.average;
     start.peak_of = args.peak_of.name().to_owned();
     start.false_alarm_rate = Some(args.false_alarm_rate);
     // A closed stdout (the reader went away) ends the run, here and at every line below.

@@ -8,6 +8,7 @@ use eitskin::touch::{labels, BACKGROUND, LESS_CONDUCTIVE, MORE_CONDUCTIVE};
 use serde::Serialize;
 
 use crate::image::{reconstruct, Input, Reconstruction};
+use crate::outputs;
 
 /// Flags of `eitskin segment`.
 #[derive(Debug, clap::Args)]
@@ -35,6 +36,7 @@ struct Output<'a> {
 
 /// Runs `eitskin segment`.
 pub fn run(args: Args) -> Result<()> {
+    outputs::check(&[("--out", &args.out)], &args.input.files())?;
     let Reconstruction { spec, image, touch, report, .. } = reconstruct(&args.input)?;
     let labels = labels(&image, &touch);
     if args.out.extension().is_some_and(|e| e == "npy") {

@@ -5,10 +5,11 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use eitskin::conductivity::Inclusion;
+use eitskin::memory::Stage;
 use eitskin::sensitivity::{along_x, peaks};
 use eitskin::{Reconstructor, ReconstructorParams};
 
-use crate::{load, plot};
+use crate::{load, plot, ranges};
 
 /// Flags of `eitskin sensitivity`.
 #[derive(Debug, clap::Args)]
@@ -18,20 +19,23 @@ pub struct Args {
     /// Folder for profile.csv, profile.png and map.png.
     #[arg(long, default_value = "sensitivity")]
     out: PathBuf,
-    /// Triangles of the finer mesh the frames are simulated on, as a multiple of the spec's.
-    #[arg(long, default_value_t = 4)]
+    /// Triangles of the finer mesh the frames are simulated on, as a multiple of the spec's, 1–64.
+    #[arg(long, default_value_t = 4, value_parser = ranges::whole("a refinement factor", 1, 64))]
     refine: usize,
-    /// Positions per side of the map grid.
-    #[arg(long, default_value_t = 17)]
+    /// Positions per side of the map grid, 2–200.
+    #[arg(long, default_value_t = 17, value_parser = ranges::whole("a number of positions per side", 2, 200))]
     map: usize,
 }
 
 /// Runs `eitskin sensitivity`.
 pub fn run(args: Args) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
+    // The folder is made first, so that a path that cannot be one fails before the work.
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let model = spec.forward_model()?;
     let mut fine = spec.clone();
-    fine.mesh.triangles = spec.mesh.triangles * args.refine.max(1);
+    fine.mesh.triangles = spec.mesh.triangles * args.refine;
+    load::check_memory(&fine, Stage::ForwardModel)?;
     let truth = fine.forward_model()?;
     let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
     let [lo, hi] = spec.outline.bounds();
@@ -39,7 +43,6 @@ pub fn run(args: Args) -> Result<()> {
     let (radius, sigma) = (0.05 * side, 0.5 * spec.conductivity);
     let inclusions = along_x(side / 2.0, 0.05 * side, radius, sigma, 0.25 * radius);
     let profile = peaks(&truth, spec.conductivity, &recon, &inclusions)?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let k = 1.0 / spec.length_unit.metres();
     let mut csv = format!("x_{},peak_s_per_m\n", spec.length_unit.symbol());
     for (inc, p) in inclusions.iter().zip(&profile) {
@@ -49,7 +52,7 @@ pub fn run(args: Args) -> Result<()> {
     let xs: Vec<f64> = inclusions.iter().map(|i| i.centre[0]).collect();
     plot::profile_png(&xs, &profile, &args.out.join("profile.png"))?;
 
-    let n = args.map.max(2);
+    let n = args.map;
     let inset = |a: f64, b: f64, t: f64| a + radius * 1.25 + t * (b - a - 2.5 * radius);
     let grid: Vec<Inclusion> = (0..n * n)
         .map(|i| {

@@ -20,7 +20,7 @@ pub struct Args {
     #[arg(long, default_value = "study")]
     out: PathBuf,
     /// Seed of the noise and the validation presses.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     seed: u64,
     /// Measurement noise, relative standard deviation per value, in [0, 0.1] (default 1e-4 =
     /// 80 dB).
@@ -35,16 +35,18 @@ pub struct Args {
     /// Noise sweep: frames with one press per press kind and level (half as many with two, and
     /// with three: 60 presses each, so that one press missed is 1.7 %), 0–10,000; 0 leaves the
     /// sweep out.
-    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u32).range(0..=10_000))]
-    sweep_presses: u32,
+    #[arg(long, default_value_t = 60, value_parser = ranges::whole("a number of presses", 0, 10_000))]
+    sweep_presses: usize,
     /// Noise sweep: untouched frames per level, for the false touches, 1–100,000.
-    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(1..=100_000))]
-    sweep_untouched: u32,
+    #[arg(long, default_value_t = 1000, value_parser = ranges::whole("a number of frames", 1, 100_000))]
+    sweep_untouched: usize,
 }
 
 /// Runs `eitskin study`.
 pub fn run(args: Args) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
+    // The folder is made first, so that a path that cannot be one fails before the work.
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let mut params = StudyParams { seed: args.seed, ..StudyParams::default() };
     if let Some(n) = args.noise {
         params.sim.noise_relative = n;
@@ -64,12 +66,12 @@ pub fn run(args: Args) -> Result<()> {
         }
     };
     let study = run_study(&spec, &params, &mut progress)?;
-    let sweep = match args.sweep_presses as usize {
+    let sweep = match args.sweep_presses {
         0 => None,
         n => {
             let sweep_params = SweepParams {
                 scenes: [n, n.div_ceil(2), n.div_ceil(2)],
-                untouched: args.sweep_untouched as usize,
+                untouched: args.sweep_untouched,
                 seed: args.seed,
                 ..SweepParams::default()
             };
@@ -77,7 +79,6 @@ pub fn run(args: Args) -> Result<()> {
         }
     };
     let seconds = start.elapsed().as_secs_f64();
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     write_figures(&study, &args)?;
     let mut json = report::json(&study, &params, seconds);
     if let (Some(sweep), Some(object)) = (&sweep, json.as_object_mut()) {

@@ -171,6 +171,44 @@ fn flags_out_of_range_are_refused_with_their_range() {
     }
 }
 
+/// Outputs are checked before any work: a study whose folder cannot be made ran for half a
+/// minute first; a picture over the frame it images, a recording over an existing one and an
+/// unknown protocol name are refused in the user's words.
+#[test]
+fn outputs_and_names_are_refused_before_any_work() {
+    let dir = scratch("outputs");
+    let frame = dir.join("frame.json");
+    std::fs::write(&frame, dir.eitskin(&["forward"]).stdout).unwrap();
+    let recording = dir.join("run.jsonl");
+    std::fs::write(&recording, "{}\n").unwrap();
+    let f = frame.to_str().unwrap();
+    let r = recording.to_str().unwrap();
+    for (args, says) in [
+        (vec!["study", "--out", "/dev/null/study"], "creating /dev/null/study: Not a directory (os error 20)".to_string()),
+        (
+            vec!["image", "--reference", f, "--frame", f, "--png", f],
+            format!("--png {f}: would overwrite the input {f} (--reference); give another path"),
+        ),
+        (
+            vec!["image", "--reference", f, "--frame", f, "--png", "/nonexistent/image.png"],
+            "--png /nonexistent/image.png: the folder /nonexistent does not exist".to_string(),
+        ),
+        (
+            vec!["run", "--record", r],
+            format!("--record {r}: the file exists; record into another file (a recording is never written over)"),
+        ),
+        (
+            vec!["forward", "--protocol", "-1"],
+            "\"-1\" is neither a protocol (two-terminal, adjacent, adjacent-all, opposite, skip-S, skip-S-all (S = 0, 1, 2, …)) nor a protocol file".to_string(),
+        ),
+    ] {
+        let out = dir.eitskin(&args);
+        assert_eq!(String::from_utf8_lossy(&out.stderr), format!("error: {says}\n"), "{args:?}");
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+    }
+    assert_eq!(std::fs::read_to_string(&recording).unwrap(), "{}\n");
+}
+
 /// `mesh --out m.png` wrote the mesh's JSON to m.png and then the picture over it ("wrote m.png
 /// and m.png"): refused before any work, as is an output over the spec.
 #[test]
@@ -185,7 +223,8 @@ fn mesh_outputs_never_overwrite_each_other_or_the_spec() {
     std::fs::write(&spec, dir.eitskin(&["spec"]).stdout).unwrap();
     let json = spec.with_extension("json");
     let out = dir.eitskin(&["mesh", spec.to_str().unwrap(), "--out", spec.to_str().unwrap()]);
-    let says = format!("error: --out {0}: would overwrite the spec {0}\n", spec.display());
+    let says =
+        format!("error: --out {0}: would overwrite the input {0} (the spec); give another path\n", spec.display());
     assert_eq!(String::from_utf8_lossy(&out.stderr), says);
     assert!(!json.exists() && std::fs::read_to_string(&spec).unwrap().contains("[outline]"));
 }

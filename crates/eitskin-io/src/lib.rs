@@ -39,6 +39,7 @@ mod calibration_file;
 pub mod codec;
 mod contrast_map_file;
 mod frame_file;
+mod memory;
 mod mesh_file;
 mod press_model_file;
 mod protocol_file;
@@ -60,6 +61,7 @@ pub use calibration_file::{
 };
 pub use contrast_map_file::{contrast_map_path, decode_contrast_map, encode_contrast_map, load_or_build_contrast_map};
 pub use frame_file::{parse_frame, read_frame};
+pub use memory::available_memory;
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
 pub use press_model_file::{
     build_press_model, decode_press_model, encode_press_model, load_or_build_press_model, press_model_path,
@@ -70,7 +72,7 @@ pub use reconstructor_file::{cache_key, cache_path, decode_linearisation, encode
 pub use samples_file::{parse_samples, read_samples, Location, Measured, SampleRow};
 pub use spec_file::{parse_spec, protocol_by_name, protocol_kind, read_spec, spec_to_toml};
 
-use eitskin::{InverseError, MeshError, ProtocolError, SpecError};
+use eitskin::{InverseError, MeshError, ProtocolError, ProtocolSpec, SpecError};
 use thiserror::Error;
 
 /// What went wrong reading a file; `path` names the file when there is one.
@@ -83,6 +85,12 @@ pub enum Error {
         path: PathBuf,
         /// Why.
         source: std::io::Error,
+    },
+    /// A protocol named neither by a built-in protocol's name nor by a file that exists.
+    #[error("\"{name}\" is neither a protocol ({}) nor a protocol file", ProtocolSpec::NAMES)]
+    UnknownProtocol {
+        /// The name as given.
+        name: String,
     },
     /// TOML syntax, a missing or unknown key, or a value of the wrong type.
     #[error("{}{message}", at(path))]
@@ -165,7 +173,11 @@ impl Error {
     /// The same error, naming `file` if it names no file yet.
     fn in_file(mut self, file: &Path) -> Error {
         match &mut self {
-            Error::Read { .. } | Error::Array { .. } | Error::Write { .. } | Error::Inverse(_) => {}
+            Error::Read { .. }
+            | Error::Array { .. }
+            | Error::Write { .. }
+            | Error::Inverse(_)
+            | Error::UnknownProtocol { .. } => {}
             Error::Toml { path, .. }
             | Error::Json { path, .. }
             | Error::Key { path, .. }

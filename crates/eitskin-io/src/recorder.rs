@@ -137,9 +137,7 @@ impl Recorder {
                 Error::Key {
                     path: Some(path.to_path_buf()),
                     key: "recording",
-                    reason: "already exists; choose another file, or append to it or overwrite it on purpose \
-                             (`Mode::Append`, `Mode::Overwrite`)"
-                        .to_string(),
+                    reason: "already exists; choose another file".to_string(),
                 }
             } else {
                 write_error(path, &e)

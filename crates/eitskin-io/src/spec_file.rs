@@ -202,6 +202,7 @@ pub fn protocol_kind(protocol: &ProtocolSpec) -> String {
 pub fn protocol_by_name(name: &str, base: &Path) -> Result<ProtocolSpec, Error> {
     match ProtocolSpec::from_name(name) {
         Some(builtin) => Ok(builtin),
+        None if !base.join(name).exists() => Err(Error::UnknownProtocol { name: name.into() }),
         None => Ok(ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(name))?)),
     }
 }

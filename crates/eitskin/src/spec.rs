@@ -576,6 +576,15 @@ impl SensorSpec {
         }
     }
 
+    /// About how many triangles [`SensorSpec::mesh`] will make: `mesh.triangles`, or the
+    /// outline's area over an equilateral triangle of `mesh.max_element_size` when that is set.
+    pub fn expected_triangles(&self) -> f64 {
+        match self.mesh.max_element_size {
+            Some(h) => self.outline.area() / (3f64.sqrt() / 4.0 * h * h),
+            None => self.mesh.triangles as f64,
+        }
+    }
+
     /// Meshes the sheet as the spec says.
     pub fn mesh(&self) -> Result<Mesh, SpecError> {
         let electrodes = self.electrode_positions()?;

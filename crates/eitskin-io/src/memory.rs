@@ -1,0 +1,50 @@
+//! The memory this process may still take: the system's available memory, lowered to the
+//! room left under the control group's limit where one is set (containers, CI runners).
+
+use std::path::Path;
+
+/// Bytes of memory available to this process now, or `None` where the system does not say
+/// (not Linux, or `/proc` not mounted).
+pub fn available_memory() -> Option<f64> {
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let system = mem_available(&meminfo)?;
+    Some(match cgroup_room(Path::new("/sys/fs/cgroup")) {
+        Some(room) => system.min(room),
+        None => system,
+    })
+}
+
+/// `MemAvailable` of a `/proc/meminfo` text, in bytes.
+fn mem_available(meminfo: &str) -> Option<f64> {
+    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024.0)
+}
+
+/// The room under a cgroup v2 limit (`memory.max` less `memory.current`), in bytes; `None`
+/// where no limit is set.
+fn cgroup_room(root: &Path) -> Option<f64> {
+    let read = |name: &str| std::fs::read_to_string(root.join(name)).ok()?.trim().parse::<f64>().ok();
+    let (max, current) = (read("memory.max")?, read("memory.current")?);
+    Some((max - current).max(0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn meminfo_and_cgroup_limits_are_read_in_bytes() {
+        let text = "MemTotal:       24000000 kB\nMemFree:         1000 kB\nMemAvailable:   2000000 kB\n";
+        assert_eq!(mem_available(text), Some(2_048_000_000.0));
+        assert_eq!(mem_available("MemTotal: 5 kB\n"), None);
+        let dir = tempfile::tempdir().unwrap();
+        assert_eq!(cgroup_room(dir.path()), None);
+        std::fs::write(dir.path().join("memory.max"), "max\n").unwrap();
+        std::fs::write(dir.path().join("memory.current"), "1000\n").unwrap();
+        assert_eq!(cgroup_room(dir.path()), None, "\"max\" is no limit");
+        std::fs::write(dir.path().join("memory.max"), "5000\n").unwrap();
+        assert_eq!(cgroup_room(dir.path()), Some(4000.0));
+        assert!(available_memory().is_none_or(|b| b > 0.0));
+    }
+}
