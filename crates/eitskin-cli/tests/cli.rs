@@ -125,7 +125,7 @@ fn bad_input_fails_with_a_message_that_says_where() {
     assert_eq!(
         String::from_utf8_lossy(&out.stderr),
         format!(
-            "error: {}: the spec does not make a sensor: `electrodes.contact_impedance` must be a positive number, got 0\n",
+            "error: {}: the spec does not make a sensor: `electrodes.contact_impedance` must be a positive number, got 0 Ω·m²\n",
             spec.display()
         )
     );

@@ -61,11 +61,27 @@ pub fn parse_mesh(text: &str) -> Result<Mesh, Error> {
     if base > 1 {
         return Err(Error::Key { path: None, key: "index_base", reason: format!("must be 0 or 1, got {base}") });
     }
-    // An index below the base wraps to a huge value, which `Mesh::new` reports as no such node.
-    let shift = |n: usize| n.wrapping_sub(base);
+    // Every index is checked in the file's own numbering, so that a message quotes it as written.
+    let (lo, hi) = (base, file.nodes.len() + base);
+    let numbering = || match file.nodes.len() {
+        0 => "the file has no nodes".to_string(),
+        n => format!("with index_base = {base} the {n} nodes are numbered {lo} to {}", hi - 1),
+    };
+    for (k, t) in file.elems.iter().enumerate() {
+        if let Some(n) = t.iter().find(|n| !(lo..hi).contains(*n)) {
+            let reason = format!("triangle {} names node {n}, but {}", k + 1, numbering());
+            return Err(Error::Key { path: None, key: "elems", reason });
+        }
+    }
+    for (k, e) in file.electrodes.iter().enumerate() {
+        if let Some(n) = e.nodes.iter().find(|n| !(lo..hi).contains(*n)) {
+            let reason = format!("electrode {} names node {n}, but {}", k + 1, numbering());
+            return Err(Error::Key { path: None, key: "electrodes", reason });
+        }
+    }
     let nodes = file.nodes.iter().map(|p| p.map(|c| c * scale)).collect();
-    let triangles = file.elems.iter().map(|t| t.map(shift)).collect();
-    let electrodes = file.electrodes.iter().map(|e| e.nodes.iter().map(|&n| shift(n)).collect()).collect();
+    let triangles = file.elems.iter().map(|t| t.map(|n| n - base)).collect();
+    let electrodes = file.electrodes.iter().map(|e| e.nodes.iter().map(|&n| n - base).collect()).collect();
     Ok(Mesh::new(nodes, triangles, electrodes)?)
 }
 
@@ -106,7 +122,15 @@ mod tests {
         let err = parse_mesh(text).unwrap_err();
         assert_eq!(
             crate::full_message(&err),
-            "the mesh is not valid: triangle 0 names node 3, but the mesh has 3 nodes"
+            "`elems` triangle 1 names node 3, but with index_base = 0 the 3 nodes are numbered 0 to 2"
+        );
+        // A file counted from 1 read as counted from 0 (or the other way) names node 0: said
+        // so in the file's own numbering, not as node 18446744073709551615.
+        let text =
+            r#"{"index_base": 1, "nodes": [[0,0],[1,0],[0,1]], "elems": [[1,2,3]], "electrodes": [{"nodes": [0, 1]}]}"#;
+        assert_eq!(
+            crate::full_message(&parse_mesh(text).unwrap_err()),
+            "`electrodes` electrode 1 names node 0, but with index_base = 1 the 3 nodes are numbered 1 to 3"
         );
         let err = parse_mesh(r#"{"nodes": [], "elems": []}"#).unwrap_err();
         assert!(err.to_string().contains("missing field `electrodes`"), "{err}");

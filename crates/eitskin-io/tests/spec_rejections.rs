@@ -102,8 +102,8 @@ fn overlapping_electrodes_are_refused() {
     assert_refused(
         &circle,
         &format!(
-            "{SPEC}electrodes 1 and 2 overlap: their centres are 0.007853981633974483 m apart along the boundary \
-             but `electrodes.width` is 0.01 m"
+            "{SPEC}electrodes 1 and 2 overlap: their centres are 7.854 mm apart along the boundary \
+             but `electrodes.width` is 10 mm"
         ),
     );
 }
@@ -111,29 +111,57 @@ fn overlapping_electrodes_are_refused() {
 #[test]
 fn electrode_wider_than_its_side_is_refused() {
     let wide = PAPER.replace("height = 200.0", "height = 8.0");
-    assert_refused(
-        &wide,
-        &format!("{SPEC}`electrodes.width` = 0.01 m is wider than side 2 (0.008 m) of the rectangle"),
-    );
+    assert_refused(&wide, &format!("{SPEC}`electrodes.width` = 10 mm is wider than side 2 (8 mm) of the rectangle"));
 }
 
 #[test]
 fn non_positive_values_are_refused() {
     assert_refused(
         &PAPER.replace("conductivity = 1.0", "conductivity = 0.0"),
-        &format!("{SPEC}`conductivity` must be a positive number, got 0"),
+        &format!("{SPEC}`conductivity` must be a positive number, got 0 S/m"),
     );
     assert_refused(
         &PAPER.replace("contact_impedance = 1e-4", "contact_impedance = -1e-4"),
-        &format!("{SPEC}`electrodes.contact_impedance` must be a positive number, got -0.0001"),
+        &format!("{SPEC}`electrodes.contact_impedance` must be a positive number, got -0.0001 Ω·m²"),
     );
     assert_refused(
-        &PAPER.replace("thickness = 10.0", "thickness = -1.0"),
-        &format!("{SPEC}`thickness` must be a positive number, got -0.001"),
+        &PAPER.replace("thickness = 10.0", "thickness = -0.2"),
+        &format!("{SPEC}`thickness` must be a positive number, got -0.2 mm"),
     );
     assert_refused(
         &PAPER.replace("width = 200.0", "width = 0.0"),
-        &format!("{SPEC}`outline.width` must be a positive number, got 0"),
+        &format!("{SPEC}`outline.width` must be a positive number, got 0 mm"),
+    );
+    assert_refused(
+        &PAPER.replace("units = \"mm\"", "units = \"m\"").replace("width = 200.0", "width = 0.0"),
+        &format!("{SPEC}`outline.width` must be a positive number, got 0 m"),
+    );
+}
+
+/// Each mesh value has a range: a grading above 1 was clamped to 1 without a word, and an angle
+/// the refinement cannot reach ran it to its vertex limit.
+#[test]
+fn mesh_values_and_electrode_counts_out_of_range_are_refused() {
+    let mesh = |line: &str| PAPER.replace("triangles = 4000", line);
+    assert_refused(
+        &mesh("triangles = 0"),
+        &format!("{SPEC}`mesh.triangles` must be a finite number within [1, 100000000], got 0"),
+    );
+    assert_refused(
+        &mesh("grading = 2.0"),
+        &format!("{SPEC}`mesh.grading` must be a finite number within [0.001, 1], got 2"),
+    );
+    assert_refused(
+        &mesh("min_angle_deg = 40.0"),
+        &format!("{SPEC}`mesh.min_angle_deg` must be a finite number within (0, 33] degrees, got 40 degrees"),
+    );
+    assert_refused(
+        &mesh("max_element_size = -0.5"),
+        &format!("{SPEC}`mesh.max_element_size` must be a positive number, got -0.5 mm"),
+    );
+    assert_refused(
+        &PAPER.replace("count = 16", "count = 1024"),
+        &format!("{SPEC}`electrodes.count` = 1024: at most 256 electrodes are taken"),
     );
 }
 

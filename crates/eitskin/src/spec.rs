@@ -19,8 +19,8 @@ pub enum SpecError {
     NotPositive {
         /// The spec key, e.g. `electrodes.contact_impedance`.
         key: &'static str,
-        /// The value found (SI units).
-        value: f64,
+        /// The value found, in the spec's units.
+        value: Quantity,
     },
     /// A point whose coordinates are not both finite numbers.
     #[error("`{key}`: point {point} is ({x}, {y}); both coordinates must be finite numbers")]
@@ -29,10 +29,10 @@ pub enum SpecError {
         key: &'static str,
         /// 1-based point.
         point: usize,
-        /// Its x, as given.
-        x: f64,
-        /// Its y, as given.
-        y: f64,
+        /// Its x, in the spec's length unit.
+        x: Quantity,
+        /// Its y, in the spec's length unit.
+        y: Quantity,
     },
     /// A polygon needs three corners.
     #[error("`outline.points` needs at least 3 points, got {got}")]
@@ -78,42 +78,42 @@ pub enum SpecError {
         got: usize,
     },
     /// An explicit position is far from the boundary.
-    #[error("`electrodes.positions`: electrode {electrode} is {distance} m from the boundary; put it on the outline")]
+    #[error("`electrodes.positions`: electrode {electrode} is {distance} from the boundary; put it on the outline")]
     PositionOffBoundary {
         /// 1-based electrode.
         electrode: usize,
-        /// Distance to the boundary, in m.
-        distance: f64,
+        /// Distance to the boundary, in the spec's length unit.
+        distance: Quantity,
     },
     /// An electrode is wider than the side it sits on.
-    #[error("`electrodes.width` = {width} m is wider than side {side} ({side_length} m) of the rectangle")]
+    #[error("`electrodes.width` = {width} is wider than side {side} ({side_length}) of the rectangle")]
     WiderThanSide {
-        /// Electrode width, in m.
-        width: f64,
+        /// Electrode width, in the spec's length unit.
+        width: Quantity,
         /// 1-based side (1 bottom, 2 right, 3 top, 4 left).
         side: usize,
-        /// Side length, in m.
-        side_length: f64,
+        /// Side length, in the spec's length unit.
+        side_length: Quantity,
     },
     /// Two electrodes overlap on the boundary.
-    #[error("electrodes {first} and {second} overlap: their centres are {gap} m apart along the boundary but `electrodes.width` is {width} m")]
+    #[error("electrodes {first} and {second} overlap: their centres are {gap} apart along the boundary but `electrodes.width` is {width}")]
     Overlap {
         /// 1-based first electrode.
         first: usize,
         /// 1-based second electrode.
         second: usize,
-        /// Arc distance between their centres, in m.
-        gap: f64,
-        /// Electrode width, in m.
-        width: f64,
+        /// Arc distance between their centres, in the spec's length unit.
+        gap: Quantity,
+        /// Electrode width, in the spec's length unit.
+        width: Quantity,
     },
     /// A number outside its allowed range, or not finite.
     #[error("`{key}` must be a finite number within {range}, got {value}")]
     OutOfRange {
         /// The spec key, e.g. `electrodes.start_angle_deg`.
         key: &'static str,
-        /// The value found.
-        value: f64,
+        /// The value found, in the spec's units.
+        value: Quantity,
         /// The allowed range, with its unit, e.g. "[-360, 360] degrees".
         range: &'static str,
     },
@@ -151,6 +151,49 @@ pub enum SpecError {
     /// The forward model could not be built.
     #[error("the forward model could not be built")]
     Forward(#[from] ForwardError),
+}
+
+/// The most triangles `mesh.triangles` takes.
+pub const MAX_TRIANGLES: usize = 100_000_000;
+
+/// The most electrodes `electrodes.count` takes.
+pub const MAX_ELECTRODES: usize = 256;
+
+/// A number in a message, in the unit the user gave it in: a value as written shows to 12
+/// significant figures (so that 15.7 mm converted to metres and back reads 15.7 mm, not
+/// 15.699999999999998), a value derived from others to 4.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quantity {
+    /// The number, in `unit`.
+    pub value: f64,
+    /// The unit's symbol ("mm", "S/m"); empty for a pure number.
+    pub unit: &'static str,
+    /// Significant figures shown.
+    pub figures: usize,
+}
+
+impl Quantity {
+    /// A value as the user wrote it, in `unit`.
+    pub fn written(value: f64, unit: &'static str) -> Quantity {
+        Quantity { value, unit, figures: 12 }
+    }
+
+    /// A value derived from what the user wrote, in `unit`.
+    pub fn derived(value: f64, unit: &'static str) -> Quantity {
+        Quantity { value, unit, figures: 4 }
+    }
+}
+
+impl std::fmt::Display for Quantity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // Rounded through scientific notation, then shown in the shortest form that reads back.
+        let rounded: f64 = format!("{:.*e}", self.figures.saturating_sub(1), self.value).parse().unwrap_or(self.value);
+        match self.unit {
+            _ if !rounded.is_finite() => write!(f, "{rounded}"),
+            "" => write!(f, "{rounded}"),
+            unit => write!(f, "{rounded} {unit}"),
+        }
+    }
 }
 
 /// The unit that lengths in the spec file and in outputs are given in.
@@ -417,17 +460,20 @@ impl SensorSpec {
 
     /// The electrodes as arc-length intervals of the boundary, after checking the whole spec.
     pub fn electrode_positions(&self) -> Result<Vec<Electrode>, SpecError> {
-        positive("thickness", self.thickness)?;
-        positive("conductivity", self.conductivity)?;
+        positive("thickness", self.length(self.thickness, Quantity::written))?;
+        positive("conductivity", Quantity::written(self.conductivity, "S/m"))?;
         self.check_outline()?;
         self.check_mesh()?;
         let e = &self.electrodes;
         if e.count < 2 {
             return Err(SpecError::ElectrodeCount { count: e.count, reason: "at least 2 electrodes are needed" });
         }
+        if e.count > MAX_ELECTRODES {
+            return Err(SpecError::ElectrodeCount { count: e.count, reason: "at most 256 electrodes are taken" });
+        }
         if !e.point {
-            positive("electrodes.width", e.width)?;
-            positive("electrodes.contact_impedance", e.contact_impedance)?;
+            positive("electrodes.width", self.length(e.width, Quantity::written))?;
+            positive("electrodes.contact_impedance", Quantity::written(e.contact_impedance, "Ω·m²"))?;
         }
         let width = if e.point { 0.0 } else { e.width };
         let perimeter = self.outline.perimeter();
@@ -441,7 +487,12 @@ impl SensorSpec {
             let gap = if order.len() == 2 { gap.min(perimeter - gap) } else { gap };
             if gap <= width || gap < 1e-9 * perimeter {
                 let (first, second) = (a.min(b) + 1, a.max(b) + 1);
-                return Err(SpecError::Overlap { first, second, gap, width });
+                return Err(SpecError::Overlap {
+                    first,
+                    second,
+                    gap: self.length(gap, Quantity::derived),
+                    width: self.length(width, Quantity::written),
+                });
             }
         }
         Ok(electrodes)
@@ -473,7 +524,11 @@ impl SensorSpec {
                 let mut start = 0.0;
                 for (side, &len) in sides.iter().enumerate() {
                     if width > len {
-                        return Err(SpecError::WiderThanSide { width, side: side + 1, side_length: len });
+                        return Err(SpecError::WiderThanSide {
+                            width: self.length(width, Quantity::written),
+                            side: side + 1,
+                            side_length: self.length(len, Quantity::written),
+                        });
                     }
                     for k in 0..per_side {
                         centres.push(start + (k as f64 + 0.5) * len / per_side as f64);
@@ -487,7 +542,7 @@ impl SensorSpec {
                 if !(angle_deg.is_finite() && (-360.0..=360.0).contains(&angle_deg)) {
                     return Err(SpecError::OutOfRange {
                         key: "electrodes.start_angle_deg",
-                        value: angle_deg,
+                        value: Quantity::written(angle_deg, "degrees"),
                         range: "[-360, 360] degrees",
                     });
                 }
@@ -498,13 +553,14 @@ impl SensorSpec {
                 if positions.len() != count {
                     return Err(SpecError::PositionCount { expected: count, got: positions.len() });
                 }
-                finite_points("electrodes.positions", positions)?;
+                self.finite_points("electrodes.positions", positions)?;
                 positions
                     .iter()
                     .enumerate()
                     .map(|(k, &p)| {
                         let (s, distance) = outline.locate(p);
                         if distance > 1e-3 * perimeter {
+                            let distance = self.length(distance, Quantity::derived);
                             return Err(SpecError::PositionOffBoundary { electrode: k + 1, distance });
                         }
                         Ok(s)
@@ -522,12 +578,12 @@ impl SensorSpec {
     fn check_outline(&self) -> Result<(), SpecError> {
         match &self.outline {
             Outline::Rectangle { width, height } => {
-                positive("outline.width", *width)?;
-                positive("outline.height", *height)
+                positive("outline.width", self.length(*width, Quantity::written))?;
+                positive("outline.height", self.length(*height, Quantity::written))
             }
-            Outline::Circle { radius } => positive("outline.radius", *radius),
+            Outline::Circle { radius } => positive("outline.radius", self.length(*radius, Quantity::written)),
             Outline::Polygon { points } => {
-                finite_points("outline.points", points)?;
+                self.finite_points("outline.points", points)?;
                 if points.len() < 3 {
                     return Err(SpecError::TooFewPoints { got: points.len() });
                 }
@@ -544,12 +600,37 @@ impl SensorSpec {
 
     fn check_mesh(&self) -> Result<(), SpecError> {
         let m = &self.mesh;
-        positive("mesh.triangles", m.triangles as f64)?;
+        let within = |key, value: f64, (lo, hi): (f64, f64), unit, range| {
+            if value >= lo && value <= hi {
+                Ok(())
+            } else {
+                Err(SpecError::OutOfRange { key, value: Quantity::written(value, unit), range })
+            }
+        };
+        within("mesh.triangles", m.triangles as f64, (1.0, MAX_TRIANGLES as f64), "", "[1, 100000000]")?;
         if let Some(h) = m.max_element_size {
-            positive("mesh.max_element_size", h)?;
+            positive("mesh.max_element_size", self.length(h, Quantity::written))?;
         }
-        positive("mesh.grading", m.grading)?;
-        positive("mesh.min_angle_deg", m.min_angle_deg)
+        within("mesh.grading", m.grading, (1e-3, 1.0), "", "[0.001, 1]")?;
+        // Ruppert refinement is not known to end above about 33.9°; spade stops and says so.
+        within("mesh.min_angle_deg", m.min_angle_deg, (f64::MIN_POSITIVE, 33.0), "degrees", "(0, 33] degrees")
+    }
+
+    /// `metres` in the spec's length unit, as `kind` quotes it.
+    fn length(&self, metres: f64, kind: fn(f64, &'static str) -> Quantity) -> Quantity {
+        kind(metres / self.length_unit.metres(), self.length_unit.symbol())
+    }
+
+    fn finite_points(&self, key: &'static str, points: &[[f64; 2]]) -> Result<(), SpecError> {
+        match points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
+            Some(k) => Err(SpecError::NotFinitePoint {
+                key,
+                point: k + 1,
+                x: self.length(points[k][0], Quantity::written),
+                y: self.length(points[k][1], Quantity::written),
+            }),
+            None => Ok(()),
+        }
     }
 
     /// The protocol the spec asks for.
@@ -611,15 +692,8 @@ impl SensorSpec {
 
 /// Every point of `points` finite: a NaN corner passes every comparison the geometry makes
 /// (no crossing, no orientation), and the mesher's triangulation then never ends.
-fn finite_points(key: &'static str, points: &[[f64; 2]]) -> Result<(), SpecError> {
-    match points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
-        Some(k) => Err(SpecError::NotFinitePoint { key, point: k + 1, x: points[k][0], y: points[k][1] }),
-        None => Ok(()),
-    }
-}
-
-fn positive(key: &'static str, value: f64) -> Result<(), SpecError> {
-    if value > 0.0 && value.is_finite() {
+fn positive(key: &'static str, value: Quantity) -> Result<(), SpecError> {
+    if value.value > 0.0 && value.value.is_finite() {
         Ok(())
     } else {
         Err(SpecError::NotPositive { key, value })
@@ -661,6 +735,20 @@ mod tests {
         SensorSpec { outline, electrodes: ElectrodeSpec { placement, numbering, ..paper.electrodes }, ..paper }
     }
 
+    /// A value the user wrote in millimetres reads back as written, not with the float noise of
+    /// its trip through metres.
+    #[test]
+    fn quantities_read_as_written_in_the_users_unit() {
+        let metres = 15.7 * LengthUnit::Millimetre.metres();
+        let back = metres / LengthUnit::Millimetre.metres();
+        assert_eq!(back.to_string(), "15.699999999999998", "the noise this guards against");
+        assert_eq!(Quantity::written(back, "mm").to_string(), "15.7 mm");
+        assert_eq!(Quantity::derived(std::f64::consts::PI * 2.5, "mm").to_string(), "7.854 mm");
+        assert_eq!(Quantity::written(-1e-4, "Ω·m²").to_string(), "-0.0001 Ω·m²");
+        assert_eq!(Quantity::written(f64::NAN, "mm").to_string(), "NaN");
+        assert_eq!(Quantity::written(3.0, "").to_string(), "3");
+    }
+
     /// A corner or an electrode that is not a finite number is named before any geometry is
     /// built (a NaN corner used to send the mesher's triangulation into a loop).
     #[test]
@@ -673,7 +761,7 @@ mod tests {
         let error = spec.mesh().unwrap_err();
         assert_eq!(
             error.to_string(),
-            "`outline.points`: point 3 is (NaN, 0.1); both coordinates must be finite numbers"
+            "`outline.points`: point 3 is (NaN, 100 mm); both coordinates must be finite numbers"
         );
         let mut positions: Vec<[f64; 2]> = (0..16).map(|k| [-0.1 + 0.0125 * k as f64, -0.1]).collect();
         positions[15] = [0.05, f64::INFINITY];

@@ -59,6 +59,15 @@ impl Mesh {
     }
 }
 
+/// Spade's reason for refusing a boundary point, in words.
+fn insertion_problem(error: spade::InsertionError) -> &'static str {
+    match error {
+        spade::InsertionError::TooSmall => "a boundary coordinate is nearer zero than 1.8e-43 m without being zero",
+        spade::InsertionError::TooLarge => "a boundary coordinate is larger than 3.2e60 m",
+        spade::InsertionError::NAN => "a boundary coordinate is not a number",
+    }
+}
+
 fn build(outline: &Outline, electrodes: &[Electrode], params: &MeshParams, h0: f64) -> Result<Mesh, MeshError> {
     let perimeter = outline.perimeter();
     let tol = 1e-9 * perimeter;
@@ -95,7 +104,7 @@ fn build(outline: &Outline, electrodes: &[Electrode], params: &MeshParams, h0: f
     let n = points.len();
     let ring: Vec<[usize; 2]> = (0..n).map(|i| [i, (i + 1) % n]).collect();
     let mut cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::bulk_load_cdt(points, ring)
-        .map_err(|e| MeshError::Triangulation(format!("{e:?}")))?;
+        .map_err(|e| MeshError::Triangulation(insertion_problem(e).into()))?;
 
     let area_limit = 3f64.sqrt() / 4.0 * h0 * h0;
     let expected = (outline.area() / area_limit * 4.0) as usize + 4 * n + 1000;
