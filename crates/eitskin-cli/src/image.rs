@@ -96,7 +96,8 @@ pub struct Args {
     /// Write the conductivity change of every triangle as CSV (triangle, centroid x, y, Δσ).
     #[arg(long)]
     elements: Option<PathBuf>,
-    /// Write the image as a PNG heat map (touches marked).
+    /// Write the image as a PNG figure: Δσ in S/m on a colour bar, axes in the spec's unit, the
+    /// electrodes numbered and each touch's centre ringed.
     #[arg(long)]
     png: Option<PathBuf>,
     /// Print JSON instead of text.
@@ -336,7 +337,10 @@ pub fn run(args: Args) -> Result<()> {
         )?;
     }
     if let Some(png) = &args.png {
-        plot::image_png(&image, &touches, png)?;
+        let frame = &args.input.frame;
+        let name = frame.file_name().unwrap_or(frame.as_os_str()).to_string_lossy();
+        let title = format!("Conductivity change: {name}, frame {}", args.input.frame_index);
+        plot::image_png(&image, &touches, &spec, &title, png)?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);

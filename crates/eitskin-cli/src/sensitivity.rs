@@ -27,6 +27,9 @@ pub struct Args {
     map: usize,
 }
 
+/// What the profile and the map show: the largest |Δσ| of an inclusion's image, in S/m.
+const PEAK: &str = "peak |Δσ| (S/m)";
+
 /// Runs `eitskin sensitivity`.
 pub fn run(args: Args) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
@@ -49,11 +52,19 @@ pub fn run(args: Args) -> Result<()> {
         csv += &format!("{},{p:e}\n", inc.centre[0] * k);
     }
     std::fs::write(args.out.join("profile.csv"), csv)?;
-    let xs: Vec<f64> = inclusions.iter().map(|i| i.centre[0]).collect();
-    plot::profile_png(&xs, &profile, &args.out.join("profile.png"))?;
+    let unit = spec.length_unit.symbol();
+    let inclusion = format!("a {} {unit} inclusion of {} S/m", plot::number(2.0 * radius * k), plot::number(sigma));
+    let points = inclusions.iter().zip(&profile).map(|(inc, &p)| (inc.centre[0] * k, p)).collect();
+    plot::chart(
+        &args.out.join("profile.png"),
+        &format!("Peak |Δσ| of {inclusion} along y = 0"),
+        (&format!("x ({unit})"), PEAK),
+        &[plot::Series { name: "peak |Δσ|".into(), points, line: true }],
+    )?;
 
     let n = args.map;
     let inset = |a: f64, b: f64, t: f64| a + radius * 1.25 + t * (b - a - 2.5 * radius);
+    let step = |a: f64, b: f64| inset(a, b, 1.0 / (n - 1) as f64) - inset(a, b, 0.0);
     let grid: Vec<Inclusion> = (0..n * n)
         .map(|i| {
             let (col, row) = (i % n, i / n);
@@ -68,7 +79,9 @@ pub fn run(args: Args) -> Result<()> {
         .collect();
     let map = peaks(&truth, spec.conductivity, &recon, &grid)?;
     let centres: Vec<[f64; 2]> = grid.iter().map(|g| g.centre).collect();
-    plot::map_png(&centres, &map, spec.outline.bounds(), &args.out.join("map.png"))?;
+    let cell = [step(lo[0], hi[0]), step(lo[1], hi[1])];
+    let title = format!("Peak |Δσ| of {inclusion} centred at each point");
+    plot::map_png(&centres, &map, cell, &spec, (&title, PEAK), &args.out.join("map.png"))?;
     let centre = profile[profile.len() / 2];
     println!(
         "{} positions along x, {} on the map; edge-to-centre peak ratio {:.2}; wrote {}",

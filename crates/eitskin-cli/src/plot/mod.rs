@@ -1,10 +1,64 @@
-//! Pictures: the mesh with its electrodes.
+//! Pictures: the mesh with its electrodes, heat maps over the sheet (a conductivity-change
+//! image, a sensitivity map) with axes in the spec's unit and a colour bar, and line charts.
+
+mod colour;
+mod heat;
+mod sheet;
 
 use std::path::Path;
 
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context, Result};
 use eitskin::Mesh;
+use plotters::coord::Shift;
 use plotters::prelude::*;
+
+pub use heat::{image_png, map_png};
+
+/// A figure's title font.
+const TITLE: (&str, u32) = ("sans-serif", 24);
+/// The font of tick labels and electrode numbers.
+const LABELS: (&str, u32) = ("sans-serif", 15);
+/// The font of an axis' title.
+const AXIS_TITLE: (&str, u32) = ("sans-serif", 17);
+
+/// Draws a picture of `size` pixels with `draw` on a white ground, and writes it to `path` as PNG.
+fn png(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend, Shift>) -> Result<()>,
+) -> Result<()> {
+    register_font()?;
+    let root = BitMapBackend::new(path, size).into_drawing_area();
+    let drawn = root.fill(&WHITE).drawn().and_then(|()| draw(&root)).and_then(|()| root.present().drawn());
+    drawn.with_context(|| format!("drawing {}", path.display()))
+}
+
+/// Plotters' errors as anyhow's.
+trait Drawn<T> {
+    /// The error, if any, as an [`anyhow::Error`] that quotes it.
+    fn drawn(self) -> Result<T>;
+}
+
+impl<T, E: std::fmt::Display> Drawn<T> for std::result::Result<T, E> {
+    fn drawn(self) -> Result<T> {
+        self.map_err(|e| anyhow!("{e}"))
+    }
+}
+
+/// A number as a tick label: at most 4 decimals, trailing zeros dropped, a true minus sign;
+/// in scientific notation below 0.001.
+pub fn number(value: f64) -> String {
+    let text = if value.abs() >= 1e-3 || value.abs() < 1e-12 {
+        let fixed = format!("{value:.4}");
+        fixed.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        format!("{value:.1e}")
+    };
+    match text.as_str() {
+        "-0" => "0".to_string(),
+        _ => text.replace('-', "\u{2212}"),
+    }
+}
 
 /// Draws `mesh` (grey edges) with its electrodes (thick; electrode 1 red, the rest blue) to a PNG.
 pub fn mesh_png(mesh: &Mesh, path: &Path) -> Result<()> {
@@ -38,90 +92,6 @@ pub fn mesh_png(mesh: &Mesh, path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Draws a conductivity-change image as a heat map (decrease blue, increase red, both scaled to
-/// the largest |change|; masked pixels grey) with a black ring at each touch's centre.
-pub fn image_png(image: &eitskin::Image, touches: &[eitskin::Touch], path: &Path) -> Result<()> {
-    let [nx, ny] = image.size;
-    let cell = (640 / nx.max(ny)).max(1) as u32;
-    let (w, h) = (nx as u32 * cell, ny as u32 * cell);
-    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
-    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let scale = image.peak().map_or(1.0, |(_, v)| v.abs().max(f32::MIN_POSITIVE));
-    for row in 0..ny {
-        for col in 0..nx {
-            let p = row * nx + col;
-            let colour = if !image.inside[p] {
-                RGBColor(200, 200, 200)
-            } else {
-                let t = (image.values[p] / scale).clamp(-1.0, 1.0);
-                let fade = |c: f32| (255.0 * (1.0 - c.abs())) as u8;
-                if t < 0.0 {
-                    RGBColor(fade(t), fade(t), 255)
-                } else {
-                    RGBColor(255, fade(t), fade(t))
-                }
-            };
-            let (x, y) = ((col as u32 * cell) as i32, (row as u32 * cell) as i32);
-            root.draw(&Rectangle::new([(x, y), (x + cell as i32, y + cell as i32)], colour.filled()))
-                .map_err(|e| fail(&e))?;
-        }
-    }
-    let [lo, hi] = image.bounds;
-    for t in touches {
-        let x = ((t.centre[0] - lo[0]) / (hi[0] - lo[0]) * w as f64) as i32;
-        let y = ((hi[1] - t.centre[1]) / (hi[1] - lo[1]) * h as f64) as i32;
-        root.draw(&Circle::new((x, y), 8, BLACK.stroke_width(3))).map_err(|e| fail(&e))?;
-    }
-    root.present().map_err(|e| fail(&e))?;
-    Ok(())
-}
-
-/// A line through (x, y) points scaled to fill the picture, with a dot at each point.
-pub fn profile_png(xs: &[f64], ys: &[f64], path: &Path) -> Result<()> {
-    let (w, h) = (800u32, 500u32);
-    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
-    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let (x0, x1) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
-    let y1 = ys.iter().fold(0.0f64, |m, &y| m.max(y)).max(f64::MIN_POSITIVE);
-    let px = |x: f64, y: f64| {
-        (
-            40 + ((x - x0) / (x1 - x0).max(f64::MIN_POSITIVE) * (w - 80) as f64) as i32,
-            (h - 40) as i32 - (y / y1 * (h - 80) as f64) as i32,
-        )
-    };
-    root.draw(&PathElement::new(vec![(40, (h - 40) as i32), ((w - 40) as i32, (h - 40) as i32)], BLACK))
-        .map_err(|e| fail(&e))?;
-    let points: Vec<(i32, i32)> = xs.iter().zip(ys).map(|(&x, &y)| px(x, y)).collect();
-    root.draw(&PathElement::new(points.clone(), BLUE.stroke_width(2))).map_err(|e| fail(&e))?;
-    for p in points {
-        root.draw(&Circle::new(p, 4, BLUE.filled())).map_err(|e| fail(&e))?;
-    }
-    root.present().map_err(|e| fail(&e))?;
-    Ok(())
-}
-
-/// Values at scattered centres drawn as squares shaded from white (0) to red (largest).
-pub fn map_png(centres: &[[f64; 2]], values: &[f64], [lo, hi]: [[f64; 2]; 2], path: &Path) -> Result<()> {
-    let size = 600u32;
-    let root = BitMapBackend::new(path, (size, size)).into_drawing_area();
-    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
-    root.fill(&RGBColor(200, 200, 200)).map_err(|e| fail(&e))?;
-    let top = values.iter().fold(0.0f64, |m, &v| m.max(v)).max(f64::MIN_POSITIVE);
-    let n = (centres.len() as f64).sqrt().ceil().max(1.0);
-    let half = (size as f64 / n / 2.0).ceil() as i32;
-    for (c, v) in centres.iter().zip(values) {
-        let x = ((c[0] - lo[0]) / (hi[0] - lo[0]) * size as f64) as i32;
-        let y = ((hi[1] - c[1]) / (hi[1] - lo[1]) * size as f64) as i32;
-        let fade = (255.0 * (1.0 - v / top)) as u8;
-        root.draw(&Rectangle::new([(x - half, y - half), (x + half, y + half)], RGBColor(255, fade, fade).filled()))
-            .map_err(|e| fail(&e))?;
-    }
-    root.present().map_err(|e| fail(&e))?;
-    Ok(())
-}
-
 /// One series of a chart: named points, joined by a line or drawn as dots.
 pub struct Series {
     /// Legend text.
@@ -133,7 +103,7 @@ pub struct Series {
 }
 
 /// The bundled font (DejaVu Sans, Bitstream Vera licence: `assets/DejaVuSans-LICENSE.txt`).
-const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 
 fn register_font() -> Result<()> {
     static ONCE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
@@ -145,7 +115,7 @@ fn register_font() -> Result<()> {
     }
 }
 
-/// A titled chart with labelled axes and a legend, to a PNG.
+/// A titled chart with labelled axes and, for more than one series, a legend, to a PNG.
 pub fn chart(path: &Path, title: &str, (x_label, y_label): (&str, &str), series: &[Series]) -> Result<()> {
     register_font()?;
     let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
@@ -176,7 +146,9 @@ pub fn chart(path: &Path, title: &str, (x_label, y_label): (&str, &str), series:
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
-        .label_style(("sans-serif", 15))
+        .x_label_formatter(&|v| number(*v))
+        .y_label_formatter(&|v| number(*v))
+        .label_style(LABELS)
         .draw()
         .map_err(|e| fail(&e))?;
     for (k, s) in series.iter().enumerate() {
@@ -191,6 +163,9 @@ pub fn chart(path: &Path, title: &str, (x_label, y_label): (&str, &str), series:
             .label(s.name.clone())
             .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 16, y + 4)], colour.filled()));
     }
+    if series.len() < 2 {
+        return root.present().map_err(|e| fail(&e));
+    }
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
@@ -201,4 +176,18 @@ pub fn chart(path: &Path, title: &str, (x_label, y_label): (&str, &str), series:
         .map_err(|e| fail(&e))?;
     root.present().map_err(|e| fail(&e))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_are_short_and_signed_with_a_true_minus() {
+        let cases =
+            [(50.00000000000001, "50"), (-100.0, "−100"), (0.0125, "0.0125"), (-2.7e-17, "0"), (-2e-5, "−2.0e−5")];
+        for (value, text) in cases {
+            assert_eq!(number(value), text, "{value}");
+        }
+    }
 }
