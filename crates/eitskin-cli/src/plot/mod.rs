@@ -22,15 +22,34 @@ const LABELS: (&str, u32) = ("sans-serif", 15);
 const AXIS_TITLE: (&str, u32) = ("sans-serif", 17);
 
 /// Draws a picture of `size` pixels with `draw` on a white ground, and writes it to `path` as PNG.
+///
+/// The picture is drawn in memory and encoded here, so that a file that cannot be written is
+/// said in words ("writing x.png: Permission denied") rather than as plotters' nested errors.
 fn png(
     path: &Path,
     size: (u32, u32),
     draw: impl FnOnce(&DrawingArea<BitMapBackend, Shift>) -> Result<()>,
 ) -> Result<()> {
     register_font()?;
-    let root = BitMapBackend::new(path, size).into_drawing_area();
-    let drawn = root.fill(&WHITE).drawn().and_then(|()| draw(&root)).and_then(|()| root.present().drawn());
-    drawn.with_context(|| format!("drawing {}", path.display()))
+    let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
+        let drawn = root.fill(&WHITE).drawn().and_then(|()| draw(&root)).and_then(|()| root.present().drawn());
+        drawn.with_context(|| format!("drawing {}", path.display()))?;
+    }
+    write_png(path, size, &rgb).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Encodes 8-bit RGB pixels, row by row from the top, to a PNG file.
+fn write_png(path: &Path, (width, height): (u32, u32), rgb: &[u8]) -> Result<()> {
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut encoder = ::png::Encoder::new(file, width, height);
+    encoder.set_color(::png::ColorType::Rgb);
+    encoder.set_depth(::png::BitDepth::Eight);
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(rgb)?;
+    writer.finish()?;
+    Ok(())
 }
 
 /// Plotters' errors as anyhow's.
@@ -70,26 +89,24 @@ pub fn mesh_png(mesh: &Mesh, path: &Path) -> Result<()> {
     let px = |p: [f64; 2]| {
         ((margin + (p[0] - lo[0]) * scale) as i32, (size as f64 - margin - (p[1] - lo[1]) * scale) as i32)
     };
-    let root = BitMapBackend::new(path, (size, size)).into_drawing_area();
-    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    for t in 0..mesh.triangles().len() {
-        let c = mesh.corners(t);
-        let ring = vec![px(c[0]), px(c[1]), px(c[2]), px(c[0])];
-        root.draw(&PathElement::new(ring, RGBColor(150, 150, 150))).map_err(|e| fail(&e))?;
-    }
-    for l in 0..mesh.electrodes().len() {
-        let colour = if l == 0 { RED } else { BLUE };
-        for [a, b] in mesh.electrode_edges(l) {
-            let line = vec![px(mesh.nodes()[a]), px(mesh.nodes()[b])];
-            root.draw(&PathElement::new(line, colour.stroke_width(5))).map_err(|e| fail(&e))?;
+    png(path, (size, size), |root| {
+        for t in 0..mesh.triangles().len() {
+            let c = mesh.corners(t);
+            let ring = vec![px(c[0]), px(c[1]), px(c[2]), px(c[0])];
+            root.draw(&PathElement::new(ring, RGBColor(150, 150, 150))).drawn()?;
         }
-        if let [n] = mesh.electrodes()[l][..] {
-            root.draw(&Circle::new(px(mesh.nodes()[n]), 5, colour.filled())).map_err(|e| fail(&e))?;
+        for l in 0..mesh.electrodes().len() {
+            let colour = if l == 0 { RED } else { BLUE };
+            for [a, b] in mesh.electrode_edges(l) {
+                let line = vec![px(mesh.nodes()[a]), px(mesh.nodes()[b])];
+                root.draw(&PathElement::new(line, colour.stroke_width(5))).drawn()?;
+            }
+            if let [n] = mesh.electrodes()[l][..] {
+                root.draw(&Circle::new(px(mesh.nodes()[n]), 5, colour.filled())).drawn()?;
+            }
         }
-    }
-    root.present().map_err(|e| fail(&e))?;
-    Ok(())
+        Ok(())
+    })
 }
 
 /// One series of a chart: named points, joined by a line or drawn as dots.
@@ -117,8 +134,6 @@ fn register_font() -> Result<()> {
 
 /// A titled chart with labelled axes and, for more than one series, a legend, to a PNG.
 pub fn chart(path: &Path, title: &str, (x_label, y_label): (&str, &str), series: &[Series]) -> Result<()> {
-    register_font()?;
-    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
     let all = series.iter().flat_map(|s| s.points.iter()).filter(|p| p.0.is_finite() && p.1.is_finite());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for &(x, y) in all {
@@ -133,49 +148,47 @@ pub fn chart(path: &Path, title: &str, (x_label, y_label): (&str, &str), series:
     }
     let pad = 0.05 * (y1 - y0).max(f64::MIN_POSITIVE);
     let (y0, y1) = (y0.min(0.0) - pad, y1 + pad);
-    let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 24))
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| fail(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc(x_label)
-        .y_desc(y_label)
-        .x_label_formatter(&|v| number(*v))
-        .y_label_formatter(&|v| number(*v))
-        .label_style(LABELS)
-        .draw()
-        .map_err(|e| fail(&e))?;
-    for (k, s) in series.iter().enumerate() {
-        let colour = Palette99::pick(k).to_rgba();
-        let points = s.points.iter().copied().filter(|p| p.0.is_finite() && p.1.is_finite());
-        let drawn = if s.line {
-            chart.draw_series(LineSeries::new(points, colour.stroke_width(2))).map_err(|e| fail(&e))?
-        } else {
-            chart.draw_series(points.map(|p| Circle::new(p, 2, colour.filled()))).map_err(|e| fail(&e))?
-        };
-        drawn
-            .label(s.name.clone())
-            .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 16, y + 4)], colour.filled()));
-    }
-    if series.len() < 2 {
-        return root.present().map_err(|e| fail(&e));
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 15))
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(|e| fail(&e))?;
-    root.present().map_err(|e| fail(&e))?;
-    Ok(())
+    png(path, (900, 600), |root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, ("sans-serif", 24))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .drawn()?;
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .x_label_formatter(&|v| number(*v))
+            .y_label_formatter(&|v| number(*v))
+            .label_style(LABELS)
+            .draw()
+            .drawn()?;
+        for (k, s) in series.iter().enumerate() {
+            let colour = Palette99::pick(k).to_rgba();
+            let points = s.points.iter().copied().filter(|p| p.0.is_finite() && p.1.is_finite());
+            let drawn = if s.line {
+                chart.draw_series(LineSeries::new(points, colour.stroke_width(2))).drawn()?
+            } else {
+                chart.draw_series(points.map(|p| Circle::new(p, 2, colour.filled()))).drawn()?
+            };
+            drawn
+                .label(s.name.clone())
+                .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 16, y + 4)], colour.filled()));
+        }
+        if series.len() < 2 {
+            return Ok(());
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()
+            .drawn()
+    })
 }
 
 #[cfg(test)]
