@@ -219,6 +219,21 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
     };
     let recon = load::reconstructor(&spec, &params, !input.no_cache)?;
     let model = recon.linearisation().background();
+    let count = |path: &Path, k: usize, frame: &[f64]| {
+        match frame.len() == model.len() {
+        true => Ok(()),
+        false => Err(anyhow::anyhow!(
+            "{}: frame {} holds {} values, but the protocol ({}) has {}: is it another protocol, or another board's order?",
+            path.display(),
+            k + 1,
+            frame.len(),
+            spec.protocol()?.description(),
+            model.len()
+        )),
+    }
+    };
+    references.iter().enumerate().try_for_each(|(k, r)| count(&input.reference, k, r))?;
+    count(&input.frame, index, &v)?;
     let magnitudes = input.values == "magnitude" || input.component == Component::Magnitude;
     let (mut references, mut v) = if magnitudes {
         let (v, report) = signed_from_magnitudes(&v, model);

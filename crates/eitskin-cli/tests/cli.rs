@@ -381,3 +381,21 @@ fn sensitivity_writes_the_profile_and_map() {
         assert_eq!(&std::fs::read(dir.join(png)).unwrap()[1..4], b"PNG");
     }
 }
+
+/// A frame of another length than the protocol's stopped `image` with a panic (an assertion in
+/// the gains' estimate); it is refused, naming the file, the frame and both counts.
+#[test]
+fn a_frame_of_another_length_is_refused_not_a_panic() {
+    let dir = scratch("short-frame");
+    let frame = dir.join("short.csv");
+    std::fs::write(&frame, "1,2,3\n").unwrap();
+    let f = frame.to_str().unwrap();
+    let out = dir.eitskin(&["image", "--reference", f, "--frame", f]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        format!(
+            "error: {f}: frame 1 holds 3 values, but the protocol (two-terminal, all 120 pairs of 16 electrodes) has 120: is it another protocol, or another board's order?\n"
+        )
+    );
+    assert_eq!(out.status.code(), Some(1));
+}

@@ -377,6 +377,11 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
     assert_eq!(page["force"], printed["force"]);
     assert!(line["counters"]["viewer_dropped"].is_u64(), "the stdout counters carry viewer_dropped: {line}");
 
+    // The rate shown is the sensor's, 10 frames/s, from the frames' own clock (arrival times in
+    // the browser read 123 to 2,700 frames/s while the source ran at 20).
+    let fps = browser.js("return window.eitskin.fps;").as_f64().expect("a frame rate");
+    assert!((fps - 10.0).abs() < 0.5, "the page shows {fps} frames/s for a 10 frames/s source");
+
     // A screenshot, kept beside the build.
     let png = base64(browser.call("GET", "/screenshot", None).as_str().expect("a base64 screenshot"));
     assert!(png.starts_with(b"\x89PNG"), "the screenshot is not a PNG");
