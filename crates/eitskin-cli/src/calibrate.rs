@@ -7,6 +7,7 @@ use anyhow::{bail, Context, Result};
 use eitskin::calibration::{force_errors, Calibration, ForceEstimate, Sample};
 use eitskin::chain::LabelledFrame;
 use eitskin::pseudo_array::PseudoArray;
+use eitskin::spec::Quantity;
 use eitskin::strength::Strength;
 use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::{CalibrationFile, Imaging, Location, Measured, SampleRow};
@@ -24,7 +25,7 @@ pub struct CalibrateArgs {
     /// Where to write the calibration (JSON).
     #[arg(long)]
     out: PathBuf,
-    /// Units per side of the pseudo-array.
+    /// Units per side of the pseudo-array, 1–100 (the paper's 5; 1: one curve for the sheet).
     #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of units per side", 1, 100))]
     grid: usize,
     /// Reference (no-touch) frame, needed when the samples hold raw frames.
@@ -221,8 +222,8 @@ impl Labelled {
                 Location::Point(p) => p,
             };
             let Some(unit) = array.unit_at(position) else {
-                let [x, y] = position.map(|c| c * per_unit);
-                bail!("{}: sample {}: ({x}, {y}) {u} is off the sheet", path.display(), k + 1);
+                let [x, y] = position.map(|c| Quantity::written(c * per_unit, u));
+                bail!("{}: sample {}: ({x}, {y}) is off the sheet", path.display(), k + 1);
             };
             match measured {
                 Measured::Peak(peak) => peaks.push(Sample { area: array.area_of(unit), force, peak }),

@@ -15,7 +15,7 @@ use crate::{load, ranges};
 pub struct Args {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
-    /// Triangle counts to mesh at, comma-separated, coarse to fine.
+    /// Triangle counts to mesh at, comma-separated, coarse to fine, each 1–100,000,000.
     #[arg(long, value_delimiter = ',', default_value = "500,1000,2000,4000,8000,16000,32000,64000,128000", value_parser = ranges::triangles())]
     triangles: Vec<usize>,
     /// Override the mesh grading toward electrode edges: the element size there as a fraction

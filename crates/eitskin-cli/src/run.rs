@@ -100,7 +100,7 @@ pub struct Args {
     /// fitted-drop calibration).
     #[arg(long)]
     fit: bool,
-    /// Seed of the virtual sensor's noise and random presses.
+    /// Seed of the virtual sensor's noise and random presses, 0 to 2⁶⁴ − 1.
     #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     seed: u64,
     /// How a serial board (or a capture file of its bytes) encodes frames: `lines` (text) or

@@ -19,7 +19,7 @@ pub struct Args {
     /// Folder for the figures, `study.json` and `report.md`.
     #[arg(long, default_value = "study")]
     out: PathBuf,
-    /// Seed of the noise and the validation presses.
+    /// Seed of the noise and the validation presses, 0 to 2⁶⁴ − 1.
     #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     seed: u64,
     /// Measurement noise, relative standard deviation per value, in [0, 0.1] (default 1e-4 =

@@ -67,5 +67,5 @@ pub use image::Image;
 pub use inverse::{InverseError, Prior, Reconstructor, ReconstructorParams};
 pub use mesh::{Mesh, MeshError, MeshParams, PointLocator, RasterMap};
 pub use protocol::{Measurement, Protocol, ProtocolError};
-pub use spec::{ChannelMask, ElectrodeSpec, LengthUnit, Placement, ProtocolSpec, SensorSpec, SpecError};
+pub use spec::{ChannelMask, ElectrodeSpec, LengthUnit, Placement, ProtocolSpec, Quantity, SensorSpec, SpecError};
 pub use touch::{Touch, TouchParams};
