@@ -126,15 +126,15 @@ fn non_positive_values_are_refused() {
     );
     assert_refused(
         &PAPER.replace("thickness = 10.0", "thickness = -0.2"),
-        &format!("{SPEC}`thickness` must be a positive number, got -0.2 mm"),
+        &format!("{SPEC}`thickness` must be a finite number within [0.001 mm, 1000000 mm], got -0.2 mm"),
     );
     assert_refused(
         &PAPER.replace("width = 200.0", "width = 0.0"),
-        &format!("{SPEC}`outline.width` must be a positive number, got 0 mm"),
+        &format!("{SPEC}`outline.width` must be a finite number within [0.001 mm, 1000000 mm], got 0 mm"),
     );
     assert_refused(
         &PAPER.replace("units = \"mm\"", "units = \"m\"").replace("width = 200.0", "width = 0.0"),
-        &format!("{SPEC}`outline.width` must be a positive number, got 0 m"),
+        &format!("{SPEC}`outline.width` must be a finite number within [0.000001 m, 1000 m], got 0 m"),
     );
 }
 
@@ -157,7 +157,7 @@ fn mesh_values_and_electrode_counts_out_of_range_are_refused() {
     );
     assert_refused(
         &mesh("max_element_size = -0.5"),
-        &format!("{SPEC}`mesh.max_element_size` must be a positive number, got -0.5 mm"),
+        &format!("{SPEC}`mesh.max_element_size` must be a finite number within [0.001 mm, 1000000 mm], got -0.5 mm"),
     );
     assert_refused(
         &PAPER.replace("count = 16", "count = 1024"),

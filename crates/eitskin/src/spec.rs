@@ -23,16 +23,21 @@ pub enum SpecError {
         value: Quantity,
     },
     /// A point whose coordinates are not both finite numbers.
-    #[error("`{key}`: point {point} is ({x}, {y}); both coordinates must be finite numbers")]
+    #[error(
+        "`{key}`: point {point} is ({}, {}); both coordinates must be finite numbers within ±{}",
+        unit.quote(*x), unit.quote(*y), unit.quote(MAX_LENGTH)
+    )]
     NotFinitePoint {
         /// `outline.points` or `electrodes.positions`.
         key: &'static str,
         /// 1-based point.
         point: usize,
-        /// Its x, in the spec's length unit.
-        x: Quantity,
-        /// Its y, in the spec's length unit.
-        y: Quantity,
+        /// Its x, in m.
+        x: f64,
+        /// Its y, in m.
+        y: f64,
+        /// The unit the spec gives lengths in, which the message quotes them in.
+        unit: LengthUnit,
     },
     /// A polygon needs three corners.
     #[error("`outline.points` needs at least 3 points, got {got}")]
@@ -115,7 +120,7 @@ pub enum SpecError {
         /// The value found, in the spec's units.
         value: Quantity,
         /// The allowed range, with its unit, e.g. "[-360, 360] degrees".
-        range: &'static str,
+        range: String,
     },
     /// `electrodes.numbering` = "clockwise" with explicit positions, which are already in order.
     #[error("`electrodes.numbering` = \"clockwise\" does not apply to placement = \"explicit\": the positions are already listed in electrode order; list them in the order the board numbers them")]
@@ -152,6 +157,12 @@ pub enum SpecError {
     #[error("the forward model could not be built")]
     Forward(#[from] ForwardError),
 }
+
+/// The shortest length a spec takes (thickness, sizes, widths), in m: 1 µm.
+pub const MIN_LENGTH: f64 = 1e-6;
+
+/// The longest length a spec takes, and the largest coordinate of a point, in m: 1 km.
+pub const MAX_LENGTH: f64 = 1e3;
 
 /// The most triangles `mesh.triangles` takes.
 pub const MAX_TRIANGLES: usize = 100_000_000;
@@ -213,6 +224,11 @@ impl LengthUnit {
             LengthUnit::Metre => 1.0,
             LengthUnit::Millimetre => 1e-3,
         }
+    }
+
+    /// `metres` in this unit, as written, for a message.
+    pub fn quote(self, metres: f64) -> Quantity {
+        Quantity::written(metres / self.metres(), self.symbol())
     }
 
     /// The unit's symbol, "m" or "mm".
@@ -460,7 +476,7 @@ impl SensorSpec {
 
     /// The electrodes as arc-length intervals of the boundary, after checking the whole spec.
     pub fn electrode_positions(&self) -> Result<Vec<Electrode>, SpecError> {
-        positive("thickness", self.length(self.thickness, Quantity::written))?;
+        self.length_within("thickness", self.thickness)?;
         positive("conductivity", Quantity::written(self.conductivity, "S/m"))?;
         self.check_outline()?;
         self.check_mesh()?;
@@ -472,7 +488,7 @@ impl SensorSpec {
             return Err(SpecError::ElectrodeCount { count: e.count, reason: "at most 256 electrodes are taken" });
         }
         if !e.point {
-            positive("electrodes.width", self.length(e.width, Quantity::written))?;
+            self.length_within("electrodes.width", e.width)?;
             positive("electrodes.contact_impedance", Quantity::written(e.contact_impedance, "Ω·m²"))?;
         }
         let width = if e.point { 0.0 } else { e.width };
@@ -543,7 +559,7 @@ impl SensorSpec {
                     return Err(SpecError::OutOfRange {
                         key: "electrodes.start_angle_deg",
                         value: Quantity::written(angle_deg, "degrees"),
-                        range: "[-360, 360] degrees",
+                        range: "[-360, 360] degrees".to_string(),
                     });
                 }
                 let first = outline.arc_length_at_angle(angle_deg).ok_or(SpecError::StartAngleMisses { angle_deg })?;
@@ -578,10 +594,10 @@ impl SensorSpec {
     fn check_outline(&self) -> Result<(), SpecError> {
         match &self.outline {
             Outline::Rectangle { width, height } => {
-                positive("outline.width", self.length(*width, Quantity::written))?;
-                positive("outline.height", self.length(*height, Quantity::written))
+                self.length_within("outline.width", *width)?;
+                self.length_within("outline.height", *height)
             }
-            Outline::Circle { radius } => positive("outline.radius", self.length(*radius, Quantity::written)),
+            Outline::Circle { radius } => self.length_within("outline.radius", *radius),
             Outline::Polygon { points } => {
                 self.finite_points("outline.points", points)?;
                 if points.len() < 3 {
@@ -600,16 +616,16 @@ impl SensorSpec {
 
     fn check_mesh(&self) -> Result<(), SpecError> {
         let m = &self.mesh;
-        let within = |key, value: f64, (lo, hi): (f64, f64), unit, range| {
+        let within = |key, value: f64, (lo, hi): (f64, f64), unit, range: &str| {
             if value >= lo && value <= hi {
                 Ok(())
             } else {
-                Err(SpecError::OutOfRange { key, value: Quantity::written(value, unit), range })
+                Err(SpecError::OutOfRange { key, value: Quantity::written(value, unit), range: range.to_string() })
             }
         };
         within("mesh.triangles", m.triangles as f64, (1.0, MAX_TRIANGLES as f64), "", "[1, 100000000]")?;
         if let Some(h) = m.max_element_size {
-            positive("mesh.max_element_size", self.length(h, Quantity::written))?;
+            self.length_within("mesh.max_element_size", h)?;
         }
         within("mesh.grading", m.grading, (1e-3, 1.0), "", "[0.001, 1]")?;
         // Ruppert refinement is not known to end above about 33.9°; spade stops and says so.
@@ -622,15 +638,31 @@ impl SensorSpec {
     }
 
     fn finite_points(&self, key: &'static str, points: &[[f64; 2]]) -> Result<(), SpecError> {
-        match points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
+        let within = |c: f64| c.is_finite() && c.abs() <= MAX_LENGTH;
+        match points.iter().position(|p| !(within(p[0]) && within(p[1]))) {
             Some(k) => Err(SpecError::NotFinitePoint {
                 key,
                 point: k + 1,
-                x: self.length(points[k][0], Quantity::written),
-                y: self.length(points[k][1], Quantity::written),
+                x: points[k][0],
+                y: points[k][1],
+                unit: self.length_unit,
             }),
             None => Ok(()),
         }
+    }
+
+    /// Refuses a length (m) outside [`MIN_LENGTH`, `MAX_LENGTH`], quoting it and the range in
+    /// the spec's unit.
+    fn length_within(&self, key: &'static str, metres: f64) -> Result<(), SpecError> {
+        if (MIN_LENGTH..=MAX_LENGTH).contains(&metres) {
+            return Ok(());
+        }
+        let [lo, hi] = [MIN_LENGTH, MAX_LENGTH].map(|l| self.length(l, Quantity::written).to_string());
+        Err(SpecError::OutOfRange {
+            key,
+            value: self.length(metres, Quantity::written),
+            range: format!("[{lo}, {hi}]"),
+        })
     }
 
     /// The protocol the spec asks for.
@@ -761,7 +793,7 @@ mod tests {
         let error = spec.mesh().unwrap_err();
         assert_eq!(
             error.to_string(),
-            "`outline.points`: point 3 is (NaN, 100 mm); both coordinates must be finite numbers"
+            "`outline.points`: point 3 is (NaN, 100 mm); both coordinates must be finite numbers within ±1000000 mm"
         );
         let mut positions: Vec<[f64; 2]> = (0..16).map(|k| [-0.1 + 0.0125 * k as f64, -0.1]).collect();
         positions[15] = [0.05, f64::INFINITY];

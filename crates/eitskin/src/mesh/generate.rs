@@ -170,19 +170,26 @@ fn build(outline: &Outline, electrodes: &[Electrode], params: &MeshParams, h0: f
 
 /// Arc lengths from `a` (included) to `b` (excluded) with steps following `spacing`.
 fn sample_segment(a: f64, b: f64, spacing: &impl Fn(f64) -> f64) -> Vec<f64> {
+    let length = b - a;
     let mut marks = vec![0.0];
     let mut s = a;
     while s < b {
-        s += spacing(s).max((b - a) * 1e-6);
+        let next = s + spacing(s).max(length * 1e-6);
+        // On a huge outline a step below the spacing of floating-point numbers near s would
+        // not move it, and the loop would not end.
+        if next == s {
+            break;
+        }
+        s = next;
         marks.push(s - a);
     }
     // Stretch the marks so the last one lands on b, then drop it (it starts the next segment).
     let last = marks.len() - 1;
-    let scale = if last > 1 && marks[last] - (b - a) > 0.5 * (marks[last] - marks[last - 1]) {
+    let scale = if last > 1 && marks[last] - length > 0.5 * (marks[last] - marks[last - 1]) {
         marks.pop();
-        (b - a) / marks[marks.len() - 1]
+        length / marks[marks.len() - 1]
     } else {
-        (b - a) / marks[last]
+        length / marks[last]
     };
     marks.pop();
     marks.iter().map(|m| a + m * scale).collect()
