@@ -81,6 +81,25 @@ impl From<&CurveJson> for Curve {
     }
 }
 
+/// What makes a curve s(F) = a·e^(−F/b) + c unusable, if anything: a value that is not a
+/// number, an e-folding force b of 0 (it divides by zero; a negative b, a curve that
+/// steepens, is a fit like any other), a flat curve (a = 0
+/// gives every strength the same force), a force range that is not 0 ≤ F₀ < F₁.
+fn curve_problem(c: &CurveJson) -> Option<String> {
+    let [lo, hi] = c.force_range;
+    if !(c.a.is_finite() && c.c.is_finite()) {
+        Some(format!("`a` = {} and `c` = {} must be finite numbers", c.a, c.c))
+    } else if !(c.b.is_finite() && c.b != 0.0) {
+        Some(format!("`b` = {} N must be a force other than 0 (the e-folding force of a·e^(−F/b) + c)", c.b))
+    } else if c.a == 0.0 {
+        Some("`a` = 0: the curve is flat, so no strength tells one force from another".into())
+    } else if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi) {
+        Some(format!("`force_range` = [{lo}, {hi}] N must run from a force ≥ 0 to a larger one"))
+    } else {
+        None
+    }
+}
+
 /// How the images a calibration was fitted on were made; `Default` is the paper's (and that of
 /// every file before version 4): λ = 0.1, absolute differences.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -281,6 +300,11 @@ pub fn parse_calibration_file(text: &str, spec: &SensorSpec) -> Result<Calibrati
     if file.curves.len() != array.area_count() {
         return refuse("curves", format!("has {} curves for {} areas", file.curves.len(), array.area_count()));
     }
+    for (k, curve) in file.curves.iter().enumerate() {
+        if let Some(problem) = curve_problem(curve) {
+            return refuse("curves", format!("curve {} (area {}): {problem}; fit the calibration again", k + 1, k + 1));
+        }
+    }
     let curves = file.curves.iter().map(Curve::from).collect();
     Ok(CalibrationFile { array, calibration: Calibration { curves, strength }, imaging })
 }
@@ -331,6 +355,37 @@ mod tests {
             let file = calibration_to_json(&spec, &array, &Calibration { strength, ..calibration.clone() }).unwrap();
             assert_eq!(parse_calibration(&file, &spec).unwrap().1.strength, strength);
         }
+    }
+
+    /// A curve that cannot turn a strength into a force is refused, naming the curve and the
+    /// key: b = 0 was read and gave forces 63 % off with no word, a = 0 gave every touch the
+    /// same force.
+    #[test]
+    fn curves_that_give_no_force_are_refused() {
+        let spec = SensorSpec::square_hydrogel();
+        let (array, calibration) = fitted(&spec);
+        let mut broken = calibration.clone();
+        let reason = |broken: &Calibration| {
+            let text = calibration_to_json(&spec, &array, broken).unwrap();
+            parse_calibration(&text, &spec).unwrap_err().to_string()
+        };
+        broken.curves[2].b = 0.0;
+        assert_eq!(
+            reason(&broken),
+            "`curves` curve 3 (area 3): `b` = 0 N must be a force other than 0 (the e-folding force of a·e^(−F/b) + c); fit the calibration again"
+        );
+        broken.curves[2] = calibration.curves[2];
+        broken.curves[0].a = 0.0;
+        assert_eq!(
+            reason(&broken),
+            "`curves` curve 1 (area 1): `a` = 0: the curve is flat, so no strength tells one force from another; fit the calibration again"
+        );
+        broken.curves[0] = calibration.curves[0];
+        broken.curves[5].force_range = [20.0, 15.0];
+        assert_eq!(
+            reason(&broken),
+            "`curves` curve 6 (area 6): `force_range` = [20, 15] N must run from a force ≥ 0 to a larger one; fit the calibration again"
+        );
     }
 
     /// The keys of the paper's sensor as files of each version carry them: version 2's was
