@@ -170,7 +170,7 @@ pub const MAX_TRIANGLES: usize = 100_000_000;
 /// The most electrodes `electrodes.count` takes.
 pub const MAX_ELECTRODES: usize = 256;
 
-/// A number in a message, in the unit the user gave it in: a value as written shows to 12
+/// A number in a message, in the unit the user gave it in: a value as written shows to 15
 /// significant figures (so that 15.7 mm converted to metres and back reads 15.7 mm, not
 /// 15.699999999999998), a value derived from others to 4.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -186,7 +186,7 @@ pub struct Quantity {
 impl Quantity {
     /// A value as the user wrote it, in `unit`.
     pub fn written(value: f64, unit: &'static str) -> Quantity {
-        Quantity { value, unit, figures: 12 }
+        Quantity { value, unit, figures: 15 }
     }
 
     /// A value derived from what the user wrote, in `unit`.
@@ -199,10 +199,14 @@ impl std::fmt::Display for Quantity {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         // Rounded through scientific notation, then shown in the shortest form that reads back.
         let rounded: f64 = format!("{:.*e}", self.figures.saturating_sub(1), self.value).parse().unwrap_or(self.value);
+        let number = match rounded.abs() {
+            x if x != 0.0 && x.is_finite() && !(1e-6..1e15).contains(&x) => format!("{rounded:e}"),
+            _ => format!("{rounded}"),
+        };
         match self.unit {
-            _ if !rounded.is_finite() => write!(f, "{rounded}"),
-            "" => write!(f, "{rounded}"),
-            unit => write!(f, "{rounded} {unit}"),
+            _ if !rounded.is_finite() => write!(f, "{number}"),
+            "" => write!(f, "{number}"),
+            unit => write!(f, "{number} {unit}"),
         }
     }
 }
@@ -779,6 +783,8 @@ mod tests {
         assert_eq!(Quantity::written(-1e-4, "Ω·m²").to_string(), "-0.0001 Ω·m²");
         assert_eq!(Quantity::written(f64::NAN, "mm").to_string(), "NaN");
         assert_eq!(Quantity::written(3.0, "").to_string(), "3");
+        assert_eq!(Quantity::written(1e300, "m").to_string(), "1e300 m");
+        assert_eq!(Quantity::written(-0.11549012178846248, "m").to_string(), "-0.115490121788462 m");
     }
 
     /// A corner or an electrode that is not a finite number is named before any geometry is
