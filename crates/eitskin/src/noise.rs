@@ -209,9 +209,9 @@ impl Significance {
         let sd = difference_std(recon, v_ref, noise, averaged);
         let pixels = recon.blank_image().values.len();
         let mut variance = vec![0.0_f64; pixels];
-        for (column, s) in recon.matrix().chunks_exact(pixels).zip(&sd) {
+        for (m, s) in sd.iter().enumerate() {
             if *s > 0.0 {
-                variance.iter_mut().zip(column).for_each(|(v, h)| *v += (f64::from(*h) * s).powi(2));
+                variance.iter_mut().zip(recon.matrix().column(m)).for_each(|(v, h)| *v += (f64::from(h) * s).powi(2));
             }
         }
         let inverse_std = variance.iter().map(|v| if *v > 0.0 { (1.0 / v.sqrt()) as f32 } else { 0.0 }).collect();

@@ -18,6 +18,7 @@ mod channels;
 mod hyperparameter;
 mod linearisation;
 mod prior;
+mod product;
 mod raster;
 
 pub(crate) use channels::floored;
@@ -28,6 +29,7 @@ pub use hyperparameter::{
 };
 pub use linearisation::Linearisation;
 pub use prior::Prior;
+pub use product::BlockedMatrix;
 pub use raster::{Reconstructor, ReconstructorParams};
 
 use faer::{Mat, MatRef};
@@ -190,10 +192,9 @@ mod tests {
             let params = ReconstructorParams { normalized, ..params };
             let derived = full.rederive(&params, Channels::all(120).masked(&mask)).unwrap();
             let direct = direct.rederive(&params, Channels::all(119)).unwrap();
-            let pixels = derived.blank_image().values.len();
-            let column = |r: &Reconstructor, m: usize| r.matrix()[m * pixels..(m + 1) * pixels].to_vec();
+            let column = |r: &Reconstructor, m: usize| r.matrix().column(m).collect::<Vec<_>>();
             assert!(column(&derived, drop).iter().all(|x| *x == 0.0));
-            let scale = direct.matrix().iter().fold(0.0f32, |a, x| a.max(x.abs()));
+            let scale = (0..119).flat_map(|m| column(&direct, m)).fold(0.0f32, |a, x| a.max(x.abs()));
             for m in 0..119 {
                 let d = column(&derived, if m < drop { m } else { m + 1 });
                 let worst = d.iter().zip(column(&direct, m)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);

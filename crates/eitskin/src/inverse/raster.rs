@@ -12,6 +12,7 @@
 
 use std::sync::Arc;
 
+use super::product::BlockedMatrix;
 use super::{Channels, InverseError, Linearisation, Prior};
 use crate::forward::ForwardModel;
 use crate::image::Image;
@@ -58,9 +59,9 @@ pub struct Reconstructor {
     pixels: Vec<Option<usize>>,
     /// Pixels × measurements, column-major (one column per measurement), S/m per V (per unit
     /// ratio when normalised); zero columns for dropped channels.
-    matrix: Vec<f32>,
+    matrix: BlockedMatrix,
     /// Triangles × measurements, column-major, in the same units.
-    elements: Vec<f32>,
+    elements: BlockedMatrix,
     /// The row that gives the background change from Δv (S/m per V); empty when not estimated.
     background: Vec<f64>,
     /// Number of measurements (columns of `matrix`).
@@ -113,16 +114,16 @@ impl Reconstructor {
         // Columns of H for the used channels, zero columns for the dropped, in f32: per pixel
         // the triangle under it, and per triangle as it is.
         let (measurements, triangles) = (channels.len(), compact.nrows());
-        let mut matrix = vec![0.0f32; pixels.len() * measurements];
-        let mut elements = vec![0.0f32; triangles * measurements];
+        let mut matrix = BlockedMatrix::zeros(pixels.len(), measurements);
+        let mut elements = BlockedMatrix::zeros(triangles, measurements);
         for (i, m) in channels.used().into_iter().enumerate() {
             // Owned matrices are stored column by column, so a column is one slice.
             let column = compact.col(i).try_as_col_major().map(|c| c.as_slice()).unwrap_or_default();
-            for (out, h) in elements[m * triangles..(m + 1) * triangles].iter_mut().zip(column) {
-                *out = *h as f32;
+            for (t, h) in column.iter().enumerate() {
+                elements.set(t, m, *h as f32);
             }
-            for (out, t) in matrix[m * pixels.len()..(m + 1) * pixels.len()].iter_mut().zip(&pixels) {
-                *out = t.and_then(|t| column.get(t)).map_or(0.0, |h| *h as f32);
+            for (p, t) in pixels.iter().enumerate() {
+                matrix.set(p, m, t.and_then(|t| column.get(t)).map_or(0.0, |h| *h as f32));
             }
         }
         Ok(Reconstructor {
@@ -160,8 +161,8 @@ impl Reconstructor {
         Reconstructor::from_linearisation(Arc::clone(&self.linearisation), params, channels)
     }
 
-    /// The raster matrix: pixels × measurements, column-major, in S/m per V.
-    pub fn matrix(&self) -> &[f32] {
+    /// The raster matrix: pixels × measurements, in S/m per V.
+    pub fn matrix(&self) -> &BlockedMatrix {
         &self.matrix
     }
 
@@ -222,7 +223,7 @@ impl Reconstructor {
     pub fn element_values(&self, v_ref: &[f64], v: &[f64]) -> Result<Vec<f32>, InverseError> {
         self.check(v_ref, v)?;
         let mut values = vec![0.0; self.linearisation.mesh().triangles().len()];
-        accumulate(&mut values, &self.elements, |m| self.difference(v_ref, v, m));
+        self.elements.mul_into(&mut values, |m| self.difference(v_ref, v, m));
         Ok(values)
     }
 
@@ -244,8 +245,7 @@ impl Reconstructor {
         self.check(v_ref, v)?;
         let pixels = self.template.values.len();
         assert_eq!(image.values.len(), pixels, "the image must come from blank_image()");
-        image.values.fill(0.0);
-        accumulate(&mut image.values, &self.matrix, |m| self.difference(v_ref, v, m));
+        self.matrix.mul_into(&mut image.values, |m| self.difference(v_ref, v, m));
         Ok(())
     }
 
@@ -281,34 +281,4 @@ impl Reconstructor {
         }
         Ok(())
     }
-}
-
-/// values += Σ_m matrix[:, m]·difference(m), the matrix column-major with `values.len()` rows;
-/// with 8-lane AVX2 where the processor has it (checked at run time), else portable code.
-#[allow(unsafe_code, reason = "calls the AVX2 kernel, only once the processor is known to have AVX2")]
-fn accumulate(values: &mut [f32], matrix: &[f32], difference: impl Fn(usize) -> f32) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the features the function is compiled for were just detected.
-        unsafe { accumulate_avx2(values, matrix, difference) };
-        return;
-    }
-    accumulate_portable(values, matrix, difference);
-}
-
-#[inline(always)]
-fn accumulate_portable(values: &mut [f32], matrix: &[f32], difference: impl Fn(usize) -> f32) {
-    for (m, column) in matrix.chunks_exact(values.len()).enumerate() {
-        let d = difference(m);
-        for (pixel, h) in values.iter_mut().zip(column) {
-            *pixel += h * d;
-        }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn accumulate_avx2(values: &mut [f32], matrix: &[f32], difference: impl Fn(usize) -> f32) {
-    // The same loop, compiled for 8-lane vectors.
-    accumulate_portable(values, matrix, difference);
 }
