@@ -349,12 +349,23 @@ fn peak_toward(image: &Image, polarity: Polarity) -> f64 {
     f64::from(lanes.iter().fold(0.0_f32, |m, &x| if x > m { x } else { m }))
 }
 
-/// The 8 neighbours of pixel `i` (fewer at the edges) in an image `nx` wide and `ny` high.
-fn neighbours(i: usize, nx: usize, ny: usize) -> impl Iterator<Item = usize> {
+/// The 8 neighbours of pixel `i` (fewer at the edges) in an image `nx` wide and `ny` high, in
+/// row-major order: a fixed array and how many of it are neighbours (no iterator chain in the
+/// flood fill's inner loop).
+fn neighbours(i: usize, nx: usize, ny: usize) -> ([usize; 8], usize) {
     let (col, row) = (i % nx, i / nx);
-    (row.saturating_sub(1)..=(row + 1).min(ny - 1))
-        .flat_map(move |r| (col.saturating_sub(1)..=(col + 1).min(nx - 1)).map(move |c| r * nx + c))
-        .filter(move |&j| j != i)
+    let mut list = [0; 8];
+    let mut count = 0;
+    for r in row.saturating_sub(1)..=(row + 1).min(ny - 1) {
+        for c in col.saturating_sub(1)..=(col + 1).min(nx - 1) {
+            let j = r * nx + c;
+            if j != i {
+                list[count] = j;
+                count += 1;
+            }
+        }
+    }
+    (list, count)
 }
 
 /// The paper's steps 2–4 for one press direction: the regions at or above `threshold × peak`
@@ -367,7 +378,15 @@ fn frame_regions(image: &Image, params: &TouchParams, polarity: Polarity, peak: 
     let cutoff = (params.threshold * peak) as f32;
     let kept = |i: usize| image.inside[i] & (sign * image.values[i] >= cutoff) & (sign * image.values[i] > 0.0);
     // 3. Flood-fill each region from its first pixel in row-major order, with an explicit stack.
-    for seed in 0..nx * ny {
+    //    Runs of pixels none of which is kept (most of a frame) are passed over by one
+    //    branch-free test each, which the compiler vectorises.
+    let n = nx * ny;
+    let any_kept = |start: usize| {
+        let end = (start + RUN).min(n);
+        let (values, inside) = (&image.values[start..end], &image.inside[start..end]);
+        values.iter().zip(inside).fold(false, |any, (v, i)| any | (*i & (sign * v >= cutoff) & (sign * v > 0.0)))
+    };
+    for seed in (0..n).step_by(RUN).filter(|&start| any_kept(start)).flat_map(|start| start..(start + RUN).min(n)) {
         if scratch.claim[seed] != 0 || !kept(seed) {
             continue;
         }
@@ -378,7 +397,8 @@ fn frame_regions(image: &Image, params: &TouchParams, polarity: Polarity, peak: 
         while let Some(i) = scratch.stack.pop() {
             let (col, row) = (i % nx, i / nx);
             region.add(i, image.pixel_centre(col, row), polarity.intensity(image.values[i]), params.weighted);
-            for j in neighbours(i, nx, ny) {
+            let (list, count) = neighbours(i, nx, ny);
+            for &j in &list[..count] {
                 if scratch.claim[j] == 0 && kept(j) {
                     scratch.claim[j] = label;
                     scratch.stack.push(j);
@@ -389,6 +409,9 @@ fn frame_regions(image: &Image, params: &TouchParams, polarity: Polarity, peak: 
         scratch.regions.push(region);
     }
 }
+
+/// Pixels per run of the seed scan.
+const RUN: usize = 32;
 
 /// The dip, as a fraction of a touch's own peak, that keeps it apart from a stronger touch it
 /// meets; where the noise is known the dip must also be [`SEPARATION_Z`] standard deviations.
@@ -421,7 +444,8 @@ fn own_peak_regions(
         if !strong || scratch.claim[i] != 0 || significance.is_some_and(|z| z.z(i, f64::from(si)) < z.threshold()) {
             continue;
         }
-        if neighbours(i, nx, ny).all(|j| s(j) < si || (s(j) == si && j > i)) {
+        let (list, count) = neighbours(i, nx, ny);
+        if list[..count].iter().all(|&j| s(j) < si || (s(j) == si && j > i)) {
             scratch.seeds.push((si, i));
         }
     }
@@ -443,7 +467,8 @@ fn own_peak_regions(
             let (col, row) = (i % nx, i / nx);
             let si = s(i);
             region.add(i, image.pixel_centre(col, row), f64::from(si), params.weighted);
-            for j in neighbours(i, nx, ny) {
+            let (list, count) = neighbours(i, nx, ny);
+            for &j in &list[..count] {
                 let (sj, claim) = (s(j), scratch.claim[j]);
                 if !(sj >= cutoff && sj > 0.0) || claim == label {
                     continue;
