@@ -10,7 +10,8 @@
 //! [`PipelineParams::auto_hyperparameter`] it also chooses λ from the measured noise and weights
 //! the channels by it ([`Reconstructor::with_auto_hyperparameter`](crate::Reconstructor::with_auto_hyperparameter)).
 //! As the noise model sees more frames (each time their number doubles, then every
-//! [`REFRESH_MAX`] frames) λ, the weights and the threshold are derived again from it, and
+//! [`REFRESH_MAX`] frames) it is compared with the noise λ, the weights and the threshold were
+//! derived from; where it has changed ([`noise_changed`]) they are derived again, and
 //! [`Status::NoiseUpdated`] says so: an event, like a dropped channel.
 //!
 //! Optional averaging ([`PipelineParams::average`]): each frame imaged is the mean of the last
@@ -48,6 +49,26 @@ const NAMED: usize = 8;
 
 /// The most frames between two refreshes of λ and the threshold from the noise model.
 pub const REFRESH_MAX: f64 = 500.0;
+
+/// Whether the relative noise variances `now` differ from `then` enough to derive λ, the
+/// weights and the threshold again: the channels' noise level as a whole by more than 5 %
+/// (the mean of ln(now/then) beyond ±0.1; its sampling spread over 120 channels and 500 frames
+/// is about 0.006), or any one channel's by more than half (|ln(now/then)| > 0.81, about 13
+/// sampling standard deviations at 500 frames). Channels not measured in both are left out.
+pub fn noise_changed(then: &[f64], now: &[f64]) -> bool {
+    if then.len() != now.len() {
+        return true;
+    }
+    let ratios = || then.iter().zip(now).filter(|(a, b)| a.is_finite() && b.is_finite() && **a > 0.0 && **b > 0.0);
+    let (mut count, mut total, mut largest) = (0.0, 0.0, 0.0f64);
+    for (a, b) in ratios() {
+        let log = (b / a).ln();
+        count += 1.0;
+        total += log;
+        largest = largest.max(log.abs());
+    }
+    count == 0.0 || (total / count).abs() > 0.1 || largest > 0.81
+}
 
 /// How touches are told from noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -163,6 +184,9 @@ pub struct Pipeline {
     /// Frames the noise model had seen at its last refresh, and frames added since.
     refreshed_at: f64,
     since_refresh: f64,
+    /// Each channel's relative noise variance that λ, the weights and the threshold were last
+    /// derived from.
+    refreshed_variance: Vec<f64>,
     /// The last `average` frames (a ring, frame after frame), the next slot, and their mean.
     ring: Vec<f64>,
     ring_next: usize,
@@ -189,6 +213,7 @@ impl Pipeline {
             noise_measured: false,
             refreshed_at: 0.0,
             since_refresh: 0.0,
+            refreshed_variance: Vec::new(),
             ring: vec![0.0; count * params.average.max(1)],
             ring_next: 0,
             averaged: vec![0.0; count],
@@ -307,8 +332,10 @@ impl Pipeline {
             if let Some(noise) = self.noise.as_mut() {
                 noise.update(&self.reference, frame);
                 self.since_refresh += 1.0;
-                if self.since_refresh >= self.refreshed_at.clamp(1.0, REFRESH_MAX) && status == Status::Processed {
-                    self.refresh()?;
+                if self.since_refresh >= self.refreshed_at.clamp(1.0, REFRESH_MAX)
+                    && status == Status::Processed
+                    && self.refresh()?
+                {
                     status = Status::NoiseUpdated;
                 }
             }
@@ -335,18 +362,27 @@ impl Pipeline {
         self.averaged.iter_mut().for_each(|a| *a /= n as f64);
     }
 
-    /// λ, the channel weights and the threshold again, from the noise model as it is now.
-    fn refresh(&mut self) -> Result<(), InverseError> {
-        let Some(noise) = &self.noise else { return Ok(()) };
+    /// λ, the channel weights and the threshold again, from the noise model as it is now, when
+    /// the noise has changed since they were last derived ([`noise_changed`]); whether it did.
+    /// Deriving takes a fifth of a second on the paper's sensor, so a steady sensor is not made
+    /// to wait for it every [`REFRESH_MAX`] frames.
+    fn refresh(&mut self) -> Result<bool, InverseError> {
+        let Some(noise) = &self.noise else { return Ok(false) };
         self.refreshed_at = noise.frames();
         self.since_refresh = 0.0;
+        let variance = noise.relative_variance();
+        if !noise_changed(&self.refreshed_variance, &variance) {
+            return Ok(false);
+        }
+        self.refreshed_variance = variance;
         if self.params.auto_hyperparameter {
             let recon = self.chain.reconstructor();
             let (derived, _) =
                 recon.with_auto_hyperparameter(recon.channels().clone(), Some(noise.relative_variance()))?;
             self.chain.set_reconstructor(derived);
         }
-        self.set_significance()
+        self.set_significance()?;
+        Ok(true)
     }
 
     /// The noise test of the chain's reconstructor under the noise model, for the floor asked;
@@ -415,6 +451,7 @@ impl Pipeline {
             measured.unwrap_or_else(|| NoiseModel::assumed(DEFAULT_RELATIVE_NOISE, count, self.collected.len()));
         self.refreshed_at = noise.frames();
         self.since_refresh = 0.0;
+        self.refreshed_variance = noise.relative_variance();
         self.noise = Some(noise);
         if let Some(recon) = self.reference_reconstructor()? {
             too_many_dropped(recon.channels().used_mask(), &self.configured, 0)?;
@@ -485,6 +522,19 @@ fn too_many_dropped(used: &[bool], configured: &[bool], new: usize) -> Result<()
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_steady_noise_is_not_derived_again_but_a_changed_one_is() {
+        let then = vec![1e-6; 120];
+        let mut now: Vec<f64> = (0..120).map(|m| 1e-6 * (1.0 + 0.05 * ((m % 7) as f64 - 3.0) / 3.0)).collect();
+        assert!(!noise_changed(&then, &now), "sampling wobble of ±5 % per channel");
+        now.iter_mut().for_each(|v| *v *= 1.25);
+        assert!(noise_changed(&then, &now), "the whole board 12 % noisier (25 % in variance)");
+        let mut one = then.clone();
+        one[17] *= 4.0;
+        assert!(noise_changed(&then, &one), "one channel twice as noisy");
+        assert!(noise_changed(&[], &then), "nothing derived yet");
+    }
     use super::*;
     use crate::calibration::{Calibration, Strength};
     use crate::press_fit::PressModel;

@@ -50,8 +50,11 @@ fn an_untouched_sheet_shows_false_touches_at_the_stated_rate_at_most() {
     }
     // 3 expected at 1e-3; the first frames test against noise measured on 10 frames only.
     assert!(false_frames <= 9, "{false_frames} of {frames} untouched frames showed a touch");
-    // The model grew on every frame and λ and the threshold followed it (10 → 3,010 frames).
-    assert!(updates >= 7, "{updates} refreshes");
+    // The model grew on every frame (10 → 3,010 frames); of its 7 checks, λ and the threshold
+    // were derived again only where the noise had changed: the 10 frames' estimate is coarse
+    // (a channel's variance from 9 degrees of freedom is off by half), a steady board's later
+    // ones are not.
+    assert!((1..7).contains(&updates), "{updates} refreshes");
     assert!(pipeline.noise().unwrap().frames() > 900.0);
 }
 
