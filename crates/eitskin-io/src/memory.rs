@@ -14,11 +14,23 @@ pub fn available_memory() -> Option<f64> {
     })
 }
 
-/// `MemAvailable` of a `/proc/meminfo` text, in bytes.
-fn mem_available(meminfo: &str) -> Option<f64> {
-    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
+/// The most memory this process has had resident so far (`VmHWM`), in bytes, or `None` where
+/// the system does not say.
+pub fn peak_memory() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    kib_field(&status, "VmHWM:")
+}
+
+/// A `kB` field of a `/proc` text, in bytes.
+fn kib_field(text: &str, name: &str) -> Option<f64> {
+    let line = text.lines().find(|l| l.starts_with(name))?;
     let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024.0)
+}
+
+/// `MemAvailable` of a `/proc/meminfo` text, in bytes.
+fn mem_available(meminfo: &str) -> Option<f64> {
+    kib_field(meminfo, "MemAvailable:")
 }
 
 /// The room under a cgroup v2 limit (`memory.max` less `memory.current`), in bytes; `None`
@@ -46,5 +58,6 @@ mod tests {
         std::fs::write(dir.path().join("memory.max"), "5000\n").unwrap();
         assert_eq!(cgroup_room(dir.path()), Some(4000.0));
         assert!(available_memory().is_none_or(|b| b > 0.0));
+        assert!(peak_memory().is_none_or(|b| b > 0.0));
     }
 }

@@ -19,17 +19,36 @@ pub struct Inclusion {
 
 /// One conductivity per triangle of `mesh` (S/m): `background` with `inclusions` over it.
 pub fn with_inclusions(mesh: &Mesh, background: f64, inclusions: &[Inclusion]) -> Vec<f64> {
-    let mut sigma = vec![background; mesh.triangles().len()];
+    (0..mesh.triangles().len()).map(|t| mixed(mesh.corners(t), mesh.area(t), background, inclusions)).collect()
+}
+
+/// The conductivity (S/m) of a triangle with `corners` and `area` (m²): `background` with each
+/// of `inclusions` in turn mixed in by the share of the triangle it covers.
+pub fn mixed(corners: [[f64; 2]; 3], area: f64, background: f64, inclusions: &[Inclusion]) -> f64 {
+    let mut s = background;
     for inc in inclusions {
-        for (t, s) in sigma.iter_mut().enumerate() {
-            let area = mesh.area(t);
-            let f = (circle_triangle_area(inc.centre, inc.radius, mesh.corners(t)) / area).clamp(0.0, 1.0);
-            if f > 0.0 {
-                *s = (1.0 - f) * *s + f * inc.conductivity;
-            }
+        // A triangle whose box lies clear of the circle keeps its value exactly (the exact area
+        // would be zero up to rounding), and costs no arc tangents.
+        if box_distance(inc.centre, corners) > inc.radius {
+            continue;
+        }
+        let f = (circle_triangle_area(inc.centre, inc.radius, corners) / area).clamp(0.0, 1.0);
+        if f > 0.0 {
+            s = (1.0 - f) * s + f * inc.conductivity;
         }
     }
-    sigma
+    s
+}
+
+/// Distance from `p` to the bounding box of a triangle's `corners`, in m (0 inside it).
+pub fn box_distance(p: [f64; 2], corners: [[f64; 2]; 3]) -> f64 {
+    let gap = |k: usize| {
+        let lo = corners.iter().map(|c| c[k]).fold(f64::INFINITY, f64::min);
+        let hi = corners.iter().map(|c| c[k]).fold(f64::NEG_INFINITY, f64::max);
+        (lo - p[k]).max(p[k] - hi).max(0.0)
+    };
+    let (x, y) = (gap(0), gap(1));
+    (x * x + y * y).sqrt()
 }
 
 /// Exact area of the intersection of the disk (`centre`, `radius`) with a counter-clockwise

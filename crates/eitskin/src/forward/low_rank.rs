@@ -112,11 +112,22 @@ struct NearGreen {
 }
 
 impl NearGreen {
-    /// G[i, j], if rows i and j are near each other.
-    fn get(&self, i: usize, j: usize) -> Option<f64> {
-        let (from, to) = (*self.start.get(j)?, *self.start.get(j + 1)?);
-        let k = self.rows[from..to].binary_search(&i).ok()?;
-        Some(self.values[from + k])
+    /// G[rows[i], j] into `out[i]` for every i (`rows` sorted), by one merge of the two sorted
+    /// lists; `false` if a row is not near j.
+    fn column_into(&self, j: usize, rows: &[usize], mut out: impl FnMut(usize, f64)) -> bool {
+        let (Some(&from), Some(&to)) = (self.start.get(j), self.start.get(j + 1)) else { return false };
+        let (near, values) = (&self.rows[from..to], &self.values[from..to]);
+        let mut k = 0;
+        for (i, &row) in rows.iter().enumerate() {
+            while k < near.len() && near[k] < row {
+                k += 1;
+            }
+            if k == near.len() || near[k] != row {
+                return false;
+            }
+            out(i, values[k]);
+        }
+        true
     }
 }
 
@@ -273,12 +284,7 @@ impl LowRankUpdate {
         let s = rows.len();
         let near = self.near.as_ref().and_then(|near| {
             let mut green = Mat::<f64>::zeros(s, s);
-            for j in 0..s {
-                for i in 0..s {
-                    green[(i, j)] = near.get(rows[i], rows[j])?;
-                }
-            }
-            Some(green)
+            (0..s).all(|j| near.column_into(rows[j], &rows, |i, g| green[(i, j)] = g)).then_some(green)
         });
         let green = match (&self.inverse, near) {
             (Some(inverse), _) => Some(Mat::from_fn(s, s, |i, j| inverse[(rows[i], rows[j])])),
@@ -335,9 +341,7 @@ impl LowRankUpdate {
                 }
                 true
             }
-            (None, Some(near)) => {
-                (0..s).all(|j| (0..s).all(|i| near.get(rows[i], rows[j]).map(|g| green[(i, j)] = g).is_some()))
-            }
+            (None, Some(near)) => (0..s).all(|j| near.column_into(rows[j], rows, |i, g| green[(i, j)] = g)),
             (None, None) => false,
         };
         if !found {
