@@ -253,6 +253,19 @@ pub fn detect_tested_into(
     scratch.regions.clear();
     scratch.stack.clear();
     scratch.stack.reserve(n); // each pixel is pushed at most once, so the stack never grows past n
+                              // A touch's z is its peak pixel's, so where no pixel reaches the threshold there is no
+                              // touch: one pass (the same z as the regions' test) spares an untouched frame the flood
+                              // fill of its noise blobs.
+    if let Some(significance) = significance {
+        let z = |(i, (v, inside)): (usize, (&f32, &bool))| match inside {
+            true => significance.z(i, params.polarity.intensity(*v)),
+            false => f64::NEG_INFINITY,
+        };
+        let strongest = image.values.iter().zip(&image.inside).enumerate().map(z).fold(f64::NEG_INFINITY, f64::max);
+        if strongest < significance.threshold() {
+            return;
+        }
+    }
     match params.peak_of {
         PeakOf::Frame => {
             // The peak over the inside pixels in each press direction asked for; with both,
