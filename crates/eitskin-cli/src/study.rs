@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use eitskin::study::sweep::{self, SweepParams, SweepReport};
 use eitskin::study::{run as run_study, StudyParams, StudyReport};
+use eitskin::LengthUnit;
 
 use crate::{load, plot, ranges, report};
 
@@ -79,11 +80,11 @@ pub fn run(args: Args) -> Result<()> {
         }
     };
     let seconds = start.elapsed().as_secs_f64();
-    write_figures(&study, &args)?;
+    write_figures(&study, &args, spec.length_unit)?;
     let mut json = report::json(&study, &params, seconds);
     if let (Some(sweep), Some(object)) = (&sweep, json.as_object_mut()) {
         object.insert("sweep".into(), report::sweep_json(sweep));
-        write_sweep_figures(sweep, &args, spec.length_unit.metres())?;
+        write_sweep_figures(sweep, &args, spec.length_unit)?;
     }
     std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
     write_frames(&study, &args, spec.length_unit.metres())?;
@@ -119,13 +120,14 @@ fn write_frames(study: &StudyReport, args: &Args, metres: f64) -> Result<()> {
     Ok(())
 }
 
-fn write_figures(study: &StudyReport, args: &Args) -> Result<()> {
-    let xs: Vec<f64> = study.profile.iter().map(|p| p.0[0] * 1e3).collect();
+/// The study's figures, lengths in `unit` (the spec's).
+fn write_figures(study: &StudyReport, args: &Args, unit: LengthUnit) -> Result<()> {
+    let xs: Vec<f64> = study.profile.iter().map(|p| p.0[0] / unit.metres()).collect();
     let ys: Vec<f64> = study.profile.iter().map(|p| p.1).collect();
     plot::chart(
         &args.out.join("fig3c_location.png"),
         "Fig. 3c: reconstructed peak along x",
-        ("x [mm]", "peak |Δσ| [S/m]"),
+        (&format!("x ({})", unit.symbol()), "peak |Δσ| (S/m)"),
         &[plot::Series { name: "peak".into(), points: xs.into_iter().zip(ys).collect(), line: true }],
     )?;
     let curves: Vec<plot::Series> = study
@@ -141,7 +143,7 @@ fn write_figures(study: &StudyReport, args: &Args) -> Result<()> {
     plot::chart(
         &args.out.join("fig4b_areas.png"),
         "Fig. 4b: peak against conductivity drop, per area",
-        ("drop [fraction of background]", "peak |Δσ| [S/m]"),
+        ("drop (fraction of the background)", "peak |Δσ| (S/m)"),
         &curves,
     )?;
     for (k, method) in study.methods.iter().enumerate() {
@@ -157,7 +159,7 @@ fn write_figures(study: &StudyReport, args: &Args) -> Result<()> {
         plot::chart(
             &args.out.join(format!("fig12_{}.png", k + 1)),
             &format!("Fig. 12: true against predicted force, {}", method.method.name()),
-            ("true force [N]", "predicted force [N]"),
+            ("true force (N)", "predicted force (N)"),
             &[diagonal, dots],
         )?;
     }
@@ -166,7 +168,7 @@ fn write_figures(study: &StudyReport, args: &Args) -> Result<()> {
 
 /// The sweep's figures: position error and force RMS of single presses found in Δv against the
 /// noise, one line per press kind (single frames only).
-fn write_sweep_figures(sweep: &SweepReport, args: &Args, metres: f64) -> Result<()> {
+fn write_sweep_figures(sweep: &SweepReport, args: &Args, unit: LengthUnit) -> Result<()> {
     let kinds: Vec<&str> = sweep::press_kinds().iter().map(|k| k.name).collect();
     let line = |kind: &str, value: &dyn Fn(&sweep::SweepRow) -> f64| plot::Series {
         name: kind.to_string(),
@@ -178,18 +180,18 @@ fn write_sweep_figures(sweep: &SweepReport, args: &Args, metres: f64) -> Result<
             .collect(),
         line: true,
     };
-    let position: Vec<plot::Series> = kinds.iter().map(|k| line(k, &|r| r.position_error / metres)).collect();
+    let position: Vec<plot::Series> = kinds.iter().map(|k| line(k, &|r| r.position_error / unit.metres())).collect();
     plot::chart(
         &args.out.join("sweep_position.png"),
         "One press found in Δv: position error against noise",
-        ("noise [dB below each value]", "mean position error [spec units]"),
+        ("noise (dB below each value)", &format!("mean position error ({})", unit.symbol())),
         &position,
     )?;
     let force: Vec<plot::Series> = kinds.iter().map(|k| line(k, &|r| 100.0 * r.force_rms / sweep.max_force)).collect();
     plot::chart(
         &args.out.join("sweep_force.png"),
         "One press: force RMS against noise (one curve of the fitted drop)",
-        ("noise [dB below each value]", "force RMS [% of the largest force]"),
+        ("noise (dB below each value)", "force RMS (% of the largest force)"),
         &force,
     )
 }
