@@ -42,13 +42,16 @@ pub fn mixed(corners: [[f64; 2]; 3], area: f64, background: f64, inclusions: &[I
 
 /// Distance from `p` to the bounding box of a triangle's `corners`, in m (0 inside it).
 pub fn box_distance(p: [f64; 2], corners: [[f64; 2]; 3]) -> f64 {
-    let gap = |k: usize| {
-        let lo = corners.iter().map(|c| c[k]).fold(f64::INFINITY, f64::min);
-        let hi = corners.iter().map(|c| c[k]).fold(f64::NEG_INFINITY, f64::max);
-        (lo - p[k]).max(p[k] - hi).max(0.0)
-    };
-    let (x, y) = (gap(0), gap(1));
+    let [x_lo, y_lo, x_hi, y_hi] = triangle_box(corners);
+    let (x, y) = ((x_lo - p[0]).max(p[0] - x_hi).max(0.0), (y_lo - p[1]).max(p[1] - y_hi).max(0.0));
     (x * x + y * y).sqrt()
+}
+
+/// The bounding box of a triangle's `corners`: `[x_min, y_min, x_max, y_max]`, in m.
+pub fn triangle_box(corners: [[f64; 2]; 3]) -> [f64; 4] {
+    let (x, y) = (corners.map(|c| c[0]), corners.map(|c| c[1]));
+    let (lo, hi) = (|v: [f64; 3]| v[0].min(v[1]).min(v[2]), |v: [f64; 3]| v[0].max(v[1]).max(v[2]));
+    [lo(x), lo(y), hi(x), hi(y)]
 }
 
 /// Exact area of the intersection of the disk (`centre`, `radius`) with a counter-clockwise

@@ -28,7 +28,7 @@ use rand::Rng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::conductivity::{box_distance, mixed, Inclusion};
+use crate::conductivity::{box_distance, mixed, triangle_box, Inclusion};
 use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
 use crate::spec::{SensorSpec, SpecError};
 
@@ -333,14 +333,7 @@ impl VirtualSensor {
         let edge = (2.0 * area / mesh.triangles().len() as f64).sqrt();
         let reach = 2.0 * self.params.hydrogel.contact_radius(16.0) + 4.0 * edge;
         let background = vec![self.background; mesh.triangles().len()];
-        let boxes = (0..mesh.triangles().len())
-            .map(|t| {
-                let c = mesh.corners(t);
-                let (x, y) = (c.map(|p| p[0]), c.map(|p| p[1]));
-                let (lo, hi) = (|v: [f64; 3]| v[0].min(v[1]).min(v[2]), |v: [f64; 3]| v[0].max(v[1]).max(v[2]));
-                [lo(x), lo(y), hi(x), hi(y)]
-            })
-            .collect();
+        let boxes = (0..mesh.triangles().len()).map(|t| triangle_box(mesh.corners(t))).collect();
         Some((LowRankUpdate::with_reach(&self.model, &background, reach).ok()?, boxes))
     }
 
