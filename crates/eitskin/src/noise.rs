@@ -242,6 +242,22 @@ impl Significance {
         change * f64::from(self.inverse_std.get(index).copied().unwrap_or(0.0))
     }
 
+    /// The largest z of an image's `values` (row-major, as the map) toward `polarity`: the
+    /// strongest any touch of it can be.
+    pub fn strongest(&self, values: &[f32], polarity: crate::touch::Polarity) -> f64 {
+        let sign = polarity.intensity(1.0) as f32;
+        let both = matches!(polarity, crate::touch::Polarity::Both);
+        // Sixteen running maxima, so that the pass vectorises; outside the outline 1/s is 0.
+        let mut lanes = [0.0_f32; 16];
+        for (v, w) in values.chunks(16).zip(self.inverse_std.chunks(16)) {
+            for ((lane, v), w) in lanes.iter_mut().zip(v).zip(w) {
+                let x = if both { v.abs() } else { sign * v };
+                *lane = lane.max(x * w);
+            }
+        }
+        f64::from(lanes.iter().fold(0.0_f32, |a, b| a.max(*b)))
+    }
+
     /// The noise's standard deviation, in S/m, at the median inside pixel: a scale for showing images.
     pub fn typical_std(&self) -> f64 {
         let mut std: Vec<f32> = self.inverse_std.iter().filter(|x| **x > 0.0).map(|x| 1.0 / x).collect();
