@@ -15,6 +15,7 @@
 //! once onto a raster so that a frame costs one pixels × measurements product.
 
 mod channels;
+mod helper;
 mod hyperparameter;
 mod linearisation;
 mod prior;

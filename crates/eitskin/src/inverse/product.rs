@@ -77,12 +77,48 @@ impl BlockedMatrix {
     }
 }
 
-/// out (+)= H[:, first..first + d.len()]·d over the blocked `data` of `columns` columns.
+/// Blocks per chunk that one core takes at a time (128 pixels, 61 kB of a 120-column matrix).
+const CHUNK: usize = 2;
+
+/// Matrices of at least this many entries (256 kB) share the product with a second core.
+const SHARED: usize = 1 << 16;
+
+/// out (+)= H[:, first..first + d.len()]·d over the blocked `data` of `columns` columns; a
+/// large matrix in chunks of blocks shared with a second core while it is free.
+#[allow(unsafe_code, reason = "hands each chunk of the output to whichever core claims it")]
+fn product(out: &mut [f32], data: &[f32], columns: usize, first: usize, d: &[f32], add: bool) {
+    if data.len() < SHARED || columns == 0 {
+        return product_blocks(out, data, columns, first, d, add);
+    }
+    /// The output's start, shared by the cores: each writes only the chunks it claimed.
+    struct Output(*mut f32);
+    // SAFETY: see the kernel below; chunks are disjoint and each is run once.
+    unsafe impl Sync for Output {}
+    impl Output {
+        fn start(&self) -> *mut f32 {
+            self.0
+        }
+    }
+    let (rows, output) = (out.len(), &Output(out.as_mut_ptr()));
+    let block_data = BLOCK * columns;
+    let chunks = (data.len() / block_data).div_ceil(CHUNK);
+    super::helper::run_split(chunks, &|chunk| {
+        let blocks = chunk * CHUNK..((chunk + 1) * CHUNK).min(data.len() / block_data);
+        let pixels = blocks.start * BLOCK..(blocks.end * BLOCK).min(rows);
+        // SAFETY: `pixels` lies inside `out`, and `run_split` runs each chunk exactly once, so
+        // no two calls (on either core) touch the same pixels; `out` is borrowed mutably for
+        // the whole of `run_split`, which returns only when every chunk is done.
+        let out = unsafe { std::slice::from_raw_parts_mut(output.start().add(pixels.start), pixels.len()) };
+        product_blocks(out, &data[blocks.start * block_data..blocks.end * block_data], columns, first, d, add);
+    });
+}
+
+/// [`product`] on one core, over whole blocks of `data` and their pixels in `out`.
 #[allow(
     unsafe_code,
     reason = "calls a kernel compiled for vector extensions only once the processor is known to have them"
 )]
-fn product(out: &mut [f32], data: &[f32], columns: usize, first: usize, d: &[f32], add: bool) {
+fn product_blocks(out: &mut [f32], data: &[f32], columns: usize, first: usize, d: &[f32], add: bool) {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx512f") {
