@@ -1,0 +1,55 @@
+//! The Python package (`python/`, PyO3 + maturin) built and tested as its users install it: a
+//! fresh virtual environment under `target/`, `pip install ./python`, then its pytest suite
+//! (every class, bad input raising, pyEIT's reference numbers from Python). Needs `python3`
+//! with `venv`, and PyPI for maturin, numpy and pytest on the first run; without them this test
+//! fails and says which step it could not take.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// Runs `program args` in the checkout's root, failing the test with its output.
+fn step(what: &str, program: &Path, args: &[&str]) {
+    let output = Command::new(program)
+        .args(args)
+        .current_dir(root())
+        .output()
+        .unwrap_or_else(|e| panic!("{what}: cannot start {}: {e}", program.display()));
+    let text = format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    assert!(output.status.success(), "{what} failed ({}):\n{text}", output.status);
+    eprintln!("{what}: ok\n{}", text.lines().rev().take(3).collect::<Vec<_>>().join("\n"));
+}
+
+#[test]
+fn the_python_package_installs_and_passes_its_tests() {
+    let venv = root().join("target/python-test-venv");
+    let python = venv.join("bin/python");
+    if !python.exists() {
+        step("creating a virtual environment", Path::new("python3"), &["-m", "venv", &venv.to_string_lossy()]);
+    }
+    let python = python.as_path();
+    step(
+        "installing maturin, numpy and pytest",
+        python,
+        &["-m", "pip", "install", "--quiet", "--disable-pip-version-check", "maturin>=1.5,<2", "numpy", "pytest"],
+    );
+    step(
+        "pip install ./python",
+        python,
+        &[
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--disable-pip-version-check",
+            "--no-build-isolation",
+            "--force-reinstall",
+            "--no-deps",
+            "./python",
+        ],
+    );
+    step("pytest python/tests", python, &["-m", "pytest", "-q", "python/tests"]);
+}
