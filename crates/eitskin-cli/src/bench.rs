@@ -8,7 +8,8 @@
 //! of strong presses) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch) and `frame_three_presses` (three presses found in Δv against
-//! 0.05 % noise, median of 201); and `replay`: a file of 5,000 text frames through the lines decoder, the
+//! 0.05 % noise, median of 201); `simulated_frame` and `simulated_three_presses` (the virtual
+//! sensor's frame on its finer truth mesh, one press and three apart); and `replay`: a file of 5,000 text frames through the lines decoder, the
 //! pipeline and the JSON line, as fast as possible (frames/s, median latency per frame).
 
 use std::path::PathBuf;
@@ -173,10 +174,14 @@ pub fn run(args: Args) -> Result<()> {
     let (t_detect, ()) =
         time(201, || Ok(detection.detect_into(&dv3, &mut whitened, &mut press_scratch, &mut found)?))?;
     let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
-    // The virtual sensor's frame with one press: the fields solved again on its finer mesh.
+    // The virtual sensor's frame on its finer truth mesh: one press, then three presses apart
+    // (corners of a triangle half the sheet wide, unequal forces).
     let mut sensor = VirtualSensor::new(&spec, 1)?;
     sensor.press([0.3 * half, -0.2 * half], 5.0);
     let (t_simulated, _) = time(n.min(15), || Ok(sensor.frame()?))?;
+    sensor.press([-0.5 * half, 0.5 * half], 9.0);
+    sensor.press([0.5 * half, 0.5 * half], 3.0);
+    let (t_simulated_three, _) = time(n.min(15), || Ok(sensor.frame()?))?;
     let stages = [
         ("mesh", t_mesh),
         ("model", t_model),
@@ -196,6 +201,7 @@ pub fn run(args: Args) -> Result<()> {
         ("frame_three_presses", t_detect),
         ("replay_latency", replay_latency),
         ("simulated_frame", t_simulated),
+        ("simulated_three_presses", t_simulated_three),
     ];
     let total: f64 = stages[..6].iter().map(|s| s.1.median).sum();
     let peak_memory = eitskin_io::peak_memory();
@@ -223,17 +229,17 @@ pub fn run(args: Args) -> Result<()> {
             values.len()
         );
         for (name, t) in &stages[..6] {
-            println!("  {name:<20} {:>10.3} ms  ({:.3})", t.median * 1e3, t.min * 1e3);
+            println!("  {name:<24} {:>10.3} ms  ({:.3})", t.median * 1e3, t.min * 1e3);
         }
-        println!("  {:<20} {:>10.3} ms  (forward setup chain)", "total", total * 1e3);
+        println!("  {:<24} {:>10.3} ms  (forward setup chain)", "total", total * 1e3);
         // The inverse setup: Jacobian, reconstructor, its re-derivations, the press model.
         let per_frame = stages.iter().position(|s| s.0 == "frame_image").unwrap_or(stages.len());
         for (name, t) in &stages[6..per_frame] {
-            println!("  {name:<20} {:>10.3} ms  ({:.3})", t.median * 1e3, t.min * 1e3);
+            println!("  {name:<24} {:>10.3} ms  ({:.3})", t.median * 1e3, t.min * 1e3);
         }
         println!("per frame, median (fastest) of {frames} ({} pixels, {} touch):", image.values.len(), touches.len());
         for (name, t) in &stages[per_frame..] {
-            println!("  {name:<20} {:>10.3} µs  ({:.3})", t.median * 1e6, t.min * 1e6);
+            println!("  {name:<24} {:>10.3} µs  ({:.3})", t.median * 1e6, t.min * 1e6);
         }
         println!("file replay through decoder, pipeline and JSON line: {replay_fps:.0} frames/s on one thread");
         match peak_memory {
