@@ -20,14 +20,20 @@ True
 """
 
 from ._eitskin import (
+    Calibration,
     EitskinError,
+    Event,
     ForwardModel,
+    Frame,
     Image,
     Mesh,
+    Pipeline,
     Protocol,
     Reconstructor,
     SensorSpec,
+    Source,
     Touch,
+    TouchForce,
     VirtualSensor,
     one_step_matrix,
     touches,
@@ -35,14 +41,20 @@ from ._eitskin import (
 from .interop import mesh_from_pyeit, plot_image
 
 __all__ = [
+    "Calibration",
     "EitskinError",
+    "Event",
     "ForwardModel",
+    "Frame",
     "Image",
     "Mesh",
+    "Pipeline",
     "Protocol",
     "Reconstructor",
     "SensorSpec",
+    "Source",
     "Touch",
+    "TouchForce",
     "VirtualSensor",
     "mesh_from_pyeit",
     "one_step_matrix",

@@ -1,0 +1,477 @@
+//! Frames over time: the virtual sensor, a board's or a file's frames, the pipeline and the
+//! force calibration.
+
+use numpy::{IntoPyArray, PyArray1};
+use pyo3::prelude::*;
+
+use crate::fail;
+use crate::model::SensorSpec;
+
+/// The virtual sensor: the spec's sheet simulated on a finer mesh, pressed, with noise.
+///
+/// Parameters
+/// ----------
+/// spec : SensorSpec
+///     The sensor to simulate (its outline, electrodes, protocol and gel).
+/// seed : int, default 0
+///     Seed of the measurement noise (0.01 % of each value, relative).
+#[pyclass(module = "eitskin")]
+pub(crate) struct VirtualSensor(pub(crate) eitskin::sim::VirtualSensor);
+
+#[pymethods]
+impl VirtualSensor {
+    /// The sensor of `spec`, its noise seeded by `seed`.
+    #[new]
+    #[pyo3(signature = (spec, seed = 0))]
+    fn new(py: Python<'_>, spec: &SensorSpec, seed: u64) -> PyResult<VirtualSensor> {
+        let spec = &spec.0;
+        py.detach(|| eitskin::sim::VirtualSensor::new(spec, seed)).map(VirtualSensor).map_err(fail)
+    }
+
+    /// Adds a press at (x, y) m from the outline's centre with `force` N.
+    fn press(&mut self, x: f64, y: f64, force: f64) -> PyResult<()> {
+        if !(x.is_finite() && y.is_finite() && force.is_finite() && force >= 0.0) {
+            return Err(fail(format!(
+                "a press needs a finite position and a force ≥ 0 N, got ({x}, {y}) m, {force} N"
+            )));
+        }
+        self.0.press([x, y], force);
+        Ok(())
+    }
+
+    /// Lifts every press.
+    fn release(&mut self) {
+        self.0.release();
+    }
+
+    /// A frame now, with noise (V at 1 A, protocol order).
+    fn frame<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let sensor = &mut self.0;
+        Ok(py.detach(|| sensor.frame()).map_err(fail)?.into_pyarray(py))
+    }
+
+    /// The noise-free frame now (V at 1 A, protocol order).
+    fn clean_frame<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let sensor = &self.0;
+        Ok(py.detach(|| sensor.clean_frame()).map_err(fail)?.into_pyarray(py))
+    }
+}
+
+/// One frame from a source: its sequence number, its time (s) and its values (protocol order).
+#[pyclass(module = "eitskin", frozen, get_all)]
+pub(crate) struct Frame {
+    /// The board's counter, the line count, or as recorded.
+    seq: u64,
+    /// When it came, in s (the source's clock).
+    t: f64,
+    /// The measurements, (measurements,), in protocol order (V or Ω, as the board sends).
+    values: Py<PyArray1<f64>>,
+}
+
+#[pymethods]
+impl Frame {
+    fn __repr__(&self, py: Python<'_>) -> String {
+        format!(
+            "Frame(seq={}, t={:.4} s, {} values)",
+            self.seq,
+            self.t,
+            numpy::PyUntypedArrayMethods::len(self.values.bind(py))
+        )
+    }
+}
+
+/// Anything else a source yields: "bad" input the codec refused, a "skipped" damaged record,
+/// the port "disconnected" or "reconnected"; `message` says what and where.
+#[pyclass(module = "eitskin", frozen, get_all)]
+pub(crate) struct Event {
+    /// "bad", "skipped", "disconnected" or "reconnected".
+    kind: String,
+    /// What happened, in words.
+    message: String,
+}
+
+#[pymethods]
+impl Event {
+    fn __repr__(&self) -> String {
+        format!("Event({:?}, {:?})", self.kind, self.message)
+    }
+}
+
+/// Frames from a board, a file or the virtual sensor, as an iterator of `Frame` and `Event`.
+///
+/// Parameters
+/// ----------
+/// source : str
+///     "serial:/dev/ttyACM0[@BAUD]", "file:PATH" (a recording, or one frame per text line),
+///     "sim" (random presses) or "sim:SCRIPT".
+/// spec : SensorSpec
+///     The sensor whose frames these are (their length is its protocol's).
+/// rate : float, default 20.0
+///     Frames/s of the virtual sensor's clock and of a capture file's pace.
+/// fast : bool, default False
+///     As fast as possible instead of in real time (a serial port keeps the board's pace).
+/// frames : int, optional
+///     Stop after this many frames.
+/// codec : {"lines", "binary"}, default "lines"
+///     How a port's or a capture's bytes encode frames.
+/// seed : int, default 1
+///     The virtual sensor's seed.
+/// values_per_measurement : {1, 2}, default 1
+///     2 for boards sending complex (re, im) pairs.
+///
+/// Bad input never ends the stream: it comes as an `Event` ("bad", "skipped", "disconnected",
+/// "reconnected") between frames, and the source goes on.
+#[pyclass(module = "eitskin")]
+pub(crate) struct Source(std::sync::Mutex<eitskin_io::source::Source>);
+
+#[pymethods]
+impl Source {
+    /// Opens `source`: "serial:/dev/ttyACM0[@BAUD]", "file:PATH" (a recording or a capture of
+    /// one frame per text line), "sim" or "sim:SCRIPT", for `spec`'s frames. `rate` is frames/s
+    /// (the virtual sensor's clock, a capture's pace), `fast` skips the pacing, `frames` stops
+    /// after that many, `codec` is "lines" or "binary", `values_per_measurement` 1 or 2 (complex).
+    #[new]
+    #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
+    #[pyo3(signature = (source, spec, rate = 20.0, fast = false, frames = None, codec = "lines", seed = 1, values_per_measurement = 1))]
+    fn new(
+        py: Python<'_>,
+        source: &str,
+        spec: &SensorSpec,
+        rate: f64,
+        fast: bool,
+        frames: Option<u64>,
+        codec: &str,
+        seed: u64,
+        values_per_measurement: usize,
+    ) -> PyResult<Source> {
+        use eitskin_io::replay::Speed;
+        use eitskin_io::source::{Codec, SourceSettings, SourceSpec};
+        let which: SourceSpec = source.parse().map_err(fail)?;
+        if !(rate >= 0.0 && rate.is_finite()) {
+            return Err(fail(format!("rate must be ≥ 0 frames/s and finite, got {rate}")));
+        }
+        let settings = SourceSettings {
+            rate,
+            speed: if fast { Speed::AsFastAsPossible } else { Speed::Recorded },
+            frames,
+            codec: codec.parse::<Codec>().map_err(fail)?,
+            seed,
+            values_per_measurement,
+        };
+        let spec = &spec.0;
+        py.detach(|| eitskin_io::source::Source::open(&which, spec, &settings))
+            .map(|s| Source(std::sync::Mutex::new(s)))
+            .map_err(fail)
+    }
+
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    /// The next `Frame` or `Event`; waits (without the GIL) until it is due.
+    fn __next__(&mut self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        use eitskin_io::source::Acquired;
+        let source = self.0.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let item = match py.detach(|| source.next()) {
+            None => return Ok(None),
+            Some(item) => item.map_err(fail)?,
+        };
+        let event = |kind: &str, message: String| Event { kind: kind.into(), message };
+        Ok(Some(match item {
+            Acquired::Frame { seq, t, values } => {
+                Py::new(py, Frame { seq, t, values: values.into_pyarray(py).unbind() })?.into_any()
+            }
+            Acquired::Bad(bad) => Py::new(py, event("bad", bad.to_string()))?.into_any(),
+            Acquired::Skipped { record, torn_tail } => {
+                let tail = if torn_tail { " (the file's torn last record)" } else { "" };
+                Py::new(py, event("skipped", format!("line {}: {}{tail}", record.line, record.damage)))?.into_any()
+            }
+            Acquired::Disconnected { path, error } => {
+                Py::new(py, event("disconnected", format!("{}: {error}", path.display())))?.into_any()
+            }
+            Acquired::Reconnected { path, outage } => Py::new(
+                py,
+                event("reconnected", format!("{} is back after {:.1} s", path.display(), outage.as_secs_f64())),
+            )?
+            .into_any(),
+        }))
+    }
+
+    /// Frames delivered so far.
+    #[getter]
+    fn frames(&self) -> u64 {
+        self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner).frames()
+    }
+}
+
+/// A force calibration: the pseudo-array's areas, one curve σ(F) = a·e^(−F/b) + c each.
+///
+/// Made with `Calibration.fit(spec, area, force, strength)` from samples or read with
+/// `Calibration.load(path, spec)` (files of `eitskin calibrate`); `force(area, strength)` gives
+/// newtons.
+#[pyclass(module = "eitskin", frozen)]
+pub(crate) struct Calibration {
+    spec: eitskin::SensorSpec,
+    file: eitskin_io::CalibrationFile,
+}
+
+#[pymethods]
+impl Calibration {
+    /// Fits one curve per area of the spec's pseudo-array (`grid` units, grouped by symmetry)
+    /// from samples: `area` (0-based), `force` (N) and `strength` (the image's peak, S/m,
+    /// for strength "peak"), one entry per sample; every area needs ≥ 3 distinct forces.
+    #[staticmethod]
+    #[pyo3(signature = (spec, area, force, strength, grid = (5, 5)))]
+    fn fit(
+        spec: &SensorSpec,
+        area: Vec<usize>,
+        force: &Bound<'_, PyAny>,
+        strength: &Bound<'_, PyAny>,
+        grid: (usize, usize),
+    ) -> PyResult<Calibration> {
+        let (force, strength) = (crate::floats(force)?, crate::floats(strength)?);
+        if force.len() != area.len() || strength.len() != area.len() {
+            return Err(fail(format!(
+                "area, force and strength need one entry per sample, got {}, {} and {}",
+                area.len(),
+                force.len(),
+                strength.len()
+            )));
+        }
+        let spec = spec.0.clone();
+        let electrodes = spec.electrode_positions().map_err(fail)?;
+        let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.outline, &electrodes, [grid.0, grid.1])
+            .map_err(fail)?;
+        let samples: Vec<eitskin::calibration::Sample> = (0..area.len())
+            .map(|k| eitskin::calibration::Sample { area: area[k], force: force[k], peak: strength[k] })
+            .collect();
+        let calibration = eitskin::calibration::Calibration::fit(&samples, array.area_count()).map_err(fail)?;
+        let imaging = eitskin_io::Imaging::default();
+        Ok(Calibration { spec, file: eitskin_io::CalibrationFile { array, calibration, imaging } })
+    }
+
+    /// The area (0-based) of the pseudo-array unit under (x, y) m, for `spec`'s array of `grid`
+    /// units grouped by symmetry (the paper's 5 × 5 has 6 areas), or None off the array.
+    #[staticmethod]
+    #[pyo3(signature = (spec, x, y, grid = (5, 5)))]
+    fn area_of(spec: &SensorSpec, x: f64, y: f64, grid: (usize, usize)) -> PyResult<Option<usize>> {
+        let electrodes = spec.0.electrode_positions().map_err(fail)?;
+        let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.0.outline, &electrodes, [grid.0, grid.1])
+            .map_err(fail)?;
+        Ok(array.unit_at([x, y]).map(|u| array.area_of(u)))
+    }
+
+    /// Reads a calibration file made for `spec` (by `eitskin calibrate` or `save`).
+    #[staticmethod]
+    fn load(path: std::path::PathBuf, spec: &SensorSpec) -> PyResult<Calibration> {
+        let file = eitskin_io::read_calibration_file(&path, &spec.0).map_err(fail)?;
+        Ok(Calibration { spec: spec.0.clone(), file })
+    }
+
+    /// Writes it as JSON (the calibration file `eitskin run --calibration` reads).
+    fn save(&self, path: std::path::PathBuf) -> PyResult<()> {
+        let f = &self.file;
+        let text =
+            eitskin_io::calibration_file_to_json(&self.spec, &f.array, &f.calibration, f.imaging).map_err(fail)?;
+        std::fs::write(&path, text).map_err(|e| fail(format!("cannot write {}: {e}", path.display())))
+    }
+
+    /// Number of areas.
+    #[getter]
+    fn areas(&self) -> usize {
+        self.file.array.area_count()
+    }
+
+    /// The area (0-based) of the unit under (x, y) m, or None off the array.
+    fn area_at(&self, x: f64, y: f64) -> Option<usize> {
+        self.file.array.unit_at([x, y]).map(|u| self.file.array.area_of(u))
+    }
+
+    /// The force (N) for a touch of `strength` in `area`, and whether it is past the curve's
+    /// range (saturated).
+    fn force(&self, area: usize, strength: f64) -> PyResult<(f64, bool)> {
+        let estimate = self.file.calibration.force(area, strength).map_err(fail)?;
+        Ok((estimate.newtons, estimate.saturated))
+    }
+}
+
+/// A touch with what the pipeline read of it: where (m), how strong, and its force (N) when
+/// calibrated.
+#[pyclass(module = "eitskin", frozen, get_all)]
+pub(crate) struct TouchForce {
+    /// Centre of gravity, (x, y) in m.
+    centre: (f64, f64),
+    /// Largest change inside the touch, S/m.
+    peak: f64,
+    /// Area above the threshold, m².
+    area: f64,
+    /// The z of its peak against the measured noise, when the noise is known.
+    significance: Option<f64>,
+    /// The pseudo-array unit and area (0-based) it falls in, when calibrated.
+    unit: Option<usize>,
+    /// The calibration area (0-based), when calibrated.
+    calibration_area: Option<usize>,
+    /// Its force in N, when calibrated.
+    force: Option<f64>,
+    /// The fitted press's centre, (x, y) in m, when the pipeline fits presses.
+    press_centre: Option<(f64, f64)>,
+}
+
+#[pymethods]
+impl TouchForce {
+    fn __repr__(&self) -> String {
+        let force = self.force.map_or(String::new(), |f| format!(", force={f:.2} N"));
+        format!("TouchForce(centre=({:.4}, {:.4}) m, peak={:.4} S/m{force})", self.centre.0, self.centre.1, self.peak)
+    }
+}
+
+/// The frame path: a reference from the first frames, then per frame the image, the touches
+/// tested against the measured noise, and each touch's force when calibrated.
+///
+/// Parameters
+/// ----------
+/// spec : SensorSpec
+///     The sensor.
+/// calibration : Calibration, optional
+///     Turns each touch's strength into newtons (and sets λ and the normalisation it was fitted with).
+/// fit : bool, default False
+///     Fit a press (centre, conductivity drop) to each touch.
+/// reference_frames : int, default 10
+///     Frames averaged into the reference, 1 to 10,000.
+/// false_alarm_rate : float, default 1e-3
+///     False touches per no-touch frame that the noise test allows, in (0, 0.5].
+/// average : int, default 1
+///     Frames averaged into each image, 1 to 1,000 (adds (average − 1)/2 frames of latency).
+/// hyperparameter : float, default 0.1
+///     λ, when no calibration sets it.
+///
+/// Examples
+/// --------
+/// >>> spec = SensorSpec.square_hydrogel().with_triangles(1000)
+/// >>> sensor, pipeline = VirtualSensor(spec, seed=1), Pipeline(spec)
+/// >>> [pipeline.process(sensor.frame()) for _ in range(10)][-1]
+/// 'referencing'
+/// >>> sensor.press(0.05, 0.0, 10.0)
+/// >>> pipeline.process(sensor.frame()), len(pipeline.touches)
+/// ('processed', 1)
+#[pyclass(module = "eitskin")]
+pub(crate) struct Pipeline(eitskin::pipeline::Pipeline);
+
+#[pymethods]
+impl Pipeline {
+    /// The pipeline of `spec`: `calibration` turns touches into forces; `fit` fits a press to
+    /// each touch; `reference_frames` (1–10,000) are averaged into the reference;
+    /// `false_alarm_rate` (false touches per no-touch frame, in (0, 0.5]); `average` frames
+    /// (1–1,000) per image; `hyperparameter` λ (the paper's 0.1).
+    #[new]
+    #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
+    #[pyo3(signature = (spec, calibration = None, fit = false, reference_frames = 10, false_alarm_rate = 1e-3, average = 1, hyperparameter = 0.1))]
+    fn new(
+        py: Python<'_>,
+        spec: &SensorSpec,
+        calibration: Option<&Calibration>,
+        fit: bool,
+        reference_frames: usize,
+        false_alarm_rate: f64,
+        average: usize,
+        hyperparameter: f64,
+    ) -> PyResult<Pipeline> {
+        use eitskin::pipeline::{NoiseFloor, PipelineParams};
+        if !(1..=10_000).contains(&reference_frames) {
+            return Err(fail(format!("reference_frames must be 1 to 10000, got {reference_frames}")));
+        }
+        if !(false_alarm_rate > 0.0 && false_alarm_rate <= 0.5) {
+            return Err(fail(format!("false_alarm_rate must be in (0, 0.5], got {false_alarm_rate}")));
+        }
+        if !(1..=1000).contains(&average) {
+            return Err(fail(format!("average must be 1 to 1000 frames, got {average}")));
+        }
+        let spec = &spec.0;
+        let chain = py.detach(|| -> Result<eitskin::chain::Chain, String> {
+            let params = eitskin::ReconstructorParams {
+                hyperparameter: calibration.map_or(hyperparameter, |c| c.file.imaging.hyperparameter),
+                normalized: calibration.is_some_and(|c| c.file.imaging.normalized),
+                ..eitskin::ReconstructorParams::default()
+            };
+            let model = spec.forward_model().map_err(|e| e.to_string())?;
+            let recon = eitskin::Reconstructor::new(&model, spec.conductivity, &params).map_err(|e| e.to_string())?;
+            let mut chain = eitskin::chain::Chain::new(recon, eitskin::TouchParams::default());
+            let strength = calibration.map_or(eitskin::strength::Strength::Peak, |c| c.file.calibration.strength);
+            if fit || strength.needs_press_model() {
+                let press = eitskin_io::build_press_model(spec, &eitskin::press_fit::PressModelParams::default())
+                    .map_err(|e| e.to_string())?;
+                chain = chain.with_press_model(press);
+            }
+            if strength.needs_contrast_map() {
+                return Err(format!("a calibration of strength {} is not supported from Python yet", strength.name()));
+            }
+            chain = chain.with_strength(strength).map_err(|e| e.to_string())?;
+            if let Some(c) = calibration {
+                chain = chain
+                    .with_calibration(c.file.array.clone(), c.file.calibration.clone())
+                    .map_err(|e| e.to_string())?;
+            }
+            Ok(chain)
+        });
+        let chain = chain.map_err(fail)?;
+        let params = PipelineParams {
+            reference_frames,
+            noise_floor: NoiseFloor::FalseAlarm { rate: false_alarm_rate },
+            average,
+            ..PipelineParams::default()
+        };
+        Ok(Pipeline(eitskin::pipeline::Pipeline::new(chain, params)))
+    }
+
+    /// Feeds one frame (V, protocol order): "referencing" while the reference is taken, then
+    /// "processed", "channels dropped" or "noise updated".
+    fn process(&mut self, py: Python<'_>, frame: numpy::PyReadonlyArray1<'_, f64>) -> PyResult<String> {
+        use eitskin::pipeline::Status;
+        let frame = frame.as_slice()?;
+        let pipeline = &mut self.0;
+        let status = py.detach(|| pipeline.process(frame)).map_err(fail)?;
+        Ok(match status {
+            Status::Referencing { .. } => "referencing",
+            Status::Processed => "processed",
+            Status::ChannelsDropped { .. } => "channels dropped",
+            _ => "noise updated",
+        }
+        .into())
+    }
+
+    /// The last frame's touches, strongest first.
+    #[getter]
+    fn touches(&self) -> Vec<TouchForce> {
+        self.0
+            .touches()
+            .iter()
+            .map(|t| TouchForce {
+                centre: (t.touch.centre[0], t.touch.centre[1]),
+                peak: t.touch.peak,
+                area: t.touch.area,
+                significance: t.touch.significance,
+                unit: t.unit,
+                calibration_area: t.area,
+                force: t.force.map(|f| f.newtons),
+                press_centre: t.press.map(|p| (p.centre[0], p.centre[1])),
+            })
+            .collect()
+    }
+
+    /// The last frame's image.
+    #[getter]
+    fn image(&self) -> crate::imaging::Image {
+        crate::imaging::Image(self.0.image().clone())
+    }
+
+    /// Whether the reference has been taken.
+    #[getter]
+    fn has_reference(&self) -> bool {
+        self.0.reference().is_some()
+    }
+
+    /// Forgets the reference; the next frames build a new one.
+    fn retake_reference(&mut self) {
+        self.0.retake_reference();
+    }
+}
