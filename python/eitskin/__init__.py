@@ -38,7 +38,7 @@ from ._eitskin import (
     one_step_matrix,
     touches,
 )
-from .interop import mesh_from_pyeit, plot_image
+from .interop import from_pyeit, mesh_from_pyeit, plot_elements, plot_image, protocol_from_pyeit
 
 __all__ = [
     "Calibration",
@@ -56,8 +56,11 @@ __all__ = [
     "Touch",
     "TouchForce",
     "VirtualSensor",
+    "from_pyeit",
     "mesh_from_pyeit",
     "one_step_matrix",
+    "plot_elements",
     "plot_image",
+    "protocol_from_pyeit",
     "touches",
 ]

@@ -17,6 +17,21 @@ pub(crate) struct SensorSpec(pub(crate) eitskin::SensorSpec);
 
 #[pymethods]
 impl SensorSpec {
+    /// A spec from keyword arguments, keys and tables as in the spec file: `units` ("mm"),
+    /// `thickness`, `conductivity` (S/m), `outline` (dict with `kind`), `electrodes` (dict with
+    /// `count`, `placement`, …), and optional `protocol` and `mesh` dicts.
+    #[new]
+    #[pyo3(signature = (**fields))]
+    fn new(py: Python<'_>, fields: Option<&Bound<'_, pyo3::types::PyDict>>) -> PyResult<SensorSpec> {
+        let Some(fields) = fields.filter(|f| !f.is_empty()) else {
+            return Err(fail("give the spec's fields (units, thickness, conductivity, outline, electrodes, …), or use SensorSpec.square_hydrogel()"));
+        };
+        let json: String = py.import("json")?.call_method1("dumps", (fields,))?.extract()?;
+        let table: toml::Table = serde_json::from_str(&json).map_err(|e| fail(format!("the spec's fields: {e}")))?;
+        let text = toml::to_string(&table).map_err(|e| fail(format!("the spec's fields: {e}")))?;
+        SensorSpec::from_toml(&text, ".")
+    }
+
     /// The paper's sensor (200 × 200 mm square hydrogel, 16 electrodes, two-terminal protocol).
     #[staticmethod]
     fn square_hydrogel() -> SensorSpec {

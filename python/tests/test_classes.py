@@ -100,3 +100,40 @@ def test_bad_input_raises_with_the_message(spec):
     with pytest.raises(eitskin.EitskinError, match="a force"):
         eitskin.VirtualSensor(spec).press(0.0, 0.0, -1.0)
     assert issubclass(eitskin.EitskinError, ValueError)
+
+
+def test_a_spec_from_keyword_arguments():
+    tank = eitskin.SensorSpec(
+        units="mm",
+        thickness=10.0,
+        conductivity=1.0,
+        outline={"kind": "circle", "radius": 140.0},
+        electrodes={"count": 8, "width": 10.0, "contact_impedance": 1e-4, "placement": "equal"},
+        protocol={"kind": "adjacent"},
+        mesh={"triangles": 800},
+    )
+    assert tank.electrode_count == 8 and len(tank.protocol()) == 40
+    assert tank.mesh().areas().sum() == pytest.approx(np.pi * 0.14**2, rel=0.01)
+    with pytest.raises(eitskin.EitskinError, match="radius"):
+        eitskin.SensorSpec(units="mm", thickness=10.0, conductivity=1.0, outline={"kind": "circle"},
+                           electrodes={"count": 8, "placement": "equal"})
+    with pytest.raises(eitskin.EitskinError, match="give the spec's fields"):
+        eitskin.SensorSpec()
+
+
+def test_images_draw_with_matplotlib(spec, tmp_path):
+    matplotlib = pytest.importorskip("matplotlib", reason="NOT RUN: matplotlib is not installed")
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    model = spec.forward_model()
+    recon = eitskin.Reconstructor(model, spec.conductivity)
+    sigma = np.full(len(model.mesh.triangles), spec.conductivity)
+    sigma[np.hypot(*(model.mesh.centroids() - [0.03, 0.0]).T) < 0.015] *= 0.5
+    v0, v1 = model.measure(spec.conductivity), model.measure(sigma)
+    fig, (left, right) = plt.subplots(1, 2)
+    raster = eitskin.plot_image(recon.image(v0, v1), ax=left)
+    elements = eitskin.plot_elements(model.mesh, recon.element_values(v0, v1), ax=right)
+    assert raster.get_array().shape == (64, 64) and len(elements.get_array()) == len(sigma)
+    fig.savefig(tmp_path / "image.png")
+    assert (tmp_path / "image.png").stat().st_size > 1000

@@ -56,3 +56,19 @@ def test_jacobian_and_images_match_pyeit(pyeit):
     assert relative(plain @ (v1 - v0), recon["noser_lambda0.1_plain"]["ds"]) < 1e-8
     normalised = eitskin.one_step_matrix(jacobian, model.mesh, np.sqrt(0.1), exponent=1.0, background=v0)
     assert relative(normalised @ (v1 / v0 - 1.0), recon["noser_lambda0.1_normalized"]["ds"]) < 1e-8
+
+
+def test_a_pyeit_protocol_converts_in_one_call(pyeit):
+    data, _, model = pyeit
+    # pyEIT's adjacent protocol as its README states it: excitation i drives [i, i+1]; pairs
+    # [n, m] = [(m+1) % 16, m] that touch no driven electrode; v = phi[n] - phi[m].
+    ex_mat = np.array([[i, (i + 1) % 16] for i in range(16)])
+    meas_mat = np.array(
+        [[(m + 1) % 16, m, i] for i in range(16) for m in range(16) if not {m, (m + 1) % 16} & set(ex_mat[i])]
+    )
+    m = data["mesh"]
+    mesh = eitskin.mesh_from_pyeit(node=m["nodes"], element=m["triangles"], el_pos=m["electrode_nodes"])
+    protocol = eitskin.protocol_from_pyeit(ex_mat=ex_mat, meas_mat=meas_mat, n_el=16)
+    assert len(protocol) == 208
+    converted = eitskin.ForwardModel(mesh, protocol)
+    assert relative(converted.measure(1.0), data["adjacent"]["v_homogeneous"]) < 1e-10

@@ -1,7 +1,7 @@
 //! The Python package (`python/`, PyO3 + maturin) built and tested as its users install it: a
 //! fresh virtual environment under `target/`, `pip install ./python`, then its pytest suite
 //! (every class, bad input raising, pyEIT's reference numbers from Python). Needs `python3`
-//! with `venv`, and PyPI for maturin, numpy and pytest on the first run; without them this test
+//! with `venv`, and PyPI for maturin, numpy, pytest and matplotlib on the first run; without them this test
 //! fails and says which step it could not take.
 
 use std::path::{Path, PathBuf};
@@ -32,9 +32,19 @@ fn the_python_package_installs_and_passes_its_tests() {
     }
     let python = python.as_path();
     step(
-        "installing maturin, numpy and pytest",
+        "installing maturin, numpy, pytest and matplotlib",
         python,
-        &["-m", "pip", "install", "--quiet", "--disable-pip-version-check", "maturin>=1.5,<2", "numpy", "pytest"],
+        &[
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--disable-pip-version-check",
+            "maturin>=1.5,<2",
+            "numpy",
+            "pytest",
+            "matplotlib",
+        ],
     );
     step(
         "pip install ./python",
