@@ -94,20 +94,10 @@ def plot_elements(mesh: Mesh, values: Any, ax: Any = None, cmap: str = "RdBu", s
     -------
     matplotlib.collections.PolyCollection
     """
-    import matplotlib.pyplot as plt
-
-    ax = ax if ax is not None else plt.gca()
     values = np.asarray(values, dtype=float)
-    if symmetric:
-        peak = float(np.max(np.abs(values))) or 1.0
-        kwargs.setdefault("vmin", -peak)
-        kwargs.setdefault("vmax", peak)
+    ax = _axes(ax, values, symmetric, kwargs)
     nodes = mesh.nodes
-    drawn = ax.tripcolor(nodes[:, 0], nodes[:, 1], mesh.triangles, facecolors=values, cmap=cmap, **kwargs)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    return drawn
+    return ax.tripcolor(nodes[:, 0], nodes[:, 1], mesh.triangles, facecolors=values, cmap=cmap, **kwargs)
 
 
 def plot_image(image: Image, ax: Any = None, cmap: str = "RdBu", symmetric: bool = True, **kwargs: Any) -> Any:
@@ -128,16 +118,23 @@ def plot_image(image: Image, ax: Any = None, cmap: str = "RdBu", symmetric: bool
     -------
     matplotlib.image.AxesImage
     """
+    values = image.values
+    ax = _axes(ax, values, symmetric, kwargs)
+    return ax.imshow(values, extent=image.extent, origin="upper", cmap=cmap, **kwargs)
+
+
+def _axes(ax: Any, values: np.ndarray, symmetric: bool, kwargs: dict) -> Any:
+    """The axes to draw on (labelled in m, equal aspect), and a colour scale centred on zero
+    in ``kwargs`` when ``symmetric``."""
     import matplotlib.pyplot as plt
 
     ax = ax if ax is not None else plt.gca()
-    values = image.values
     if symmetric:
-        peak = float(np.nanmax(np.abs(values))) if np.isfinite(values).any() else 1.0
-        kwargs.setdefault("vmin", -peak)
-        kwargs.setdefault("vmax", peak)
-    drawn = ax.imshow(values, extent=image.extent, origin="upper", cmap=cmap, **kwargs)
+        finite = values[np.isfinite(values)]
+        peak = float(np.max(np.abs(finite))) if finite.size else 0.0
+        kwargs.setdefault("vmin", -(peak or 1.0))
+        kwargs.setdefault("vmax", peak or 1.0)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    return drawn
+    return ax

@@ -31,35 +31,11 @@ fn the_python_package_installs_and_passes_its_tests() {
         step("creating a virtual environment", Path::new("python3"), &["-m", "venv", &venv.to_string_lossy()]);
     }
     let python = python.as_path();
-    step(
-        "installing maturin, numpy, pytest and matplotlib",
-        python,
-        &[
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--disable-pip-version-check",
-            "maturin>=1.5,<2",
-            "numpy",
-            "pytest",
-            "matplotlib",
-        ],
-    );
-    step(
-        "pip install ./python",
-        python,
-        &[
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--disable-pip-version-check",
-            "--no-build-isolation",
-            "--force-reinstall",
-            "--no-deps",
-            "./python",
-        ],
-    );
+    let pip = |what: &str, arguments: &[&str]| {
+        let quiet = ["-m", "pip", "install", "--quiet", "--disable-pip-version-check"];
+        step(what, python, &[&quiet[..], arguments].concat());
+    };
+    pip("installing maturin, numpy, pytest and matplotlib", &["maturin>=1.5,<2", "numpy", "pytest", "matplotlib"]);
+    pip("pip install ./python", &["--no-build-isolation", "--force-reinstall", "--no-deps", "./python"]);
     step("pytest python/tests", python, &["-m", "pytest", "-q", "python/tests"]);
 }
