@@ -23,6 +23,8 @@
 //!
 //! Not for: reconstruction (use [`crate::Reconstructor`] on the spec's own mesh).
 
+pub mod imperfect;
+
 use rand::rngs::StdRng;
 use rand::Rng;
 use rand::SeedableRng;
@@ -172,6 +174,8 @@ pub struct VirtualSensor {
     /// frame with a press: a frame is then a low-rank update of it (`None` if it failed to
     /// build: frames are then solved in full).
     update: std::sync::OnceLock<Option<(LowRankUpdate, Vec<[f64; 4]>)>>,
+    /// The measurements of the sheet with no press at the spec's conductivity, solved once.
+    unpressed: std::sync::OnceLock<Vec<f64>>,
     /// The update's buffers, kept from frame to frame.
     scratch: std::sync::Mutex<ChangeScratch>,
     background: f64,
@@ -196,6 +200,7 @@ impl VirtualSensor {
         Ok(VirtualSensor {
             model,
             update: std::sync::OnceLock::new(),
+            unpressed: std::sync::OnceLock::new(),
             scratch: std::sync::Mutex::new(ChangeScratch::default()),
             background: spec.conductivity,
             params,
@@ -295,8 +300,15 @@ impl VirtualSensor {
     /// rows (exact either way). With drift the background itself changes, and the frame is
     /// solved in full.
     pub fn clean_frame(&self) -> Result<Vec<f64>, ForwardError> {
-        if self.presses.is_empty() || self.background() != self.background {
+        if self.background() != self.background {
             return self.model.measure(&self.conductivity());
+        }
+        if self.presses.is_empty() {
+            if let Some(v) = self.unpressed.get() {
+                return Ok(v.clone());
+            }
+            let v = self.model.measure(&self.conductivity())?;
+            return Ok(self.unpressed.get_or_init(|| v).clone());
         }
         let Some((update, boxes)) = self.update.get_or_init(|| self.low_rank_update()) else {
             return self.model.measure(&self.conductivity());

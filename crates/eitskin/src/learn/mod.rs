@@ -1,0 +1,420 @@
+//! Calibration learned from labelled presses: a model from a frame (or Δv) to where the press
+//! is and how hard, for skins whose outline, electrodes, gains and gel nobody knows exactly.
+//!
+//! The channels are z-scored over the training presses and the dead ones (constant,
+//! saturated, not finite) dropped ([`Standardiser`]). Then, side by side:
+//! - k-nearest neighbours ([`RegressorKind::Knn`]): the floor;
+//! - Gaussian-process regression ([`RegressorKind::GaussianProcess`]): kernel ridge whose length
+//!   scale and noise come from the log marginal likelihood, with an uncertainty per answer;
+//!
+//! each on the channels as they are or on their shape ([`Features`]).
+//!
+//! [`choose`] picks one by k-fold cross-validation on the training presses alone.
+//!
+//! ```
+//! use eitskin::learn::{choose, train, LabelledPress, Method, PredictScratch};
+//! // A toy "sensor": three channels that vary smoothly with the press's position (m).
+//! let frame = |x: f64, y: f64| vec![x + 0.2 * y * y, y - 0.1 * x, x * y];
+//! let presses: Vec<LabelledPress> = (0..81)
+//!     .map(|i| {
+//!         let (x, y) = ((i % 9) as f64 / 8.0 - 0.5, (i / 9) as f64 / 8.0 - 0.5);
+//!         LabelledPress { inputs: frame(x, y), position: [x, y], force: None }
+//!     })
+//!     .collect();
+//! // Every candidate's cross-validated error; here the Gaussian process on raw channels.
+//! let (_best, scores) = choose(&presses, &Method::candidates(), 5)?;
+//! assert_eq!(scores.len(), Method::candidates().len());
+//! let model = train(&presses, Method::from_name("gp").unwrap())?;
+//! let answer = model.predict(&frame(0.1, -0.2), &mut PredictScratch::default());
+//! assert!((answer.position[0] - 0.1).abs() < 0.01 && (answer.position[1] + 0.2).abs() < 0.01);
+//! assert!(answer.position_std.is_some());
+//! # Ok::<(), eitskin::learn::LearnError>(())
+//! ```
+
+mod gp;
+mod knn;
+mod standardise;
+
+pub use gp::{GaussianProcess, GpScratch, LENGTH_SCALES, NOISE_VARIANCES};
+pub use knn::Knn;
+pub use standardise::{Standardiser, DEAD_SPREAD};
+
+use thiserror::Error;
+
+/// What is wrong with a training set or a frame.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum LearnError {
+    /// Too few presses to train on (or to split into folds).
+    #[error("{got} labelled presses are too few: at least {needed} are needed")]
+    TooFewPresses {
+        /// Presses given.
+        got: usize,
+        /// Presses needed.
+        needed: usize,
+    },
+    /// A press has another number of channels than the first.
+    #[error("press {press} has {got} channels, the first press {expected}")]
+    Channels {
+        /// 1-based press.
+        press: usize,
+        /// Channels of the first press.
+        expected: usize,
+        /// Channels of this one.
+        got: usize,
+    },
+    /// Some presses have a force and some do not.
+    #[error("press {press} has no force while others have one: label every press's force or none")]
+    MixedForces {
+        /// 1-based press.
+        press: usize,
+    },
+    /// Every channel is dead.
+    #[error("every channel is constant or not finite over the training presses: nothing to learn from")]
+    NoChannels,
+    /// The process could not be fitted (its kernel matrix not positive definite at any grid point).
+    #[error("the Gaussian process could not be fitted to these presses")]
+    NotFitted,
+}
+
+/// One press with its label: the frame's values (or Δv), its position in m, its force in N.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabelledPress {
+    /// The channels, in protocol order.
+    pub inputs: Vec<f64>,
+    /// Where it was pressed, in m.
+    pub position: [f64; 2],
+    /// How hard, in N, when labelled.
+    pub force: Option<f64>,
+}
+
+/// A way to learn: a regressor on one kind of feature.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Method {
+    /// The regressor.
+    pub regressor: RegressorKind,
+    /// The features it sees.
+    pub features: Features,
+}
+
+/// The regressors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RegressorKind {
+    /// The mean of the k nearest training presses in z-scored feature space.
+    Knn {
+        /// Neighbours, ≥ 1.
+        k: usize,
+    },
+    /// Gaussian-process regression on z-scored features.
+    GaussianProcess,
+}
+
+/// What the regressor sees of a press's channels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Features {
+    /// The channels as they are.
+    Raw,
+    /// The channels' direction (divided by their Euclidean norm) and the norm's logarithm: where
+    /// a press is shows in the pattern, how hard mostly in the size, so a harder press does not
+    /// look like a press elsewhere.
+    Shape,
+}
+
+impl Method {
+    /// k-nearest neighbours on raw channels: the floor.
+    pub const fn knn(k: usize) -> Method {
+        Method { regressor: RegressorKind::Knn { k }, features: Features::Raw }
+    }
+
+    /// The methods [`choose`] tries: k = 1, 3, 5, 10 neighbours and the Gaussian process, each on
+    /// raw and on shape features.
+    pub fn candidates() -> Vec<Method> {
+        let regressors =
+            [1, 3, 5, 10].map(|k| RegressorKind::Knn { k }).into_iter().chain([RegressorKind::GaussianProcess]);
+        regressors
+            .flat_map(|regressor| [Features::Raw, Features::Shape].map(|features| Method { regressor, features }))
+            .collect()
+    }
+
+    /// Its name, as files and reports write it ("knn-5", "gp", "gp-shape").
+    pub fn name(&self) -> String {
+        let base = match self.regressor {
+            RegressorKind::Knn { k } => format!("knn-{k}"),
+            RegressorKind::GaussianProcess => "gp".into(),
+        };
+        match self.features {
+            Features::Raw => base,
+            Features::Shape => format!("{base}-shape"),
+        }
+    }
+
+    /// The method of a name from [`Method::name`].
+    pub fn from_name(name: &str) -> Option<Method> {
+        let (base, features) = match name.strip_suffix("-shape") {
+            Some(base) => (base, Features::Shape),
+            None => (name, Features::Raw),
+        };
+        let regressor = if base == "gp" {
+            RegressorKind::GaussianProcess
+        } else {
+            let k: usize = base.strip_prefix("knn-")?.parse().ok()?;
+            if k == 0 {
+                return None;
+            }
+            RegressorKind::Knn { k }
+        };
+        Some(Method { regressor, features })
+    }
+}
+
+impl Features {
+    /// The features of `channels` into `out` (cleared first).
+    pub fn of_into(self, channels: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        out.extend_from_slice(channels);
+        if self == Features::Shape {
+            let norm = channels.iter().filter(|v| v.is_finite()).map(|v| v * v).sum::<f64>().sqrt();
+            if norm > 0.0 {
+                out.iter_mut().for_each(|v| *v /= norm);
+            }
+            out.push(norm.max(f64::MIN_POSITIVE).ln());
+        }
+    }
+}
+
+/// The trained regressor.
+#[derive(Debug, Clone)]
+pub enum Regressor {
+    /// k-nearest neighbours.
+    Knn(Knn),
+    /// A Gaussian process.
+    GaussianProcess(GaussianProcess),
+}
+
+/// A trained model: frame → position (m), force (N) when trained with forces, uncertainty.
+#[derive(Debug, Clone)]
+pub struct LearnedModel {
+    /// The method it was trained with.
+    pub method: Method,
+    /// Channel scaling and the dead channels.
+    pub standardiser: Standardiser,
+    /// The regressor on the used channels.
+    pub regressor: Regressor,
+    /// Whether it gives forces.
+    pub forces: bool,
+}
+
+/// One answer of a model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prediction {
+    /// Where, in m.
+    pub position: [f64; 2],
+    /// How hard, in N, when the model was trained with forces.
+    pub force: Option<f64>,
+    /// The predictive standard deviation of the position (the larger of x and y), in m; only
+    /// a Gaussian process gives one.
+    pub position_std: Option<f64>,
+    /// The predictive standard deviation of the force, in N.
+    pub force_std: Option<f64>,
+}
+
+/// Buffers for [`LearnedModel::predict`], grown on first use.
+#[derive(Debug, Clone, Default)]
+pub struct PredictScratch {
+    features: Vec<f64>,
+    z: Vec<f64>,
+    nearest: Vec<(f64, usize)>,
+    gp: GpScratch,
+}
+
+/// Checks the presses agree in channels and in having forces; the channel count.
+fn check(presses: &[LabelledPress], needed: usize) -> Result<(usize, bool), LearnError> {
+    if presses.len() < needed {
+        return Err(LearnError::TooFewPresses { got: presses.len(), needed });
+    }
+    let expected = presses[0].inputs.len();
+    let forces = presses[0].force.is_some();
+    for (i, p) in presses.iter().enumerate() {
+        if p.inputs.len() != expected {
+            return Err(LearnError::Channels { press: i + 1, expected, got: p.inputs.len() });
+        }
+        if p.force.is_some() != forces {
+            return Err(LearnError::MixedForces { press: i + 1 });
+        }
+    }
+    Ok((expected, forces))
+}
+
+/// Trains `method` on `presses` (at least 2, all with forces or none).
+pub fn train(presses: &[LabelledPress], method: Method) -> Result<LearnedModel, LearnError> {
+    let (_, forces) = check(presses, 2)?;
+    let inputs: Vec<Vec<f64>> = presses
+        .iter()
+        .map(|p| {
+            let mut f = Vec::new();
+            method.features.of_into(&p.inputs, &mut f);
+            f
+        })
+        .collect();
+    let standardiser = Standardiser::fit(&inputs);
+    if standardiser.used().is_empty() {
+        return Err(LearnError::NoChannels);
+    }
+    let points: Vec<Vec<f64>> = inputs
+        .iter()
+        .map(|row| {
+            let mut z = vec![0.0; standardiser.used().len()];
+            standardiser.apply_into(row, &mut z);
+            z
+        })
+        .collect();
+    let targets: Vec<Vec<f64>> = presses
+        .iter()
+        .map(|p| {
+            let mut t = p.position.to_vec();
+            t.extend(p.force);
+            t
+        })
+        .collect();
+    let regressor = match method.regressor {
+        RegressorKind::Knn { k } => Regressor::Knn(Knn::new(k, &points, &targets)),
+        RegressorKind::GaussianProcess => {
+            Regressor::GaussianProcess(GaussianProcess::fit(&points, &targets).ok_or(LearnError::NotFitted)?)
+        }
+    };
+    Ok(LearnedModel { method, standardiser, regressor, forces })
+}
+
+impl LearnedModel {
+    /// Channels a frame must have.
+    pub fn channels(&self) -> usize {
+        self.standardiser.channels() - usize::from(self.method.features == Features::Shape)
+    }
+
+    /// The answer for `frame` (its channels in protocol order; `channels()` of them). Allocates
+    /// nothing once `scratch` has grown.
+    pub fn predict(&self, frame: &[f64], scratch: &mut PredictScratch) -> Prediction {
+        let used = self.standardiser.used().len();
+        self.method.features.of_into(frame, &mut scratch.features);
+        scratch.z.resize(used, 0.0);
+        self.standardiser.apply_into(&scratch.features, &mut scratch.z);
+        let (mut out, mut std) = ([f64::NAN; 3], [f64::NAN; 3]);
+        let outputs = if self.forces { 3 } else { 2 };
+        let gives_std = match &self.regressor {
+            Regressor::Knn(knn) => {
+                knn.predict_into(&scratch.z, &mut scratch.nearest, &mut out[..outputs]);
+                false
+            }
+            Regressor::GaussianProcess(gp) => {
+                gp.predict_into(&scratch.z, &mut scratch.gp, &mut out[..outputs], &mut std[..outputs]);
+                true
+            }
+        };
+        Prediction {
+            position: [out[0], out[1]],
+            force: self.forces.then_some(out[2]),
+            position_std: gives_std.then(|| std[0].max(std[1])),
+            force_std: (gives_std && self.forces).then_some(std[2]),
+        }
+    }
+}
+
+/// How well a model answers labelled presses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Errors {
+    /// Mean distance between answer and truth, in m.
+    pub mean_position: f64,
+    /// Root-mean-square force error, in N (when the presses have forces).
+    pub force_rms: Option<f64>,
+    /// Presses the errors are over.
+    pub presses: usize,
+}
+
+/// The errors of `model` on `presses`.
+pub fn evaluate(model: &LearnedModel, presses: &[LabelledPress]) -> Errors {
+    let mut scratch = PredictScratch::default();
+    let (mut distance, mut force, mut forced) = (0.0, 0.0, 0usize);
+    for p in presses {
+        let answer = model.predict(&p.inputs, &mut scratch);
+        distance += (answer.position[0] - p.position[0]).hypot(answer.position[1] - p.position[1]);
+        if let (Some(a), Some(t)) = (answer.force, p.force) {
+            force += (a - t) * (a - t);
+            forced += 1;
+        }
+    }
+    let n = presses.len().max(1) as f64;
+    Errors {
+        mean_position: distance / n,
+        force_rms: (forced > 0).then(|| (force / forced as f64).sqrt()),
+        presses: presses.len(),
+    }
+}
+
+/// The errors of `method` by `folds`-fold cross-validation on `presses` (press i in fold
+/// i mod folds), pooled over the folds.
+pub fn cross_validate(presses: &[LabelledPress], method: Method, folds: usize) -> Result<Errors, LearnError> {
+    let folds = folds.max(2);
+    check(presses, 2 * folds)?;
+    let (mut distance, mut force, mut forced) = (0.0, 0.0, 0usize);
+    for fold in 0..folds {
+        let (held, kept): (Vec<_>, Vec<_>) = presses.iter().enumerate().partition(|(i, _)| i % folds == fold);
+        let kept: Vec<LabelledPress> = kept.into_iter().map(|(_, p)| p.clone()).collect();
+        let held: Vec<LabelledPress> = held.into_iter().map(|(_, p)| p.clone()).collect();
+        let e = evaluate(&train(&kept, method)?, &held);
+        distance += e.mean_position * e.presses as f64;
+        if let Some(rms) = e.force_rms {
+            force += rms * rms * e.presses as f64;
+            forced += e.presses;
+        }
+    }
+    let n = presses.len() as f64;
+    Ok(Errors {
+        mean_position: distance / n,
+        force_rms: (forced > 0).then(|| (force / forced as f64).sqrt()),
+        presses: presses.len(),
+    })
+}
+
+/// The candidate with the smallest cross-validated mean position error, and every candidate's
+/// errors (in the order given).
+pub fn choose(
+    presses: &[LabelledPress],
+    candidates: &[Method],
+    folds: usize,
+) -> Result<(Method, Vec<(Method, Errors)>), LearnError> {
+    let scores: Vec<(Method, Errors)> =
+        candidates.iter().map(|&m| cross_validate(presses, m, folds).map(|e| (m, e))).collect::<Result<_, _>>()?;
+    let best = scores
+        .iter()
+        .min_by(|a, b| a.1.mean_position.total_cmp(&b.1.mean_position))
+        .map(|s| s.0)
+        .ok_or(LearnError::TooFewPresses { got: 0, needed: 2 })?;
+    Ok((best, scores))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_names_round_trip_and_bad_ones_are_refused() {
+        for method in Method::candidates() {
+            assert_eq!(Method::from_name(&method.name()), Some(method));
+        }
+        assert_eq!(Method::from_name("knn-0"), None);
+        assert_eq!(Method::from_name("svm"), None);
+    }
+
+    #[test]
+    fn presses_that_disagree_are_refused() {
+        let press = |inputs: Vec<f64>, force| LabelledPress { inputs, position: [0.0, 0.0], force };
+        let mixed = [press(vec![1.0, 2.0], Some(1.0)), press(vec![2.0, 1.0], None)];
+        assert_eq!(train(&mixed, Method::knn(1)).unwrap_err(), LearnError::MixedForces { press: 2 });
+        let lengths = [press(vec![1.0, 2.0], None), press(vec![2.0], None)];
+        assert_eq!(
+            train(&lengths, Method::knn(1)).unwrap_err().to_string(),
+            "press 2 has 1 channels, the first press 2"
+        );
+        let flat = [press(vec![1.0], None), press(vec![1.0], None)];
+        assert_eq!(train(&flat, Method::knn(1)).unwrap_err(), LearnError::NoChannels);
+    }
+}
