@@ -221,6 +221,9 @@ impl Labelled {
                 }
                 Location::Point(p) => p,
             };
+            let Some(force) = force else {
+                bail!("{}: the samples have no `force` column: a calibration needs each press's force", path.display())
+            };
             let Some(unit) = array.unit_at(position) else {
                 let [x, y] = position.map(|c| Quantity::written(c * per_unit, u));
                 bail!("{}: sample {}: ({x}, {y}) is off the sheet", path.display(), k + 1);

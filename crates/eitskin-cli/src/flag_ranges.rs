@@ -36,6 +36,12 @@ const TEXT: &[(&str, &str)] = &[
     ("evaluate", "calibration"),
     ("evaluate", "samples"),
     ("evaluate", "reference"),
+    ("learn", "samples"),
+    ("learn", "out"),
+    ("learn", "held-out"),
+    ("learn", "method"),
+    ("robot-presses", "out"),
+    ("robot-presses", "held-out"),
     ("run", "calibration"),
     ("run", "record"),
     ("convergence", "protocol"),
@@ -51,6 +57,9 @@ const ACCEPTED: &[(&str, &str, &str)] = &[
     ("run", "rate", "0"),            // a capture as fast as possible
     ("run", "baseline-rate", "0"),   // no baseline update
     ("run", "viewer", "0"),          // any free port
+    ("robot-presses", "seed", "0"),
+    ("robot-presses", "held-out-count", "0"), // no held-out file
+    ("robot-presses", "noise", "0"),          // noise-free presses
 ];
 
 #[test]

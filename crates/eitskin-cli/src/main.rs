@@ -8,6 +8,7 @@ mod convergence;
 mod flag_ranges;
 mod forward;
 mod image;
+mod learn;
 mod load;
 mod mesh;
 mod outputs;
@@ -60,6 +61,10 @@ enum Command {
     Calibrate(calibrate::CalibrateArgs),
     /// Measure a calibration's force error on samples.
     Evaluate(calibrate::EvaluateArgs),
+    /// Learn where (and how hard) presses are from labelled presses: methods side by side, a model file, learning curves.
+    Learn(learn::Args),
+    /// Write labelled robot presses of the imperfect virtual skin (samples CSV) to learn on.
+    RobotPresses(learn::PressesArgs),
     /// Run a sensor live: frames from the virtual sensor, a file or a serial port; touches and forces as JSON lines.
     Run(run::Args),
     /// Time each stage of the setup chain and print the medians.
@@ -88,6 +93,8 @@ fn main() {
         Command::Study(args) => study::run(args),
         Command::Calibrate(args) => calibrate::calibrate(args),
         Command::Evaluate(args) => calibrate::evaluate(args),
+        Command::Learn(args) => learn::run(args),
+        Command::RobotPresses(args) => learn::presses_run(args),
         Command::Run(args) => run::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Convergence(args) => convergence::run(args),

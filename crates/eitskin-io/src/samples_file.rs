@@ -2,8 +2,9 @@
 //! its touch or the raw frame.
 //!
 //! Columns, by name: `unit` (counted from 1) or `x`, `y` (in the spec's units, from the
-//! outline's centre); `force` (N, 0 or more); then either `peak` (S/m) or the frame's measurements in
-//! protocol order in all remaining columns. Lines starting with `#` are comments.
+//! outline's centre); `force` (N, 0 or more; a calibration needs it, a learned position model
+//! does not); then either `peak` (S/m) or the frame's measurements (or Δv) in protocol order in
+//! all remaining columns. Lines starting with `#` are comments.
 
 use std::path::Path;
 
@@ -32,8 +33,8 @@ pub enum Measured {
 pub struct SampleRow {
     /// Where.
     pub location: Location,
-    /// Force, in N.
-    pub force: f64,
+    /// Force, in N, when the file has a `force` column.
+    pub force: Option<f64>,
     /// The peak or the frame.
     pub measured: Measured,
 }
@@ -61,11 +62,9 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
         (None, Some(x), Some(y)) => Err((x, y)),
         _ => return Err(fail(1, "needs a `unit` column or `x` and `y` columns".into())),
     };
-    let Some(force) = column("force") else {
-        return Err(fail(1, "needs a `force` column".into()));
-    };
+    let force = column("force");
     let peak = column("peak");
-    let used: Vec<usize> = [Some(force), peak, location.ok(), location.err().map(|p| p.0), location.err().map(|p| p.1)]
+    let used: Vec<usize> = [force, peak, location.ok(), location.err().map(|p| p.0), location.err().map(|p| p.1)]
         .into_iter()
         .flatten()
         .collect();
@@ -95,12 +94,18 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
                 (0..fields.len()).filter(|k| !used.contains(k)).map(number).collect::<Result<Vec<f64>, Error>>()?,
             ),
         };
-        let newtons = number(force)?;
-        if newtons < 0.0 {
-            let text = fields.get(force).copied().unwrap_or("");
-            return Err(fail(n + 1, format!("force {text} N is negative: a press's force is 0 N or more")));
-        }
-        rows.push(SampleRow { location, force: newtons, measured });
+        let force = match force {
+            Some(k) => {
+                let newtons = number(k)?;
+                if newtons < 0.0 {
+                    let text = fields.get(k).copied().unwrap_or("");
+                    return Err(fail(n + 1, format!("force {text} N is negative: a press's force is 0 N or more")));
+                }
+                Some(newtons)
+            }
+            None => None,
+        };
+        rows.push(SampleRow { location, force, measured });
     }
     Ok(rows)
 }
@@ -112,10 +117,15 @@ mod tests {
     #[test]
     fn units_points_peaks_and_frames_are_read() {
         let rows = parse_samples("# from the study\nunit,force,peak\n1,0,0.001\n25,15,0.2\n", 1e-3).unwrap();
-        assert_eq!(rows[1], SampleRow { location: Location::Unit(24), force: 15.0, measured: Measured::Peak(0.2) });
+        assert_eq!(
+            rows[1],
+            SampleRow { location: Location::Unit(24), force: Some(15.0), measured: Measured::Peak(0.2) }
+        );
         let rows = parse_samples("x,y,force,v1,v2,v3\n10,-20,5,1.5,2.5,3.5\n", 1e-3).unwrap();
         assert_eq!(rows[0].location, Location::Point([0.01, -0.02]));
         assert_eq!(rows[0].measured, Measured::Frame(vec![1.5, 2.5, 3.5]));
+        let rows = parse_samples("x,y,v1,v2\n10,-20,1.5,2.5\n", 1e-3).unwrap();
+        assert_eq!((rows[0].force, &rows[0].measured), (None, &Measured::Frame(vec![1.5, 2.5])));
     }
 
     #[test]

@@ -1,0 +1,237 @@
+//! `eitskin learn`: a model from labelled presses to where a press is (and how hard, when the
+//! presses have forces), every method side by side by cross-validation, and learning curves;
+//! `eitskin robot-presses`: labelled presses from the imperfect virtual skin, to learn on.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use eitskin::learn::{choose, evaluate, train, LabelledPress, Method};
+use eitskin::sim::imperfect::{ImperfectSkin, Imperfections};
+use eitskin::SensorSpec;
+use eitskin_io::{Location, Measured};
+
+use crate::{load, outputs, ranges};
+
+/// Flags of `eitskin learn`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Sensor spec file (TOML); default: the paper's sensor.
+    spec: Option<PathBuf>,
+    /// Samples file (CSV): `x`, `y` (the spec's units), optional `force` (N), then each press's
+    /// channels (Δv, or frames) in protocol order.
+    #[arg(long)]
+    samples: PathBuf,
+    /// Write the chosen model here (JSON).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Samples to report the trained model's error on (held out of training).
+    #[arg(long)]
+    held_out: Option<PathBuf>,
+    /// Learning curves: every method trained on the first N = 25, 50, 100, 200, 500, 1000
+    /// presses (as many as there are), its error on the held-out samples (needs --held-out).
+    #[arg(long)]
+    curve: bool,
+    /// Folds of the cross-validation that chooses the method, 2–20.
+    #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of folds", 2, 20))]
+    folds: usize,
+    /// Train this method instead of choosing: knn-K (K ≥ 1) or gp, either with -shape.
+    #[arg(long)]
+    method: Option<String>,
+}
+
+/// Flags of `eitskin robot-presses`.
+#[derive(Debug, clap::Args)]
+pub struct PressesArgs {
+    /// Sensor spec file (TOML); default: the paper's sensor.
+    spec: Option<PathBuf>,
+    /// Presses, 1–1,000,000.
+    #[arg(long, default_value_t = 1000, value_parser = ranges::whole("a number of presses", 1, 1_000_000))]
+    count: usize,
+    /// Write the samples here (CSV, the format `learn` reads).
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write this many more presses of the same skin, 0–1,000,000, to --held-out.
+    #[arg(long, default_value_t = 0, value_parser = ranges::whole("a number of presses", 0, 1_000_000))]
+    held_out_count: usize,
+    /// Where the held-out presses go (needed with --held-out-count).
+    #[arg(long)]
+    held_out: Option<PathBuf>,
+    /// Frames averaged for each state (before, pressed), 1–10,000: the robot holds still while
+    /// the board streams.
+    #[arg(long, default_value_t = 32, value_parser = ranges::whole("a number of frames", 1, 10_000))]
+    frames_per_press: usize,
+    /// Relative noise per value and frame, 0–0.1 (open boards: 0.003–0.005).
+    #[arg(long, default_value_t = 0.003, value_parser = ranges::number("a relative noise", "[0, 0.1]", "0.003", |v| (0.0..=0.1).contains(&v)))]
+    noise: f64,
+    /// Radius of the disc the presses fall in, as a fraction of the outline's half-width, (0, 1].
+    #[arg(long, default_value_t = 0.8, value_parser = ranges::number("a fraction", "(0, 1]", "0.8", |v| v > 0.0 && v <= 1.0))]
+    radius: f64,
+    /// The skin as specified instead of as built (no outline, electrode, gain, dead-drive,
+    /// drift or magnitude error; noise and averaging still apply).
+    #[arg(long)]
+    perfect: bool,
+    /// Seed of the skin's errors, the presses and the noise, 0–2⁶⁴−1.
+    #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
+    seed: u64,
+}
+
+/// The labelled presses of a samples file (positions in m).
+fn presses(path: &std::path::Path, spec: &SensorSpec) -> Result<Vec<LabelledPress>> {
+    let rows = eitskin_io::read_samples(path, spec.length_unit.metres())?;
+    rows.into_iter()
+        .enumerate()
+        .map(|(k, row)| {
+            let Location::Point(position) = row.location else {
+                bail!("{}: sample {}: a learned model needs `x` and `y`, not a unit", path.display(), k + 1)
+            };
+            let Measured::Frame(inputs) = row.measured else {
+                bail!("{}: sample {}: a learned model needs the channels, not a peak", path.display(), k + 1)
+            };
+            Ok(LabelledPress { inputs, position, force: row.force })
+        })
+        .collect()
+}
+
+/// Runs `eitskin learn`.
+pub fn run(args: Args) -> Result<()> {
+    let spec = load::spec(args.spec.as_deref())?;
+    if let Some(out) = &args.out {
+        let mut inputs = vec![("samples", args.samples.as_path())];
+        inputs.extend(args.held_out.as_deref().map(|p| ("--held-out", p)));
+        outputs::check(&[("--out", out.as_path())], &inputs)?;
+    }
+    let forced = args
+        .method
+        .as_deref()
+        .map(|m| {
+            Method::from_name(m)
+                .with_context(|| format!("{m:?} is not a method: give knn-K (K ≥ 1) or gp, either with -shape"))
+        })
+        .transpose()?;
+    if args.curve && args.held_out.is_none() {
+        bail!("--curve needs --held-out: the curves are errors on presses kept out of training");
+    }
+    let training = presses(&args.samples, &spec)?;
+    let held_out = args.held_out.as_deref().map(|p| presses(p, &spec)).transpose()?;
+    let channels = spec.protocol()?.len();
+    if let Some(first) = training.first().filter(|p| p.inputs.len() % channels != 0) {
+        bail!(
+            "{}: presses have {} channels; the sensor's protocol has {channels} measurements",
+            args.samples.display(),
+            first.inputs.len()
+        );
+    }
+    let mm = |m: f64| m * 1e3;
+    let started = Instant::now();
+    let (method, scores) = choose(&training, &Method::candidates(), args.folds)?;
+    println!(
+        "{}-fold cross-validation on {} presses ({:.2} s):",
+        args.folds,
+        training.len(),
+        started.elapsed().as_secs_f64()
+    );
+    println!("  {:14} {:>14} {:>14}", "method", "position (mm)", "force RMS (N)");
+    for (m, e) in &scores {
+        let force = e.force_rms.map_or("—".into(), |f| format!("{f:.2}"));
+        println!("  {:14} {:>14.1} {:>14}", m.name(), mm(e.mean_position), force);
+    }
+    let method = forced.unwrap_or(method);
+    let started = Instant::now();
+    let model = train(&training, method)?;
+    println!("trained {} on {} presses in {:.2} s", method.name(), training.len(), started.elapsed().as_secs_f64());
+    let dead = model.standardiser.dead();
+    if !dead.is_empty() {
+        let list: Vec<String> = dead.iter().map(|c| (c + 1).to_string()).collect();
+        println!("channels that carry nothing (left out): {}", list.join(", "));
+    }
+    if let Some(held) = &held_out {
+        let e = evaluate(&model, held);
+        let force = e.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"));
+        println!("on {} held-out presses: mean position error {:.1} mm{force}", e.presses, mm(e.mean_position));
+    }
+    if args.curve {
+        if let Some(held) = &held_out {
+            learning_curves(&training, held);
+        }
+    }
+    if let Some(out) = &args.out {
+        let text = eitskin_io::learned_model_to_json(&spec, method, &training)?;
+        std::fs::write(out, text).with_context(|| format!("cannot write {}", out.display()))?;
+        println!("wrote {}", out.display());
+    }
+    Ok(())
+}
+
+/// Every method trained on the first N presses, its error on `held`.
+fn learning_curves(training: &[LabelledPress], held: &[LabelledPress]) {
+    let sizes: Vec<usize> = [25, 50, 100, 200, 500, 1000].into_iter().filter(|&n| n <= training.len()).collect();
+    println!("learning curves: mean position error (mm) on {} held-out presses", held.len());
+    let header: String = sizes.iter().map(|n| format!("{:>9}", format!("N={n}"))).collect();
+    println!("  {:14}{header}", "method");
+    for method in Method::candidates() {
+        let row: String = sizes
+            .iter()
+            .map(|&n| match train(&training[..n], method) {
+                Ok(model) => format!("{:>9.1}", evaluate(&model, held).mean_position * 1e3),
+                Err(_) => format!("{:>9}", "—"),
+            })
+            .collect();
+        println!("  {:14}{row}", method.name());
+    }
+}
+
+/// Runs `eitskin robot-presses`.
+pub fn presses_run(args: PressesArgs) -> Result<()> {
+    let spec = load::spec(args.spec.as_deref())?;
+    let mut written = vec![("--out", args.out.as_path())];
+    match (&args.held_out, args.held_out_count) {
+        (Some(path), n) if n > 0 => written.push(("--held-out", path.as_path())),
+        (None, 0) => {}
+        _ => bail!("--held-out and --held-out-count go together (a file and a count above 0)"),
+    }
+    outputs::check(&written, &[])?;
+    let imperfections = if args.perfect {
+        Imperfections {
+            scale: 1.0,
+            electrode_shift: 0.0,
+            gain_spread: 0.0,
+            dead_drive: None,
+            drift_per_press: 0.0,
+            magnitudes: false,
+            ..Imperfections::default()
+        }
+    } else {
+        Imperfections::default()
+    };
+    let imperfections =
+        Imperfections { noise_relative: args.noise, frames_per_press: args.frames_per_press, ..imperfections };
+    let [lo, hi] = spec.outline.bounds();
+    let radius = args.radius * 0.5 * (hi[0] - lo[0]).min(hi[1] - lo[1]);
+    let started = Instant::now();
+    let mut skin = ImperfectSkin::new(&spec, &imperfections, args.seed)?;
+    for (path, count) in [(Some(&args.out), args.count), (args.held_out.as_ref(), args.held_out_count)] {
+        let Some(path) = path.filter(|_| count > 0) else { continue };
+        let pressed = skin.robot_presses(count, radius, 2.0..16.0)?;
+        std::fs::write(path, samples_csv(&spec, &pressed))
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        eprintln!("wrote {} presses to {} ({:.1} s)", pressed.len(), path.display(), started.elapsed().as_secs_f64());
+    }
+    Ok(())
+}
+
+/// Labelled presses as a samples file: x, y in the spec's units, force in N, then the channels.
+fn samples_csv(spec: &SensorSpec, presses: &[LabelledPress]) -> String {
+    let per_unit = 1.0 / spec.length_unit.metres();
+    let mut text = String::from(
+        "# eitskin robot-presses: x, y in the spec's units, force in N, then Δv (pressed less before) per channel\n",
+    );
+    let channels: Vec<String> = (1..=presses.first().map_or(0, |p| p.inputs.len())).map(|c| format!("v{c}")).collect();
+    text += &format!("x,y,force,{}\n", channels.join(","));
+    for p in presses {
+        let values: Vec<String> = p.inputs.iter().map(|v| format!("{v:e}")).collect();
+        let force = p.force.map_or(String::new(), |f| f.to_string());
+        text += &format!("{},{},{force},{}\n", p.position[0] * per_unit, p.position[1] * per_unit, values.join(","));
+    }
+    text
+}

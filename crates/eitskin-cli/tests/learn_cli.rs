@@ -1,0 +1,49 @@
+//! Through the real binary: robot presses written from the imperfect virtual skin, a model
+//! learned from them with every method side by side and learning curves, and clear refusals.
+
+mod binary;
+
+use binary::{ok, scratch};
+
+#[test]
+fn robot_presses_are_learned_and_the_curves_reported() {
+    let dir = scratch("learn");
+    let (train, held, model) = (dir.join("train.csv"), dir.join("held.csv"), dir.join("model.json"));
+    let (t, h, m) = (train.to_str().unwrap(), held.to_str().unwrap(), model.to_str().unwrap());
+    ok(dir.eitskin(&[
+        "robot-presses",
+        "--count",
+        "100",
+        "--out",
+        t,
+        "--held-out",
+        h,
+        "--held-out-count",
+        "40",
+        "--seed",
+        "5",
+    ]));
+    let header = std::fs::read_to_string(&train).unwrap().lines().nth(1).unwrap().to_owned();
+    assert!(header.starts_with("x,y,force,v1,") && header.ends_with(",v120"), "{header}");
+
+    let out = ok(dir.eitskin(&["learn", "--samples", t, "--held-out", h, "--curve", "--out", m]));
+    assert!(out.contains("5-fold cross-validation on 100 presses"), "{out}");
+    assert!(out.contains("channels that carry nothing (left out): 1\n"), "{out}");
+    let held_error: f64 = out
+        .split("mean position error ")
+        .nth(1)
+        .and_then(|rest| rest.split(" mm").next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no held-out error in {out}"));
+    // Pressing at random in a disc of 80 mm radius and answering the centre is 53 mm off on average.
+    assert!(held_error < 20.0, "{out}");
+    assert!(out.contains("  gp-shape ") && out.contains("N=100"), "{out}");
+    let file: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!((file["format"].as_str(), file["channels"].as_u64()), (Some("eitskin-learned-model"), Some(120)));
+
+    let refused = dir.eitskin(&["learn", "--samples", t, "--curve"]);
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--curve needs --held-out"));
+    let refused = dir.eitskin(&["learn", "--samples", t, "--method", "svm"]);
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("\"svm\" is not a method"));
+}
