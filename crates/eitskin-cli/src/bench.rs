@@ -9,7 +9,9 @@
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch) and `frame_three_presses` (three presses found in Δv against
 //! 0.05 % noise, median of 201); `simulated_frame` and `simulated_three_presses` (the virtual
-//! sensor's frame on its finer truth mesh, one press and three apart); and `replay`: a file of 5,000 text frames through the lines decoder, the
+//! sensor's frame on its finer truth mesh, one press and three apart); `learn_1000_presses` and
+//! `learned_frame` (a Gaussian process on 1,000 robot presses of 192 channels, and its answer
+//! for one frame); and `replay`: a file of 5,000 text frames through the lines decoder, the
 //! pipeline and the JSON line, as fast as possible (frames/s, median latency per frame).
 
 use std::path::PathBuf;
@@ -110,6 +112,24 @@ fn replay(recon: &Reconstructor, rest: &[f64], pressed: &[f64]) -> Result<(f64, 
     Ok((fps, Timing::of(&mut latencies)))
 }
 
+/// A learned model's training on 1,000 robot presses of 192 channels (the sheet with the
+/// `opposite` protocol, OpenEIT's count) and one frame's answer (position, force, uncertainty).
+fn learned(spec: &eitskin::SensorSpec) -> Result<(Timing, Timing)> {
+    use eitskin::learn::{train, Method, PredictScratch};
+    use eitskin::sim::imperfect::{ImperfectSkin, Imperfections};
+    let mut opposite = spec.clone();
+    opposite.protocol = eitskin::ProtocolSpec::Opposite;
+    let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
+    let mut skin = ImperfectSkin::new(&opposite, &imperfections, 1)?;
+    let [lo, hi] = spec.outline.bounds();
+    let presses = skin.robot_presses(1000, 0.4 * (hi[0] - lo[0]).min(hi[1] - lo[1]), 2.0..16.0)?;
+    let method = Method::from_name("gp-shape").unwrap_or(Method::knn(5));
+    let (t_train, model) = time(3, || Ok(train(&presses, method)?))?;
+    let mut scratch = PredictScratch::default();
+    let (t_frame, _) = time(2001, || Ok(model.predict(&presses[0].inputs, &mut scratch)))?;
+    Ok((t_train, t_frame))
+}
+
 /// Runs `eitskin bench`.
 pub fn run(args: Args) -> Result<()> {
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
@@ -182,6 +202,7 @@ pub fn run(args: Args) -> Result<()> {
     sensor.press([-0.5 * half, 0.5 * half], 9.0);
     sensor.press([0.5 * half, 0.5 * half], 3.0);
     let (t_simulated_three, _) = time(n.min(15), || Ok(sensor.frame()?))?;
+    let (t_learn, t_learned_frame) = learned(&spec)?;
     let stages = [
         ("mesh", t_mesh),
         ("model", t_model),
@@ -195,6 +216,7 @@ pub fn run(args: Args) -> Result<()> {
         ("auto_hyperparameter", t_auto),
         ("press_model", t_press_model),
         ("press_detection", t_detection),
+        ("learn_1000_presses", t_learn),
         ("frame_image", t_image),
         ("frame_touches", t_touches),
         ("frame_press_fit", t_fit),
@@ -202,6 +224,7 @@ pub fn run(args: Args) -> Result<()> {
         ("replay_latency", replay_latency),
         ("simulated_frame", t_simulated),
         ("simulated_three_presses", t_simulated_three),
+        ("learned_frame", t_learned_frame),
     ];
     let total: f64 = stages[..6].iter().map(|s| s.1.median).sum();
     let peak_memory = eitskin_io::peak_memory();

@@ -43,6 +43,7 @@ const TEXT: &[(&str, &str)] = &[
     ("robot-presses", "out"),
     ("robot-presses", "held-out"),
     ("run", "calibration"),
+    ("run", "model"),
     ("run", "record"),
     ("convergence", "protocol"),
     ("convergence", "inclusion"),

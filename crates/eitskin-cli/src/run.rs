@@ -17,6 +17,7 @@
 //! `channels_dropped` event, until the reference is re-taken; see [`eitskin::pipeline`].
 
 mod imaging;
+mod learned;
 
 use std::borrow::Cow;
 use std::io::Write;
@@ -99,6 +100,10 @@ pub struct Args {
     /// A calibration (JSON, from `eitskin calibrate`): forces in N per touch.
     #[arg(long)]
     calibration: Option<PathBuf>,
+    /// A learned model (JSON, from `eitskin learn`): each frame with a touch also gets the model's
+    /// position, force and uncertainty from its Δv (`learned` in the line).
+    #[arg(long)]
+    model: Option<PathBuf>,
     /// Fit a press to Δv from each touch: its centre and conductivity drop (on by itself with a
     /// fitted-drop calibration).
     #[arg(long)]
@@ -159,6 +164,7 @@ fn check_record(path: &Path, args: &Args) -> Result<()> {
     let mut read = Vec::new();
     read.extend(args.spec.as_deref().map(|p| ("the spec", p)));
     read.extend(args.calibration.as_deref().map(|p| ("--calibration", p)));
+    read.extend(args.model.as_deref().map(|p| ("--model", p)));
     match &args.source {
         SourceSpec::File(p) => read.push(("--source", p.as_path())),
         SourceSpec::Sim { script: Some(p) } => read.push(("--source", p.as_path())),
@@ -175,6 +181,16 @@ pub fn run(args: Args) -> Result<()> {
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
     let calibration = match &args.calibration {
         Some(path) => Some((path, eitskin_io::read_calibration_file(path, &spec)?)),
+        None => None,
+    };
+    // A learned model of this sensor's frames, trained again from its presses: another
+    // protocol's or channel count's is refused before any work.
+    let mut learned = match &args.model {
+        Some(path) => {
+            let model = eitskin_io::read_learned_model(path, &spec, spec.protocol()?.len())?;
+            eprintln!("eitskin run: learned model {} ({})", path.display(), model.method.name());
+            Some(learned::LearnedAnswers::new(model))
+        }
         None => None,
     };
     let imaging = imaging::resolve(
@@ -304,7 +320,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         let printed = match item? {
             Acquired::Frame { seq, t, values } => match signed_frame(kind, &values, &model, &mut signed)
-                .and_then(|frame| pipeline.process(frame))
+                .and_then(|frame| pipeline.process(frame).map(|status| (status, frame)))
             {
                 Err(e) => {
                     if let eitskin::InverseError::TooManyBadChannels { .. } = e {
@@ -315,7 +331,7 @@ pub fn run(args: Args) -> Result<()> {
                     viewer.iter().for_each(|v| v.offer_event(&event));
                     print(&mut out, &event)
                 }
-                Ok(status) => {
+                Ok((status, frame)) => {
                     if let Some(event) = channel_event(seq, status, &pipeline, imaging.hyperparameter) {
                         viewer.iter().for_each(|v| v.offer_event(&event));
                         if print(&mut out, &event).is_err() {
@@ -326,6 +342,7 @@ pub fn run(args: Args) -> Result<()> {
                     let counters = Counters { frames, bad, viewer_dropped: viewer.as_ref().map(Viewer::dropped) };
                     fill_frame_line(&mut line, seq, t, status, &pipeline, metres, counters);
                     set_raster(&mut line, args.stream_image && status.imaged(), &pipeline, metres);
+                    line.learned = learned.as_mut().and_then(|l| l.answer(frame, &pipeline, metres));
                     if let Some(viewer) = &viewer {
                         let referencing = match status {
                             Status::Referencing { collected, needed } => Some([collected, needed]),

@@ -41,6 +41,19 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     let file: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     assert_eq!((file["format"].as_str(), file["channels"].as_u64()), (Some("eitskin-learned-model"), Some(120)));
 
+    // Live: each frame with a touch gets the model's answer, with an uncertainty.
+    let out = ok(dir.eitskin(&["run", "--frames", "120", "--fast", "--model", m]));
+    let line = out.lines().find(|l| l.contains("\"learned\"")).unwrap_or_else(|| panic!("no learned answer in {out}"));
+    let line: serde_json::Value = serde_json::from_str(line).unwrap();
+    assert!(line["learned"]["x"].is_f64() && line["learned"]["position_std"].as_f64().unwrap() > 0.0, "{line}");
+    // A model for another protocol is refused before any work.
+    let adjacent = dir.join("adjacent.toml");
+    let spec = ok(dir.eitskin(&["spec"])).replace("kind = \"two-terminal\"", "kind = \"adjacent\"");
+    std::fs::write(&adjacent, spec).unwrap();
+    let refused = dir.eitskin(&["run", adjacent.to_str().unwrap(), "--frames", "1", "--model", m]);
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(message.contains("`protocol` is \"two-terminal\", but the sensor's protocol is \"adjacent\""), "{message}");
+
     let refused = dir.eitskin(&["learn", "--samples", t, "--curve"]);
     assert!(!refused.status.success());
     assert!(String::from_utf8_lossy(&refused.stderr).contains("--curve needs --held-out"));

@@ -41,6 +41,7 @@
 //! | `counters`  | `frames`: frames processed so far, this one included; `bad`: input skipped so far (bad frames, damaged records); `viewer_dropped`: messages that did not reach a viewer page, only when a viewer runs |
 //! | `recorded`  | `true` once the frame is in the recording; absent when not recording            |
 //! | `raster`    | with `eitskin run --stream-image` only: the frame's image, a [`Raster`]: `nx`, `ny`, `bounds` (`[[x_min, y_min], [x_max, y_max]]` in the length unit) and `values`, Δσ in S/m, `ny` rows of `nx` from the top row (largest y), `null` outside the outline |
+//! | `learned`   | with `eitskin run --model` and a touch only: the learned model's answer, a [`Learned`]: `x`, `y` (the length unit), and when it has them `force` (N), `position_std` (the length unit) and `force_std` (N) |
 //!
 //! A touch ([`Touch`]): `sign`, `"decrease"` (less conductive, a press on a hydrogel) or
 //! `"increase"`; `x`, `y`, its centre of gravity in the spec's length unit (`length_unit`
@@ -152,6 +153,42 @@ pub struct FrameLine {
     /// The frame's image, with `eitskin run --stream-image` (written only then).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub raster: Option<Raster>,
+    /// A learned model's answer for the frame's press, with `eitskin run --model` when the
+    /// frame has a touch (written only then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learned: Option<Learned>,
+}
+
+/// A learned model's answer (`eitskin learn`): where, how hard, how sure.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Learned {
+    /// The position, in the length unit.
+    pub x: f64,
+    /// The position, in the length unit.
+    pub y: f64,
+    /// The force in N, when the model learned forces.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force: Option<f64>,
+    /// The position's standard deviation, in the length unit (a Gaussian process's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position_std: Option<f64>,
+    /// The force's standard deviation, in N.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_std: Option<f64>,
+}
+
+impl Learned {
+    /// The answer `p` (positions in m) with positions in units of `metres` m.
+    pub fn new(p: &eitskin::learn::Prediction, metres: f64) -> Learned {
+        Learned {
+            x: p.position[0] / metres,
+            y: p.position[1] / metres,
+            force: p.force,
+            position_std: p.position_std.map(|s| s / metres),
+            force_std: p.force_std,
+        }
+    }
 }
 
 /// A frame's image as data: Δσ per pixel, row 0 at the top, `null` outside the outline.
@@ -544,6 +581,7 @@ mod tests {
             counters: Counters { frames: 13, bad: 1, viewer_dropped: None },
             recorded: false,
             raster: None,
+            learned: None,
         }
     }
 

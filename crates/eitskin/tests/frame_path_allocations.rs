@@ -44,7 +44,7 @@ unsafe impl GlobalAlloc for Counting {
 static ALLOCATOR: Counting = Counting;
 
 #[test]
-fn a_frame_with_touches_fitted_presses_and_forces_allocates_nothing() {
+fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_nothing() {
     let mut spec = SensorSpec::square_hydrogel();
     spec.mesh.triangles = 1200;
     let model = spec.forward_model().unwrap();
@@ -98,4 +98,26 @@ fn a_frame_with_touches_fitted_presses_and_forces_allocates_nothing() {
     COUNTING.store(false, Ordering::Relaxed);
     assert_eq!(pipeline.touches().len(), 2, "{:?}", pipeline.touches());
     assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in 3 frames after a channel was dropped");
+
+    // A learned model's answer (`run --model`), with its uncertainty: nothing once warm. In this
+    // one test, since the count is global to the process.
+    use eitskin::learn::{train, LabelledPress, Method, PredictScratch};
+    let presses: Vec<LabelledPress> = (0..60)
+        .map(|i| {
+            let (x, y) = ((i % 8) as f64 * 0.01, (i / 8) as f64 * 0.01);
+            let inputs = (0..40).map(|c| (x * c as f64).sin() + (y * (c + 3) as f64).cos()).collect();
+            LabelledPress { inputs, position: [x, y], force: Some(1.0 + x) }
+        })
+        .collect();
+    for name in ["gp-shape", "knn-5"] {
+        let model = train(&presses, Method::from_name(name).unwrap()).unwrap();
+        let mut scratch = PredictScratch::default();
+        model.predict(&presses[0].inputs, &mut scratch);
+        COUNTING.store(true, Ordering::Relaxed);
+        for p in &presses[1..10] {
+            model.predict(&p.inputs, &mut scratch);
+        }
+        COUNTING.store(false, Ordering::Relaxed);
+        assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in 9 answers of {name}");
+    }
 }

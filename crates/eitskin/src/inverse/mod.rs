@@ -15,7 +15,7 @@
 //! once onto a raster so that a frame costs one pixels × measurements product.
 
 mod channels;
-mod helper;
+pub(crate) mod helper;
 mod hyperparameter;
 mod linearisation;
 mod prior;

@@ -6,6 +6,8 @@
 //! log marginal likelihood summed over the outputs (Rasmussen & Williams, eq. 2.30), which
 //! needs one Cholesky factor per grid point and no held-out presses.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use faer::linalg::solvers::{DenseSolveCore, Solve};
 use faer::{Mat, Side};
 
@@ -13,6 +15,9 @@ use faer::{Mat, Side};
 pub const LENGTH_SCALES: [f64; 9] = [0.1, 0.15, 0.2, 0.3, 0.45, 0.7, 1.0, 1.5, 2.5];
 /// The noise variances tried, of the standardised targets.
 pub const NOISE_VARIANCES: [f64; 5] = [1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
+
+/// Chunks of rows the predictive variance is split into (about equal work each).
+const VARIANCE_CHUNKS: usize = 8;
 
 /// A trained process: its training points, weights and what the uncertainty needs.
 #[derive(Debug, Clone)]
@@ -22,24 +27,35 @@ pub struct GaussianProcess {
     /// σ², of the standardised targets.
     pub noise_variance: f64,
     dimensions: usize,
-    /// Training points, N × D.
-    points: Mat<f64>,
-    /// |point|² per training point.
-    norms: Vec<f64>,
-    /// (K + σ²I)⁻¹·Y, N × T (standardised targets).
-    alpha: Mat<f64>,
-    /// (K + σ²I)⁻¹, N × N, for the predictive variance.
-    inverse: Mat<f64>,
+    /// Training points, row-major N × D in f32 (a frame reads them all: in f32 they fit a
+    /// core's L2 at N = 1,000, D = 192); distances are summed from the differences, so the
+    /// rounding stays relative to the distance (~1e-7).
+    points: Vec<f32>,
+    /// (K + σ²I)⁻¹·Y, row-major T × N (standardised targets).
+    alpha: Vec<f64>,
+    /// (K + σ²I)⁻¹ for the predictive variance, symmetric, so its upper triangle only, row by
+    /// row (row i holds columns i..N), in f32: the largest read of a frame, quartered; its
+    /// rounding (~1e-7 relative) is far below the variance's scale.
+    inverse: Vec<f32>,
+    /// Where each row of `inverse` starts, and one more entry for its end.
+    row_start: Vec<usize>,
+    /// The rows of each chunk of the variance's work (about equal entries each), as boundaries.
+    chunk_rows: Vec<usize>,
     /// Target means and spreads, to undo the standardisation.
     target_mean: Vec<f64>,
     target_std: Vec<f64>,
 }
 
 /// Buffers for [`GaussianProcess::predict_into`], grown once.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct GpScratch {
     kernel: Vec<f64>,
-    product: Vec<f64>,
+    /// The point asked about, in f32.
+    z: Vec<f32>,
+    /// The kernel row in f32, for the variance.
+    product: Vec<f32>,
+    /// The variance's partial sums, one per chunk of rows.
+    partial: Vec<AtomicU64>,
 }
 
 /// Squared distances between the rows of `a` and `b` (|a|² + |b|² − 2a·b, floored at 0).
@@ -98,15 +114,37 @@ impl GaussianProcess {
         let llt = k.llt(Side::Lower).ok()?;
         let alpha = llt.solve(&y);
         let inverse = llt.inverse();
-        let norms = (0..n).map(|i| (0..dimensions).map(|k| x[(i, k)] * x[(i, k)]).sum()).collect();
+        let n_inverse = inverse.nrows();
+        let inverse = (0..n_inverse)
+            .flat_map(|i| (i..n_inverse).map(move |j| (i, j)))
+            .map(|(i, j)| inverse[(i, j)] as f32)
+            .collect();
+        let alpha = (0..outputs * n).map(|k| alpha[(k % n, k / n)]).collect();
+        // Row i of the packed upper triangle holds columns i..n.
+        let row_start: Vec<usize> = std::iter::once(0)
+            .chain((0..n).scan(0, |at, i| {
+                *at += n - i;
+                Some(*at)
+            }))
+            .collect();
+        let per_chunk = (row_start[n] / VARIANCE_CHUNKS).max(1);
+        let mut chunk_rows = vec![0];
+        for (i, &start) in row_start.iter().enumerate().take(n).skip(1) {
+            if start >= per_chunk * chunk_rows.len() {
+                chunk_rows.push(i);
+            }
+        }
+        chunk_rows.push(n);
+        let points = (0..n * dimensions).map(|k| x[(k / dimensions, k % dimensions)] as f32).collect();
         Some(GaussianProcess {
             length_scale,
             noise_variance,
             dimensions,
-            points: x,
-            norms,
+            points,
             alpha,
             inverse,
+            row_start,
+            chunk_rows,
             target_mean,
             target_std,
         })
@@ -116,34 +154,141 @@ impl GaussianProcess {
     /// `std` (in the targets' units; `std` may be empty to skip it). Allocates nothing once
     /// `scratch` has grown.
     pub fn predict_into(&self, z: &[f64], scratch: &mut GpScratch, out: &mut [f64], std: &mut [f64]) {
-        let n = self.points.nrows();
+        let n = self.alpha.len() / self.target_mean.len().max(1);
         let scale = 1.0 / (2.0 * self.length_scale * self.length_scale * self.dimensions as f64);
-        let zz: f64 = z.iter().map(|v| v * v).sum();
+        scratch.z.clear();
+        scratch.z.extend(z.iter().map(|&v| v as f32));
         scratch.kernel.resize(n, 0.0);
-        for (i, k) in scratch.kernel.iter_mut().enumerate() {
-            let row = self.points.row(i);
-            let dot: f64 = (0..self.dimensions).map(|d| row[d] * z[d]).sum();
-            *k = (-(self.norms[i] + zz - 2.0 * dot).max(0.0) * scale).exp();
-        }
-        for (t, o) in out.iter_mut().enumerate() {
-            let mean: f64 = (0..n).map(|i| self.alpha[(i, t)] * scratch.kernel[i]).sum();
-            *o = self.target_mean[t] + self.target_std[t] * mean;
+        kernel_row(&self.points, &scratch.z, scale, &mut scratch.kernel);
+        for ((o, weights), (mean, spread)) in
+            out.iter_mut().zip(self.alpha.chunks_exact(n)).zip(self.target_mean.iter().zip(&self.target_std))
+        {
+            *o = mean + spread * dot(weights, &scratch.kernel);
         }
         if std.is_empty() {
             return;
         }
-        // kᵀ(K + σ²I)⁻¹k, the part of the prior variance the training points explain.
-        scratch.product.resize(n, 0.0);
-        for (j, p) in scratch.product.iter_mut().enumerate() {
-            let column = self.inverse.col(j);
-            *p = (0..n).map(|i| column[i] * scratch.kernel[i]).sum();
-        }
-        let explained: f64 = scratch.product.iter().zip(&scratch.kernel).map(|(p, k)| p * k).sum();
+        // kᵀ(K + σ²I)⁻¹k, the part of the prior variance the training points explain, in chunks
+        // of rows shared with a second core while it is free (the inverse is a frame's largest read).
+        scratch.product.clear();
+        scratch.product.extend(scratch.kernel.iter().map(|&k| k as f32));
+        let chunks = self.chunk_rows.len() - 1;
+        scratch.partial.resize_with(chunks, || AtomicU64::new(0));
+        let (kernel, partial) = (&scratch.product, &scratch.partial);
+        crate::inverse::helper::run_split(chunks, &|c| {
+            let rows = self.chunk_rows[c]..self.chunk_rows[c + 1];
+            let sum = quadratic_rows(&self.inverse, &self.row_start, kernel, rows);
+            partial[c].store(sum.to_bits(), Ordering::Relaxed);
+        });
+        let explained: f64 = partial.iter().map(|p| f64::from_bits(p.load(Ordering::Relaxed))).sum();
         let variance = (1.0 + self.noise_variance - explained).max(self.noise_variance);
-        for (t, s) in std.iter_mut().enumerate() {
-            *s = self.target_std[t] * variance.sqrt();
+        for (s, spread) in std.iter_mut().zip(&self.target_std) {
+            *s = spread * variance.sqrt();
         }
     }
+}
+
+/// Defines `$name`, which runs the `#[inline(always)]` function `$portable` compiled for the
+/// widest vectors the processor has (AVX-512, AVX2 with FMA, chosen at run time) or portably.
+macro_rules! widest {
+    ($(#[$doc:meta])* fn $name:ident = $portable:ident($($arg:ident: $ty:ty),*) -> $ret:ty) => {
+        $(#[$doc])*
+        #[allow(unsafe_code, reason = "calls a kernel compiled for vector extensions only once the processor is known to have them")]
+        fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f")]
+                fn avx512($($arg: $ty),*) -> $ret {
+                    $portable($($arg),*)
+                }
+                #[target_feature(enable = "avx2,fma")]
+                fn avx2($($arg: $ty),*) -> $ret {
+                    $portable($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the features the function is compiled for were just detected.
+                    return unsafe { avx512($($arg),*) };
+                }
+                if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+                    // SAFETY: as above.
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            $portable($($arg),*)
+        }
+    };
+}
+
+widest! {
+    /// kᵢ = exp(−|pᵢ − z|²·scale) for each training point pᵢ (the rows of `points`).
+    fn kernel_row = kernel_row_portable(points: &[f32], z: &[f32], scale: f64, out: &mut [f64]) -> ()
+}
+
+#[inline(always)]
+fn kernel_row_portable(points: &[f32], z: &[f32], scale: f64, out: &mut [f64]) {
+    let dimensions = z.len().max(1);
+    for (k, row) in out.iter_mut().zip(points.chunks_exact(dimensions)) {
+        let mut sums = [0.0f32; 32];
+        let (cp, cz) = (row.chunks_exact(32), z.chunks_exact(32));
+        let tail: f32 = cp.remainder().iter().zip(cz.remainder()).map(|(p, q)| (p - q) * (p - q)).sum();
+        for (p, q) in cp.zip(cz) {
+            for l in 0..32 {
+                let d = p[l] - q[l];
+                sums[l] += d * d;
+            }
+        }
+        let squared = f64::from(sums.iter().sum::<f32>() + tail);
+        *k = (-squared * scale).exp();
+    }
+}
+
+widest! {
+    /// Σᵢ kᵢ·(2·Σ_{j≥i} A_ij k_j − A_ii k_i) over `rows` of the packed upper triangle `inverse`.
+    fn quadratic_rows = quadratic_rows_portable(inverse: &[f32], row_start: &[usize], kernel: &[f32], rows: std::ops::Range<usize>) -> f64
+}
+
+#[inline(always)]
+fn quadratic_rows_portable(inverse: &[f32], row_start: &[usize], kernel: &[f32], rows: std::ops::Range<usize>) -> f64 {
+    let mut sum = 0.0;
+    for i in rows {
+        let row = &inverse[row_start[i]..row_start[i + 1]];
+        let ki = kernel[i];
+        sum += f64::from(ki) * f64::from(2.0 * dot32_portable(row, &kernel[i..]) - row[0] * ki);
+    }
+    sum
+}
+
+widest! {
+    /// Σ aᵢbᵢ in f64.
+    fn dot = dot_portable(a: &[f64], b: &[f64]) -> f64
+}
+
+/// Σ aᵢbᵢ in sixteen independent sums, so that it vectorises.
+#[inline(always)]
+fn dot_portable(a: &[f64], b: &[f64]) -> f64 {
+    let mut sums = [0.0; 16];
+    let (ca, cb) = (a.chunks_exact(16), b.chunks_exact(16));
+    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+    for (x, y) in ca.zip(cb) {
+        for k in 0..16 {
+            sums[k] += x[k] * y[k];
+        }
+    }
+    sums.iter().sum::<f64>() + tail
+}
+
+/// [`dot_portable`] in f32, thirty-two sums.
+#[inline(always)]
+fn dot32_portable(a: &[f32], b: &[f32]) -> f32 {
+    let mut sums = [0.0f32; 32];
+    let (ca, cb) = (a.chunks_exact(32), b.chunks_exact(32));
+    let tail: f32 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+    for (x, y) in ca.zip(cb) {
+        for k in 0..32 {
+            sums[k] += x[k] * y[k];
+        }
+    }
+    sums.iter().sum::<f32>() + tail
 }
 
 #[cfg(test)]

@@ -218,7 +218,7 @@ pub struct Prediction {
 }
 
 /// Buffers for [`LearnedModel::predict`], grown on first use.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct PredictScratch {
     features: Vec<f64>,
     z: Vec<f64>,
