@@ -27,10 +27,12 @@ pub struct GaussianProcess {
     /// σ², of the standardised targets.
     pub noise_variance: f64,
     dimensions: usize,
-    /// Training points, row-major N × D in f32 (a frame reads them all: in f32 they fit a
-    /// core's L2 at N = 1,000, D = 192); distances are summed from the differences, so the
-    /// rounding stays relative to the distance (~1e-7).
-    points: Vec<f32>,
+    /// Training points, N × D in f32 in the image product's blocked layout: a frame's distances
+    /// are |p|² + |z|² − 2p·z, the p·z of every point in one pass at the memory limit (shared
+    /// with a second core while it is free). In f32 at N = 1,000, D = 192 they fit a core's L2.
+    points: crate::inverse::BlockedMatrix,
+    /// |p|² per training point (of the f32 values).
+    norms: Vec<f64>,
     /// (K + σ²I)⁻¹·Y, row-major T × N (standardised targets).
     alpha: Vec<f64>,
     /// (K + σ²I)⁻¹ for the predictive variance, symmetric, so its upper triangle only, row by
@@ -50,8 +52,8 @@ pub struct GaussianProcess {
 #[derive(Debug, Default)]
 pub struct GpScratch {
     kernel: Vec<f64>,
-    /// The point asked about, in f32.
-    z: Vec<f32>,
+    /// p·z for every training point.
+    dots: Vec<f32>,
     /// The kernel row in f32, for the variance.
     product: Vec<f32>,
     /// The variance's partial sums, one per chunk of rows.
@@ -135,12 +137,21 @@ impl GaussianProcess {
             }
         }
         chunk_rows.push(n);
-        let points = (0..n * dimensions).map(|k| x[(k / dimensions, k % dimensions)] as f32).collect();
+        let mut points = crate::inverse::BlockedMatrix::zeros(n, dimensions);
+        let mut norms = vec![0.0; n];
+        for i in 0..n {
+            for k in 0..dimensions {
+                let v = x[(i, k)] as f32;
+                points.set(i, k, v);
+                norms[i] += f64::from(v) * f64::from(v);
+            }
+        }
         Some(GaussianProcess {
             length_scale,
             noise_variance,
             dimensions,
             points,
+            norms,
             alpha,
             inverse,
             row_start,
@@ -156,10 +167,17 @@ impl GaussianProcess {
     pub fn predict_into(&self, z: &[f64], scratch: &mut GpScratch, out: &mut [f64], std: &mut [f64]) {
         let n = self.alpha.len() / self.target_mean.len().max(1);
         let scale = 1.0 / (2.0 * self.length_scale * self.length_scale * self.dimensions as f64);
-        scratch.z.clear();
-        scratch.z.extend(z.iter().map(|&v| v as f32));
-        scratch.kernel.resize(n, 0.0);
-        kernel_row(&self.points, &scratch.z, scale, &mut scratch.kernel);
+        let zz: f64 = z.iter().map(|&v| f64::from(v as f32).powi(2)).sum();
+        scratch.dots.resize(n, 0.0);
+        self.points.mul_into(&mut scratch.dots, |k| z[k] as f32);
+        scratch.kernel.clear();
+        scratch.kernel.extend(
+            scratch
+                .dots
+                .iter()
+                .zip(&self.norms)
+                .map(|(&dot, norm)| (-(norm + zz - 2.0 * f64::from(dot)).max(0.0) * scale).exp()),
+        );
         for ((o, weights), (mean, spread)) in
             out.iter_mut().zip(self.alpha.chunks_exact(n)).zip(self.target_mean.iter().zip(&self.target_std))
         {
@@ -217,29 +235,6 @@ macro_rules! widest {
             $portable($($arg),*)
         }
     };
-}
-
-widest! {
-    /// kᵢ = exp(−|pᵢ − z|²·scale) for each training point pᵢ (the rows of `points`).
-    fn kernel_row = kernel_row_portable(points: &[f32], z: &[f32], scale: f64, out: &mut [f64]) -> ()
-}
-
-#[inline(always)]
-fn kernel_row_portable(points: &[f32], z: &[f32], scale: f64, out: &mut [f64]) {
-    let dimensions = z.len().max(1);
-    for (k, row) in out.iter_mut().zip(points.chunks_exact(dimensions)) {
-        let mut sums = [0.0f32; 32];
-        let (cp, cz) = (row.chunks_exact(32), z.chunks_exact(32));
-        let tail: f32 = cp.remainder().iter().zip(cz.remainder()).map(|(p, q)| (p - q) * (p - q)).sum();
-        for (p, q) in cp.zip(cz) {
-            for l in 0..32 {
-                let d = p[l] - q[l];
-                sums[l] += d * d;
-            }
-        }
-        let squared = f64::from(sums.iter().sum::<f32>() + tail);
-        *k = (-squared * scale).exp();
-    }
 }
 
 widest! {
