@@ -60,8 +60,12 @@ pub struct EvaluateArgs {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
     /// The calibration (JSON, from `eitskin calibrate`).
+    #[arg(long, required_unless_present = "model", conflicts_with = "model")]
+    calibration: Option<PathBuf>,
+    /// A learned model (JSON, from `eitskin learn`) instead: its position and force errors on
+    /// the samples (`x`, `y`, optional `force`, then each press's channels).
     #[arg(long)]
-    calibration: PathBuf,
+    model: Option<PathBuf>,
     /// Samples (CSV), as for `calibrate`.
     #[arg(long)]
     samples: PathBuf,
@@ -139,7 +143,11 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
 /// sample's own unit.
 pub fn evaluate(args: EvaluateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
-    let CalibrationFile { array, calibration, imaging } = eitskin_io::read_calibration_file(&args.calibration, &spec)?;
+    let Some(path) = &args.calibration else {
+        let model = args.model.as_deref().context("give --calibration or --model")?;
+        return crate::learn::evaluate_model(&spec, model, &args.samples);
+    };
+    let CalibrationFile { array, calibration, imaging } = eitskin_io::read_calibration_file(path, &spec)?;
     let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
     let (mut truth, mut predicted, mut saturated, mut missed) = (Vec::new(), Vec::new(), 0, 0);
     let mut add = |force: f64, estimate: Option<ForceEstimate>| match estimate {

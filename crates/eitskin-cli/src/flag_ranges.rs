@@ -34,6 +34,7 @@ const TEXT: &[(&str, &str)] = &[
     ("calibrate", "out"),
     ("calibrate", "reference"),
     ("evaluate", "calibration"),
+    ("evaluate", "model"),
     ("evaluate", "samples"),
     ("evaluate", "reference"),
     ("learn", "samples"),

@@ -235,3 +235,25 @@ fn samples_csv(spec: &SensorSpec, presses: &[LabelledPress]) -> String {
     }
     text
 }
+
+/// `eitskin evaluate --model`: the model's errors on the presses of `samples`.
+pub fn evaluate_model(spec: &SensorSpec, model: &std::path::Path, samples: &std::path::Path) -> Result<()> {
+    let learned = eitskin_io::read_learned_model(model, spec, spec.protocol()?.len())?;
+    let held = presses(samples, spec)?;
+    let e = evaluate(&learned, &held);
+    println!(
+        "{} on {} presses of {}: mean position error {:.1} mm",
+        learned.method.name(),
+        e.presses,
+        samples.display(),
+        e.mean_position * 1e3
+    );
+    if let Some(rms) = e.force_rms {
+        let largest = held.iter().filter_map(|p| p.force).fold(0.0, f64::max);
+        println!(
+            "force RMS {rms:.2} N ({:.1} % of the largest force, {largest:.1} N)",
+            100.0 * rms / largest.max(f64::MIN_POSITIVE)
+        );
+    }
+    Ok(())
+}

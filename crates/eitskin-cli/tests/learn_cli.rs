@@ -41,6 +41,13 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     let file: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     assert_eq!((file["format"].as_str(), file["channels"].as_u64()), (Some("eitskin-learned-model"), Some(120)));
 
+    // The model's errors on other presses, as `evaluate` reports them.
+    let out = ok(dir.eitskin(&["evaluate", "--model", m, "--samples", h]));
+    assert!(
+        out.contains("on 40 presses") && out.contains("mean position error") && out.contains("% of the largest force"),
+        "{out}"
+    );
+
     // Live: each frame with a touch gets the model's answer, with an uncertainty.
     let out = ok(dir.eitskin(&["run", "--frames", "120", "--fast", "--model", m]));
     let line = out.lines().find(|l| l.contains("\"learned\"")).unwrap_or_else(|| panic!("no learned answer in {out}"));
