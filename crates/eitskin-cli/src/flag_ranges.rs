@@ -54,11 +54,12 @@ const TEXT: &[(&str, &str)] = &[
 const ACCEPTED: &[(&str, &str, &str)] = &[
     ("study", "seed", "0"),
     ("run", "seed", "0"),
-    ("study", "noise", "0"),         // noise-free frames
-    ("study", "sweep-presses", "0"), // the sweep left out
-    ("run", "rate", "0"),            // a capture as fast as possible
-    ("run", "baseline-rate", "0"),   // no baseline update
-    ("run", "viewer", "0"),          // any free port
+    ("study", "noise", "0"),            // noise-free frames
+    ("study", "sweep-presses", "0"),    // the sweep left out
+    ("study", "learning-presses", "0"), // the learned calibration left out
+    ("run", "rate", "0"),               // a capture as fast as possible
+    ("run", "baseline-rate", "0"),      // no baseline update
+    ("run", "viewer", "0"),             // any free port
     ("robot-presses", "seed", "0"),
     ("robot-presses", "held-out-count", "0"), // no held-out file
     ("robot-presses", "noise", "0"),          // noise-free presses

@@ -163,21 +163,21 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// Every method trained on the first N presses, its error on `held`.
+/// Every method trained on the first N presses, its error on `held`, as a table.
 fn learning_curves(training: &[LabelledPress], held: &[LabelledPress]) {
-    let sizes: Vec<usize> = [25, 50, 100, 200, 500, 1000].into_iter().filter(|&n| n <= training.len()).collect();
+    let curves = eitskin::learn::learning_curves(training, held);
     println!("learning curves: mean position error (mm) on {} held-out presses", held.len());
-    let header: String = sizes.iter().map(|n| format!("{:>9}", format!("N={n}"))).collect();
+    let header: String = curves
+        .first()
+        .map_or(String::new(), |c| c.points.iter().map(|(n, _)| format!("{:>9}", format!("N={n}"))).collect());
     println!("  {:14}{header}", "method");
-    for method in Method::candidates() {
-        let row: String = sizes
+    for curve in &curves {
+        let row: String = curve
+            .points
             .iter()
-            .map(|&n| match train(&training[..n], method) {
-                Ok(model) => format!("{:>9.1}", evaluate(&model, held).mean_position * 1e3),
-                Err(_) => format!("{:>9}", "—"),
-            })
+            .map(|(_, e)| e.map_or(format!("{:>9}", "—"), |e| format!("{:>9.1}", e.mean_position * 1e3)))
             .collect();
-        println!("  {:14}{row}", method.name());
+        println!("  {:14}{row}", curve.method.name());
     }
 }
 

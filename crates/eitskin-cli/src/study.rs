@@ -41,6 +41,10 @@ pub struct Args {
     /// Noise sweep: untouched frames per level, for the false touches, 1–100,000.
     #[arg(long, default_value_t = 1000, value_parser = ranges::whole("a number of frames", 1, 100_000))]
     sweep_untouched: usize,
+    /// Learned calibration: robot presses of the imperfect virtual skin to train on, 0–10,000
+    /// (the learning curves go up to it; 0 leaves the section out); 300 more are held out.
+    #[arg(long, default_value_t = 500, value_parser = ranges::whole("a number of presses", 0, 10_000))]
+    learning_presses: usize,
 }
 
 /// Runs `eitskin study`.
@@ -79,6 +83,13 @@ pub fn run(args: Args) -> Result<()> {
             Some(sweep::run(&spec, &sweep_params, &mut progress)?)
         }
     };
+    let learning = match args.learning_presses {
+        0 => None,
+        n => {
+            progress("learned calibration: robot presses and learning curves", 0, 1);
+            Some(report::Learning::run(&spec, n, args.seed)?)
+        }
+    };
     let seconds = start.elapsed().as_secs_f64();
     write_figures(&study, &args, spec.length_unit)?;
     let mut json = report::json(&study, &params, seconds);
@@ -86,11 +97,17 @@ pub fn run(args: Args) -> Result<()> {
         object.insert("sweep".into(), report::sweep_json(sweep));
         write_sweep_figures(sweep, &args, spec.length_unit)?;
     }
+    if let (Some(learning), Some(object)) = (&learning, json.as_object_mut()) {
+        object.insert("learning".into(), learning.json());
+    }
     std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
     write_frames(&study, &args, spec.length_unit.metres())?;
     let mut markdown = report::markdown(&study, &params, spec.length_unit, seconds);
     if let Some(sweep) = &sweep {
         markdown += &report::sweep_markdown(sweep, spec.length_unit);
+    }
+    if let Some(learning) = &learning {
+        markdown += &learning.markdown();
     }
     std::fs::write(args.out.join("report.md"), &markdown)?;
     println!("{markdown}");

@@ -20,6 +20,18 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
         "the paper's figure beside ours"
     );
 
+    // The learned calibration: every method's curve up to the 500 presses trained on, and the
+    // Gaussian process on the channels' shape at least 25 % closer than 5-nearest neighbours.
+    let curves = json["learning"]["curves"].as_array().unwrap();
+    assert_eq!(curves.len(), 10, "knn-1/3/5/10 and gp, raw and shape");
+    let at_500 = |method: &str| {
+        let curve = curves.iter().find(|c| c["method"] == method).unwrap();
+        let last = curve["points"].as_array().unwrap().last().unwrap().clone();
+        assert_eq!(last["presses"], 500);
+        last["mean_position_error_m"].as_f64().unwrap()
+    };
+    assert!(at_500("gp-shape") <= 0.75 * at_500("knn-5"), "{} vs {}", at_500("gp-shape"), at_500("knn-5"));
+
     // The noise sweep: every level, kind, press count and method has its row; at 66 dB (0.05 %)
     // single presses of the model's kind are all found in Δv, within 3 mm on average, and the
     // untouched frames show no press.

@@ -391,6 +391,35 @@ pub fn choose(
     Ok((best, scores))
 }
 
+/// The training-set sizes of learning curves: 25, 50, 100, 200, 500 and 1,000 presses.
+pub const CURVE_SIZES: [usize; 6] = [25, 50, 100, 200, 500, 1000];
+
+/// One method's learning curve: its errors on the held-out presses when trained on the first N
+/// presses, for each N of the curve (`None` where it could not be trained).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LearningCurve {
+    /// The method.
+    pub method: Method,
+    /// (N, its errors) for each size.
+    pub points: Vec<(usize, Option<Errors>)>,
+}
+
+/// Every candidate's learning curve on `held_out`, trained on the first N of `training` for the
+/// sizes of [`CURVE_SIZES`] that `training` has.
+pub fn learning_curves(training: &[LabelledPress], held_out: &[LabelledPress]) -> Vec<LearningCurve> {
+    let sizes: Vec<usize> = CURVE_SIZES.into_iter().filter(|&n| n <= training.len()).collect();
+    Method::candidates()
+        .into_iter()
+        .map(|method| LearningCurve {
+            method,
+            points: sizes
+                .iter()
+                .map(|&n| (n, train(&training[..n], method).ok().map(|m| evaluate(&m, held_out))))
+                .collect(),
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
