@@ -116,13 +116,12 @@ fn replay(recon: &Reconstructor, rest: &[f64], pressed: &[f64]) -> Result<(f64, 
 /// `opposite` protocol, OpenEIT's count) and one frame's answer (position, force, uncertainty).
 fn learned(spec: &eitskin::SensorSpec) -> Result<(Timing, Timing)> {
     use eitskin::learn::{train, Method, PredictScratch};
-    use eitskin::sim::imperfect::{ImperfectSkin, Imperfections};
+    use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
     let mut opposite = spec.clone();
     opposite.protocol = eitskin::ProtocolSpec::Opposite;
     let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
     let mut skin = ImperfectSkin::new(&opposite, &imperfections, 1)?;
-    let [lo, hi] = spec.outline.bounds();
-    let presses = skin.robot_presses(1000, 0.4 * (hi[0] - lo[0]).min(hi[1] - lo[1]), 2.0..16.0)?;
+    let presses = skin.robot_presses(1000, disc_radius(&spec.outline, 0.8), 2.0..16.0)?;
     let method = Method::from_name("gp-shape").unwrap_or(Method::knn(5));
     let (t_train, model) = time(3, || Ok(train(&presses, method)?))?;
     let mut scratch = PredictScratch::default();

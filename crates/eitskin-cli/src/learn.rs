@@ -7,9 +7,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use eitskin::learn::{choose, evaluate, train, LabelledPress, Method};
-use eitskin::sim::imperfect::{ImperfectSkin, Imperfections};
+use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
 use eitskin::SensorSpec;
-use eitskin_io::{Location, Measured};
 
 use crate::{load, outputs, ranges};
 
@@ -78,19 +77,7 @@ pub struct PressesArgs {
 
 /// The labelled presses of a samples file (positions in m).
 fn presses(path: &std::path::Path, spec: &SensorSpec) -> Result<Vec<LabelledPress>> {
-    let rows = eitskin_io::read_samples(path, spec.length_unit.metres())?;
-    rows.into_iter()
-        .enumerate()
-        .map(|(k, row)| {
-            let Location::Point(position) = row.location else {
-                bail!("{}: sample {}: a learned model needs `x` and `y`, not a unit", path.display(), k + 1)
-            };
-            let Measured::Frame(inputs) = row.measured else {
-                bail!("{}: sample {}: a learned model needs the channels, not a peak", path.display(), k + 1)
-            };
-            Ok(LabelledPress { inputs, position, force: row.force })
-        })
-        .collect()
+    Ok(eitskin_io::read_labelled_presses(path, spec.length_unit.metres())?)
 }
 
 /// Runs `eitskin learn`.
@@ -206,34 +193,19 @@ pub fn presses_run(args: PressesArgs) -> Result<()> {
     };
     let imperfections =
         Imperfections { noise_relative: args.noise, frames_per_press: args.frames_per_press, ..imperfections };
-    let [lo, hi] = spec.outline.bounds();
-    let radius = args.radius * 0.5 * (hi[0] - lo[0]).min(hi[1] - lo[1]);
+    let radius = disc_radius(&spec.outline, args.radius);
     let started = Instant::now();
     let mut skin = ImperfectSkin::new(&spec, &imperfections, args.seed)?;
     for (path, count) in [(Some(&args.out), args.count), (args.held_out.as_ref(), args.held_out_count)] {
         let Some(path) = path.filter(|_| count > 0) else { continue };
         let pressed = skin.robot_presses(count, radius, 2.0..16.0)?;
-        std::fs::write(path, samples_csv(&spec, &pressed))
+        let comment =
+            "eitskin robot-presses: x, y in the spec's units, force in N, then Δv (pressed less before) per channel";
+        std::fs::write(path, eitskin_io::labelled_presses_to_csv(&pressed, spec.length_unit.metres(), comment))
             .with_context(|| format!("cannot write {}", path.display()))?;
         eprintln!("wrote {} presses to {} ({:.1} s)", pressed.len(), path.display(), started.elapsed().as_secs_f64());
     }
     Ok(())
-}
-
-/// Labelled presses as a samples file: x, y in the spec's units, force in N, then the channels.
-fn samples_csv(spec: &SensorSpec, presses: &[LabelledPress]) -> String {
-    let per_unit = 1.0 / spec.length_unit.metres();
-    let mut text = String::from(
-        "# eitskin robot-presses: x, y in the spec's units, force in N, then Δv (pressed less before) per channel\n",
-    );
-    let channels: Vec<String> = (1..=presses.first().map_or(0, |p| p.inputs.len())).map(|c| format!("v{c}")).collect();
-    text += &format!("x,y,force,{}\n", channels.join(","));
-    for p in presses {
-        let values: Vec<String> = p.inputs.iter().map(|v| format!("{v:e}")).collect();
-        let force = p.force.map_or(String::new(), |f| f.to_string());
-        text += &format!("{},{},{force},{}\n", p.position[0] * per_unit, p.position[1] * per_unit, values.join(","));
-    }
-    text
 }
 
 /// `eitskin evaluate --model`: the model's errors on the presses of `samples`.

@@ -1,6 +1,7 @@
 //! The study's numbers as JSON and as a Markdown report beside the paper's.
 
 use eitskin::strength::Strength;
+use eitskin::study::learning::LearningReport;
 use eitskin::study::sweep::SweepReport;
 use eitskin::study::{ForceMethod, StudyParams, StudyReport};
 use eitskin::LengthUnit;
@@ -197,93 +198,61 @@ pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
 /// What a table of the learned-calibration section reads of a method's errors.
 type Reading<'a> = dyn Fn(&eitskin::learn::Errors) -> Option<f64> + 'a;
 
-/// The study's learned-calibration section: learning curves of every method on robot presses
-/// of the imperfect virtual skin.
-pub struct Learning {
-    /// Presses trained on at most, and held out.
-    training: usize,
-    held_out: usize,
-    /// Frames averaged per state, and the noise per frame.
-    imperfections: eitskin::sim::imperfect::Imperfections,
-    curves: Vec<eitskin::learn::LearningCurve>,
-    /// The largest force pressed, in N.
-    max_force: f64,
+/// The learned calibration's curves as JSON (distances in m, forces in N).
+pub fn learning_json(learning: &LearningReport) -> Value {
+    json!({
+        "training_presses": learning.training,
+        "held_out_presses": learning.held_out,
+        "frames_per_press": learning.imperfections.frames_per_press,
+        "noise_relative": learning.imperfections.noise_relative,
+        "max_force_newton": learning.max_force,
+        "curves": learning.curves.iter().map(|c| json!({
+            "method": c.method.name(),
+            "points": c.points.iter().map(|(n, e)| json!({
+                "presses": n,
+                "mean_position_error_m": e.map(|e| e.mean_position),
+                "force_rms_newton": e.and_then(|e| e.force_rms),
+            })).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>(),
+    })
 }
 
-impl Learning {
-    /// Robot presses held out of training.
-    pub const HELD_OUT: usize = 300;
-
-    /// `training` robot presses (and [`Learning::HELD_OUT`] more) of `spec`'s imperfect skin,
-    /// each state the mean of 32 frames at 0.3 % noise, and every method's learning curve.
-    pub fn run(spec: &eitskin::SensorSpec, training: usize, seed: u64) -> anyhow::Result<Learning> {
-        use eitskin::sim::imperfect::{ImperfectSkin, Imperfections};
-        let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
-        let mut skin = ImperfectSkin::new(spec, &imperfections, seed)?;
-        let [lo, hi] = spec.outline.bounds();
-        let radius = 0.4 * (hi[0] - lo[0]).min(hi[1] - lo[1]);
-        let max_force = 16.0;
-        let presses = skin.robot_presses(training, radius, 2.0..max_force)?;
-        let held = skin.robot_presses(Learning::HELD_OUT, radius, 2.0..max_force)?;
-        let curves = eitskin::learn::learning_curves(&presses, &held);
-        Ok(Learning { training, held_out: Learning::HELD_OUT, imperfections, curves, max_force })
-    }
-
-    /// As JSON (distances in m, forces in N).
-    pub fn json(&self) -> Value {
-        json!({
-            "training_presses": self.training,
-            "held_out_presses": self.held_out,
-            "frames_per_press": self.imperfections.frames_per_press,
-            "noise_relative": self.imperfections.noise_relative,
-            "max_force_newton": self.max_force,
-            "curves": self.curves.iter().map(|c| json!({
-                "method": c.method.name(),
-                "points": c.points.iter().map(|(n, e)| json!({
-                    "presses": n,
-                    "mean_position_error_m": e.map(|e| e.mean_position),
-                    "force_rms_newton": e.and_then(|e| e.force_rms),
-                })).collect::<Vec<_>>(),
-            })).collect::<Vec<_>>(),
-        })
-    }
-
-    /// As a Markdown section: the mean position error and force RMS of every method against N.
-    pub fn markdown(&self) -> String {
-        let imperfect = &self.imperfections;
-        let mut s = String::from("\n## Learned calibration: learning curves on an imperfect skin\n\n");
-        s += &format!(
-            "Robot presses of the virtual skin as built, not as specified (`eitskin robot-presses`): the outline {:.0} % larger, electrodes moved up to {:.0} mm, channel gains ±{:.0} %, the first drive dead, a common drift, magnitudes only, {:.1} % noise per frame and each state the mean of {} frames; presses uniform in a disc over 80 % of the half-width, forces 2–{:.0} N. Each method is trained on the first N presses and tested on {} others (`eitskin learn --curve`). The bars: ≤ 5 mm at N = 100; every learned method ≥ 25 % better than k-nearest neighbours at N = 100 and 500; force RMS ≤ 5 % of the largest force.\n\n",
-            100.0 * (imperfect.scale - 1.0),
-            imperfect.electrode_shift * 1e3,
-            100.0 * imperfect.gain_spread,
-            100.0 * imperfect.noise_relative,
-            imperfect.frames_per_press,
-            self.max_force,
-            self.held_out
-        );
-        let sizes: Vec<usize> = self.curves.first().map_or(Vec::new(), |c| c.points.iter().map(|p| p.0).collect());
-        let header: String = sizes.iter().map(|n| format!(" N = {n} |")).collect();
-        let rule: String = sizes.iter().map(|_| "---|").collect();
-        let position = |e: &eitskin::learn::Errors| Some(e.mean_position * 1e3);
-        let force = |e: &eitskin::learn::Errors| e.force_rms.map(|f| 100.0 * f / self.max_force);
-        let tables: [(&str, &Reading<'_>); 2] =
-            [("Mean position error, mm", &position), ("Force RMS, % of the largest force", &force)];
-        for (title, value) in tables {
-            s += &format!("{title}:\n\n| method |{header}\n|---|{rule}\n");
-            for c in &self.curves {
-                let cells: String = c
-                    .points
-                    .iter()
-                    .map(|(_, e)| match e.as_ref().and_then(value) {
-                        Some(v) => format!(" {v:.1} |"),
-                        None => " – |".into(),
-                    })
-                    .collect();
-                s += &format!("| {} |{cells}\n", c.method.name());
-            }
-            s += "\n";
+/// The learned calibration as a Markdown section: the mean position error and force RMS of
+/// every method against N.
+pub fn learning_markdown(learning: &LearningReport) -> String {
+    let imperfect = &learning.imperfections;
+    let mut s = String::from("\n## Learned calibration: learning curves on an imperfect skin\n\n");
+    s += &format!(
+        "Robot presses of the virtual skin as built, not as specified (`eitskin robot-presses`): the outline {:.0} % larger, electrodes moved up to {:.0} mm, channel gains ±{:.0} %, the first drive dead, a common drift, magnitudes only, {:.1} % noise per frame and each state the mean of {} frames; presses uniform in a disc over 80 % of the half-width, forces 2–{:.0} N. Each method is trained on the first N presses and tested on {} others (`eitskin learn --curve`). The bars: ≤ 5 mm at N = 100; every learned method ≥ 25 % better than k-nearest neighbours at N = 100 and 500; force RMS ≤ 5 % of the largest force.\n\n",
+        100.0 * (imperfect.scale - 1.0),
+        imperfect.electrode_shift * 1e3,
+        100.0 * imperfect.gain_spread,
+        100.0 * imperfect.noise_relative,
+        imperfect.frames_per_press,
+        learning.max_force,
+        learning.held_out
+    );
+    let sizes: Vec<usize> = learning.curves.first().map_or(Vec::new(), |c| c.points.iter().map(|p| p.0).collect());
+    let header: String = sizes.iter().map(|n| format!(" N = {n} |")).collect();
+    let rule: String = sizes.iter().map(|_| "---|").collect();
+    let position = |e: &eitskin::learn::Errors| Some(e.mean_position * 1e3);
+    let force = |e: &eitskin::learn::Errors| e.force_rms.map(|f| 100.0 * f / learning.max_force);
+    let tables: [(&str, &Reading<'_>); 2] =
+        [("Mean position error, mm", &position), ("Force RMS, % of the largest force", &force)];
+    for (title, value) in tables {
+        s += &format!("{title}:\n\n| method |{header}\n|---|{rule}\n");
+        for c in &learning.curves {
+            let cells: String = c
+                .points
+                .iter()
+                .map(|(_, e)| match e.as_ref().and_then(value) {
+                    Some(v) => format!(" {v:.1} |"),
+                    None => " – |".into(),
+                })
+                .collect();
+            s += &format!("| {} |{cells}\n", c.method.name());
         }
-        s
+        s += "\n";
     }
+    s
 }

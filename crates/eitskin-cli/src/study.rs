@@ -87,7 +87,7 @@ pub fn run(args: Args) -> Result<()> {
         0 => None,
         n => {
             progress("learned calibration: robot presses and learning curves", 0, 1);
-            Some(report::Learning::run(&spec, n, args.seed)?)
+            Some(eitskin::study::learning::run(&spec, n, args.seed)?)
         }
     };
     let seconds = start.elapsed().as_secs_f64();
@@ -98,7 +98,7 @@ pub fn run(args: Args) -> Result<()> {
         write_sweep_figures(sweep, &args, spec.length_unit)?;
     }
     if let (Some(learning), Some(object)) = (&learning, json.as_object_mut()) {
-        object.insert("learning".into(), learning.json());
+        object.insert("learning".into(), report::learning_json(learning));
     }
     std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
     write_frames(&study, &args, spec.length_unit.metres())?;
@@ -107,7 +107,7 @@ pub fn run(args: Args) -> Result<()> {
         markdown += &report::sweep_markdown(sweep, spec.length_unit);
     }
     if let Some(learning) = &learning {
-        markdown += &learning.markdown();
+        markdown += &report::learning_markdown(learning);
     }
     std::fs::write(args.out.join("report.md"), &markdown)?;
     println!("{markdown}");

@@ -8,6 +8,8 @@
 
 use std::path::Path;
 
+use eitskin::learn::LabelledPress;
+
 use crate::Error;
 
 /// Where a sample was pressed.
@@ -110,6 +112,39 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
     Ok(rows)
 }
 
+/// Reads a samples file of labelled presses for a learned model (`x`, `y`, optional `force`,
+/// then the channels), positions converted to m by `metres`.
+pub fn read_labelled_presses(path: &Path, metres: f64) -> Result<Vec<LabelledPress>, Error> {
+    let fail = |reason: String| Error::Key { path: Some(path.to_path_buf()), key: "samples", reason };
+    read_samples(path, metres)?
+        .into_iter()
+        .enumerate()
+        .map(|(k, row)| {
+            let Location::Point(position) = row.location else {
+                return Err(fail(format!("sample {}: a learned model needs `x` and `y`, not a unit", k + 1)));
+            };
+            let Measured::Frame(inputs) = row.measured else {
+                return Err(fail(format!("sample {}: a learned model needs the channels, not a peak", k + 1)));
+            };
+            Ok(LabelledPress { inputs, position, force: row.force })
+        })
+        .collect()
+}
+
+/// Labelled presses as a samples file: a `#` comment line, then `x`, `y` (in units of `metres`
+/// m), `force` (N, when every press has one) and the channels `v1`… .
+pub fn labelled_presses_to_csv(presses: &[LabelledPress], metres: f64, comment: &str) -> String {
+    let forces = !presses.is_empty() && presses.iter().all(|p| p.force.is_some());
+    let channels: Vec<String> = (1..=presses.first().map_or(0, |p| p.inputs.len())).map(|c| format!("v{c}")).collect();
+    let mut text = format!("# {comment}\nx,y,{}{}\n", if forces { "force," } else { "" }, channels.join(","));
+    for p in presses {
+        let values: Vec<String> = p.inputs.iter().map(|v| format!("{v:e}")).collect();
+        let force = p.force.filter(|_| forces).map_or(String::new(), |f| format!("{f},"));
+        text += &format!("{},{},{force}{}\n", p.position[0] / metres, p.position[1] / metres, values.join(","));
+    }
+    text
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -126,6 +161,21 @@ mod tests {
         assert_eq!(rows[0].measured, Measured::Frame(vec![1.5, 2.5, 3.5]));
         let rows = parse_samples("x,y,v1,v2\n10,-20,1.5,2.5\n", 1e-3).unwrap();
         assert_eq!((rows[0].force, &rows[0].measured), (None, &Measured::Frame(vec![1.5, 2.5])));
+    }
+
+    #[test]
+    fn labelled_presses_round_trip() {
+        let press = |x: f64, force| LabelledPress { inputs: vec![x, -2.5e-7], position: [x, 0.25 * x], force };
+        for presses in [vec![press(0.01, Some(3.5)), press(-0.02, Some(0.0))], vec![press(0.03, None)]] {
+            let text = labelled_presses_to_csv(&presses, 1e-3, "test");
+            let rows = parse_samples(&text, 1e-3).unwrap();
+            for (row, p) in rows.iter().zip(&presses) {
+                assert_eq!(row.force, p.force);
+                assert_eq!(row.measured, Measured::Frame(p.inputs.clone()));
+                let Location::Point(at) = row.location else { panic!("{row:?}") };
+                assert!((at[0] - p.position[0]).abs() < 1e-15 && (at[1] - p.position[1]).abs() < 1e-15);
+            }
+        }
     }
 
     #[test]

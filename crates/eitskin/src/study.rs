@@ -22,6 +22,7 @@
 //! the chain's, with the fitted calibration, on the validation frames. `eitskin calibrate` and
 //! `evaluate` on the frames the study writes give the same numbers.
 
+pub mod learning;
 pub mod sweep;
 
 use rand::rngs::StdRng;

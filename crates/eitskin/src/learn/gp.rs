@@ -181,7 +181,7 @@ impl GaussianProcess {
         for ((o, weights), (mean, spread)) in
             out.iter_mut().zip(self.alpha.chunks_exact(n)).zip(self.target_mean.iter().zip(&self.target_std))
         {
-            *o = mean + spread * dot(weights, &scratch.kernel);
+            *o = mean + spread * dot_portable::<f64, 16>(weights, &scratch.kernel);
         }
         if std.is_empty() {
             return;
@@ -248,42 +248,27 @@ fn quadratic_rows_portable(inverse: &[f32], row_start: &[usize], kernel: &[f32],
     for i in rows {
         let row = &inverse[row_start[i]..row_start[i + 1]];
         let ki = kernel[i];
-        sum += f64::from(ki) * f64::from(2.0 * dot32_portable(row, &kernel[i..]) - row[0] * ki);
+        sum += f64::from(ki) * f64::from(2.0 * dot_portable::<f32, 32>(row, &kernel[i..]) - row[0] * ki);
     }
     sum
 }
 
-widest! {
-    /// Σ aᵢbᵢ in f64.
-    fn dot = dot_portable(a: &[f64], b: &[f64]) -> f64
-}
-
-/// Σ aᵢbᵢ in sixteen independent sums, so that it vectorises.
+/// Σ aᵢbᵢ in `LANES` independent sums, so that it vectorises (16 for f64, 32 for f32: two of
+/// the widest registers).
 #[inline(always)]
-fn dot_portable(a: &[f64], b: &[f64]) -> f64 {
-    let mut sums = [0.0; 16];
-    let (ca, cb) = (a.chunks_exact(16), b.chunks_exact(16));
-    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+fn dot_portable<T, const LANES: usize>(a: &[T], b: &[T]) -> T
+where
+    T: Copy + Default + std::ops::Mul<Output = T> + std::ops::Add<Output = T> + std::ops::AddAssign + std::iter::Sum,
+{
+    let mut sums = [T::default(); LANES];
+    let (ca, cb) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+    let tail: T = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| *x * *y).sum();
     for (x, y) in ca.zip(cb) {
-        for k in 0..16 {
+        for k in 0..LANES {
             sums[k] += x[k] * y[k];
         }
     }
-    sums.iter().sum::<f64>() + tail
-}
-
-/// [`dot_portable`] in f32, thirty-two sums.
-#[inline(always)]
-fn dot32_portable(a: &[f32], b: &[f32]) -> f32 {
-    let mut sums = [0.0f32; 32];
-    let (ca, cb) = (a.chunks_exact(32), b.chunks_exact(32));
-    let tail: f32 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
-    for (x, y) in ca.zip(cb) {
-        for k in 0..32 {
-            sums[k] += x[k] * y[k];
-        }
-    }
-    sums.iter().sum::<f32>() + tail
+    sums.into_iter().sum::<T>() + tail
 }
 
 #[cfg(test)]

@@ -57,6 +57,13 @@ impl Default for Imperfections {
     }
 }
 
+/// The radius of a disc of robot presses: `fraction` of the half-width of `outline`'s box (its
+/// smaller side), in m.
+pub fn disc_radius(outline: &Outline, fraction: f64) -> f64 {
+    let [lo, hi] = outline.bounds();
+    fraction * 0.5 * (hi[0] - lo[0]).min(hi[1] - lo[1])
+}
+
 /// The skin as built: a virtual sensor of the changed spec, and what the board does to its values.
 #[derive(Debug)]
 pub struct ImperfectSkin {

@@ -1,0 +1,41 @@
+//! The study's learned calibration: every [`crate::learn`] method's learning curve on robot
+//! presses of the imperfect virtual skin ([`crate::sim::imperfect`]).
+
+use super::StudyError;
+use crate::learn::{learning_curves, LearningCurve};
+use crate::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
+use crate::SensorSpec;
+
+/// Robot presses held out of training.
+pub const HELD_OUT: usize = 300;
+
+/// The largest force pressed, in N (forces are uniform from 2 N to it).
+pub const MAX_FORCE: f64 = 16.0;
+
+/// The learning curves and how the presses were made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LearningReport {
+    /// Presses trained on at most.
+    pub training: usize,
+    /// Presses held out.
+    pub held_out: usize,
+    /// How the skin differs from its spec, the noise and the frames averaged per state.
+    pub imperfections: Imperfections,
+    /// Every method's curve.
+    pub curves: Vec<LearningCurve>,
+    /// The largest force pressed, in N.
+    pub max_force: f64,
+}
+
+/// `training` robot presses (and [`HELD_OUT`] more) of `spec`'s imperfect skin, in a disc over
+/// 80 % of the half-width, each state the mean of 32 frames at the default 0.3 % noise, and
+/// every method's learning curve on them.
+pub fn run(spec: &SensorSpec, training: usize, seed: u64) -> Result<LearningReport, StudyError> {
+    let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
+    let mut skin = ImperfectSkin::new(spec, &imperfections, seed)?;
+    let radius = disc_radius(&spec.outline, 0.8);
+    let presses = skin.robot_presses(training, radius, 2.0..MAX_FORCE)?;
+    let held = skin.robot_presses(HELD_OUT, radius, 2.0..MAX_FORCE)?;
+    let curves = learning_curves(&presses, &held);
+    Ok(LearningReport { training, held_out: HELD_OUT, imperfections, curves, max_force: MAX_FORCE })
+}
