@@ -11,7 +11,8 @@
 //! 0.05 % noise, median of 201); `simulated_frame` and `simulated_three_presses` (the virtual
 //! sensor's frame on its finer truth mesh, one press and three apart); `learn_1000_presses` and
 //! `learned_frame` (a Gaussian process on 1,000 robot presses of 192 channels, and its answer
-//! for one frame); and `replay`: a file of 5,000 text frames through the lines decoder, the
+//! for one frame), and the same on the fitted press (`learn_1000_presses_press`,
+//! `learned_press_frame`); and `replay`: a file of 5,000 text frames through the lines decoder, the
 //! pipeline and the JSON line, as fast as possible (frames/s, median latency per frame).
 
 use std::path::PathBuf;
@@ -114,8 +115,8 @@ fn replay(recon: &Reconstructor, rest: &[f64], pressed: &[f64]) -> Result<(f64, 
 
 /// A learned model's training on 1,000 robot presses of 192 channels (the sheet with the
 /// `opposite` protocol, OpenEIT's count) and one frame's answer (position, force, uncertainty).
-fn learned(spec: &eitskin::SensorSpec) -> Result<(Timing, Timing)> {
-    use eitskin::learn::{train, Method, PredictScratch};
+fn learned(spec: &eitskin::SensorSpec) -> Result<(Timing, Timing, Timing, Timing)> {
+    use eitskin::learn::{train, Method, NominalSensor, PredictScratch};
     use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
     let mut opposite = spec.clone();
     opposite.protocol = eitskin::ProtocolSpec::Opposite;
@@ -123,10 +124,15 @@ fn learned(spec: &eitskin::SensorSpec) -> Result<(Timing, Timing)> {
     let mut skin = ImperfectSkin::new(&opposite, &imperfections, 1)?;
     let presses = skin.robot_presses(1000, disc_radius(&spec.outline, 0.8), 2.0..16.0)?;
     let method = Method::from_name("gp-shape").unwrap_or(Method::knn(5));
-    let (t_train, model) = time(3, || Ok(train(&presses, method)?))?;
+    let (t_train, model) = time(3, || Ok(train(&presses, method, None)?))?;
     let mut scratch = PredictScratch::default();
     let (t_frame, _) = time(2001, || Ok(model.predict(&presses[0].inputs, &mut scratch)))?;
-    Ok((t_train, t_frame))
+    // On the fitted press: the press model is built once per sensor, outside the timing.
+    let sensor = NominalSensor::of_spec(&opposite, None)?;
+    let method = Method::from_name("gp-press").unwrap_or(Method::knn(5));
+    let (t_train_press, model) = time(3, || Ok(train(&presses, method, Some(&sensor))?))?;
+    let (t_frame_press, _) = time(2001, || Ok(model.predict(&presses[0].inputs, &mut scratch)))?;
+    Ok((t_train, t_frame, t_train_press, t_frame_press))
 }
 
 /// Runs `eitskin bench`.
@@ -201,7 +207,7 @@ pub fn run(args: Args) -> Result<()> {
     sensor.press([-0.5 * half, 0.5 * half], 9.0);
     sensor.press([0.5 * half, 0.5 * half], 3.0);
     let (t_simulated_three, _) = time(n.min(15), || Ok(sensor.frame()?))?;
-    let (t_learn, t_learned_frame) = learned(&spec)?;
+    let (t_learn, t_learned_frame, t_learn_press, t_learned_press_frame) = learned(&spec)?;
     let stages = [
         ("mesh", t_mesh),
         ("model", t_model),
@@ -216,6 +222,7 @@ pub fn run(args: Args) -> Result<()> {
         ("press_model", t_press_model),
         ("press_detection", t_detection),
         ("learn_1000_presses", t_learn),
+        ("learn_1000_presses_press", t_learn_press),
         ("frame_image", t_image),
         ("frame_touches", t_touches),
         ("frame_press_fit", t_fit),
@@ -224,6 +231,7 @@ pub fn run(args: Args) -> Result<()> {
         ("simulated_frame", t_simulated),
         ("simulated_three_presses", t_simulated_three),
         ("learned_frame", t_learned_frame),
+        ("learned_press_frame", t_learned_press_frame),
     ];
     let total: f64 = stages[..6].iter().map(|s| s.1.median).sum();
     let peak_memory = eitskin_io::peak_memory();

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use eitskin::learn::{choose, evaluate, train, LabelledPress, Method};
+use eitskin::learn::{choose, evaluate, train, Errors, Features, LabelledPress, Method, NominalSensor};
 use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
 use eitskin::SensorSpec;
 
@@ -34,7 +34,8 @@ pub struct Args {
     /// Folds of the cross-validation that chooses the method, 2–20.
     #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of folds", 2, 20))]
     folds: usize,
-    /// Train this method instead of choosing: knn-K (K ≥ 1) or gp, either with -shape.
+    /// Train this method instead of choosing: knn-K (K ≥ 1) or gp, either with -shape or -press
+    /// (the press fitted on the spec's sensor as specified; Δv of the protocol's length only).
     #[arg(long)]
     method: Option<String>,
 }
@@ -92,8 +93,9 @@ pub fn run(args: Args) -> Result<()> {
         .method
         .as_deref()
         .map(|m| {
-            Method::from_name(m)
-                .with_context(|| format!("{m:?} is not a method: give knn-K (K ≥ 1) or gp, either with -shape"))
+            Method::from_name(m).with_context(|| {
+                format!("{m:?} is not a method: give knn-K (K ≥ 1) or gp, either with -shape or -press")
+            })
         })
         .transpose()?;
     if args.curve && args.held_out.is_none() {
@@ -109,9 +111,19 @@ pub fn run(args: Args) -> Result<()> {
             first.inputs.len()
         );
     }
+    // Press features read Δv on the sensor as specified: one value per measurement.
+    let sensor = match training.first() {
+        Some(p) if p.inputs.len() == channels => Some(load::nominal_sensor(&spec)?),
+        _ => None,
+    };
+    if let (Some(m), None) = (forced, &sensor) {
+        if m.features == Features::Press {
+            bail!("--method {}: press features need Δv of the protocol's {channels} values a press", m.name());
+        }
+    }
     let mm = |m: f64| m * 1e3;
     let started = Instant::now();
-    let (method, scores) = choose(&training, &Method::candidates(), args.folds)?;
+    let (method, scores) = choose(&training, &Method::candidates(sensor.is_some()), args.folds, sensor.as_ref())?;
     println!(
         "{}-fold cross-validation on {} presses ({:.2} s):",
         args.folds,
@@ -125,9 +137,9 @@ pub fn run(args: Args) -> Result<()> {
     }
     let method = forced.unwrap_or(method);
     let started = Instant::now();
-    let model = train(&training, method)?;
+    let model = train(&training, method, sensor.as_ref())?;
     println!("trained {} on {} presses in {:.2} s", method.name(), training.len(), started.elapsed().as_secs_f64());
-    let dead = model.standardiser.dead();
+    let dead = model.dead_channels();
     if !dead.is_empty() {
         let list: Vec<String> = dead.iter().map(|c| (c + 1).to_string()).collect();
         println!("channels that carry nothing (left out): {}", list.join(", "));
@@ -135,11 +147,16 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(held) = &held_out {
         let e = evaluate(&model, held);
         let force = e.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"));
-        println!("on {} held-out presses: mean position error {:.1} mm{force}", e.presses, mm(e.mean_position));
+        println!(
+            "on {} held-out presses: mean position error {:.1} mm{force}{}",
+            e.presses,
+            mm(e.mean_position),
+            unanswered(&e)
+        );
     }
     if args.curve {
         if let Some(held) = &held_out {
-            learning_curves(&training, held);
+            learning_curves(&training, held, sensor.as_ref());
         }
     }
     if let Some(out) = &args.out {
@@ -150,21 +167,38 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// Every method trained on the first N presses, its error on `held`, as a table.
-fn learning_curves(training: &[LabelledPress], held: &[LabelledPress]) {
-    let curves = eitskin::learn::learning_curves(training, held);
-    println!("learning curves: mean position error (mm) on {} held-out presses", held.len());
+/// Every method trained on the first N presses, its errors on `held`, as tables: mean position
+/// error, and force RMS when the presses have forces.
+fn learning_curves(training: &[LabelledPress], held: &[LabelledPress], sensor: Option<&NominalSensor>) {
+    let curves = eitskin::learn::learning_curves(training, held, sensor);
     let header: String = curves
         .first()
         .map_or(String::new(), |c| c.points.iter().map(|(n, _)| format!("{:>9}", format!("N={n}"))).collect());
-    println!("  {:14}{header}", "method");
-    for curve in &curves {
-        let row: String = curve
-            .points
-            .iter()
-            .map(|(_, e)| e.map_or(format!("{:>9}", "—"), |e| format!("{:>9.1}", e.mean_position * 1e3)))
-            .collect();
-        println!("  {:14}{row}", curve.method.name());
+    let forces = held.iter().all(|p| p.force.is_some());
+    let tables: [(&str, usize, &crate::report::Reading<'_>); 2] =
+        [("mean position error (mm)", 1, &|e| Some(e.mean_position * 1e3)), ("force RMS (N)", 2, &|e| e.force_rms)];
+    for (title, digits, reading) in tables.iter().take(if forces { 2 } else { 1 }) {
+        println!("learning curves: {title} on {} held-out presses", held.len());
+        println!("  {:14}{header}", "method");
+        for curve in &curves {
+            let row: String = curve
+                .points
+                .iter()
+                .map(|(_, e)| match e.as_ref().and_then(reading) {
+                    Some(v) => format!("{v:>9.digits$}"),
+                    None => format!("{:>9}", "—"),
+                })
+                .collect();
+            println!("  {:14}{row}", curve.method.name());
+        }
+    }
+}
+
+/// "; N presses answered nothing (…)" when a model gave no answer for some presses.
+fn unanswered(e: &Errors) -> String {
+    match e.unanswered {
+        0 => String::new(),
+        n => format!("; {n} more presses got no answer (their Δv looks like no press on the spec's sensor)"),
     }
 }
 
@@ -210,15 +244,16 @@ pub fn presses_run(args: PressesArgs) -> Result<()> {
 
 /// `eitskin evaluate --model`: the model's errors on the presses of `samples`.
 pub fn evaluate_model(spec: &SensorSpec, model: &std::path::Path, samples: &std::path::Path) -> Result<()> {
-    let learned = eitskin_io::read_learned_model(model, spec, spec.protocol()?.len())?;
+    let learned = eitskin_io::read_learned_model(model, spec, spec.protocol()?.len(), load::cache_dir().as_deref())?;
     let held = presses(samples, spec)?;
     let e = evaluate(&learned, &held);
     println!(
-        "{} on {} presses of {}: mean position error {:.1} mm",
+        "{} on {} presses of {}: mean position error {:.1} mm{}",
         learned.method.name(),
         e.presses,
         samples.display(),
-        e.mean_position * 1e3
+        e.mean_position * 1e3,
+        unanswered(&e)
     );
     if let Some(rms) = e.force_rms {
         let largest = held.iter().filter_map(|p| p.force).fold(0.0, f64::max);

@@ -148,6 +148,12 @@ pub fn press_model(spec: &SensorSpec) -> anyhow::Result<eitskin::press_fit::Pres
     })
 }
 
+/// `spec` as specified, for a learned model's press features (its press model from the cache
+/// when there is one).
+pub fn nominal_sensor(spec: &SensorSpec) -> anyhow::Result<eitskin::learn::NominalSensor> {
+    Ok(eitskin_io::nominal_sensor(spec, cache_dir().as_deref())?)
+}
+
 /// Where precomputed reconstructors and press models are cached: `$EITSKIN_CACHE`, else `$XDG_CACHE_HOME/eitskin`,
 /// else `~/.cache/eitskin`; `None` when none of these is set.
 pub fn cache_dir() -> Option<std::path::PathBuf> {

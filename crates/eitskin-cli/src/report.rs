@@ -195,8 +195,8 @@ pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
     s
 }
 
-/// What a table of the learned-calibration section reads of a method's errors.
-type Reading<'a> = dyn Fn(&eitskin::learn::Errors) -> Option<f64> + 'a;
+/// What a table of learning curves reads of a method's errors.
+pub(crate) type Reading<'a> = dyn Fn(&eitskin::learn::Errors) -> Option<f64> + 'a;
 
 /// The learned calibration's curves as JSON (distances in m, forces in N).
 pub fn learning_json(learning: &LearningReport) -> Value {
@@ -223,7 +223,7 @@ pub fn learning_markdown(learning: &LearningReport) -> String {
     let imperfect = &learning.imperfections;
     let mut s = String::from("\n## Learned calibration: learning curves on an imperfect skin\n\n");
     s += &format!(
-        "Robot presses of the virtual skin as built, not as specified (`eitskin robot-presses`): the outline {:.0} % larger, electrodes moved up to {:.0} mm, channel gains ±{:.0} %, the first drive dead, a common drift, magnitudes only, {:.1} % noise per frame and each state the mean of {} frames; presses uniform in a disc over 80 % of the half-width, forces 2–{:.0} N. Each method is trained on the first N presses and tested on {} others (`eitskin learn --curve`). The bars: ≤ 5 mm at N = 100; every learned method ≥ 25 % better than k-nearest neighbours at N = 100 and 500; force RMS ≤ 5 % of the largest force.\n\n",
+        "Robot presses of the virtual skin as built, not as specified (`eitskin robot-presses`): the outline {:.0} % larger, electrodes moved up to {:.0} mm, channel gains ±{:.0} %, the first drive dead, a common drift, magnitudes only, {:.1} % noise per frame and each state the mean of {} frames; presses uniform in a disc over 80 % of the half-width, forces 2–{:.0} N. Each method is trained on the first N presses and tested on {} others (`eitskin learn --curve`); methods named `-press` see the press fitted to Δv on the sensor as specified (where, how strong), the others the channels alone. The bars: ≤ 5 mm at N = 100; every learned method ≥ 25 % better than k-nearest neighbours at N = 100 and 500; force RMS ≤ 5 % of the largest force.\n\n",
         100.0 * (imperfect.scale - 1.0),
         imperfect.electrode_shift * 1e3,
         100.0 * imperfect.gain_spread,

@@ -187,7 +187,8 @@ pub fn run(args: Args) -> Result<()> {
     // protocol's or channel count's is refused before any work.
     let mut learned = match &args.model {
         Some(path) => {
-            let model = eitskin_io::read_learned_model(path, &spec, spec.protocol()?.len())?;
+            let cache = load::cache_dir();
+            let model = eitskin_io::read_learned_model(path, &spec, spec.protocol()?.len(), cache.as_deref())?;
             eprintln!("eitskin run: learned model {} ({})", path.display(), model.method.name());
             Some(learned::LearnedAnswers::new(model))
         }

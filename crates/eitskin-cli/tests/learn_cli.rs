@@ -38,6 +38,9 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     // Pressing at random in a disc of 80 mm radius and answering the centre is 53 mm off on average.
     assert!(held_error < 20.0, "{out}");
     assert!(out.contains("  gp-shape ") && out.contains("N=100"), "{out}");
+    // On the press fitted to Δv on the spec's sensor, chosen by cross-validation: what `run`
+    // then answers with, live.
+    assert!(out.contains("trained gp-press on 100 presses") && out.contains("force RMS (N) on 40"), "{out}");
     let file: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     assert_eq!((file["format"].as_str(), file["channels"].as_u64()), (Some("eitskin-learned-model"), Some(120)));
 

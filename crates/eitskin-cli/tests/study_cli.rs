@@ -20,17 +20,25 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
         "the paper's figure beside ours"
     );
 
-    // The learned calibration: every method's curve up to the 500 presses trained on, and the
-    // Gaussian process on the channels' shape at least 25 % closer than 5-nearest neighbours.
+    // The learned calibration: every method's curve up to the 500 presses trained on; the
+    // Gaussian processes at least 25 % closer than 5-nearest neighbours at N = 100 and 500, and
+    // on the fitted press within 5 mm and 5 % of the largest force from 100 presses.
     let curves = json["learning"]["curves"].as_array().unwrap();
-    assert_eq!(curves.len(), 10, "knn-1/3/5/10 and gp, raw and shape");
-    let at_500 = |method: &str| {
+    assert_eq!(curves.len(), 15, "knn-1/3/5/10 and gp, on raw, shape and press features");
+    let at = |method: &str, n: u64, key: &str| {
         let curve = curves.iter().find(|c| c["method"] == method).unwrap();
-        let last = curve["points"].as_array().unwrap().last().unwrap().clone();
-        assert_eq!(last["presses"], 500);
-        last["mean_position_error_m"].as_f64().unwrap()
+        let point = curve["points"].as_array().unwrap().iter().find(|p| p["presses"] == n).unwrap().clone();
+        point[key].as_f64().unwrap()
     };
-    assert!(at_500("gp-shape") <= 0.75 * at_500("knn-5"), "{} vs {}", at_500("gp-shape"), at_500("knn-5"));
+    let position = "mean_position_error_m";
+    for n in [100, 500] {
+        for method in ["gp-shape", "gp-press"] {
+            assert!(at(method, n, position) <= 0.75 * at("knn-5", n, position), "{method} at N = {n}");
+        }
+    }
+    assert!(at("gp-press", 100, position) <= 0.005, "{}", at("gp-press", 100, position));
+    let force = at("gp-press", 100, "force_rms_newton");
+    assert!(force <= 0.05 * json["learning"]["max_force_newton"].as_f64().unwrap(), "{force} N");
 
     // The noise sweep: every level, kind, press count and method has its row; at 66 dB (0.05 %)
     // single presses of the model's kind are all found in Δv, within 3 mm on average, and the

@@ -10,7 +10,8 @@
 
 use std::path::Path;
 
-use eitskin::learn::{train, LabelledPress, LearnedModel, Method};
+use eitskin::learn::{train, Features, LabelledPress, LearnedModel, Method, NominalSensor};
+use eitskin::press_fit::PressModelParams;
 use eitskin::SensorSpec;
 use serde::{Deserialize, Serialize};
 
@@ -56,14 +57,36 @@ pub fn learned_model_to_json(spec: &SensorSpec, method: Method, presses: &[Label
     serde_json::to_string(&file).map_err(|e| Error::Json { path: None, message: e.to_string() })
 }
 
+/// `spec` as specified, for press features: its press model (default indenter) from the cache
+/// in `cache` when given (built and kept there if missing), and its measurements without a press.
+pub fn nominal_sensor(spec: &SensorSpec, cache: Option<&Path>) -> Result<NominalSensor, Error> {
+    let params = PressModelParams::default();
+    let press = match cache {
+        Some(dir) => crate::load_or_build_press_model(dir, spec, &params)?.0,
+        None => crate::build_press_model(spec, &params)?,
+    };
+    NominalSensor::of_spec(spec, Some(press)).map_err(|e| Error::Key { path: None, key: "spec", reason: e.to_string() })
+}
+
 /// Reads a model for `spec` (`channels` values a frame: the protocol's length, or twice it for
-/// complex pairs) and trains it again; a model for another protocol or channel count is refused.
-pub fn read_learned_model(path: &Path, spec: &SensorSpec, channels: usize) -> Result<LearnedModel, Error> {
-    parse_learned_model(&crate::read_text(path)?, spec, channels).map_err(|e| e.in_file(path))
+/// complex pairs) and trains it again (press features on [`nominal_sensor`], with `cache`); a
+/// model for another protocol or channel count is refused.
+pub fn read_learned_model(
+    path: &Path,
+    spec: &SensorSpec,
+    channels: usize,
+    cache: Option<&Path>,
+) -> Result<LearnedModel, Error> {
+    parse_learned_model(&crate::read_text(path)?, spec, channels, cache).map_err(|e| e.in_file(path))
 }
 
 /// [`read_learned_model`] on text.
-pub fn parse_learned_model(text: &str, spec: &SensorSpec, channels: usize) -> Result<LearnedModel, Error> {
+pub fn parse_learned_model(
+    text: &str,
+    spec: &SensorSpec,
+    channels: usize,
+    cache: Option<&Path>,
+) -> Result<LearnedModel, Error> {
     let file: ModelJson = serde_json::from_str(text).map_err(|e| Error::Json { path: None, message: e.to_string() })?;
     let key = |key: &'static str, reason: String| Error::Key { path: None, key, reason };
     if file.format != FORMAT {
@@ -86,7 +109,8 @@ pub fn parse_learned_model(text: &str, spec: &SensorSpec, channels: usize) -> Re
         .into_iter()
         .map(|p| LabelledPress { inputs: p.inputs, position: [p.x, p.y], force: p.force })
         .collect();
-    train(&presses, method).map_err(|e| key("presses", e.to_string()))
+    let sensor = (method.features == Features::Press).then(|| nominal_sensor(spec, cache)).transpose()?;
+    train(&presses, method, sensor.as_ref()).map_err(|e| key("presses", e.to_string()))
 }
 
 #[cfg(test)]
@@ -107,13 +131,13 @@ mod tests {
             })
             .collect();
         let text = learned_model_to_json(&spec, Method::knn(1), &presses).unwrap();
-        let model = parse_learned_model(&text, &spec, 3).unwrap();
+        let model = parse_learned_model(&text, &spec, 3, None).unwrap();
         assert_eq!(model.method, Method::knn(1));
-        let err = parse_learned_model(&text, &spec, 120).unwrap_err().to_string();
+        let err = parse_learned_model(&text, &spec, 120, None).unwrap_err().to_string();
         assert_eq!(err, "`channels` is 3, but the sensor's frames have 120 values");
         let mut other = spec.clone();
         other.protocol = eitskin::ProtocolSpec::Adjacent;
-        let err = parse_learned_model(&text, &other, 3).unwrap_err().to_string();
+        let err = parse_learned_model(&text, &other, 3, None).unwrap_err().to_string();
         assert_eq!(err, "`protocol` is \"two-terminal\", but the sensor's protocol is \"adjacent\"");
     }
 }

@@ -62,7 +62,7 @@ pub use calibration_file::{
 };
 pub use contrast_map_file::{contrast_map_path, decode_contrast_map, encode_contrast_map, load_or_build_contrast_map};
 pub use frame_file::{parse_frame, read_frame};
-pub use learned_model_file::{learned_model_to_json, parse_learned_model, read_learned_model};
+pub use learned_model_file::{learned_model_to_json, nominal_sensor, parse_learned_model, read_learned_model};
 pub use memory::{available_memory, peak_memory};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
 pub use press_model_file::{

@@ -48,10 +48,12 @@ use crate::mesh::PointLocator;
 mod detect;
 mod exact;
 mod joint;
+mod locate;
 mod refine;
 
 pub use detect::PressDetection;
 pub use exact::{Disk, DiskParameter, ExactPresses, ExactScratch, JOINT_PRESSES};
+pub use locate::{Locator, STRIDE};
 pub use refine::{refine, RefineParams, RefineScratch, DEEPEST};
 
 /// A square grid of points over a box: the first at `lo`, row-major.

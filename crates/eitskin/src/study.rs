@@ -64,6 +64,9 @@ pub enum StudyError {
     /// A chain lacked what a method needs.
     #[error("the frame chain could not be set up")]
     Chain(#[from] ChainError),
+    /// A calibration could not be learned.
+    #[error("a calibration could not be learned")]
+    Learn(#[from] crate::learn::LearnError),
 }
 
 /// How to run the study; `Default` is the paper's design.

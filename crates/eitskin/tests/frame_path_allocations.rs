@@ -101,18 +101,17 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
 
     // A learned model's answer (`run --model`), with its uncertainty: nothing once warm. In this
     // one test, since the count is global to the process.
-    use eitskin::learn::{train, LabelledPress, Method, PredictScratch};
-    let presses: Vec<LabelledPress> = (0..60)
-        .map(|i| {
-            let (x, y) = ((i % 8) as f64 * 0.01, (i / 8) as f64 * 0.01);
-            let inputs = (0..40).map(|c| (x * c as f64).sin() + (y * (c + 3) as f64).cos()).collect();
-            LabelledPress { inputs, position: [x, y], force: Some(1.0 + x) }
-        })
-        .collect();
-    for name in ["gp-shape", "knn-5"] {
-        let model = train(&presses, Method::from_name(name).unwrap()).unwrap();
+    use eitskin::learn::{train, Method, NominalSensor, PredictScratch};
+    use eitskin::sim::imperfect::{ImperfectSkin, Imperfections};
+    let mut spec = SensorSpec::square_hydrogel();
+    spec.mesh.triangles = 1500;
+    let mut skin = ImperfectSkin::new(&spec, &Imperfections::default(), 5).unwrap();
+    let presses = skin.robot_presses(60, 0.08, 2.0..16.0).unwrap();
+    let sensor = NominalSensor::of_spec(&spec, None).unwrap();
+    for name in ["gp-shape", "knn-5", "gp-press"] {
+        let model = train(&presses, Method::from_name(name).unwrap(), Some(&sensor)).unwrap();
         let mut scratch = PredictScratch::default();
-        model.predict(&presses[0].inputs, &mut scratch);
+        assert!(model.predict(&presses[0].inputs, &mut scratch).is_some());
         COUNTING.store(true, Ordering::Relaxed);
         for p in &presses[1..10] {
             model.predict(&p.inputs, &mut scratch);

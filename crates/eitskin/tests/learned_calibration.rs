@@ -2,9 +2,11 @@
 //! spec, electrodes moved up to 3 mm, gains ±20 %, the first drive dead, drift, magnitudes
 //! only, 0.3 % noise per frame, each state the mean of 32 frames): the dead channels are found
 //! from the data, and the Gaussian process on the channels' shape places presses at least 25 %
-//! closer than 5-nearest neighbours, from the same 200 presses.
+//! closer than 5-nearest neighbours, from the same 200 presses; on the fitted press (the spec's
+//! sensor as specified) 100 presses place presses within 5 mm and forces within 5 % of the
+//! largest.
 
-use eitskin::learn::{choose, evaluate, train, Method, PredictScratch};
+use eitskin::learn::{choose, evaluate, train, Method, NominalSensor, PredictScratch};
 use eitskin::sim::imperfect::{ImperfectSkin, Imperfections};
 use eitskin::SensorSpec;
 
@@ -17,8 +19,8 @@ fn a_learned_process_beats_nearest_neighbours_on_an_imperfect_skin() {
     let training = skin.robot_presses(200, 0.08, 2.0..16.0).unwrap();
     let held_out = skin.robot_presses(200, 0.08, 2.0..16.0).unwrap();
 
-    let knn = evaluate(&train(&training, Method::knn(5)).unwrap(), &held_out);
-    let gp = train(&training, Method::from_name("gp-shape").unwrap()).unwrap();
+    let knn = evaluate(&train(&training, Method::knn(5), None).unwrap(), &held_out);
+    let gp = train(&training, Method::from_name("gp-shape").unwrap(), None).unwrap();
     let learned = evaluate(&gp, &held_out);
     eprintln!(
         "200 presses: knn-5 {:.1} mm, gp-shape {:.1} mm, force RMS {:.2} N",
@@ -32,17 +34,50 @@ fn a_learned_process_beats_nearest_neighbours_on_an_imperfect_skin() {
     let protocol = spec.protocol().unwrap();
     let first_drive: Vec<usize> =
         (0..protocol.len()).filter(|&m| protocol.measurements()[m].stimulation == 0).collect();
-    assert_eq!(gp.standardiser.dead(), first_drive);
+    assert_eq!(gp.dead_channels(), first_drive);
     // Each answer carries an uncertainty, and the frame of another length is the caller's to refuse.
-    let answer = gp.predict(&held_out[0].inputs, &mut PredictScratch::default());
+    let answer = gp.predict(&held_out[0].inputs, &mut PredictScratch::default()).unwrap();
     assert!(answer.position_std.is_some_and(|s| s > 0.0) && answer.force.is_some());
     assert_eq!(gp.channels(), 120);
 
     // Cross-validation on the training presses alone picks a learned method over the floor.
-    let (best, scores) = choose(&training, &Method::candidates(), 5).unwrap();
-    assert_eq!(scores.len(), Method::candidates().len());
+    let (best, scores) = choose(&training, &Method::candidates(false), 5, None).unwrap();
+    assert_eq!(scores.len(), Method::candidates(false).len());
     assert!(
         !matches!(best.regressor, eitskin::learn::RegressorKind::Knn { k: 5 })
             || best.features != eitskin::learn::Features::Raw
     );
+}
+
+#[test]
+fn press_features_learn_an_imperfect_skin_from_100_presses() {
+    let mut spec = SensorSpec::square_hydrogel();
+    spec.mesh.triangles = 2000;
+    let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
+    let mut skin = ImperfectSkin::new(&spec, &imperfections, 12).unwrap();
+    let training = skin.robot_presses(100, 0.08, 2.0..16.0).unwrap();
+    let held_out = skin.robot_presses(200, 0.08, 2.0..16.0).unwrap();
+    let sensor = NominalSensor::of_spec(&spec, None).unwrap();
+
+    let knn = evaluate(&train(&training, Method::knn(5), None).unwrap(), &held_out);
+    let model = train(&training, Method::from_name("gp-press").unwrap(), Some(&sensor)).unwrap();
+    let learned = evaluate(&model, &held_out);
+    eprintln!(
+        "100 presses: knn-5 {:.1} mm, gp-press {:.1} mm, force RMS {:.2} N ({:.1} % of 16 N)",
+        knn.mean_position * 1e3,
+        learned.mean_position * 1e3,
+        learned.force_rms.unwrap(),
+        100.0 * learned.force_rms.unwrap() / 16.0
+    );
+    assert_eq!(learned.unanswered, 0);
+    let protocol = spec.protocol().unwrap();
+    let first_drive: Vec<usize> =
+        (0..protocol.len()).filter(|&m| protocol.measurements()[m].stimulation == 0).collect();
+    assert_eq!(model.dead_channels(), first_drive);
+    assert!(learned.mean_position <= 0.005, "{learned:?}");
+    assert!(learned.force_rms.unwrap() <= 0.05 * 16.0, "{learned:?}");
+    assert!(learned.mean_position <= 0.75 * knn.mean_position, "{learned:?} vs {knn:?}");
+    // Without the sensor, press features are refused.
+    let refused = train(&training, Method::from_name("gp-press").unwrap(), None).unwrap_err();
+    assert_eq!(refused, eitskin::learn::LearnError::NoSensor);
 }

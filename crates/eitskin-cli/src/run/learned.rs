@@ -20,7 +20,8 @@ impl LearnedAnswers {
     }
 
     /// The model's answer for `frame` (protocol order), positions in units of `metres` m, when
-    /// the pipeline found a touch in it and has a reference.
+    /// the pipeline found a touch in it and has a reference, and the model answers (press
+    /// features give none for a Δv like no press).
     pub fn answer(&mut self, frame: &[f64], pipeline: &Pipeline, metres: f64) -> Option<Learned> {
         let reference = pipeline.reference()?;
         if pipeline.touches().is_empty() || frame.len() != self.model.channels() {
@@ -28,6 +29,6 @@ impl LearnedAnswers {
         }
         self.difference.clear();
         self.difference.extend(frame.iter().zip(reference).map(|(v, r)| v - r));
-        Some(Learned::new(&self.model.predict(&self.difference, &mut self.scratch), metres))
+        self.model.predict(&self.difference, &mut self.scratch).map(|answer| Learned::new(&answer, metres))
     }
 }

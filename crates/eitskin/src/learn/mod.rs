@@ -7,7 +7,9 @@
 //! - Gaussian-process regression ([`RegressorKind::GaussianProcess`]): kernel ridge whose length
 //!   scale and noise come from the log marginal likelihood, with an uncertainty per answer;
 //!
-//! each on the channels as they are or on their shape ([`Features`]).
+//! each on the channels as they are, on their shape, or on the press fitted to Δv on the sensor
+//! as specified ([`Features`]; [`PressFeatures`], given a [`NominalSensor`]): physics features
+//! that are nearly the label already, so that 100 presses teach what the spec got wrong.
 //!
 //! [`choose`] picks one by k-fold cross-validation on the training presses alone.
 //!
@@ -22,10 +24,10 @@
 //!     })
 //!     .collect();
 //! // Every candidate's cross-validated error; here the Gaussian process on raw channels.
-//! let (_best, scores) = choose(&presses, &Method::candidates(), 5)?;
-//! assert_eq!(scores.len(), Method::candidates().len());
-//! let model = train(&presses, Method::from_name("gp").unwrap())?;
-//! let answer = model.predict(&frame(0.1, -0.2), &mut PredictScratch::default());
+//! let (_best, scores) = choose(&presses, &Method::candidates(false), 5, None)?;
+//! assert_eq!(scores.len(), Method::candidates(false).len());
+//! let model = train(&presses, Method::from_name("gp").unwrap(), None)?;
+//! let answer = model.predict(&frame(0.1, -0.2), &mut PredictScratch::default()).unwrap();
 //! assert!((answer.position[0] - 0.1).abs() < 0.01 && (answer.position[1] + 0.2).abs() < 0.01);
 //! assert!(answer.position_std.is_some());
 //! # Ok::<(), eitskin::learn::LearnError>(())
@@ -33,16 +35,18 @@
 
 mod gp;
 mod knn;
+mod press_features;
 mod standardise;
 
-pub use gp::{GaussianProcess, GpScratch, LENGTH_SCALES, NOISE_VARIANCES};
+pub use gp::{GaussianProcess, GpScratch, LENGTH_SCALES, LINEAR_WEIGHTS, NOISE_VARIANCES};
 pub use knn::Knn;
+pub use press_features::{FeatureScratch, NominalSensor, PressFeatures};
 pub use standardise::{Standardiser, DEAD_SPREAD};
 
 use thiserror::Error;
 
 /// What is wrong with a training set or a frame.
-#[derive(Debug, Clone, PartialEq, Error)]
+#[derive(Debug, PartialEq, Error)]
 pub enum LearnError {
     /// Too few presses to train on (or to split into folds).
     #[error("{got} labelled presses are too few: at least {needed} are needed")]
@@ -74,6 +78,24 @@ pub enum LearnError {
     /// The process could not be fitted (its kernel matrix not positive definite at any grid point).
     #[error("the Gaussian process could not be fitted to these presses")]
     NotFitted,
+    /// Press features were asked for without the sensor as specified.
+    #[error("press features need the sensor's spec (its press model), and none was given")]
+    NoSensor,
+    /// A press's Δv matches no press on the sensor's model.
+    #[error("press {press}'s Δv looks like no press on the sensor as specified (zero, not finite, or unlike any press): leave it out, or learn from the channels")]
+    NotAPress {
+        /// 1-based press.
+        press: usize,
+    },
+    /// The spec does not make a sensor.
+    #[error("the sensor spec does not make a sensor")]
+    Spec(#[from] crate::SpecError),
+    /// The sensor as specified could not be solved.
+    #[error("the sensor as specified could not be solved")]
+    Forward(#[from] crate::ForwardError),
+    /// Its press model could not be built.
+    #[error("the sensor's press model could not be built")]
+    Inverse(#[from] crate::InverseError),
 }
 
 /// One press with its label: the frame's values (or Δv), its position in m, its force in N.
@@ -117,6 +139,9 @@ pub enum Features {
     /// a press is shows in the pattern, how hard mostly in the size, so a harder press does not
     /// look like a press elsewhere.
     Shape,
+    /// The press fitted on the sensor as specified ([`PressFeatures`]): its x, y and log
+    /// contrast. Needs the spec.
+    Press,
 }
 
 impl Method {
@@ -126,16 +151,16 @@ impl Method {
     }
 
     /// The methods [`choose`] tries: k = 1, 3, 5, 10 neighbours and the Gaussian process, each on
-    /// raw and on shape features.
-    pub fn candidates() -> Vec<Method> {
+    /// raw and on shape features, and on press features when `sensor` (the spec is known).
+    pub fn candidates(sensor: bool) -> Vec<Method> {
         let regressors =
             [1, 3, 5, 10].map(|k| RegressorKind::Knn { k }).into_iter().chain([RegressorKind::GaussianProcess]);
-        regressors
-            .flat_map(|regressor| [Features::Raw, Features::Shape].map(|features| Method { regressor, features }))
-            .collect()
+        let features: &[Features] =
+            if sensor { &[Features::Raw, Features::Shape, Features::Press] } else { &[Features::Raw, Features::Shape] };
+        regressors.flat_map(|regressor| features.iter().map(move |&features| Method { regressor, features })).collect()
     }
 
-    /// Its name, as files and reports write it ("knn-5", "gp", "gp-shape").
+    /// Its name, as files and reports write it ("knn-5", "gp", "gp-shape", "gp-press").
     pub fn name(&self) -> String {
         let base = match self.regressor {
             RegressorKind::Knn { k } => format!("knn-{k}"),
@@ -144,14 +169,16 @@ impl Method {
         match self.features {
             Features::Raw => base,
             Features::Shape => format!("{base}-shape"),
+            Features::Press => format!("{base}-press"),
         }
     }
 
     /// The method of a name from [`Method::name`].
     pub fn from_name(name: &str) -> Option<Method> {
-        let (base, features) = match name.strip_suffix("-shape") {
-            Some(base) => (base, Features::Shape),
-            None => (name, Features::Raw),
+        let (base, features) = match (name.strip_suffix("-shape"), name.strip_suffix("-press")) {
+            (Some(base), _) => (base, Features::Shape),
+            (_, Some(base)) => (base, Features::Press),
+            _ => (name, Features::Raw),
         };
         let regressor = if base == "gp" {
             RegressorKind::GaussianProcess
@@ -167,7 +194,8 @@ impl Method {
 }
 
 impl Features {
-    /// The features of `channels` into `out` (cleared first).
+    /// The features of `channels` into `out` (cleared first); press features are
+    /// [`PressFeatures::features_into`]'s, so here the channels as they are.
     pub fn of_into(self, channels: &[f64], out: &mut Vec<f64>) {
         out.clear();
         out.extend_from_slice(channels);
@@ -201,6 +229,8 @@ pub struct LearnedModel {
     pub regressor: Regressor,
     /// Whether it gives forces.
     pub forces: bool,
+    /// The fitted press, for press features.
+    pub press: Option<PressFeatures>,
 }
 
 /// One answer of a model.
@@ -221,6 +251,7 @@ pub struct Prediction {
 #[derive(Debug, Default)]
 pub struct PredictScratch {
     features: Vec<f64>,
+    press: FeatureScratch,
     z: Vec<f64>,
     nearest: Vec<(f64, usize)>,
     gp: GpScratch,
@@ -244,17 +275,36 @@ fn check(presses: &[LabelledPress], needed: usize) -> Result<(usize, bool), Lear
     Ok((expected, forces))
 }
 
-/// Trains `method` on `presses` (at least 2, all with forces or none).
-pub fn train(presses: &[LabelledPress], method: Method) -> Result<LearnedModel, LearnError> {
+/// Trains `method` on `presses` (at least 2, all with forces or none); press features need
+/// `sensor`.
+pub fn train(
+    presses: &[LabelledPress],
+    method: Method,
+    sensor: Option<&NominalSensor>,
+) -> Result<LearnedModel, LearnError> {
     let (_, forces) = check(presses, 2)?;
+    let press = match method.features {
+        Features::Press => Some(PressFeatures::fit(sensor.ok_or(LearnError::NoSensor)?, presses)?),
+        _ => None,
+    };
+    let mut scratch = FeatureScratch::default();
     let inputs: Vec<Vec<f64>> = presses
         .iter()
-        .map(|p| {
+        .enumerate()
+        .map(|(i, p)| {
             let mut f = Vec::new();
-            method.features.of_into(&p.inputs, &mut f);
-            f
+            match &press {
+                Some(press) if !press.features_into(&p.inputs, &mut scratch, &mut f) => {
+                    Err(LearnError::NotAPress { press: i + 1 })
+                }
+                Some(_) => Ok(f),
+                None => {
+                    method.features.of_into(&p.inputs, &mut f);
+                    Ok(f)
+                }
+            }
         })
-        .collect();
+        .collect::<Result<_, _>>()?;
     let standardiser = Standardiser::fit(&inputs);
     if standardiser.used().is_empty() {
         return Err(LearnError::NoChannels);
@@ -278,23 +328,48 @@ pub fn train(presses: &[LabelledPress], method: Method) -> Result<LearnedModel, 
     let regressor = match method.regressor {
         RegressorKind::Knn { k } => Regressor::Knn(Knn::new(k, &points, &targets)),
         RegressorKind::GaussianProcess => {
-            Regressor::GaussianProcess(GaussianProcess::fit(&points, &targets).ok_or(LearnError::NotFitted)?)
+            // A linear term is the physics of press features (the fitted position is nearly the
+            // label up to a linear map); on channels it over-fits (at N = 100: 9.7 → 10.7 mm).
+            let linear: &[f64] = if press.is_some() { &LINEAR_WEIGHTS } else { &[0.0] };
+            Regressor::GaussianProcess(GaussianProcess::fit(&points, &targets, linear).ok_or(LearnError::NotFitted)?)
         }
     };
-    Ok(LearnedModel { method, standardiser, regressor, forces })
+    Ok(LearnedModel { method, standardiser, regressor, forces, press })
 }
 
 impl LearnedModel {
-    /// Channels a frame must have.
-    pub fn channels(&self) -> usize {
-        self.standardiser.channels() - usize::from(self.method.features == Features::Shape)
+    /// The channels that carry nothing (constant, dead, not finite over the training presses),
+    /// left out (0-based).
+    pub fn dead_channels(&self) -> Vec<usize> {
+        match (&self.press, self.method.features) {
+            (Some(press), _) => press.dead().to_vec(),
+            (None, Features::Shape) => self.standardiser.dead().into_iter().filter(|&c| c < self.channels()).collect(),
+            (None, _) => self.standardiser.dead(),
+        }
     }
 
-    /// The answer for `frame` (its channels in protocol order; `channels()` of them). Allocates
-    /// nothing once `scratch` has grown.
-    pub fn predict(&self, frame: &[f64], scratch: &mut PredictScratch) -> Prediction {
+    /// Channels a frame must have.
+    pub fn channels(&self) -> usize {
+        match self.method.features {
+            Features::Raw => self.standardiser.channels(),
+            Features::Shape => self.standardiser.channels() - 1,
+            Features::Press => self.press.as_ref().map_or(0, PressFeatures::channels),
+        }
+    }
+
+    /// The answer for `frame` (its channels in protocol order; `channels()` of them); `None` for
+    /// press features of a frame that looks like no press. Allocates nothing once `scratch` has
+    /// grown.
+    pub fn predict(&self, frame: &[f64], scratch: &mut PredictScratch) -> Option<Prediction> {
         let used = self.standardiser.used().len();
-        self.method.features.of_into(frame, &mut scratch.features);
+        match &self.press {
+            Some(press) => {
+                if !press.features_into(frame, &mut scratch.press, &mut scratch.features) {
+                    return None;
+                }
+            }
+            None => self.method.features.of_into(frame, &mut scratch.features),
+        }
         scratch.z.resize(used, 0.0);
         self.standardiser.apply_into(&scratch.features, &mut scratch.z);
         let (mut out, mut std) = ([f64::NAN; 3], [f64::NAN; 3]);
@@ -309,12 +384,12 @@ impl LearnedModel {
                 true
             }
         };
-        Prediction {
+        Some(Prediction {
             position: [out[0], out[1]],
             force: self.forces.then_some(out[2]),
             position_std: gives_std.then(|| std[0].max(std[1])),
             force_std: (gives_std && self.forces).then_some(std[2]),
-        }
+        })
     }
 }
 
@@ -325,64 +400,80 @@ pub struct Errors {
     pub mean_position: f64,
     /// Root-mean-square force error, in N (when the presses have forces).
     pub force_rms: Option<f64>,
-    /// Presses the errors are over.
+    /// Presses the errors are over (those answered).
     pub presses: usize,
+    /// Presses the model gave no answer for (press features of a Δv like no press).
+    pub unanswered: usize,
 }
 
 /// The errors of `model` on `presses`.
 pub fn evaluate(model: &LearnedModel, presses: &[LabelledPress]) -> Errors {
     let mut scratch = PredictScratch::default();
-    let (mut distance, mut force, mut forced) = (0.0, 0.0, 0usize);
+    let (mut distance, mut force, mut forced, mut unanswered) = (0.0, 0.0, 0usize, 0usize);
     for p in presses {
-        let answer = model.predict(&p.inputs, &mut scratch);
+        let Some(answer) = model.predict(&p.inputs, &mut scratch) else {
+            unanswered += 1;
+            continue;
+        };
         distance += (answer.position[0] - p.position[0]).hypot(answer.position[1] - p.position[1]);
         if let (Some(a), Some(t)) = (answer.force, p.force) {
             force += (a - t) * (a - t);
             forced += 1;
         }
     }
-    let n = presses.len().max(1) as f64;
+    let answered = presses.len() - unanswered;
     Errors {
-        mean_position: distance / n,
+        mean_position: distance / answered.max(1) as f64,
         force_rms: (forced > 0).then(|| (force / forced as f64).sqrt()),
-        presses: presses.len(),
+        presses: answered,
+        unanswered,
     }
 }
 
 /// The errors of `method` by `folds`-fold cross-validation on `presses` (press i in fold
-/// i mod folds), pooled over the folds.
-pub fn cross_validate(presses: &[LabelledPress], method: Method, folds: usize) -> Result<Errors, LearnError> {
+/// i mod folds), pooled over the folds; press features need `sensor`.
+pub fn cross_validate(
+    presses: &[LabelledPress],
+    method: Method,
+    folds: usize,
+    sensor: Option<&NominalSensor>,
+) -> Result<Errors, LearnError> {
     let folds = folds.max(2);
     check(presses, 2 * folds)?;
-    let (mut distance, mut force, mut forced) = (0.0, 0.0, 0usize);
+    let (mut distance, mut force, mut forced, mut unanswered) = (0.0, 0.0, 0usize, 0usize);
     for fold in 0..folds {
         let (held, kept): (Vec<_>, Vec<_>) = presses.iter().enumerate().partition(|(i, _)| i % folds == fold);
         let kept: Vec<LabelledPress> = kept.into_iter().map(|(_, p)| p.clone()).collect();
         let held: Vec<LabelledPress> = held.into_iter().map(|(_, p)| p.clone()).collect();
-        let e = evaluate(&train(&kept, method)?, &held);
+        let e = evaluate(&train(&kept, method, sensor)?, &held);
         distance += e.mean_position * e.presses as f64;
+        unanswered += e.unanswered;
         if let Some(rms) = e.force_rms {
             force += rms * rms * e.presses as f64;
             forced += e.presses;
         }
     }
-    let n = presses.len() as f64;
+    let answered = presses.len() - unanswered;
     Ok(Errors {
-        mean_position: distance / n,
+        mean_position: distance / answered.max(1) as f64,
         force_rms: (forced > 0).then(|| (force / forced as f64).sqrt()),
-        presses: presses.len(),
+        presses: answered,
+        unanswered,
     })
 }
 
 /// The candidate with the smallest cross-validated mean position error, and every candidate's
-/// errors (in the order given).
+/// errors (in the order given); press features need `sensor`.
 pub fn choose(
     presses: &[LabelledPress],
     candidates: &[Method],
     folds: usize,
+    sensor: Option<&NominalSensor>,
 ) -> Result<(Method, Vec<(Method, Errors)>), LearnError> {
-    let scores: Vec<(Method, Errors)> =
-        candidates.iter().map(|&m| cross_validate(presses, m, folds).map(|e| (m, e))).collect::<Result<_, _>>()?;
+    let scores: Vec<(Method, Errors)> = candidates
+        .iter()
+        .map(|&m| cross_validate(presses, m, folds, sensor).map(|e| (m, e)))
+        .collect::<Result<_, _>>()?;
     let best = scores
         .iter()
         .min_by(|a, b| a.1.mean_position.total_cmp(&b.1.mean_position))
@@ -405,16 +496,20 @@ pub struct LearningCurve {
 }
 
 /// Every candidate's learning curve on `held_out`, trained on the first N of `training` for the
-/// sizes of [`CURVE_SIZES`] that `training` has.
-pub fn learning_curves(training: &[LabelledPress], held_out: &[LabelledPress]) -> Vec<LearningCurve> {
+/// sizes of [`CURVE_SIZES`] that `training` has; with press features when `sensor`.
+pub fn learning_curves(
+    training: &[LabelledPress],
+    held_out: &[LabelledPress],
+    sensor: Option<&NominalSensor>,
+) -> Vec<LearningCurve> {
     let sizes: Vec<usize> = CURVE_SIZES.into_iter().filter(|&n| n <= training.len()).collect();
-    Method::candidates()
+    Method::candidates(sensor.is_some())
         .into_iter()
         .map(|method| LearningCurve {
             method,
             points: sizes
                 .iter()
-                .map(|&n| (n, train(&training[..n], method).ok().map(|m| evaluate(&m, held_out))))
+                .map(|&n| (n, train(&training[..n], method, sensor).ok().map(|m| evaluate(&m, held_out))))
                 .collect(),
         })
         .collect()
@@ -426,7 +521,7 @@ mod tests {
 
     #[test]
     fn method_names_round_trip_and_bad_ones_are_refused() {
-        for method in Method::candidates() {
+        for method in Method::candidates(true) {
             assert_eq!(Method::from_name(&method.name()), Some(method));
         }
         assert_eq!(Method::from_name("knn-0"), None);
@@ -437,13 +532,13 @@ mod tests {
     fn presses_that_disagree_are_refused() {
         let press = |inputs: Vec<f64>, force| LabelledPress { inputs, position: [0.0, 0.0], force };
         let mixed = [press(vec![1.0, 2.0], Some(1.0)), press(vec![2.0, 1.0], None)];
-        assert_eq!(train(&mixed, Method::knn(1)).unwrap_err(), LearnError::MixedForces { press: 2 });
+        assert_eq!(train(&mixed, Method::knn(1), None).unwrap_err(), LearnError::MixedForces { press: 2 });
         let lengths = [press(vec![1.0, 2.0], None), press(vec![2.0], None)];
         assert_eq!(
-            train(&lengths, Method::knn(1)).unwrap_err().to_string(),
+            train(&lengths, Method::knn(1), None).unwrap_err().to_string(),
             "press 2 has 1 channels, the first press 2"
         );
         let flat = [press(vec![1.0], None), press(vec![1.0], None)];
-        assert_eq!(train(&flat, Method::knn(1)).unwrap_err(), LearnError::NoChannels);
+        assert_eq!(train(&flat, Method::knn(1), None).unwrap_err(), LearnError::NoChannels);
     }
 }

@@ -50,17 +50,22 @@ pub const MIN_DROP: f64 = 0.05;
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Scan {
     /// The response-grid index of each row.
-    points: Vec<usize>,
+    pub(crate) points: Vec<usize>,
     pub(crate) matrix: Mat<f64>,
     pub(crate) norms: Vec<f64>,
 }
 
 impl Scan {
     fn new(model: &PressModel) -> Scan {
+        Scan::with_stride(model, 2)
+    }
+
+    /// The scan of every `stride`-th point of the response grid each way.
+    pub(crate) fn with_stride(model: &PressModel, stride: usize) -> Scan {
         let [nx, ny] = model.grid.dims;
         let points: Vec<usize> = (0..ny)
-            .step_by(2)
-            .flat_map(|row| (0..nx).step_by(2).map(move |col| row * nx + col))
+            .step_by(stride)
+            .flat_map(|row| (0..nx).step_by(stride).map(move |col| row * nx + col))
             .filter(|&j| model.norms[j] > 0.0)
             .collect();
         let m = model.measurements;

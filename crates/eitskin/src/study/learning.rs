@@ -2,7 +2,7 @@
 //! presses of the imperfect virtual skin ([`crate::sim::imperfect`]).
 
 use super::StudyError;
-use crate::learn::{learning_curves, LearningCurve};
+use crate::learn::{learning_curves, LearningCurve, NominalSensor};
 use crate::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
 use crate::SensorSpec;
 
@@ -29,13 +29,14 @@ pub struct LearningReport {
 
 /// `training` robot presses (and [`HELD_OUT`] more) of `spec`'s imperfect skin, in a disc over
 /// 80 % of the half-width, each state the mean of 32 frames at the default 0.3 % noise, and
-/// every method's learning curve on them.
+/// every method's learning curve on them, press features on the spec's own sensor included.
 pub fn run(spec: &SensorSpec, training: usize, seed: u64) -> Result<LearningReport, StudyError> {
+    let sensor = NominalSensor::of_spec(spec, None)?;
     let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
     let mut skin = ImperfectSkin::new(spec, &imperfections, seed)?;
     let radius = disc_radius(&spec.outline, 0.8);
     let presses = skin.robot_presses(training, radius, 2.0..MAX_FORCE)?;
     let held = skin.robot_presses(HELD_OUT, radius, 2.0..MAX_FORCE)?;
-    let curves = learning_curves(&presses, &held);
+    let curves = learning_curves(&presses, &held, Some(&sensor));
     Ok(LearningReport { training, held_out: HELD_OUT, imperfections, curves, max_force: MAX_FORCE })
 }

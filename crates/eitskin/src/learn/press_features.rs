@@ -1,0 +1,180 @@
+//! Physics features: the press fitted to a frame's Δv on the sensor as specified: where (x, y,
+//! in m) and how strong (the log of its contrast). On a skin built roughly as specified, these are
+//! nearly the label already, so a regressor on them needs few presses to learn what is left: the
+//! outline's real size, the electrodes' real places, the gel's law.
+
+use super::{LabelledPress, LearnError, Standardiser};
+use crate::press_fit::{Locator, PressModel, PressModelParams, PressScratch};
+use crate::SensorSpec;
+
+/// The sensor as specified: its press model and its measurements without a press (V).
+#[derive(Debug, Clone)]
+pub struct NominalSensor {
+    press: PressModel,
+    background: Vec<f64>,
+}
+
+impl NominalSensor {
+    /// The sensor of press model `press` whose measurements without a press are `background`
+    /// (V, one per measurement of its protocol); `None` if their counts differ.
+    pub fn new(press: PressModel, background: Vec<f64>) -> Option<NominalSensor> {
+        (press.measurements() == background.len()).then_some(NominalSensor { press, background })
+    }
+
+    /// The sensor of `spec` on its own mesh, with `press` as its press model (built with the
+    /// default indenter when `None`: a fraction of a second at 4,000 triangles).
+    pub fn of_spec(spec: &SensorSpec, press: Option<PressModel>) -> Result<NominalSensor, LearnError> {
+        let model = spec.forward_model()?;
+        let background = model.measure(&spec.homogeneous(model.mesh()))?;
+        let press = match press {
+            Some(press) => press,
+            None => PressModel::new(&model, spec.conductivity, &PressModelParams::default())?,
+        };
+        let (expected, got) = (background.len(), press.measurements());
+        NominalSensor::new(press, background).ok_or(crate::InverseError::FrameLength { expected, got }.into())
+    }
+
+    /// Measurements per frame.
+    pub fn measurements(&self) -> usize {
+        self.background.len()
+    }
+}
+
+/// The press features of Δv: each channel weighted (its sign for magnitudes, its relative noise,
+/// 0 for a dead one), then one press placed anywhere on the sheet.
+#[derive(Debug, Clone)]
+pub struct PressFeatures {
+    locator: Locator,
+    /// Per channel: sign / |background| (the noise of a board is relative), 0 for a dead channel.
+    weights: Vec<f64>,
+    /// Whether Δv is read as a change of magnitudes, Δ|v|.
+    pub magnitudes: bool,
+    /// The channels constant over the training presses (0-based), left out.
+    dead: Vec<usize>,
+}
+
+/// Buffers for [`PressFeatures::features_into`].
+#[derive(Debug, Default)]
+pub struct FeatureScratch {
+    weighted: Vec<f64>,
+    press: PressScratch,
+}
+
+impl PressFeatures {
+    /// The features for presses like `presses`: the channels constant over them are left out,
+    /// and Δv is read as a change of magnitudes or of signed values, whichever the presses match
+    /// better (the larger sum of the fitted presses' z²). An error if a press's Δv has another
+    /// length than the sensor's measurements, or looks like no press.
+    pub fn fit(sensor: &NominalSensor, presses: &[LabelledPress]) -> Result<PressFeatures, LearnError> {
+        let m = sensor.measurements();
+        if let Some((i, p)) = presses.iter().enumerate().find(|(_, p)| p.inputs.len() != m) {
+            return Err(LearnError::Channels { press: i + 1, expected: m, got: p.inputs.len() });
+        }
+        let inputs: Vec<Vec<f64>> = presses.iter().map(|p| p.inputs.clone()).collect();
+        let standardiser = Standardiser::fit(&inputs);
+        let mut used = vec![false; m];
+        standardiser.used().iter().for_each(|&c| used[c] = true);
+        let noise: Vec<f64> = sensor.background.iter().map(|v| v.abs()).collect();
+        let locator = Locator::new(sensor.press.masked(&used).whitened(&noise));
+        let dead = standardiser.dead();
+        let weights = |magnitudes: bool| -> Vec<f64> {
+            sensor
+                .background
+                .iter()
+                .zip(&used)
+                .map(|(v, &u)| {
+                    if !u || *v == 0.0 {
+                        0.0
+                    } else if magnitudes {
+                        v.signum() / v.abs()
+                    } else {
+                        1.0 / v.abs()
+                    }
+                })
+                .collect()
+        };
+        let conventions = if sensor.background.iter().any(|v| *v < 0.0) { vec![false, true] } else { vec![false] };
+        let mut best: Option<(f64, PressFeatures)> = None;
+        for magnitudes in conventions {
+            let features = PressFeatures {
+                locator: locator.clone(),
+                weights: weights(magnitudes),
+                magnitudes,
+                dead: dead.clone(),
+            };
+            let mut scratch = FeatureScratch::default();
+            let mut evidence = 0.0;
+            for p in presses {
+                evidence += features.fit_into(&p.inputs, &mut scratch).map_or(0.0, |f| f.z * f.z);
+            }
+            if best.as_ref().is_none_or(|(b, _)| evidence > *b) {
+                best = Some((evidence, features));
+            }
+        }
+        let (_, features) = best.ok_or(LearnError::NoChannels)?;
+        let mut scratch = FeatureScratch::default();
+        for (i, p) in presses.iter().enumerate() {
+            features.fit_into(&p.inputs, &mut scratch).ok_or(LearnError::NotAPress { press: i + 1 })?;
+        }
+        Ok(features)
+    }
+
+    /// The channels left out as constant over the training presses (0-based).
+    pub fn dead(&self) -> &[usize] {
+        &self.dead
+    }
+
+    /// Channels a Δv must have.
+    pub fn channels(&self) -> usize {
+        self.weights.len()
+    }
+
+    /// The fitted press of `dv`.
+    fn fit_into(&self, dv: &[f64], scratch: &mut FeatureScratch) -> Option<crate::press_fit::PressFit> {
+        if dv.len() != self.weights.len() {
+            return None;
+        }
+        scratch.weighted.clear();
+        scratch.weighted.extend(dv.iter().zip(&self.weights).map(|(v, w)| if *w == 0.0 { 0.0 } else { v * w }));
+        self.locator.locate_into(&scratch.weighted, &mut scratch.press)
+    }
+
+    /// The features of `dv` into `out` (cleared): the fitted press's x and y (m) and the log of
+    /// its contrast; false (and `out` empty) where `dv` looks like no press. Allocates nothing
+    /// once `scratch` and `out` have grown.
+    pub fn features_into(&self, dv: &[f64], scratch: &mut FeatureScratch, out: &mut Vec<f64>) -> bool {
+        out.clear();
+        match self.fit_into(dv, scratch) {
+            Some(fit) if fit.contrast > 0.0 => {
+                out.extend([fit.centre[0], fit.centre[1], fit.contrast.ln()]);
+                true
+            }
+            _ => false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::imperfect::{ImperfectSkin, Imperfections};
+
+    /// Whether a board sends magnitudes or signed values is read from its presses (on a protocol
+    /// whose background has both signs), and a Δv like no press is refused with its number.
+    #[test]
+    fn magnitudes_are_told_from_signed_values_by_the_presses() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 1500;
+        spec.protocol = crate::ProtocolSpec::Opposite;
+        let sensor = NominalSensor::of_spec(&spec, None).unwrap();
+        assert!(sensor.background.iter().any(|v| *v < 0.0) && sensor.background.iter().any(|v| *v > 0.0));
+        for magnitudes in [false, true] {
+            let imperfections = Imperfections { magnitudes, frames_per_press: 8, ..Imperfections::default() };
+            let mut skin = ImperfectSkin::new(&spec, &imperfections, 3).unwrap();
+            let mut presses = skin.robot_presses(20, 0.07, 4.0..16.0).unwrap();
+            assert_eq!(PressFeatures::fit(&sensor, &presses).unwrap().magnitudes, magnitudes);
+            presses[7].inputs.fill(0.0);
+            assert_eq!(PressFeatures::fit(&sensor, &presses).unwrap_err(), LearnError::NotAPress { press: 8 });
+        }
+    }
+}
