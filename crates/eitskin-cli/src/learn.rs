@@ -71,6 +71,9 @@ pub struct PressesArgs {
     /// drift or magnitude error; noise and averaging still apply).
     #[arg(long)]
     perfect: bool,
+    /// The skin built as a circle of the outline's area (10 % larger), not the spec's outline.
+    #[arg(long, conflicts_with = "perfect")]
+    circle: bool,
     /// Seed of the skin's errors, the presses and the noise, 0–2⁶⁴−1.
     #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     seed: u64,
@@ -225,8 +228,12 @@ pub fn presses_run(args: PressesArgs) -> Result<()> {
     } else {
         Imperfections::default()
     };
-    let imperfections =
-        Imperfections { noise_relative: args.noise, frames_per_press: args.frames_per_press, ..imperfections };
+    let imperfections = Imperfections {
+        noise_relative: args.noise,
+        frames_per_press: args.frames_per_press,
+        circle: args.circle,
+        ..imperfections
+    };
     let radius = disc_radius(&spec.outline, args.radius);
     let started = Instant::now();
     let mut skin = ImperfectSkin::new(&spec, &imperfections, args.seed)?;

@@ -92,14 +92,20 @@ pub fn built_spec(spec: &SensorSpec, imperfections: &Imperfections, rng: &mut St
             Outline::Polygon { points: points.iter().map(|p| [s * p[0], s * p[1]]).collect() }
         }
     };
-    // The electrodes where the spec puts them on the built outline, each moved along it.
-    let perimeter = built.outline.perimeter();
-    let nominal = SensorSpec { outline: built.outline.clone(), ..spec.clone() }.electrode_positions()?;
+    // The electrodes where the spec puts them, carried to the built outline along the ray from
+    // the centre (else at the same fraction of the perimeter), each moved along it.
+    let (perimeter, spec_perimeter) = (built.outline.perimeter(), spec.outline.perimeter());
     let shift = imperfections.electrode_shift;
-    let positions = nominal
+    let positions = spec
+        .electrode_positions()?
         .iter()
         .map(|e| {
-            let moved = e.centre + if shift > 0.0 { rng.random_range(-shift..=shift) } else { 0.0 };
+            let p = spec.outline.point_at(e.centre);
+            let carried = built
+                .outline
+                .arc_length_at_angle(p[1].atan2(p[0]).to_degrees())
+                .unwrap_or(e.centre / spec_perimeter * perimeter);
+            let moved = carried + if shift > 0.0 { rng.random_range(-shift..=shift) } else { 0.0 };
             built.outline.point_at(moved.rem_euclid(perimeter))
         })
         .collect();
@@ -191,5 +197,32 @@ impl ImperfectSkin {
                 Ok(LabelledPress { inputs: self.press(position, force)?, position, force: Some(force) })
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Without shifts, a larger outline carries each electrode out along its ray from the centre,
+    /// onto a circle too (where the spec's per-side placement has no meaning).
+    #[test]
+    fn electrodes_are_carried_to_the_built_outline_along_their_rays() {
+        let spec = SensorSpec::square_hydrogel();
+        let points = |s: &SensorSpec| -> Vec<[f64; 2]> {
+            s.electrode_positions().unwrap().iter().map(|e| s.outline.point_at(e.centre)).collect()
+        };
+        let nominal = points(&spec);
+        for circle in [false, true] {
+            let imperfections = Imperfections { circle, electrode_shift: 0.0, ..Imperfections::default() };
+            let built = built_spec(&spec, &imperfections, &mut StdRng::seed_from_u64(1)).unwrap();
+            for (a, b) in nominal.iter().zip(points(&built)) {
+                let turn = a[1].atan2(a[0]) - b[1].atan2(b[0]);
+                assert!(turn.sin().abs() < 1e-9 && turn.cos() > 0.0, "{a:?} → {b:?}");
+                if !circle {
+                    assert!((b[0] - 1.1 * a[0]).abs() < 1e-9 && (b[1] - 1.1 * a[1]).abs() < 1e-9, "{a:?} → {b:?}");
+                }
+            }
+        }
     }
 }
