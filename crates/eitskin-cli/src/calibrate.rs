@@ -215,7 +215,7 @@ impl Labelled {
         let u = spec.length_unit.symbol();
         let mut peaks = Vec::new();
         let mut frames = Vec::new();
-        for (k, SampleRow { location, force, measured }) in rows.into_iter().enumerate() {
+        for (k, SampleRow { location, force, measured, .. }) in rows.into_iter().enumerate() {
             let position = match location {
                 Location::Unit(unit) if unit < array.unit_count() => array.unit_centre(unit),
                 Location::Unit(unit) => {

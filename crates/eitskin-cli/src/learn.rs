@@ -17,8 +17,8 @@ use crate::{load, outputs, ranges};
 pub struct Args {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
-    /// Samples file (CSV): `x`, `y` (the spec's units), optional `force` (N), then each press's
-    /// channels (Δv, or frames) in protocol order.
+    /// Samples file (CSV): `x`, `y` (the spec's units), optional `force` (N) and `depth` (the
+    /// spec's units), then each press's channels (Δv, or frames) in protocol order.
     #[arg(long)]
     samples: PathBuf,
     /// Write the chosen model here (JSON).
@@ -133,10 +133,13 @@ pub fn run(args: Args) -> Result<()> {
         training.len(),
         started.elapsed().as_secs_f64()
     );
-    println!("  {:14} {:>14} {:>14}", "method", "position (mm)", "force RMS (N)");
+    let depths = training.first().is_some_and(|p| p.depth.is_some());
+    let depth_header = if depths { format!(" {:>14}", "depth RMS (mm)") } else { String::new() };
+    println!("  {:14} {:>14} {:>14}{depth_header}", "method", "position (mm)", "force RMS (N)");
     for (m, e) in &scores {
         let force = e.force_rms.map_or("—".into(), |f| format!("{f:.2}"));
-        println!("  {:14} {:>14.1} {:>14}", m.name(), mm(e.mean_position), force);
+        let depth = e.depth_rms.map_or(String::new(), |d| format!(" {:>14.3}", mm(d)));
+        println!("  {:14} {:>14.1} {:>14}{depth}", m.name(), mm(e.mean_position), force);
     }
     let method = forced.unwrap_or(method);
     let started = Instant::now();
@@ -150,8 +153,9 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(held) = &held_out {
         let e = evaluate(&model, held);
         let force = e.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"));
+        let depth = e.depth_rms.map_or(String::new(), |d| format!(", depth RMS {:.3} mm", mm(d)));
         println!(
-            "on {} held-out presses: mean position error {:.1} mm{force}{}",
+            "on {} held-out presses: mean position error {:.1} mm{force}{depth}{}",
             e.presses,
             mm(e.mean_position),
             unanswered(&e)
@@ -171,16 +175,19 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// Every method trained on the first N presses, its errors on `held`, as tables: mean position
-/// error, and force RMS when the presses have forces.
+/// error, and force and depth RMS when the presses have them.
 fn learning_curves(training: &[LabelledPress], held: &[LabelledPress], sensor: Option<&NominalSensor>) {
     let curves = eitskin::learn::learning_curves(training, held, sensor);
     let header: String = curves
         .first()
         .map_or(String::new(), |c| c.points.iter().map(|(n, _)| format!("{:>9}", format!("N={n}"))).collect());
-    let forces = held.iter().all(|p| p.force.is_some());
-    let tables: [(&str, usize, &crate::report::Reading<'_>); 2] =
-        [("mean position error (mm)", 1, &|e| Some(e.mean_position * 1e3)), ("force RMS (N)", 2, &|e| e.force_rms)];
-    for (title, digits, reading) in tables.iter().take(if forces { 2 } else { 1 }) {
+    let labelled = |label: fn(&LabelledPress) -> bool| !held.is_empty() && held.iter().all(label);
+    let tables: [(&str, usize, bool, &crate::report::Reading<'_>); 3] = [
+        ("mean position error (mm)", 1, true, &|e| Some(e.mean_position * 1e3)),
+        ("force RMS (N)", 2, labelled(|p| p.force.is_some()), &|e| e.force_rms),
+        ("depth RMS (mm)", 3, labelled(|p| p.depth.is_some()), &|e| e.depth_rms.map(|d| d * 1e3)),
+    ];
+    for (title, digits, _, reading) in tables.iter().filter(|t| t.2) {
         println!("learning curves: {title} on {} held-out presses", held.len());
         println!("  {:14}{header}", "method");
         for curve in &curves {
@@ -262,6 +269,9 @@ pub fn evaluate_model(spec: &SensorSpec, model: &std::path::Path, samples: &std:
         e.mean_position * 1e3,
         unanswered(&e)
     );
+    if let Some(rms) = e.depth_rms {
+        println!("depth RMS {:.3} mm", rms * 1e3);
+    }
     if let Some(rms) = e.force_rms {
         let largest = held.iter().filter_map(|p| p.force).fold(0.0, f64::max);
         println!(

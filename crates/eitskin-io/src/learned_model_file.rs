@@ -6,7 +6,7 @@
 //! {"format": "eitskin-learned-model", "version": 1, "protocol": "two-terminal", "channels": 120,
 //!  "method": "gp-shape", "presses": [{"x": 0.01, "y": -0.02, "force": 5.0, "inputs": [...]}, ...]}
 //! ```
-//! Positions in m, forces in N.
+//! Positions in m, forces in N; a press may also have a `depth`, in m.
 
 use std::path::Path;
 
@@ -38,6 +38,8 @@ struct PressJson {
     y: f64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     force: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    depth: Option<f64>,
     inputs: Vec<f64>,
 }
 
@@ -51,7 +53,13 @@ pub fn learned_model_to_json(spec: &SensorSpec, method: Method, presses: &[Label
         method: method.name(),
         presses: presses
             .iter()
-            .map(|p| PressJson { x: p.position[0], y: p.position[1], force: p.force, inputs: p.inputs.clone() })
+            .map(|p| PressJson {
+                x: p.position[0],
+                y: p.position[1],
+                force: p.force,
+                depth: p.depth,
+                inputs: p.inputs.clone(),
+            })
             .collect(),
     };
     serde_json::to_string(&file).map_err(|e| Error::Json { path: None, message: e.to_string() })
@@ -107,7 +115,7 @@ pub fn parse_learned_model(
     let presses: Vec<LabelledPress> = file
         .presses
         .into_iter()
-        .map(|p| LabelledPress { inputs: p.inputs, position: [p.x, p.y], force: p.force })
+        .map(|p| LabelledPress { inputs: p.inputs, position: [p.x, p.y], force: p.force, depth: p.depth })
         .collect();
     let sensor = (method.features == Features::Press).then(|| nominal_sensor(spec, cache)).transpose()?;
     train(&presses, method, sensor.as_ref()).map_err(|e| key("presses", e.to_string()))
@@ -127,12 +135,14 @@ mod tests {
                     inputs: vec![x, 2.0 * x + 0.1, (x * 7.0).sin()],
                     position: [x, -x],
                     force: Some(x * 100.0),
+                    depth: Some(x * 0.01),
                 }
             })
             .collect();
         let text = learned_model_to_json(&spec, Method::knn(1), &presses).unwrap();
         let model = parse_learned_model(&text, &spec, 3, None).unwrap();
         assert_eq!(model.method, Method::knn(1));
+        assert!(model.forces && model.depths);
         let err = parse_learned_model(&text, &spec, 120, None).unwrap_err().to_string();
         assert_eq!(err, "`channels` is 3, but the sensor's frames have 120 values");
         let mut other = spec.clone();

@@ -3,8 +3,9 @@
 //!
 //! Columns, by name: `unit` (counted from 1) or `x`, `y` (in the spec's units, from the
 //! outline's centre); `force` (N, 0 or more; a calibration needs it, a learned position model
-//! does not); then either `peak` (S/m) or the frame's measurements (or Δv) in protocol order in
-//! all remaining columns. Lines starting with `#` are comments.
+//! does not); `depth` (how far the indenter went in, in the spec's units, 0 or more; optional,
+//! learned like the force); then either `peak` (S/m) or the frame's measurements (or Δv) in
+//! protocol order in all remaining columns. Lines starting with `#` are comments.
 
 use std::path::Path;
 
@@ -37,6 +38,8 @@ pub struct SampleRow {
     pub location: Location,
     /// Force, in N, when the file has a `force` column.
     pub force: Option<f64>,
+    /// The indenter's depth, in m, when the file has a `depth` column.
+    pub depth: Option<f64>,
     /// The peak or the frame.
     pub measured: Measured,
 }
@@ -65,11 +68,13 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
         _ => return Err(fail(1, "needs a `unit` column or `x` and `y` columns".into())),
     };
     let force = column("force");
+    let depth = column("depth");
     let peak = column("peak");
-    let used: Vec<usize> = [force, peak, location.ok(), location.err().map(|p| p.0), location.err().map(|p| p.1)]
-        .into_iter()
-        .flatten()
-        .collect();
+    let used: Vec<usize> =
+        [force, depth, peak, location.ok(), location.err().map(|p| p.0), location.err().map(|p| p.1)]
+            .into_iter()
+            .flatten()
+            .collect();
     let mut rows = Vec::new();
     for (n, line) in lines {
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
@@ -96,18 +101,22 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
                 (0..fields.len()).filter(|k| !used.contains(k)).map(number).collect::<Result<Vec<f64>, Error>>()?,
             ),
         };
-        let force = match force {
-            Some(k) => {
-                let newtons = number(k)?;
-                if newtons < 0.0 {
-                    let text = fields.get(k).copied().unwrap_or("");
-                    return Err(fail(n + 1, format!("force {text} N is negative: a press's force is 0 N or more")));
-                }
-                Some(newtons)
+        // A force (N) or depth (the spec's unit) of 0 or more, as written.
+        let label = |k: Option<usize>, what: &str, unit: &str| -> Result<Option<f64>, Error> {
+            let Some(k) = k else { return Ok(None) };
+            let value = number(k)?;
+            if value < 0.0 {
+                let text = fields.get(k).copied().unwrap_or("");
+                return Err(fail(
+                    n + 1,
+                    format!("{what} {text}{unit} is negative: a press's {what} is 0{unit} or more"),
+                ));
             }
-            None => None,
+            Ok(Some(value))
         };
-        rows.push(SampleRow { location, force, measured });
+        let force = label(force, "force", " N")?;
+        let depth = label(depth, "depth", "")?.map(|d| d * metres);
+        rows.push(SampleRow { location, force, depth, measured });
     }
     Ok(rows)
 }
@@ -126,21 +135,25 @@ pub fn read_labelled_presses(path: &Path, metres: f64) -> Result<Vec<LabelledPre
             let Measured::Frame(inputs) = row.measured else {
                 return Err(fail(format!("sample {}: a learned model needs the channels, not a peak", k + 1)));
             };
-            Ok(LabelledPress { inputs, position, force: row.force })
+            Ok(LabelledPress { inputs, position, force: row.force, depth: row.depth })
         })
         .collect()
 }
 
 /// Labelled presses as a samples file: a `#` comment line, then `x`, `y` (in units of `metres`
-/// m), `force` (N, when every press has one) and the channels `v1`… .
+/// m), `force` (N) and `depth` (in units of `metres` m) when every press has one, and the
+/// channels `v1`… .
 pub fn labelled_presses_to_csv(presses: &[LabelledPress], metres: f64, comment: &str) -> String {
     let forces = !presses.is_empty() && presses.iter().all(|p| p.force.is_some());
+    let depths = !presses.is_empty() && presses.iter().all(|p| p.depth.is_some());
     let channels: Vec<String> = (1..=presses.first().map_or(0, |p| p.inputs.len())).map(|c| format!("v{c}")).collect();
-    let mut text = format!("# {comment}\nx,y,{}{}\n", if forces { "force," } else { "" }, channels.join(","));
+    let labels = format!("{}{}", if forces { "force," } else { "" }, if depths { "depth," } else { "" });
+    let mut text = format!("# {comment}\nx,y,{labels}{}\n", channels.join(","));
     for p in presses {
         let values: Vec<String> = p.inputs.iter().map(|v| format!("{v:e}")).collect();
         let force = p.force.filter(|_| forces).map_or(String::new(), |f| format!("{f},"));
-        text += &format!("{},{},{force}{}\n", p.position[0] / metres, p.position[1] / metres, values.join(","));
+        let depth = p.depth.filter(|_| depths).map_or(String::new(), |d| format!("{},", d / metres));
+        text += &format!("{},{},{force}{depth}{}\n", p.position[0] / metres, p.position[1] / metres, values.join(","));
     }
     text
 }
@@ -154,7 +167,7 @@ mod tests {
         let rows = parse_samples("# from the study\nunit,force,peak\n1,0,0.001\n25,15,0.2\n", 1e-3).unwrap();
         assert_eq!(
             rows[1],
-            SampleRow { location: Location::Unit(24), force: Some(15.0), measured: Measured::Peak(0.2) }
+            SampleRow { location: Location::Unit(24), force: Some(15.0), depth: None, measured: Measured::Peak(0.2) }
         );
         let rows = parse_samples("x,y,force,v1,v2,v3\n10,-20,5,1.5,2.5,3.5\n", 1e-3).unwrap();
         assert_eq!(rows[0].location, Location::Point([0.01, -0.02]));
@@ -165,12 +178,19 @@ mod tests {
 
     #[test]
     fn labelled_presses_round_trip() {
-        let press = |x: f64, force| LabelledPress { inputs: vec![x, -2.5e-7], position: [x, 0.25 * x], force };
-        for presses in [vec![press(0.01, Some(3.5)), press(-0.02, Some(0.0))], vec![press(0.03, None)]] {
+        let press =
+            |x: f64, force, depth| LabelledPress { inputs: vec![x, -2.5e-7], position: [x, 0.25 * x], force, depth };
+        for presses in [
+            vec![press(0.01, Some(3.5), None), press(-0.02, Some(0.0), None)],
+            vec![press(0.03, None, None)],
+            vec![press(0.03, None, Some(0.002)), press(0.01, None, Some(0.0))],
+            vec![press(0.03, Some(2.0), Some(0.002))],
+        ] {
             let text = labelled_presses_to_csv(&presses, 1e-3, "test");
             let rows = parse_samples(&text, 1e-3).unwrap();
             for (row, p) in rows.iter().zip(&presses) {
                 assert_eq!(row.force, p.force);
+                assert_eq!(row.depth.map(|d| (d * 1e9).round()), p.depth.map(|d| (d * 1e9).round()), "{text}");
                 assert_eq!(row.measured, Measured::Frame(p.inputs.clone()));
                 let Location::Point(at) = row.location else { panic!("{row:?}") };
                 assert!((at[0] - p.position[0]).abs() < 1e-15 && (at[1] - p.position[1]).abs() < 1e-15);
@@ -187,5 +207,7 @@ mod tests {
         assert!(parse_samples("force,peak\n1,2\n", 1.0).unwrap_err().to_string().contains("`unit` column"));
         let err = parse_samples("unit,force,peak\n1,2,1\n2,-0.5,1\n", 1.0).unwrap_err().to_string();
         assert_eq!(err, "`samples` line 3: force -0.5 N is negative: a press's force is 0 N or more");
+        let err = parse_samples("x,y,depth,v1\n1,2,-3,1\n", 1e-3).unwrap_err().to_string();
+        assert_eq!(err, "`samples` line 2: depth -3 is negative: a press's depth is 0 or more");
     }
 }

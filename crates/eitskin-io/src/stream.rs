@@ -176,6 +176,12 @@ pub struct Learned {
     /// The force's standard deviation, in N.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub force_std: Option<f64>,
+    /// The indenter's depth, in the length unit, when the model learned depths.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth: Option<f64>,
+    /// The depth's standard deviation, in the length unit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_std: Option<f64>,
 }
 
 impl Learned {
@@ -187,6 +193,8 @@ impl Learned {
             force: p.force,
             position_std: p.position_std.map(|s| s / metres),
             force_std: p.force_std,
+            depth: p.depth.map(|d| d / metres),
+            depth_std: p.depth_std.map(|s| s / metres),
         }
     }
 }

@@ -81,3 +81,35 @@ fn press_features_learn_an_imperfect_skin_from_100_presses() {
     let refused = train(&training, Method::from_name("gp-press").unwrap(), None).unwrap_err();
     assert_eq!(refused, eitskin::learn::LearnError::NoSensor);
 }
+
+/// A robot that sets depth, not force: presses labelled with the indenter's depth only (here a
+/// Hertz-like 0.4 mm·(F/16 N)^(2/3)) teach depth, with an uncertainty, and no force.
+#[test]
+fn depths_are_learned_when_the_presses_have_them() {
+    let mut spec = SensorSpec::square_hydrogel();
+    spec.mesh.triangles = 2000;
+    let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
+    let mut skin = ImperfectSkin::new(&spec, &imperfections, 13).unwrap();
+    let by_depth = |presses: Vec<eitskin::learn::LabelledPress>| -> Vec<eitskin::learn::LabelledPress> {
+        presses
+            .into_iter()
+            .map(|p| {
+                let depth = p.force.map(|f| 4e-4 * (f / 16.0).powf(2.0 / 3.0));
+                eitskin::learn::LabelledPress { force: None, depth, ..p }
+            })
+            .collect()
+    };
+    let training = by_depth(skin.robot_presses(100, 0.08, 2.0..16.0).unwrap());
+    let held_out = by_depth(skin.robot_presses(100, 0.08, 2.0..16.0).unwrap());
+    let sensor = NominalSensor::of_spec(&spec, None).unwrap();
+    let model = train(&training, Method::from_name("gp-press").unwrap(), Some(&sensor)).unwrap();
+    let errors = evaluate(&model, &held_out);
+    eprintln!("depth RMS {:.1} µm of 400 µm", errors.depth_rms.unwrap() * 1e6);
+    assert!(errors.force_rms.is_none() && errors.depth_rms.unwrap() < 0.1 * 4e-4, "{errors:?}");
+    let answer = model.predict(&held_out[0].inputs, &mut PredictScratch::default()).unwrap();
+    assert!(answer.force.is_none() && answer.depth_std.is_some_and(|s| s > 0.0), "{answer:?}");
+    let mut mixed = training.clone();
+    mixed[3].depth = None;
+    let refused = train(&mixed, Method::knn(5), None).unwrap_err();
+    assert_eq!(refused, eitskin::learn::LearnError::MixedDepths { press: 4 });
+}

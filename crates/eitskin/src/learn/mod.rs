@@ -20,7 +20,7 @@
 //! let presses: Vec<LabelledPress> = (0..81)
 //!     .map(|i| {
 //!         let (x, y) = ((i % 9) as f64 / 8.0 - 0.5, (i / 9) as f64 / 8.0 - 0.5);
-//!         LabelledPress { inputs: frame(x, y), position: [x, y], force: None }
+//!         LabelledPress { inputs: frame(x, y), position: [x, y], force: None, depth: None }
 //!     })
 //!     .collect();
 //! // Every candidate's cross-validated error; here the Gaussian process on raw channels.
@@ -72,6 +72,12 @@ pub enum LearnError {
         /// 1-based press.
         press: usize,
     },
+    /// Some presses have a depth and some do not.
+    #[error("press {press} has no depth while others have one: label every press's depth or none")]
+    MixedDepths {
+        /// 1-based press.
+        press: usize,
+    },
     /// Every channel is dead.
     #[error("every channel is constant or not finite over the training presses: nothing to learn from")]
     NoChannels,
@@ -107,6 +113,8 @@ pub struct LabelledPress {
     pub position: [f64; 2],
     /// How hard, in N, when labelled.
     pub force: Option<f64>,
+    /// How deep the indenter went, in m, when labelled (a robot that sets depth, not force).
+    pub depth: Option<f64>,
 }
 
 /// A way to learn: a regressor on one kind of feature.
@@ -229,6 +237,8 @@ pub struct LearnedModel {
     pub regressor: Regressor,
     /// Whether it gives forces.
     pub forces: bool,
+    /// Whether it gives depths.
+    pub depths: bool,
     /// The fitted press, for press features.
     pub press: Option<PressFeatures>,
 }
@@ -245,6 +255,10 @@ pub struct Prediction {
     pub position_std: Option<f64>,
     /// The predictive standard deviation of the force, in N.
     pub force_std: Option<f64>,
+    /// How deep, in m, when the model was trained with depths.
+    pub depth: Option<f64>,
+    /// The predictive standard deviation of the depth, in m.
+    pub depth_std: Option<f64>,
 }
 
 /// Buffers for [`LearnedModel::predict`], grown on first use.
@@ -257,13 +271,13 @@ pub struct PredictScratch {
     gp: GpScratch,
 }
 
-/// Checks the presses agree in channels and in having forces; the channel count.
-fn check(presses: &[LabelledPress], needed: usize) -> Result<(usize, bool), LearnError> {
+/// Checks the presses agree in channels and in having forces and depths; whether they have each.
+fn check(presses: &[LabelledPress], needed: usize) -> Result<(bool, bool), LearnError> {
     if presses.len() < needed {
         return Err(LearnError::TooFewPresses { got: presses.len(), needed });
     }
     let expected = presses[0].inputs.len();
-    let forces = presses[0].force.is_some();
+    let (forces, depths) = (presses[0].force.is_some(), presses[0].depth.is_some());
     for (i, p) in presses.iter().enumerate() {
         if p.inputs.len() != expected {
             return Err(LearnError::Channels { press: i + 1, expected, got: p.inputs.len() });
@@ -271,18 +285,21 @@ fn check(presses: &[LabelledPress], needed: usize) -> Result<(usize, bool), Lear
         if p.force.is_some() != forces {
             return Err(LearnError::MixedForces { press: i + 1 });
         }
+        if p.depth.is_some() != depths {
+            return Err(LearnError::MixedDepths { press: i + 1 });
+        }
     }
-    Ok((expected, forces))
+    Ok((forces, depths))
 }
 
-/// Trains `method` on `presses` (at least 2, all with forces or none); press features need
-/// `sensor`.
+/// Trains `method` on `presses` (at least 2, all with forces or none, all with depths or none);
+/// press features need `sensor`.
 pub fn train(
     presses: &[LabelledPress],
     method: Method,
     sensor: Option<&NominalSensor>,
 ) -> Result<LearnedModel, LearnError> {
-    let (_, forces) = check(presses, 2)?;
+    let (forces, depths) = check(presses, 2)?;
     let press = match method.features {
         Features::Press => Some(PressFeatures::fit(sensor.ok_or(LearnError::NoSensor)?, presses)?),
         _ => None,
@@ -322,6 +339,7 @@ pub fn train(
         .map(|p| {
             let mut t = p.position.to_vec();
             t.extend(p.force);
+            t.extend(p.depth);
             t
         })
         .collect();
@@ -334,7 +352,7 @@ pub fn train(
             Regressor::GaussianProcess(GaussianProcess::fit(&points, &targets, linear).ok_or(LearnError::NotFitted)?)
         }
     };
-    Ok(LearnedModel { method, standardiser, regressor, forces, press })
+    Ok(LearnedModel { method, standardiser, regressor, forces, depths, press })
 }
 
 impl LearnedModel {
@@ -372,8 +390,8 @@ impl LearnedModel {
         }
         scratch.z.resize(used, 0.0);
         self.standardiser.apply_into(&scratch.features, &mut scratch.z);
-        let (mut out, mut std) = ([f64::NAN; 3], [f64::NAN; 3]);
-        let outputs = if self.forces { 3 } else { 2 };
+        let (mut out, mut std) = ([f64::NAN; 4], [f64::NAN; 4]);
+        let outputs = 2 + usize::from(self.forces) + usize::from(self.depths);
         let gives_std = match &self.regressor {
             Regressor::Knn(knn) => {
                 knn.predict_into(&scratch.z, &mut scratch.nearest, &mut out[..outputs]);
@@ -384,11 +402,15 @@ impl LearnedModel {
                 true
             }
         };
+        // Outputs: x, y, then the force and the depth when trained with them.
+        let depth = 2 + usize::from(self.forces);
         Some(Prediction {
             position: [out[0], out[1]],
             force: self.forces.then_some(out[2]),
             position_std: gives_std.then(|| std[0].max(std[1])),
             force_std: (gives_std && self.forces).then_some(std[2]),
+            depth: self.depths.then_some(out[depth]),
+            depth_std: (gives_std && self.depths).then_some(std[depth]),
         })
     }
 }
@@ -400,6 +422,8 @@ pub struct Errors {
     pub mean_position: f64,
     /// Root-mean-square force error, in N (when the presses have forces).
     pub force_rms: Option<f64>,
+    /// Root-mean-square depth error, in m (when the presses have depths).
+    pub depth_rms: Option<f64>,
     /// Presses the errors are over (those answered).
     pub presses: usize,
     /// Presses the model gave no answer for (press features of a Δv like no press).
@@ -408,26 +432,9 @@ pub struct Errors {
 
 /// The errors of `model` on `presses`.
 pub fn evaluate(model: &LearnedModel, presses: &[LabelledPress]) -> Errors {
-    let mut scratch = PredictScratch::default();
-    let (mut distance, mut force, mut forced, mut unanswered) = (0.0, 0.0, 0usize, 0usize);
-    for p in presses {
-        let Some(answer) = model.predict(&p.inputs, &mut scratch) else {
-            unanswered += 1;
-            continue;
-        };
-        distance += (answer.position[0] - p.position[0]).hypot(answer.position[1] - p.position[1]);
-        if let (Some(a), Some(t)) = (answer.force, p.force) {
-            force += (a - t) * (a - t);
-            forced += 1;
-        }
-    }
-    let answered = presses.len() - unanswered;
-    Errors {
-        mean_position: distance / answered.max(1) as f64,
-        force_rms: (forced > 0).then(|| (force / forced as f64).sqrt()),
-        presses: answered,
-        unanswered,
-    }
+    let mut tally = Tally::default();
+    tally.add(model, presses);
+    tally.errors()
 }
 
 /// The errors of `method` by `folds`-fold cross-validation on `presses` (press i in fold
@@ -440,26 +447,59 @@ pub fn cross_validate(
 ) -> Result<Errors, LearnError> {
     let folds = folds.max(2);
     check(presses, 2 * folds)?;
-    let (mut distance, mut force, mut forced, mut unanswered) = (0.0, 0.0, 0usize, 0usize);
+    let mut tally = Tally::default();
     for fold in 0..folds {
         let (held, kept): (Vec<_>, Vec<_>) = presses.iter().enumerate().partition(|(i, _)| i % folds == fold);
         let kept: Vec<LabelledPress> = kept.into_iter().map(|(_, p)| p.clone()).collect();
         let held: Vec<LabelledPress> = held.into_iter().map(|(_, p)| p.clone()).collect();
-        let e = evaluate(&train(&kept, method, sensor)?, &held);
-        distance += e.mean_position * e.presses as f64;
-        unanswered += e.unanswered;
-        if let Some(rms) = e.force_rms {
-            force += rms * rms * e.presses as f64;
-            forced += e.presses;
+        tally.add(&train(&kept, method, sensor)?, &held);
+    }
+    Ok(tally.errors())
+}
+
+/// Sums of answers' errors against their labels.
+#[derive(Debug, Default)]
+struct Tally {
+    distance: f64,
+    /// Σ squared error and count, of forces (N²) and depths (m²).
+    force: (f64, usize),
+    depth: (f64, usize),
+    answered: usize,
+    unanswered: usize,
+}
+
+impl Tally {
+    /// Adds `model`'s answers for `presses`.
+    fn add(&mut self, model: &LearnedModel, presses: &[LabelledPress]) {
+        let mut scratch = PredictScratch::default();
+        for p in presses {
+            let Some(answer) = model.predict(&p.inputs, &mut scratch) else {
+                self.unanswered += 1;
+                continue;
+            };
+            self.answered += 1;
+            self.distance += (answer.position[0] - p.position[0]).hypot(answer.position[1] - p.position[1]);
+            for (sum, answer, truth) in
+                [(&mut self.force, answer.force, p.force), (&mut self.depth, answer.depth, p.depth)]
+            {
+                if let (Some(a), Some(t)) = (answer, truth) {
+                    sum.0 += (a - t) * (a - t);
+                    sum.1 += 1;
+                }
+            }
         }
     }
-    let answered = presses.len() - unanswered;
-    Ok(Errors {
-        mean_position: distance / answered.max(1) as f64,
-        force_rms: (forced > 0).then(|| (force / forced as f64).sqrt()),
-        presses: answered,
-        unanswered,
-    })
+
+    fn errors(&self) -> Errors {
+        let rms = |(sum, n): (f64, usize)| (n > 0).then(|| (sum / n as f64).sqrt());
+        Errors {
+            mean_position: self.distance / self.answered.max(1) as f64,
+            force_rms: rms(self.force),
+            depth_rms: rms(self.depth),
+            presses: self.answered,
+            unanswered: self.unanswered,
+        }
+    }
 }
 
 /// The candidate with the smallest cross-validated mean position error, and every candidate's
@@ -530,7 +570,7 @@ mod tests {
 
     #[test]
     fn presses_that_disagree_are_refused() {
-        let press = |inputs: Vec<f64>, force| LabelledPress { inputs, position: [0.0, 0.0], force };
+        let press = |inputs: Vec<f64>, force| LabelledPress { inputs, position: [0.0, 0.0], force, depth: None };
         let mixed = [press(vec![1.0, 2.0], Some(1.0)), press(vec![2.0, 1.0], None)];
         assert_eq!(train(&mixed, Method::knn(1), None).unwrap_err(), LearnError::MixedForces { press: 2 });
         let lengths = [press(vec![1.0, 2.0], None), press(vec![2.0], None)];

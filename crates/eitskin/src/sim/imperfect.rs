@@ -194,7 +194,7 @@ impl ImperfectSkin {
                     (radius * self.rng.random::<f64>().sqrt(), self.rng.random_range(0.0..std::f64::consts::TAU));
                 let position = [r * angle.cos(), r * angle.sin()];
                 let force = self.rng.random_range(forces.clone());
-                Ok(LabelledPress { inputs: self.press(position, force)?, position, force: Some(force) })
+                Ok(LabelledPress { inputs: self.press(position, force)?, position, force: Some(force), depth: None })
             })
             .collect()
     }
