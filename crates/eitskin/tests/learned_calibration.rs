@@ -10,12 +10,19 @@ use eitskin::learn::{choose, evaluate, train, Method, NominalSensor, PredictScra
 use eitskin::sim::imperfect::{ImperfectSkin, Imperfections};
 use eitskin::SensorSpec;
 
-#[test]
-fn a_learned_process_beats_nearest_neighbours_on_an_imperfect_skin() {
+/// The paper's sensor on a 2,000-triangle mesh, and its skin as built drawn from `seed`, each
+/// state the mean of 32 frames.
+fn skin(seed: u64) -> (SensorSpec, ImperfectSkin) {
     let mut spec = SensorSpec::square_hydrogel();
     spec.mesh.triangles = 2000;
     let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
-    let mut skin = ImperfectSkin::new(&spec, &imperfections, 11).unwrap();
+    let skin = ImperfectSkin::new(&spec, &imperfections, seed).unwrap();
+    (spec, skin)
+}
+
+#[test]
+fn a_learned_process_beats_nearest_neighbours_on_an_imperfect_skin() {
+    let (spec, mut skin) = skin(11);
     let training = skin.robot_presses(200, 0.08, 2.0..16.0).unwrap();
     let held_out = skin.robot_presses(200, 0.08, 2.0..16.0).unwrap();
 
@@ -51,10 +58,7 @@ fn a_learned_process_beats_nearest_neighbours_on_an_imperfect_skin() {
 
 #[test]
 fn press_features_learn_an_imperfect_skin_from_100_presses() {
-    let mut spec = SensorSpec::square_hydrogel();
-    spec.mesh.triangles = 2000;
-    let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
-    let mut skin = ImperfectSkin::new(&spec, &imperfections, 12).unwrap();
+    let (spec, mut skin) = skin(12);
     let training = skin.robot_presses(100, 0.08, 2.0..16.0).unwrap();
     let held_out = skin.robot_presses(200, 0.08, 2.0..16.0).unwrap();
     let sensor = NominalSensor::of_spec(&spec, None).unwrap();
@@ -86,10 +90,7 @@ fn press_features_learn_an_imperfect_skin_from_100_presses() {
 /// Hertz-like 0.4 mm·(F/16 N)^(2/3)) teach depth, with an uncertainty, and no force.
 #[test]
 fn depths_are_learned_when_the_presses_have_them() {
-    let mut spec = SensorSpec::square_hydrogel();
-    spec.mesh.triangles = 2000;
-    let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
-    let mut skin = ImperfectSkin::new(&spec, &imperfections, 13).unwrap();
+    let (spec, mut skin) = skin(13);
     let by_depth = |presses: Vec<eitskin::learn::LabelledPress>| -> Vec<eitskin::learn::LabelledPress> {
         presses
             .into_iter()

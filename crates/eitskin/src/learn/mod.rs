@@ -40,7 +40,7 @@ mod standardise;
 
 pub use gp::{GaussianProcess, GpScratch, LENGTH_SCALES, LINEAR_WEIGHTS, NOISE_VARIANCES};
 pub use knn::Knn;
-pub use press_features::{FeatureScratch, NominalSensor, PressFeatures};
+pub use press_features::{FeatureScratch, NominalSensor, PressFeatures, NOISE_FLOOR};
 pub use standardise::{Standardiser, DEAD_SPREAD};
 
 use thiserror::Error;

@@ -40,18 +40,23 @@ impl NominalSensor {
     }
 }
 
-/// The press features of Δv: each channel weighted (its sign for magnitudes, its relative noise,
-/// 0 for a dead one), then one press placed anywhere on the sheet.
+/// The press features of Δv: each channel weighted (its sign for magnitudes, its noise, 0 for a
+/// dead one), then one press placed anywhere on the sheet.
 #[derive(Debug, Clone)]
 pub struct PressFeatures {
     locator: Locator,
-    /// Per channel: sign / |background| (the noise of a board is relative), 0 for a dead channel.
+    /// Per channel: sign / noise, 0 for a dead channel. A board's noise is relative to each value
+    /// ([`NOISE_FLOOR`] of the largest at least, so that a value near 0 is not taken as exact).
     weights: Vec<f64>,
     /// Whether Δv is read as a change of magnitudes, Δ|v|.
     pub magnitudes: bool,
     /// The channels constant over the training presses (0-based), left out.
     dead: Vec<usize>,
 }
+
+/// The smallest noise a channel is given, as a fraction of the largest background value's: a
+/// measurement near 0 (by symmetry, say) still has its converter's noise.
+pub const NOISE_FLOOR: f64 = 1e-3;
 
 /// Buffers for [`PressFeatures::features_into`].
 #[derive(Debug, Default)]
@@ -74,22 +79,17 @@ impl PressFeatures {
         let standardiser = Standardiser::fit(&inputs);
         let mut used = vec![false; m];
         standardiser.used().iter().for_each(|&c| used[c] = true);
-        let noise: Vec<f64> = sensor.background.iter().map(|v| v.abs()).collect();
+        let largest = sensor.background.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+        let noise: Vec<f64> = sensor.background.iter().map(|v| v.abs().max(NOISE_FLOOR * largest)).collect();
         let locator = Locator::new(sensor.press.masked(&used).whitened(&noise));
         let dead = standardiser.dead();
         let weights = |magnitudes: bool| -> Vec<f64> {
-            sensor
-                .background
-                .iter()
-                .zip(&used)
-                .map(|(v, &u)| {
-                    if !u || *v == 0.0 {
-                        0.0
-                    } else if magnitudes {
-                        v.signum() / v.abs()
-                    } else {
-                        1.0 / v.abs()
-                    }
+            let channels = sensor.background.iter().zip(&noise).zip(&used);
+            channels
+                .map(|((v, n), &u)| match (u, magnitudes) {
+                    (false, _) => 0.0,
+                    (true, true) => v.signum() / n,
+                    (true, false) => 1.0 / n,
                 })
                 .collect()
         };
@@ -173,6 +173,14 @@ mod tests {
             let mut skin = ImperfectSkin::new(&spec, &imperfections, 3).unwrap();
             let mut presses = skin.robot_presses(20, 0.07, 4.0..16.0).unwrap();
             assert_eq!(PressFeatures::fit(&sensor, &presses).unwrap().magnitudes, magnitudes);
+            // A measurement that is 0 without a press still has its noise: finite features.
+            let mut background = sensor.background.clone();
+            background[5] = 0.0;
+            let zero = NominalSensor::new(sensor.press.clone(), background).unwrap();
+            let features = PressFeatures::fit(&zero, &presses).unwrap();
+            let mut out = Vec::new();
+            assert!(features.features_into(&presses[1].inputs, &mut FeatureScratch::default(), &mut out));
+            assert!(out.iter().all(|v| v.is_finite()), "{out:?}");
             presses[7].inputs.fill(0.0);
             assert_eq!(PressFeatures::fit(&sensor, &presses).unwrap_err(), LearnError::NotAPress { press: 8 });
         }
