@@ -41,6 +41,7 @@ const TEXT: &[(&str, &str)] = &[
     ("learn", "out"),
     ("learn", "held-out"),
     ("learn", "method"),
+    ("learn", "plots"),
     ("robot-presses", "out"),
     ("robot-presses", "held-out"),
     ("run", "calibration"),

@@ -2,15 +2,15 @@
 //! presses have forces), every method side by side by cross-validation, and learning curves;
 //! `eitskin robot-presses`: labelled presses from the imperfect virtual skin, to learn on.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use eitskin::learn::{choose, evaluate, train, Errors, Features, LabelledPress, Method, NominalSensor};
+use eitskin::learn::{choose, evaluate, train, Errors, Features, LabelledPress, LearningCurve, Method, NominalSensor};
 use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
 use eitskin::SensorSpec;
 
-use crate::{load, outputs, ranges};
+use crate::{load, outputs, plot, ranges};
 
 /// Flags of `eitskin learn`.
 #[derive(Debug, clap::Args)]
@@ -31,6 +31,10 @@ pub struct Args {
     /// presses (as many as there are), its error on the held-out samples (needs --held-out).
     #[arg(long)]
     curve: bool,
+    /// Also draw the learning curves into this folder (made if missing):
+    /// `learning_position.png` and, with forces, `learning_force.png` (needs --curve).
+    #[arg(long, requires = "curve")]
+    plots: Option<PathBuf>,
     /// Folds of the cross-validation that chooses the method, 2–20.
     #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of folds", 2, 20))]
     folds: usize,
@@ -163,7 +167,14 @@ pub fn run(args: Args) -> Result<()> {
     }
     if args.curve {
         if let Some(held) = &held_out {
-            learning_curves(&training, held, sensor.as_ref());
+            let curves = learning_curves(&training, held, sensor.as_ref());
+            if let Some(dir) = &args.plots {
+                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+                let largest = held.iter().filter_map(|p| p.force).fold(0.0, f64::max);
+                for path in write_learning_figures(&curves, (largest > 0.0).then_some(largest), dir)? {
+                    println!("wrote {}", path.display());
+                }
+            }
         }
     }
     if let Some(out) = &args.out {
@@ -176,7 +187,11 @@ pub fn run(args: Args) -> Result<()> {
 
 /// Every method trained on the first N presses, its errors on `held`, as tables: mean position
 /// error, and force and depth RMS when the presses have them.
-fn learning_curves(training: &[LabelledPress], held: &[LabelledPress], sensor: Option<&NominalSensor>) {
+fn learning_curves(
+    training: &[LabelledPress],
+    held: &[LabelledPress],
+    sensor: Option<&NominalSensor>,
+) -> Vec<LearningCurve> {
     let curves = eitskin::learn::learning_curves(training, held, sensor);
     let header: String = curves
         .first()
@@ -202,6 +217,42 @@ fn learning_curves(training: &[LabelledPress], held: &[LabelledPress], sensor: O
             println!("  {:14}{row}", curve.method.name());
         }
     }
+    curves
+}
+
+/// The learning curves as figures in `dir`, N on a log axis, one line per method: the mean
+/// position error (`learning_position.png`) and, when `max_force` (N) is given, the force RMS as
+/// a percentage of it (`learning_force.png`); the paths written.
+pub fn write_learning_figures(curves: &[LearningCurve], max_force: Option<f64>, dir: &Path) -> Result<Vec<PathBuf>> {
+    let series = |value: &dyn Fn(&Errors) -> Option<f64>| -> Vec<plot::Series> {
+        curves
+            .iter()
+            .map(|c| plot::Series {
+                name: c.method.name(),
+                points: c.points.iter().filter_map(|(n, e)| Some((*n as f64, value(e.as_ref()?)?))).collect(),
+                line: true,
+            })
+            .collect()
+    };
+    let position = dir.join("learning_position.png");
+    plot::chart_log_x(
+        &position,
+        "Learned calibration: position error against training presses",
+        ("training presses N", "mean position error on held-out presses (mm)"),
+        &series(&|e| Some(e.mean_position * 1e3)),
+    )?;
+    let mut written = vec![position];
+    if let Some(max_force) = max_force {
+        let force = dir.join("learning_force.png");
+        plot::chart_log_x(
+            &force,
+            "Learned calibration: force error against training presses",
+            ("training presses N", "force RMS on held-out presses (% of the largest force)"),
+            &series(&|e| e.force_rms.map(|f| 100.0 * f / max_force)),
+        )?;
+        written.push(force);
+    }
+    Ok(written)
 }
 
 /// "; N presses answered nothing (…)" when a model gave no answer for some presses.

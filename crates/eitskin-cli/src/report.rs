@@ -232,6 +232,7 @@ pub fn learning_markdown(learning: &LearningReport) -> String {
         learning.max_force,
         learning.held_out
     );
+    s += "![](learning_position.png)\n\n![](learning_force.png)\n\n";
     let sizes: Vec<usize> = learning.curves.first().map_or(Vec::new(), |c| c.points.iter().map(|p| p.0).collect());
     let header: String = sizes.iter().map(|n| format!(" N = {n} |")).collect();
     let rule: String = sizes.iter().map(|_| "---|").collect();

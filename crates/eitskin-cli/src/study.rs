@@ -99,6 +99,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     if let (Some(learning), Some(object)) = (&learning, json.as_object_mut()) {
         object.insert("learning".into(), report::learning_json(learning));
+        crate::learn::write_learning_figures(&learning.curves, Some(learning.max_force), &args.out)?;
     }
     std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
     write_frames(&study, &args, spec.length_unit.metres())?;

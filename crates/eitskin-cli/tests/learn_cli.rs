@@ -26,7 +26,12 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     let header = std::fs::read_to_string(&train).unwrap().lines().nth(1).unwrap().to_owned();
     assert!(header.starts_with("x,y,force,v1,") && header.ends_with(",v120"), "{header}");
 
-    let out = ok(dir.eitskin(&["learn", "--samples", t, "--held-out", h, "--curve", "--out", m]));
+    let plots = dir.join("plots");
+    let p = plots.to_str().unwrap();
+    let out = ok(dir.eitskin(&["learn", "--samples", t, "--held-out", h, "--curve", "--plots", p, "--out", m]));
+    for png in ["learning_position.png", "learning_force.png"] {
+        assert_eq!(&std::fs::read(plots.join(png)).unwrap()[1..4], b"PNG", "{png}");
+    }
     assert!(out.contains("5-fold cross-validation on 100 presses"), "{out}");
     assert!(out.contains("channels that carry nothing (left out): 1\n"), "{out}");
     let held_error: f64 = out

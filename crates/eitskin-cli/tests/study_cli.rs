@@ -12,7 +12,8 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
     ok(dir.eitskin(&["study", "--out", dir.to_str().unwrap(), "--sweep-presses", "6", "--sweep-untouched", "200"]));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("study.json")).unwrap()).unwrap();
-    for png in ["fig3c_location.png", "fig4b_areas.png", "fig12_1.png", "fig12_5.png", "sweep_position.png"] {
+    let figures = ["fig3c_location.png", "fig4b_areas.png", "fig12_1.png", "fig12_5.png", "sweep_position.png"];
+    for png in figures.into_iter().chain(["learning_position.png", "learning_force.png"]) {
         assert_eq!(&std::fs::read(dir.join(png)).unwrap()[1..4], b"PNG", "{png}");
     }
     assert!(

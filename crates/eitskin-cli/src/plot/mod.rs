@@ -133,15 +133,25 @@ fn register_font() -> Result<()> {
 }
 
 /// A titled chart with labelled axes and, for more than one series, a legend, to a PNG.
-pub fn chart(path: &Path, title: &str, (x_label, y_label): (&str, &str), series: &[Series]) -> Result<()> {
-    let all = series.iter().flat_map(|s| s.points.iter()).filter(|p| p.0.is_finite() && p.1.is_finite());
+pub fn chart(path: &Path, title: &str, labels: (&str, &str), series: &[Series]) -> Result<()> {
+    chart_on(path, title, labels, series, false)
+}
+
+/// [`chart`] with a logarithmic x axis (points with x ≤ 0 left out).
+pub fn chart_log_x(path: &Path, title: &str, labels: (&str, &str), series: &[Series]) -> Result<()> {
+    chart_on(path, title, labels, series, true)
+}
+
+fn chart_on(path: &Path, title: &str, labels: (&str, &str), series: &[Series], log_x: bool) -> Result<()> {
+    let shown = |p: &&(f64, f64)| p.0.is_finite() && p.1.is_finite() && (!log_x || p.0 > 0.0);
+    let all = series.iter().flat_map(|s| s.points.iter()).filter(shown);
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for &(x, y) in all {
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
     if x0.is_nan() || x1.is_nan() || x0 >= x1 {
-        let mid = if x0.is_finite() { x0 } else { 0.0 };
-        (x0, x1) = (mid - 1.0, mid + 1.0);
+        let mid = if x0.is_finite() { x0 } else { 1.0 };
+        (x0, x1) = if log_x { (mid / 2.0, mid * 2.0) } else { (mid - 1.0, mid + 1.0) };
     }
     if !y0.is_finite() || !y1.is_finite() {
         (y0, y1) = (0.0, 1.0);
@@ -149,46 +159,75 @@ pub fn chart(path: &Path, title: &str, (x_label, y_label): (&str, &str), series:
     let pad = 0.05 * (y1 - y0).max(f64::MIN_POSITIVE);
     let (y0, y1) = (y0.min(0.0) - pad, y1 + pad);
     png(path, (900, 600), |root| {
-        let mut chart = ChartBuilder::on(root)
-            .caption(title, ("sans-serif", 24))
-            .margin(15)
-            .x_label_area_size(45)
-            .y_label_area_size(70)
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .drawn()?;
-        chart
-            .configure_mesh()
-            .x_desc(x_label)
-            .y_desc(y_label)
-            .x_label_formatter(&|v| number(*v))
-            .y_label_formatter(&|v| number(*v))
-            .label_style(LABELS)
-            .draw()
-            .drawn()?;
-        for (k, s) in series.iter().enumerate() {
-            let colour = Palette99::pick(k).to_rgba();
-            let points = s.points.iter().copied().filter(|p| p.0.is_finite() && p.1.is_finite());
-            let drawn = if s.line {
-                chart.draw_series(LineSeries::new(points, colour.stroke_width(2))).drawn()?
-            } else {
-                chart.draw_series(points.map(|p| Circle::new(p, 2, colour.filled()))).drawn()?
-            };
-            drawn
-                .label(s.name.clone())
-                .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 16, y + 4)], colour.filled()));
+        let mut builder = ChartBuilder::on(root);
+        builder.caption(title, ("sans-serif", 24)).margin(15).x_label_area_size(45).y_label_area_size(70);
+        if log_x {
+            // Ticks at the data's own x when there are few (N = 25, 50, 100, …), else at 1, 2, 5 per decade.
+            let mut ticks: Vec<f64> = series.iter().flat_map(|s| s.points.iter()).filter(shown).map(|p| p.0).collect();
+            ticks.sort_by(f64::total_cmp);
+            ticks.dedup();
+            if ticks.len() > 12 {
+                let decades = x0.log10().floor() as i32..=x1.log10().ceil() as i32;
+                ticks = decades
+                    .flat_map(|d| [1.0, 2.0, 5.0].map(|m| m * 10f64.powi(d)))
+                    .filter(|t| (x0..=x1).contains(t))
+                    .collect();
+            }
+            let x_range = (x0..x1).log_scale().with_key_points(ticks);
+            let mut chart = builder.build_cartesian_2d(x_range, y0..y1).drawn()?;
+            // Falling curves against a growing x: the upper right is free.
+            draw_series(&mut chart, labels, series, shown, SeriesLabelPosition::UpperRight)
+        } else {
+            let mut chart = builder.build_cartesian_2d(x0..x1, y0..y1).drawn()?;
+            draw_series(&mut chart, labels, series, shown, SeriesLabelPosition::UpperLeft)
         }
-        if series.len() < 2 {
-            return Ok(());
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .position(SeriesLabelPosition::UpperLeft)
-            .draw()
-            .drawn()
     })
+}
+
+/// The mesh, the series and (for more than one) their legend, on `chart`.
+fn draw_series<'a, 'b: 'a, X>(
+    chart: &mut ChartContext<'a, BitMapBackend<'b>, Cartesian2d<X, plotters::coord::types::RangedCoordf64>>,
+    (x_label, y_label): (&str, &str),
+    series: &[Series],
+    shown: impl Fn(&&(f64, f64)) -> bool,
+    legend: SeriesLabelPosition,
+) -> Result<()>
+where
+    X: Ranged<ValueType = f64> + plotters::coord::ranged1d::ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .x_label_formatter(&|v| number(*v))
+        .y_label_formatter(&|v| number(*v))
+        .label_style(LABELS)
+        .draw()
+        .drawn()?;
+    for (k, s) in series.iter().enumerate() {
+        // Hues spread evenly, dark enough to read on white.
+        let colour = HSLColor(k as f64 / series.len() as f64, 0.8, 0.4).to_rgba();
+        let points = s.points.iter().filter(&shown).copied();
+        let drawn = if s.line {
+            chart.draw_series(LineSeries::new(points, colour.stroke_width(2))).drawn()?
+        } else {
+            chart.draw_series(points.map(|p| Circle::new(p, 2, colour.filled()))).drawn()?
+        };
+        drawn
+            .label(s.name.clone())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 16, y + 4)], colour.filled()));
+    }
+    if series.len() < 2 {
+        return Ok(());
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 15))
+        .position(legend)
+        .draw()
+        .drawn()
 }
 
 #[cfg(test)]

@@ -2,9 +2,10 @@
 //!
 //! Squared-exponential kernel k(a, b) = exp(−|a − b|² / (2ℓ²D)) over D used channels (ℓ is
 //! relative to the spread of a channel, so one grid serves any channel count), unit signal
-//! variance on standardised targets, noise variance σ². ℓ and σ² are chosen on a grid by the
-//! log marginal likelihood summed over the outputs (Rasmussen & Williams, eq. 2.30), which
-//! needs one Cholesky factor per grid point and no held-out presses.
+//! variance on standardised targets, noise variance σ², and optionally a linear term λ·a·b/D
+//! (a Bayesian linear mean, R&W §2.7). ℓ, σ² and λ are chosen on a grid by the log marginal
+//! likelihood summed over the outputs (Rasmussen & Williams, eq. 2.30), which needs one
+//! Cholesky factor per grid point and no held-out presses.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -71,7 +72,7 @@ enum Variance {
 }
 
 /// The largest error, as a fraction of σ², that dropping eigenpairs may leave in a training
-/// point's predictive variance (0.5 % of the smallest standard deviation the process gives).
+/// point's predictive variance (0.05 % of the smallest standard deviation the process gives).
 pub const LOW_RANK_TOLERANCE: f64 = 0.001;
 
 /// Buffers for [`GaussianProcess::predict_into`], grown once.
@@ -122,17 +123,18 @@ impl GaussianProcess {
         let distances = squared_distances(&x, &x);
         let gram = &x * x.transpose();
         let dims = dimensions as f64;
+        // K + σ²I of length scale ℓ (relative to √D) and linear weight λ.
+        let kernel = |length: f64, linear: f64, noise: f64| {
+            let scale = 1.0 / (2.0 * length * length * dims);
+            Mat::from_fn(n, n, |i, j| {
+                (-distances[(i, j)] * scale).exp() + linear * gram[(i, j)] / dims + if i == j { noise } else { 0.0 }
+            })
+        };
         let mut best: Option<(f64, f64, f64, f64)> = None;
         for &linear in linear {
             for &length in &LENGTH_SCALES {
-                let scale = 1.0 / (2.0 * length * length * dimensions as f64);
                 for &noise in &NOISE_VARIANCES {
-                    let k = Mat::from_fn(n, n, |i, j| {
-                        (-distances[(i, j)] * scale).exp()
-                            + linear * gram[(i, j)] / dims
-                            + if i == j { noise } else { 0.0 }
-                    });
-                    let Ok(llt) = k.llt(Side::Lower) else { continue };
+                    let Ok(llt) = kernel(length, linear, noise).llt(Side::Lower) else { continue };
                     let alpha = llt.solve(&y);
                     let fit: f64 = (0..outputs).map(|t| (0..n).map(|i| y[(i, t)] * alpha[(i, t)]).sum::<f64>()).sum();
                     let log_det: f64 = (0..n).map(|i| llt.L()[(i, i)].ln()).sum::<f64>() * 2.0;
@@ -144,18 +146,11 @@ impl GaussianProcess {
             }
         }
         let (_, length_scale, noise_variance, linear) = best?;
-        let scale = 1.0 / (2.0 * length_scale * length_scale * dimensions as f64);
-        let k = Mat::from_fn(n, n, |i, j| {
-            (-distances[(i, j)] * scale).exp()
-                + linear * gram[(i, j)] / dims
-                + if i == j { noise_variance } else { 0.0 }
-        });
-        let llt = k.llt(Side::Lower).ok()?;
+        let llt = kernel(length_scale, linear, noise_variance).llt(Side::Lower).ok()?;
         let alpha = llt.solve(&y);
         let alpha = (0..outputs * n).map(|k| alpha[(k % n, k / n)]).collect();
-        let noise_free = Mat::from_fn(n, n, |i, j| k[(i, j)] - if i == j { noise_variance } else { 0.0 });
-        let variance =
-            Variance::low_rank(&noise_free, noise_variance).unwrap_or_else(|| Variance::packed(&llt.inverse()));
+        let variance = Variance::low_rank(&kernel(length_scale, linear, 0.0), noise_variance)
+            .unwrap_or_else(|| Variance::packed(&llt.inverse()));
         let mut points = crate::inverse::BlockedMatrix::zeros(n, dimensions);
         let mut norms = vec![0.0; n];
         for i in 0..n {
