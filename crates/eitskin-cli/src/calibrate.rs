@@ -145,7 +145,7 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
     let Some(path) = &args.calibration else {
         let model = args.model.as_deref().context("give --calibration or --model")?;
-        return crate::learn::evaluate_model(&spec, model, &args.samples);
+        return crate::learn::evaluate_model(&spec, model, &args.samples, args.reference.as_deref());
     };
     let CalibrationFile { array, calibration, imaging } = eitskin_io::read_calibration_file(path, &spec)?;
     let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;

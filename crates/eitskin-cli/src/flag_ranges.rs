@@ -42,6 +42,7 @@ const TEXT: &[(&str, &str)] = &[
     ("learn", "held-out"),
     ("learn", "method"),
     ("learn", "plots"),
+    ("learn", "reference"),
     ("robot-presses", "out"),
     ("robot-presses", "held-out"),
     ("run", "calibration"),

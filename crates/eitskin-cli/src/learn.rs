@@ -27,6 +27,10 @@ pub struct Args {
     /// Samples to report the trained model's error on (held out of training).
     #[arg(long)]
     held_out: Option<PathBuf>,
+    /// Reference (no-touch) frame, when the samples hold raw frames: each press's Δv is its
+    /// frame less this one.
+    #[arg(long)]
+    reference: Option<PathBuf>,
     /// Learning curves: every method trained on the first N = 25, 50, 100, 200, 500, 1000
     /// presses (as many as there are), its error on the held-out samples (needs --held-out).
     #[arg(long)]
@@ -83,9 +87,31 @@ pub struct PressesArgs {
     seed: u64,
 }
 
-/// The labelled presses of a samples file (positions in m).
-fn presses(path: &std::path::Path, spec: &SensorSpec) -> Result<Vec<LabelledPress>> {
-    Ok(eitskin_io::read_labelled_presses(path, spec.length_unit.metres())?)
+/// The labelled presses of a samples file (positions in m), each less `reference` when the file
+/// holds raw frames.
+fn presses(path: &Path, spec: &SensorSpec, reference: Option<&(PathBuf, Vec<f64>)>) -> Result<Vec<LabelledPress>> {
+    let mut presses = eitskin_io::read_labelled_presses(path, spec.length_unit.metres())?;
+    if let Some((file, frame)) = reference {
+        for (k, p) in presses.iter_mut().enumerate() {
+            if p.inputs.len() != frame.len() {
+                bail!(
+                    "{}: press {} has {} values, the reference {} has {}",
+                    path.display(),
+                    k + 1,
+                    p.inputs.len(),
+                    file.display(),
+                    frame.len()
+                );
+            }
+            p.inputs.iter_mut().zip(frame).for_each(|(v, r)| *v -= r);
+        }
+    }
+    Ok(presses)
+}
+
+/// The reference frame at `path`, if given, with its path.
+fn reference(path: Option<&Path>) -> Result<Option<(PathBuf, Vec<f64>)>> {
+    path.map(|p| Ok((p.to_path_buf(), eitskin_io::read_frame(p)?))).transpose()
 }
 
 /// Runs `eitskin learn`.
@@ -94,6 +120,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(out) = &args.out {
         let mut inputs = vec![("samples", args.samples.as_path())];
         inputs.extend(args.held_out.as_deref().map(|p| ("--held-out", p)));
+        inputs.extend(args.reference.as_deref().map(|p| ("--reference", p)));
         outputs::check(&[("--out", out.as_path())], &inputs)?;
     }
     let forced = args
@@ -108,8 +135,9 @@ pub fn run(args: Args) -> Result<()> {
     if args.curve && args.held_out.is_none() {
         bail!("--curve needs --held-out: the curves are errors on presses kept out of training");
     }
-    let training = presses(&args.samples, &spec)?;
-    let held_out = args.held_out.as_deref().map(|p| presses(p, &spec)).transpose()?;
+    let reference = reference(args.reference.as_deref())?;
+    let training = presses(&args.samples, &spec, reference.as_ref())?;
+    let held_out = args.held_out.as_deref().map(|p| presses(p, &spec, reference.as_ref())).transpose()?;
     let channels = spec.protocol()?.len();
     if let Some(first) = training.first().filter(|p| p.inputs.len() % channels != 0) {
         bail!(
@@ -307,10 +335,11 @@ pub fn presses_run(args: PressesArgs) -> Result<()> {
     Ok(())
 }
 
-/// `eitskin evaluate --model`: the model's errors on the presses of `samples`.
-pub fn evaluate_model(spec: &SensorSpec, model: &std::path::Path, samples: &std::path::Path) -> Result<()> {
+/// `eitskin evaluate --model`: the model's errors on the presses of `samples` (less the frame at
+/// `reference`, when they are raw frames).
+pub fn evaluate_model(spec: &SensorSpec, model: &Path, samples: &Path, reference_frame: Option<&Path>) -> Result<()> {
     let learned = eitskin_io::read_learned_model(model, spec, spec.protocol()?.len(), load::cache_dir().as_deref())?;
-    let held = presses(samples, spec)?;
+    let held = presses(samples, spec, reference(reference_frame)?.as_ref())?;
     let e = evaluate(&learned, &held);
     println!(
         "{} on {} presses of {}: mean position error {:.1} mm{}",

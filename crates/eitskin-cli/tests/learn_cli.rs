@@ -49,6 +49,36 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     let file: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     assert_eq!((file["format"].as_str(), file["channels"].as_u64()), (Some("eitskin-learned-model"), Some(120)));
 
+    // Raw frames with a reference give the same model: each press's Δv is its frame less it.
+    let frame: Vec<f64> = (0..120).map(|m| 1.0 + 0.01 * m as f64).collect();
+    let reference = dir.join("reference.csv");
+    std::fs::write(&reference, frame.iter().map(|v| format!("{v}\n")).collect::<String>()).unwrap();
+    let raw = |from: &std::path::Path, to: &std::path::Path| {
+        let text = std::fs::read_to_string(from).unwrap();
+        let lines: Vec<String> = text
+            .lines()
+            .map(|line| match line.split(',').next().map(|x| x.parse::<f64>()) {
+                Some(Ok(_)) => {
+                    let fields: Vec<&str> = line.split(',').collect();
+                    let (labels, values) = fields.split_at(3);
+                    let shifted = values.iter().zip(&frame).map(|(v, r)| (v.parse::<f64>().unwrap() + r).to_string());
+                    labels.iter().map(|l| l.to_string()).chain(shifted).collect::<Vec<_>>().join(",")
+                }
+                _ => line.to_owned(),
+            })
+            .collect();
+        std::fs::write(to, lines.join("\n")).unwrap();
+    };
+    let (raw_train, raw_held) = (dir.join("raw_train.csv"), dir.join("raw_held.csv"));
+    raw(&train, &raw_train);
+    raw(&held, &raw_held);
+    let (rt, rh, r) = (raw_train.to_str().unwrap(), raw_held.to_str().unwrap(), reference.to_str().unwrap());
+    let from_raw =
+        ok(dir.eitskin(&["learn", "--samples", rt, "--held-out", rh, "--reference", r, "--method", "gp-press"]));
+    let held_line = |out: &str| out.lines().find(|l| l.starts_with("on 40 held-out presses")).unwrap().to_owned();
+    let from_dv = ok(dir.eitskin(&["learn", "--samples", t, "--held-out", h, "--method", "gp-press"]));
+    assert_eq!(held_line(&from_raw), held_line(&from_dv), "{from_raw}");
+
     // The model's errors on other presses, as `evaluate` reports them.
     let out = ok(dir.eitskin(&["evaluate", "--model", m, "--samples", h]));
     assert!(
