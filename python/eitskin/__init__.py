@@ -26,6 +26,7 @@ from ._eitskin import (
     ForwardModel,
     Frame,
     Image,
+    LearnedModel,
     Mesh,
     Pipeline,
     Protocol,
@@ -36,6 +37,7 @@ from ._eitskin import (
     TouchForce,
     VirtualSensor,
     one_step_matrix,
+    robot_presses,
     touches,
 )
 from .interop import from_pyeit, mesh_from_pyeit, plot_elements, plot_image, protocol_from_pyeit
@@ -47,6 +49,7 @@ __all__ = [
     "ForwardModel",
     "Frame",
     "Image",
+    "LearnedModel",
     "Mesh",
     "Pipeline",
     "Protocol",
@@ -57,6 +60,7 @@ __all__ = [
     "TouchForce",
     "VirtualSensor",
     "from_pyeit",
+    "robot_presses",
     "mesh_from_pyeit",
     "one_step_matrix",
     "plot_elements",

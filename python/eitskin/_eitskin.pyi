@@ -205,3 +205,32 @@ class Pipeline:
     @property
     def has_reference(self) -> bool: ...
     def retake_reference(self) -> None: ...
+
+class LearnedModel:
+    @staticmethod
+    def train(
+        dv: ArrayLike,
+        positions: ArrayLike,
+        forces: Optional[ArrayLike] = None,
+        depths: Optional[ArrayLike] = None,
+        method: Optional[str] = None,
+        spec: Optional[SensorSpec] = None,
+        folds: int = 5,
+    ) -> LearnedModel: ...
+    @property
+    def method(self) -> str: ...
+    @property
+    def dead_channels(self) -> list[int]: ...
+    def predict(self, dv: Floats) -> Optional[dict[str, float]]: ...
+    def save(self, path: Union[str, PathLike[str]], spec: SensorSpec) -> None: ...
+    @staticmethod
+    def load(path: Union[str, PathLike[str]], spec: SensorSpec) -> LearnedModel: ...
+
+def robot_presses(
+    spec: SensorSpec,
+    count: int,
+    seed: int = 1,
+    frames_per_press: int = 32,
+    noise: float = 0.003,
+    circle: bool = False,
+) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...

@@ -2,9 +2,11 @@
 //! released around every solve. The Python package `eitskin` re-exports it with its docs.
 //!
 //! By concept: [`model`] (spec, mesh, protocol, forward model), [`imaging`] (reconstructor,
-//! images, touches) and [`stream`] (virtual sensor, sources, pipeline, calibration).
+//! images, touches), [`stream`] (virtual sensor, sources, pipeline, calibration) and [`learn`]
+//! (calibration learned from labelled presses).
 
 mod imaging;
+mod learn;
 mod model;
 mod stream;
 
@@ -76,6 +78,8 @@ fn _eitskin(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<stream::Calibration>()?;
     m.add_class::<stream::Pipeline>()?;
     m.add_class::<stream::TouchForce>()?;
+    m.add_class::<learn::LearnedModel>()?;
+    m.add_function(wrap_pyfunction!(learn::robot_presses, m)?)?;
     m.add_function(wrap_pyfunction!(imaging::one_step_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(imaging::touches, m)?)?;
     Ok(())

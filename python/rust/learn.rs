@@ -1,0 +1,284 @@
+//! Calibration learned from labelled presses: robot presses of the imperfect virtual skin, and
+//! a model from Δv to where (and how hard, how deep) a press is, with its uncertainty.
+
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+
+use crate::fail;
+use crate::model::SensorSpec;
+
+/// A model learned from labelled presses: Δv → position (m), and force (N) and depth (m) when
+/// the presses had them, each with its uncertainty (Gaussian processes).
+///
+/// Train it with `LearnedModel.train`; read and write the JSON of `eitskin learn --out`.
+///
+/// Examples
+/// --------
+/// >>> import eitskin
+/// >>> spec = eitskin.SensorSpec.square_hydrogel().with_triangles(1500)
+/// >>> dv, positions, forces = eitskin.robot_presses(spec, 60, seed=2)
+/// >>> model = eitskin.LearnedModel.train(dv, positions, forces=forces, method="gp-press", spec=spec)
+/// >>> x, y = positions[0]
+/// >>> answer = model.predict(dv[0])
+/// >>> abs(answer["x"] - x) < 0.01 and answer["force"] > 0
+/// True
+#[pyclass(module = "eitskin")]
+pub(crate) struct LearnedModel {
+    model: eitskin::learn::LearnedModel,
+    /// What `save` writes: the presses trained on, or the file it was loaded from.
+    saved: Saved,
+    scratch: eitskin::learn::PredictScratch,
+}
+
+enum Saved {
+    Presses(Vec<eitskin::learn::LabelledPress>),
+    File(String),
+}
+
+/// Rows of a 2-D float64 array-like, each `columns` long (any count when `None`).
+fn matrix(obj: &Bound<'_, PyAny>, what: &str, columns: Option<usize>) -> PyResult<Vec<Vec<f64>>> {
+    let array = crate::as_array(obj, "float64")?;
+    let array: PyReadonlyArray2<'_, f64> =
+        array.extract().map_err(|_| fail(format!("{what}: expected a 2-D array")))?;
+    let [rows, width] = [array.shape()[0], array.shape()[1]];
+    if columns.is_some_and(|c| c != width) {
+        return Err(fail(format!("{what}: expected {} columns, got {width}", columns.unwrap_or(0))));
+    }
+    let values = array.as_slice()?;
+    Ok((0..rows).map(|r| values[r * width..(r + 1) * width].to_vec()).collect())
+}
+
+/// An optional label per press (None, or one finite value ≥ 0 per press).
+fn labels(obj: Option<&Bound<'_, PyAny>>, what: &str, presses: usize) -> PyResult<Vec<Option<f64>>> {
+    let Some(obj) = obj else { return Ok(vec![None; presses]) };
+    let values = crate::floats(obj)?;
+    if values.len() != presses {
+        return Err(fail(format!("{what}: one per press needed, got {} for {presses} presses", values.len())));
+    }
+    if let Some(v) = values.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+        return Err(fail(format!("{what}: every value must be finite and ≥ 0, got {v}")));
+    }
+    Ok(values.into_iter().map(Some).collect())
+}
+
+#[pymethods]
+impl LearnedModel {
+    /// Trains a model on labelled presses.
+    ///
+    /// Parameters
+    /// ----------
+    /// dv : array_like, shape (presses, channels)
+    ///     Each press's Δv (pressed less before, in the board's unit) in protocol order.
+    /// positions : array_like, shape (presses, 2)
+    ///     Where each press was, in m from the outline's centre.
+    /// forces, depths : array_like, shape (presses,), optional
+    ///     Each press's force (N) and indenter depth (m), when labelled.
+    /// method : str, optional
+    ///     "knn-K" (K ≥ 1) or "gp", either with "-shape" or "-press"; by default the one with the
+    ///     smallest `folds`-fold cross-validated position error.
+    /// spec : SensorSpec, optional
+    ///     The sensor as specified: with it (and Δv of its protocol's length), the "-press"
+    ///     methods, on the press fitted to Δv, are candidates too.
+    /// folds : int, default 5
+    ///     Folds of the cross-validation, 2 to 20.
+    ///
+    /// Raises
+    /// ------
+    /// EitskinError
+    ///     For arrays that disagree, a label < 0, an unknown method, a "-press" method without
+    ///     `spec`, or presses too few to train on.
+    #[staticmethod]
+    #[pyo3(signature = (dv, positions, forces = None, depths = None, method = None, spec = None, folds = 5))]
+    #[allow(clippy::too_many_arguments, reason = "Python keyword arguments")]
+    fn train(
+        py: Python<'_>,
+        dv: &Bound<'_, PyAny>,
+        positions: &Bound<'_, PyAny>,
+        forces: Option<&Bound<'_, PyAny>>,
+        depths: Option<&Bound<'_, PyAny>>,
+        method: Option<&str>,
+        spec: Option<&SensorSpec>,
+        folds: usize,
+    ) -> PyResult<LearnedModel> {
+        use eitskin::learn::{choose, train, LabelledPress, Method, NominalSensor};
+        if !(2..=20).contains(&folds) {
+            return Err(fail(format!("folds must be 2 to 20, got {folds}")));
+        }
+        let inputs = matrix(dv, "dv", None)?;
+        let positions = matrix(positions, "positions", Some(2))?;
+        if positions.len() != inputs.len() {
+            return Err(fail(format!("{} positions for {} presses", positions.len(), inputs.len())));
+        }
+        let (forces, depths) = (labels(forces, "forces", inputs.len())?, labels(depths, "depths", inputs.len())?);
+        let presses: Vec<LabelledPress> = inputs
+            .into_iter()
+            .zip(positions)
+            .zip(forces.into_iter().zip(depths))
+            .map(|((inputs, p), (force, depth))| LabelledPress { inputs, position: [p[0], p[1]], force, depth })
+            .collect();
+        let forced = method
+            .map(|m| {
+                Method::from_name(m).ok_or_else(|| {
+                    fail(format!("{m:?} is not a method: give knn-K or gp, either with -shape or -press"))
+                })
+            })
+            .transpose()?;
+        let spec = spec.map(|s| s.0.clone());
+        let channels = presses.first().map_or(0, |p| p.inputs.len());
+        let (model, presses) = py
+            .detach(|| -> Result<_, String> {
+                let sensor = match &spec {
+                    Some(spec) if spec.protocol().map_err(|e| e.to_string())?.len() == channels => {
+                        Some(NominalSensor::of_spec(spec, None).map_err(|e| e.to_string())?)
+                    }
+                    _ => None,
+                };
+                let method = match forced {
+                    Some(m) => m,
+                    None => {
+                        choose(&presses, &Method::candidates(sensor.is_some()), folds, sensor.as_ref())
+                            .map_err(|e| e.to_string())?
+                            .0
+                    }
+                };
+                let model = train(&presses, method, sensor.as_ref()).map_err(|e| e.to_string())?;
+                Ok((model, presses))
+            })
+            .map_err(fail)?;
+        Ok(LearnedModel { model, saved: Saved::Presses(presses), scratch: eitskin::learn::PredictScratch::default() })
+    }
+
+    /// The method it was trained with ("gp-press", "knn-5", …).
+    #[getter]
+    fn method(&self) -> String {
+        self.model.method.name()
+    }
+
+    /// Channels that carried nothing over the training presses (0-based), left out.
+    #[getter]
+    fn dead_channels(&self) -> Vec<usize> {
+        self.model.dead_channels()
+    }
+
+    /// The answer for one Δv (channels in protocol order): a dict of "x", "y" (m), "force" (N)
+    /// and "depth" (m) when trained with them, and the standard deviations "position_std",
+    /// "force_std", "depth_std" (Gaussian processes only); None for press features of a Δv like
+    /// no press.
+    fn predict<'py>(
+        &mut self,
+        py: Python<'py>,
+        dv: numpy::PyReadonlyArray1<'_, f64>,
+    ) -> PyResult<Option<Bound<'py, pyo3::types::PyDict>>> {
+        let dv = dv.as_slice()?;
+        if dv.len() != self.model.channels() {
+            return Err(fail(format!("dv has {} values, the model {} channels", dv.len(), self.model.channels())));
+        }
+        let Some(answer) = self.model.predict(dv, &mut self.scratch) else { return Ok(None) };
+        let dict = pyo3::types::PyDict::new(py);
+        dict.set_item("x", answer.position[0])?;
+        dict.set_item("y", answer.position[1])?;
+        let optional = [
+            ("force", answer.force),
+            ("depth", answer.depth),
+            ("position_std", answer.position_std),
+            ("force_std", answer.force_std),
+            ("depth_std", answer.depth_std),
+        ];
+        for (key, value) in optional {
+            if let Some(v) = value {
+                dict.set_item(key, v)?;
+            }
+        }
+        Ok(Some(dict))
+    }
+
+    /// Writes it for `spec` as the JSON `eitskin run --model` reads (a model loaded from a file:
+    /// that file's text).
+    fn save(&self, path: std::path::PathBuf, spec: &SensorSpec) -> PyResult<()> {
+        let text = match &self.saved {
+            Saved::Presses(presses) => {
+                eitskin_io::learned_model_to_json(&spec.0, self.model.method, presses).map_err(fail)?
+            }
+            Saved::File(text) => text.clone(),
+        };
+        std::fs::write(&path, text).map_err(|e| fail(format!("cannot write {}: {e}", path.display())))
+    }
+
+    /// Reads a model made for `spec` (by `eitskin learn --out` or `save`), trained again.
+    #[staticmethod]
+    fn load(py: Python<'_>, path: std::path::PathBuf, spec: &SensorSpec) -> PyResult<LearnedModel> {
+        let spec = &spec.0;
+        let text = std::fs::read_to_string(&path).map_err(|e| fail(format!("cannot read {}: {e}", path.display())))?;
+        let channels = spec.protocol().map_err(fail)?.len();
+        let model = py
+            .detach(|| eitskin_io::parse_learned_model(&text, spec, channels, None))
+            .map_err(|e| fail(format!("{}: {e}", path.display())))?;
+        Ok(LearnedModel { model, saved: Saved::File(text), scratch: eitskin::learn::PredictScratch::default() })
+    }
+}
+
+/// Robot presses of the imperfect virtual skin: `spec`'s sheet as built (10 % larger, or a
+/// circle of that area, electrodes up to 3 mm off, gains ±20 %, the first drive dead, drift,
+/// magnitudes only), pressed at random in a disc over 80 % of the half-width with 2–16 N.
+///
+/// Parameters
+/// ----------
+/// spec : SensorSpec
+///     The sensor as specified.
+/// count : int
+///     Presses, 1 to 1,000,000.
+/// seed : int, default 1
+///     Seed of the skin's errors, the presses and the noise.
+/// frames_per_press : int, default 32
+///     Frames averaged for each state (before, pressed), 1 to 10,000.
+/// noise : float, default 0.003
+///     Relative noise per value and frame, 0 to 0.1.
+/// circle : bool, default False
+///     Build the skin as a circle.
+///
+/// Returns
+/// -------
+/// dv : ndarray, shape (count, channels)
+///     Each press's Δv (pressed less the frame before).
+/// positions : ndarray, shape (count, 2)
+///     Where, in m.
+/// forces : ndarray, shape (count,)
+///     How hard, in N.
+#[pyfunction]
+#[pyo3(signature = (spec, count, seed = 1, frames_per_press = 32, noise = 0.003, circle = false))]
+#[allow(clippy::type_complexity, reason = "the three arrays Python receives as a tuple")]
+pub(crate) fn robot_presses<'py>(
+    py: Python<'py>,
+    spec: &SensorSpec,
+    count: usize,
+    seed: u64,
+    frames_per_press: usize,
+    noise: f64,
+    circle: bool,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+    use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
+    if !(1..=1_000_000).contains(&count) {
+        return Err(fail(format!("count must be 1 to 1000000 presses, got {count}")));
+    }
+    if !(1..=10_000).contains(&frames_per_press) {
+        return Err(fail(format!("frames_per_press must be 1 to 10000, got {frames_per_press}")));
+    }
+    if !(0.0..=0.1).contains(&noise) {
+        return Err(fail(format!("noise must be in [0, 0.1] (relative), got {noise}")));
+    }
+    let spec = &spec.0;
+    let imperfections = Imperfections { frames_per_press, noise_relative: noise, circle, ..Imperfections::default() };
+    let presses = py
+        .detach(|| -> Result<_, String> {
+            let mut skin = ImperfectSkin::new(spec, &imperfections, seed).map_err(|e| e.to_string())?;
+            skin.robot_presses(count, disc_radius(&spec.outline, 0.8), 2.0..16.0).map_err(|e| e.to_string())
+        })
+        .map_err(fail)?;
+    let channels = presses.first().map_or(0, |p| p.inputs.len());
+    let dv: Vec<f64> = presses.iter().flat_map(|p| p.inputs.iter().copied()).collect();
+    let positions: Vec<f64> = presses.iter().flat_map(|p| p.position).collect();
+    let forces: Vec<f64> = presses.iter().map(|p| p.force.unwrap_or(f64::NAN)).collect();
+    let dv = dv.into_pyarray(py).reshape([count, channels])?;
+    let positions = positions.into_pyarray(py).reshape([count, 2])?;
+    Ok((dv, positions, forces.into_pyarray(py)))
+}
