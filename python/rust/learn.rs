@@ -35,17 +35,13 @@ enum Saved {
     File(String),
 }
 
-/// Rows of a 2-D float64 array-like, each `columns` long (any count when `None`).
-fn matrix(obj: &Bound<'_, PyAny>, what: &str, columns: Option<usize>) -> PyResult<Vec<Vec<f64>>> {
+/// Rows of a 2-D float64 array-like of any width (of a fixed width: [`crate::rows`]).
+fn matrix(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Vec<f64>>> {
     let array = crate::as_array(obj, "float64")?;
     let array: PyReadonlyArray2<'_, f64> =
         array.extract().map_err(|_| fail(format!("{what}: expected a 2-D array")))?;
-    let [rows, width] = [array.shape()[0], array.shape()[1]];
-    if columns.is_some_and(|c| c != width) {
-        return Err(fail(format!("{what}: expected {} columns, got {width}", columns.unwrap_or(0))));
-    }
-    let values = array.as_slice()?;
-    Ok((0..rows).map(|r| values[r * width..(r + 1) * width].to_vec()).collect())
+    let width = array.shape()[1].max(1);
+    Ok(array.as_slice()?.chunks_exact(width).map(<[f64]>::to_vec).collect())
 }
 
 /// An optional label per press (None, or one finite value ≥ 0 per press).
@@ -104,8 +100,8 @@ impl LearnedModel {
         if !(2..=20).contains(&folds) {
             return Err(fail(format!("folds must be 2 to 20, got {folds}")));
         }
-        let inputs = matrix(dv, "dv", None)?;
-        let positions = matrix(positions, "positions", Some(2))?;
+        let inputs = matrix(dv, "dv")?;
+        let positions = crate::rows::<2, f64>(positions, "float64", "positions")?;
         if positions.len() != inputs.len() {
             return Err(fail(format!("{} positions for {} presses", positions.len(), inputs.len())));
         }
