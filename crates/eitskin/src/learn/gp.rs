@@ -302,8 +302,11 @@ impl Variance {
         };
         let chunks = chunk_rows.len() - 1;
         scratch.partial.resize_with(chunks, || AtomicU64::new(0));
+        // The packed f32 triangle reads the kernel row in f32; the low-rank basis in f64.
         scratch.product.clear();
-        scratch.product.extend(scratch.kernel.iter().map(|&k| k as f32));
+        if let Variance::Packed { .. } = self {
+            scratch.product.extend(scratch.kernel.iter().map(|&k| k as f32));
+        }
         let (kernel, product, partial) = (&scratch.kernel, &scratch.product, &scratch.partial);
         crate::inverse::helper::run_split(chunks, &|c| {
             let rows = chunk_rows[c]..chunk_rows[c + 1];

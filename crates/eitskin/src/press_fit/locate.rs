@@ -31,11 +31,6 @@ impl Locator {
         Locator { search_norm: 1e-3 * smallest, model, scan }
     }
 
-    /// The model it places presses with.
-    pub fn model(&self) -> &PressModel {
-        &self.model
-    }
-
     /// The single press that matches `dv` best anywhere on the sheet (largest gᵀΔv/|g| with
     /// gᵀΔv > 0), with its contrast and z in Δv's own unit (per unit of the model's); `None` for
     /// a Δv of the wrong length, zero, not finite, or like no press. Where it is does not depend on
