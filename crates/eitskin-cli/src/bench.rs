@@ -8,7 +8,10 @@
 //! of strong presses) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch) and `frame_three_presses` (three presses found in Δv against
-//! 0.05 % noise, median of 201); `simulated_frame` and `simulated_three_presses` (the virtual
+//! 0.05 % noise, median of 201 runs on the noiseless frame), `frame_three_presses_noisy` (the
+//! same on 201 frames of the presses held, each with its own 0.05 % noise) and
+//! `frame_three_presses_carried` (those frames as a stream, the presses carried from frame to
+//! frame); `simulated_frame` and `simulated_three_presses` (the virtual
 //! sensor's frame on its finer truth mesh, one press and three apart); `learn_1000_presses` and
 //! `learned_frame` (a Gaussian process on 1,000 robot presses of 192 channels, and its answer
 //! for one frame), and the same on the fitted press (`learn_1000_presses_press`,
@@ -24,11 +27,13 @@ use eitskin::conductivity::{with_inclusions, Inclusion};
 use eitskin::inverse::Channels;
 use eitskin::memory::Stage;
 use eitskin::pipeline::{Pipeline, PipelineParams};
-use eitskin::press_fit::{exact_model_for, PressDetection, PressModel, PressModelParams, PressScratch};
+use eitskin::press_fit::{exact_model_for, PressDetection, PressModel, PressModelParams, PressScratch, PressTrack};
 use eitskin::sim::VirtualSensor;
 use eitskin::touch::{detect_into, TouchScratch};
 use eitskin::{Reconstructor, ReconstructorParams, TouchParams};
 use eitskin_io::codec::{Decoder, Event, LinesDecoder};
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
 
 use crate::{load, ranges};
 
@@ -198,6 +203,26 @@ pub fn run(args: Args) -> Result<()> {
     let (mut whitened, mut found) = (Vec::new(), Vec::with_capacity(16));
     let (t_detect, ()) =
         time(201, || Ok(detection.detect_into(&dv3, &mut whitened, &mut press_scratch, &mut found)?))?;
+    // The same presses held over a stream of 201 frames, each with its own draw of the noise:
+    // found afresh in each, and carried from frame to frame.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let held: Vec<Vec<f64>> = (0..201)
+        .map(|_| {
+            let noise: Vec<f64> =
+                std.iter().map(|s| s * Distribution::<f64>::sample(&StandardNormal, &mut rng)).collect();
+            dv3.iter().zip(noise).map(|(d, n)| d + n).collect()
+        })
+        .collect();
+    let mut next = 0;
+    let (t_noisy, ()) = time(held.len(), || {
+        next += 1;
+        Ok(detection.detect_into(&held[next - 1], &mut whitened, &mut press_scratch, &mut found)?)
+    })?;
+    let (mut track, mut next) = (PressTrack::default(), 0);
+    let (t_carried, _) = time(held.len(), || {
+        next += 1;
+        Ok(detection.track_into(&held[next - 1], &mut whitened, &mut press_scratch, &mut track, &mut found)?)
+    })?;
     let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
     // The virtual sensor's frame on its finer truth mesh: one press, then three presses apart
     // (corners of a triangle half the sheet wide, unequal forces).
@@ -227,6 +252,8 @@ pub fn run(args: Args) -> Result<()> {
         ("frame_touches", t_touches),
         ("frame_press_fit", t_fit),
         ("frame_three_presses", t_detect),
+        ("frame_three_presses_noisy", t_noisy),
+        ("frame_three_presses_carried", t_carried),
         ("replay_latency", replay_latency),
         ("simulated_frame", t_simulated),
         ("simulated_three_presses", t_simulated_three),

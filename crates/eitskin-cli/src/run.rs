@@ -108,6 +108,10 @@ pub struct Args {
     /// fitted-drop calibration).
     #[arg(long)]
     fit: bool,
+    /// Find the presses in Δv afresh in every frame, instead of carrying those of the last frame
+    /// by one step while they explain it (a press held costs microseconds, not milliseconds).
+    #[arg(long)]
+    fresh_presses: bool,
     /// Seed of the virtual sensor's noise and random presses, 0 to 2⁶⁴ − 1.
     #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     seed: u64,
@@ -229,6 +233,7 @@ pub fn run(args: Args) -> Result<()> {
         auto_hyperparameter: imaging.hyperparameter == Hyperparameter::Auto,
         noise_floor: NoiseFloor::FalseAlarm { rate: args.false_alarm_rate },
         average: args.average,
+        carry_presses: !args.fresh_presses,
     };
     let mut pipeline = Pipeline::new(chain, params);
     if args.average > 1 {

@@ -45,7 +45,7 @@ use crate::contrast_map::ContrastMap;
 use crate::image::Image;
 use crate::inverse::{InverseError, Reconstructor};
 use crate::noise::Significance;
-use crate::press_fit::{PressDetection, PressFit, PressModel, PressScratch};
+use crate::press_fit::{PressDetection, PressFit, PressModel, PressScratch, PressTrack, Tracked};
 use crate::pseudo_array::PseudoArray;
 use crate::strength::{Reading, Strength};
 use crate::touch::{detect_tested_into, Polarity, Touch, TouchParams, TouchScratch};
@@ -140,6 +140,11 @@ pub struct Chain {
     significance: Option<Significance>,
     /// Presses found in Δv itself, tested against the noise, instead of touches from the image.
     press_detection: Option<PressDetection>,
+    /// Whether presses found in Δv are carried from frame to frame, what is carried, and how
+    /// the last frame's were had.
+    carry_presses: bool,
+    press_track: PressTrack,
+    tracked: Option<Tracked>,
     whitened: Vec<f64>,
     detected: Vec<PressFit>,
     image: Image,
@@ -169,6 +174,9 @@ impl Chain {
             calibration: None,
             significance: None,
             press_detection: None,
+            carry_presses: false,
+            press_track: PressTrack::default(),
+            tracked: None,
             detected: Vec::with_capacity(MAX_FITTED),
             image,
             scratch,
@@ -264,6 +272,21 @@ impl Chain {
     /// noise in `detection`) to fit them.
     pub fn set_press_detection(&mut self, detection: Option<PressDetection>) {
         self.press_detection = detection;
+        self.press_track.clear();
+    }
+
+    /// Carries the presses found in Δv from each frame to the next (frames of one stream, against
+    /// one reference; see [`PressTrack`]) when `carry`, else finds them afresh in every frame (frames
+    /// each of its own scene). Off by default.
+    pub fn set_carry_presses(&mut self, carry: bool) {
+        self.carry_presses = carry;
+        self.press_track.clear();
+    }
+
+    /// How the last frame's presses in Δv were had (carried, fitted again or found afresh);
+    /// `None` when presses are not found in Δv.
+    pub fn tracked(&self) -> Option<Tracked> {
+        self.tracked
     }
 
     /// The detection of presses in Δv, if one is set.
@@ -355,8 +378,16 @@ impl Chain {
                 *d = if channels.is_used(m) && *r != 0.0 { (v - r) * v0 / r } else { 0.0 };
             }
         }
+        self.tracked = None;
         if let Some(detection) = &self.press_detection {
-            detection.detect_into(&self.difference, &mut self.whitened, &mut self.press_scratch, &mut self.detected)?;
+            let (dv, whitened, scratch, out) =
+                (&self.difference, &mut self.whitened, &mut self.press_scratch, &mut self.detected);
+            self.tracked = Some(if self.carry_presses {
+                detection.track_into(dv, whitened, scratch, &mut self.press_track, out)?
+            } else {
+                detection.detect_into(dv, whitened, scratch, out)?;
+                Tracked::Found
+            });
             self.found.clear();
             let radius = detection.radius();
             for press in self.detected.iter().take(MAX_FITTED) {

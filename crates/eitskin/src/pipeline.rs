@@ -107,6 +107,9 @@ pub struct PipelineParams {
     pub auto_hyperparameter: bool,
     /// Frames averaged into each frame imaged (a moving average; 1 = none).
     pub average: usize,
+    /// Carry the presses found in Δv from frame to frame ([`PressTrack`](crate::press_fit::PressTrack)):
+    /// a held press costs one step instead of a fit. Off where each frame is a scene of its own.
+    pub carry_presses: bool,
 }
 
 impl Default for PipelineParams {
@@ -117,6 +120,7 @@ impl Default for PipelineParams {
             noise_floor: NoiseFloor::FalseAlarm { rate: 1e-3 },
             auto_hyperparameter: false,
             average: 1,
+            carry_presses: true,
         }
     }
 }
@@ -195,7 +199,8 @@ pub struct Pipeline {
 
 impl Pipeline {
     /// A pipeline running `chain` that starts by taking its reference.
-    pub fn new(chain: Chain, params: PipelineParams) -> Pipeline {
+    pub fn new(mut chain: Chain, params: PipelineParams) -> Pipeline {
+        chain.set_carry_presses(params.carry_presses);
         let count = chain.reconstructor().measurements();
         let configured = chain.reconstructor().channels().used_mask().to_vec();
         Pipeline {
@@ -674,6 +679,7 @@ mod tests {
             noise_floor: NoiseFloor::Fixed(0.01),
             auto_hyperparameter: false,
             average: 1,
+            carry_presses: true,
         };
         let mut pipeline = Pipeline::new(Chain::new(recon, crate::TouchParams::default()), params);
         let sim = crate::sim::SimParams { drift_per_hour: 0.05, noise_relative: 0.0, ..Default::default() };

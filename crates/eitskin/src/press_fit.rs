@@ -50,11 +50,13 @@ mod exact;
 mod joint;
 mod locate;
 mod refine;
+mod track;
 
 pub use detect::PressDetection;
 pub use exact::{Disk, DiskParameter, ExactPresses, ExactScratch, JOINT_PRESSES};
 pub use locate::{Locator, STRIDE};
 pub use refine::{refine, RefineParams, RefineScratch, DEEPEST};
+pub use track::{PressTrack, Tracked, NONLINEAR};
 
 /// A square grid of points over a box: the first at `lo`, row-major.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -77,10 +77,14 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
         pipeline.process(frame).unwrap(); // the rest of the reference, then one warm-up frame
     }
     COUNTING.store(true, Ordering::Relaxed);
-    for frame in &frames[11..] {
+    let mut tracked = [None; 4];
+    for (frame, how) in frames[11..].iter().zip(&mut tracked) {
         pipeline.process(frame).unwrap();
+        *how = pipeline.chain().tracked();
     }
     COUNTING.store(false, Ordering::Relaxed);
+    // Held still, the presses are carried from frame to frame (no fit at all).
+    assert!(tracked.contains(&Some(eitskin::press_fit::Tracked::Carried)), "{tracked:?}");
     let touches = pipeline.touches();
     assert_eq!(touches.len(), 2, "{touches:?}");
     assert!(touches.iter().all(|t| t.press.is_some() && t.force.is_some()), "{touches:?}");

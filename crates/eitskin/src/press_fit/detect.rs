@@ -92,13 +92,13 @@ pub(crate) struct Exact<'a> {
 /// A press model whitened by the measured noise, with the z a press must reach.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PressDetection {
-    model: PressModel,
-    scan: Scan,
+    pub(super) model: PressModel,
+    pub(super) scan: Scan,
     /// Per channel, the noise's standard deviation (the unit of Δv; ∞ for a channel not used).
     std: Vec<f64>,
     /// Per channel, 1/std (0 for a channel not used): the weights of the exact fit.
-    weights: Vec<f64>,
-    threshold: f64,
+    pub(super) weights: Vec<f64>,
+    pub(super) threshold: f64,
     false_alarm_rate: f64,
 }
 
@@ -170,13 +170,26 @@ impl PressDetection {
         out: &mut Vec<PressFit>,
     ) -> Result<(), InverseError> {
         out.clear();
+        self.whiten_into(dv, whitened)?;
+        self.model.detect_into(&self.scan, whitened, self.threshold, self.exact(dv), scratch, out)
+    }
+}
+
+impl PressDetection {
+    /// `dv` divided by each channel's noise into `whitened` (0 on a channel not used); an
+    /// error if its length is not the model's.
+    pub(super) fn whiten_into(&self, dv: &[f64], whitened: &mut Vec<f64>) -> Result<(), InverseError> {
         if dv.len() != self.std.len() {
             return Err(InverseError::FrameLength { expected: self.std.len(), got: dv.len() });
         }
         whitened.clear();
         whitened.extend(dv.iter().zip(&self.std).map(|(d, s)| if s.is_finite() { d / s } else { 0.0 }));
-        let exact = self.model.exact.as_deref().map(|presses| Exact { presses, dv, weights: &self.weights });
-        self.model.detect_into(&self.scan, whitened, self.threshold, exact, scratch, out)
+        Ok(())
+    }
+
+    /// The exact fit of Δv `dv` (V), if the model has exact responses.
+    pub(super) fn exact<'a>(&'a self, dv: &'a [f64]) -> Option<Exact<'a>> {
+        self.model.exact.as_deref().map(|presses| Exact { presses, dv, weights: &self.weights })
     }
 }
 

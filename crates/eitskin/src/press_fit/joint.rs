@@ -23,17 +23,21 @@ use super::{PressFit, PressModel, PressScratch};
 use crate::forward::{grow, room};
 use crate::inverse::InverseError;
 use faer::linalg::matmul::matmul;
-use faer::{Accum, Par};
+use faer::{Accum, Mat, MatRef, Par};
 
-/// Per scan point, the part of its response's gᵀg that the presses of the last exact fit cannot
-/// take up by moving, into the scratch's `unexplained`: gᵀg − |Qᵀg|², Q an orthonormal basis of
-/// the fit's Jacobian (its rows), but at least [`UNEXPLAINED_FLOOR`] of gᵀg. The misfit left is
-/// orthogonal to that span, so gᵀr/√(gᵀg − |Qᵀg|²) is the z of a new press with the others
+/// Per scan point, the part of its response's gᵀg that presses cannot take up by moving, into
+/// `unexplained`: gᵀg − |Qᵀg|², Q the first `rank` rows of `basis` (an orthonormal basis of the
+/// presses' Jacobian, [`orthonormal_rows`]), but at least [`UNEXPLAINED_FLOOR`] of gᵀg. A misfit
+/// orthogonal to that span gives gᵀr/√(gᵀg − |Qᵀg|²) as the z of a new press with the others
 /// fitted again: a weak press whose signal a strong one has partly taken up (by moving towards
-/// it and deepening) is still found.
-fn unexplained_into(scan: &Scan, scratch: &mut PressScratch) {
-    let rank = orthonormal_rows(scratch);
-    let PressScratch { basis, projections, unexplained, .. } = scratch;
+/// it and deepening) is still found. `projections` is a buffer.
+pub(crate) fn unexplained_into(
+    scan: &Scan,
+    basis: &Mat<f64>,
+    rank: usize,
+    projections: &mut Mat<f64>,
+    unexplained: &mut Vec<f64>,
+) {
     let points = scan.matrix.nrows();
     grow(projections, points, rank);
     let q = basis.as_ref().subrows(0, rank);
@@ -45,12 +49,9 @@ fn unexplained_into(scan: &Scan, scratch: &mut PressScratch) {
     }));
 }
 
-/// An orthonormal basis of the rows of the last exact fit's Jacobian into the scratch's
-/// `basis` (its first rows); their number. Modified Gram–Schmidt, twice for orthogonality; a row
-/// that adds nothing is left out.
-fn orthonormal_rows(scratch: &mut PressScratch) -> usize {
-    let PressScratch { refine: refining, basis, .. } = scratch;
-    let jacobian = refining.jacobian();
+/// An orthonormal basis of the rows of `jacobian` into the first rows of `basis`; their number.
+/// Modified Gram–Schmidt, twice for orthogonality; a row that adds nothing is left out.
+pub(crate) fn orthonormal_rows(jacobian: MatRef<'_, f64>, basis: &mut Mat<f64>) -> usize {
     let (n, m) = (jacobian.nrows(), jacobian.ncols());
     grow(basis, n, m);
     let mut rank = 0;
@@ -76,6 +77,12 @@ fn orthonormal_rows(scratch: &mut PressScratch) -> usize {
         }
     }
     rank
+}
+
+/// [`orthonormal_rows`] of the last exact fit's Jacobian, into the scratch's basis.
+fn fit_basis(scratch: &mut PressScratch) -> usize {
+    let PressScratch { refine: refining, basis, .. } = scratch;
+    orthonormal_rows(refining.jacobian(), basis)
 }
 
 /// The least share of a response's gᵀg counted as not taken up by the presses fitted (z grows
@@ -105,7 +112,7 @@ const SIZE_STARTS: [f64; 2] = [1.0, 1.6];
 const RADII: [f64; 2] = [0.5, 2.5];
 
 /// The disk a press found is, its drop within what the exact fit takes.
-fn disk_of(press: &PressFit) -> Disk {
+pub(super) fn disk_of(press: &PressFit) -> Disk {
     Disk { centre: press.centre, radius: press.radius, drop: press.drop.clamp(0.0, DEEPEST) }
 }
 
@@ -223,7 +230,7 @@ impl PressModel {
             if stale {
                 cost = self.refit(exact, presses, scratch)?;
             }
-            let rank = orthonormal_rows(scratch);
+            let rank = fit_basis(scratch);
             for i in 0..presses.len() {
                 if scratch.sizes[i] != Size::Untested || scratch.refits >= REFITS {
                     continue;
@@ -275,7 +282,9 @@ impl PressModel {
                 residual.extend_from_slice(refining.residual());
                 centres.clear();
                 centres.extend(presses.iter().map(|p| p.centre));
-                unexplained_into(scan, scratch);
+                let rank = fit_basis(scratch);
+                let PressScratch { basis, projections, unexplained, .. } = &mut *scratch;
+                unexplained_into(scan, basis, rank, projections, unexplained);
                 let PressScratch { residual, response, centres, correlations, unexplained, rejected, .. } =
                     &mut *scratch;
                 centres.extend_from_slice(rejected);
@@ -427,7 +436,7 @@ impl PressModel {
     }
 
     /// [`PressModel::refit`] with the radii of `free_radii` (bit i: press i) fitted.
-    fn refit_with(
+    pub(super) fn refit_with(
         &self,
         exact: Exact<'_>,
         presses: &mut [PressFit],

@@ -273,6 +273,8 @@ fn level_rows(
         noise_floor: crate::pipeline::NoiseFloor::FalseAlarm { rate: params.false_alarm_rate },
         auto_hyperparameter: true,
         average: level.average,
+        // Each frame is a scene of its own: nothing to carry from the last.
+        carry_presses: false,
         ..PipelineParams::default()
     };
     let reference: Vec<Vec<f64>> = (0..pipeline_params.frames_in_reference()).map(|_| noisy(untouched)).collect();
