@@ -77,6 +77,11 @@ impl Grid {
         self.dims[0] * self.dims[1]
     }
 
+    /// The box from the first grid point to the last, `[min, max]` in m.
+    fn bounds(&self) -> [[f64; 2]; 2] {
+        [self.lo, self.point(self.len() - 1)]
+    }
+
     fn point(&self, j: usize) -> [f64; 2] {
         let (i, k) = (j % self.dims[0], j / self.dims[0]);
         [self.lo[0] + i as f64 * self.spacing, self.lo[1] + k as f64 * self.spacing]

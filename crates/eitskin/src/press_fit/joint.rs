@@ -451,7 +451,7 @@ impl PressModel {
         let params = RefineParams {
             free_radii,
             radius_range: [RADII[0] * self.radius, RADII[1] * self.radius],
-            bounds: [self.grid.lo, self.grid.point(self.grid.len() - 1)],
+            bounds: self.grid.bounds(),
         };
         let cost = refine(exact.presses, exact.dv, exact.weights, disks, &params, refining)?;
         let own = refining.own_responses();

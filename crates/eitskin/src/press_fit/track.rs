@@ -256,7 +256,7 @@ impl PressTrack {
         let left = ColMut::from_slice_mut(&mut self.residual);
         let step = ColRef::from_slice(&self.step[..n]);
         matmul(left.as_mat_mut(), Accum::Add, self.jacobian.transpose(), step.as_mat(), -1.0, Par::Seq);
-        let [lo, hi] = [detection.model.grid.lo, detection.model.grid.point(detection.model.grid.len() - 1)];
+        let [lo, hi] = detection.model.grid.bounds();
         let mut second_order = 0.0;
         let mut changed = false;
         self.current.clear();
