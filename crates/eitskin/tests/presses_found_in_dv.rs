@@ -199,6 +199,25 @@ fn a_wider_press_is_one_press_of_its_own_size() {
     }
 }
 
+/// Two presses of a 15 mm indenter, one at the deepest drop a 10 mm press can take: the linear
+/// search splits them, and the weak part left of one beside it (35 mm off) took up what the
+/// size's score test reads, so it was kept as a third press. A weaker press near a stronger
+/// one is now tested for merging whatever that score says: each is one press again.
+#[test]
+fn wide_presses_leave_no_press_beside_them() {
+    let spec = SensorSpec::square_hydrogel();
+    let model = spec.forward_model().unwrap();
+    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
+    let hydrogel = Hydrogel { indenter_radius: 0.015, ..Hydrogel::default() };
+    let sim = SimParams { hydrogel, noise_relative: 5e-4, ..SimParams::default() };
+    let mut skin = VirtualSensor::with_params(&spec, sim, 3).unwrap();
+    let presses = [([0.041, -0.025], 12.3), ([-0.060, 0.014], 6.9)];
+    for found in presses_found(&model, &press_model, &mut skin, &presses, 6) {
+        assert_eq!(found.len(), 2, "{found:?}");
+        assert!(presses.iter().all(|(at, _)| found.iter().any(|p| distance(p.centre, *at) < 0.005)), "{found:?}");
+    }
+}
+
 /// Two 5 N presses of a smooth (Hertz-like) profile, one in the weakly sensitive middle: where
 /// the linear search takes them for one press between them, the exact fit's test for a new
 /// press (with that press free to move back) finds the second. It failed in 4 of 10 frames

@@ -7,9 +7,14 @@
 //!   whose drop is under [`MIN_DROP`], goes;
 //! - each press is placed again where the largest z is left once the others are taken off, if
 //!   that is elsewhere, and kept there if the misfit falls;
+//! - a weaker press within four indenter radii of another goes, if the other, its radius fitted,
+//!   explains Δv without it nearly as well (χ² grows by less than threshold², the test a new
+//!   press must pass): a press wider than the indenter is one press, not one and the misfit it
+//!   leaves, however little the other's own score test then asks for its size;
 //! - each press's radius is fitted too, if that lowers the misfit by more than chance would
 //!   ([`SIZE_TEST`]): a wider or narrower indenter, or a profile whose contact grows with force,
-//!   is then one press of its own size, not several of the indenter's;
+//!   is then one press of its own size, not several of the indenter's; once one press is
+//!   merged or sized, the others' sizes are tested again;
 //! - a new press is placed where the largest z of the fit's misfit is left, if it passes (not
 //!   where a press was taken off), and kept if the misfit falls by as much (χ² by threshold²,
 //!   the likelihood-ratio test);
@@ -114,6 +119,12 @@ const RADII: [f64; 2] = [0.5, 2.5];
 /// The disk a press found is, its drop within what the exact fit takes.
 pub(super) fn disk_of(press: &PressFit) -> Disk {
     Disk { centre: press.centre, radius: press.radius, drop: press.drop.clamp(0.0, DEEPEST) }
+}
+
+/// Every press found to keep the indenter's radius is tested again: what that test read of the
+/// misfit, another press (since merged or widened) may have taken up.
+fn retest_sizes(sizes: &mut [Size]) {
+    sizes.iter_mut().filter(|s| **s == Size::Nominal).for_each(|s| *s = Size::Untested);
 }
 
 /// The presses whose radius is fitted, bit i for press i.
@@ -222,10 +233,10 @@ impl PressModel {
             if changed {
                 continue;
             }
-            // Each press's size, once: a wider press that the linear search split in two is one
-            // press again if the weaker neighbour within four radii goes and the misfit grows by
-            // less than that press's own test; else fitted where the misfit falls by more than
-            // a wider or narrower press could by chance.
+            // Each press's size: a wider press that the linear search split is one press again
+            // if each weaker neighbour within four radii goes and the misfit grows by less than
+            // that press's own test; else fitted where the misfit falls by more than a wider or
+            // narrower press could by chance.
             // The sizes' test reads the last fit's misfit and Jacobian: of these presses.
             if stale {
                 cost = self.refit(exact, presses, scratch)?;
@@ -235,32 +246,49 @@ impl PressModel {
                 if scratch.sizes[i] != Size::Untested || scratch.refits >= REFITS {
                     continue;
                 }
-                // The score test first (one derivative): only a press whose misfit leans on its
-                // size is fitted for it.
+                // The score test (one derivative): only a press whose misfit leans on its size
+                // is fitted for it. A weaker press near it is tested whatever the score says:
+                // it may be what takes up the misfit of a press wider than the indenter.
                 let zz = self.size_z(exact, presses, i, rank, scratch)?;
-                if zz.powi(2) < SIZE_TEST {
+                let neighbour = self.weaker_neighbour(presses, i);
+                if zz.powi(2) < SIZE_TEST && neighbour.is_none() {
                     scratch.sizes[i] = Size::Nominal;
                     continue;
                 }
-                save(presses, scratch, m);
-                if let Some(j) = self.weaker_neighbour(presses, i) {
+                // Each weaker neighbour in turn (a wide press may have been split in three).
+                let (mut at, mut merged_any, mut neighbour) = (i, false, neighbour);
+                while let Some(j) = neighbour {
+                    save(presses, scratch, m);
                     let size_j = scratch.sizes.remove(j);
                     presses.remove(j);
-                    let i = if j < i { i - 1 } else { i };
+                    let i = if j < at { at - 1 } else { at };
                     let (merged, press) = self.sized(exact, presses, i, scratch)?;
-                    if merged < cost + threshold * threshold {
-                        presses[i] = press;
-                        scratch.sizes[i] = Size::Fitted;
-                        cost = self.refit(exact, presses, scratch)?;
-                        changed = true;
+                    if merged >= cost + threshold * threshold {
+                        restore(presses, scratch, m);
+                        scratch.sizes.insert(j, size_j);
                         break;
                     }
-                    restore(presses, scratch, m);
-                    scratch.sizes.insert(j, size_j);
+                    presses[i] = press;
+                    scratch.sizes[i] = Size::Fitted;
+                    cost = self.refit(exact, presses, scratch)?;
+                    (at, merged_any) = (i, true);
+                    neighbour = self.weaker_neighbour(presses, at);
                 }
+                if merged_any {
+                    retest_sizes(&mut scratch.sizes);
+                    changed = true;
+                    break;
+                }
+                if zz.powi(2) < SIZE_TEST {
+                    scratch.sizes[i] = Size::Nominal;
+                    cost = self.refit(exact, presses, scratch)?;
+                    continue;
+                }
+                save(presses, scratch, m);
                 let (sized, press) = self.sized(exact, presses, i, scratch)?;
                 if cost - sized > SIZE_TEST {
                     presses[i] = press;
+                    retest_sizes(&mut scratch.sizes);
                     scratch.sizes[i] = Size::Fitted;
                     changed = true;
                 } else {
