@@ -151,10 +151,13 @@ pub fn sweep_json(sweep: &SweepReport) -> Value {
             "method": r.method,
             "frames": r.frames,
             "detection": number(r.detection),
+            "detection_95_interval": r.detection_interval.map(number),
             "false_touches_per_1000_frames": r.false_per_1000,
             "mean_position_error_m": number(r.position_error),
             "force_rms_newton": number(r.force_rms),
             "force_rms_percent_of_max": number(100.0 * r.force_rms / sweep.max_force),
+            "force_rms_bound_newton": number(r.force_rms_bound),
+            "force_rms_bound_percent_of_max": number(100.0 * r.force_rms_bound / sweep.max_force),
         })).collect::<Vec<_>>(),
     })
 }
@@ -164,32 +167,38 @@ pub fn sweep_json(sweep: &SweepReport) -> Value {
 pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
     let k = 1.0 / unit.metres();
     let u = unit.symbol();
-    let pct = |x: f64| if x.is_finite() { format!("{:.1}", 100.0 * x) } else { "–".into() };
+    let found = |r: &eitskin::study::sweep::SweepRow| match r.detection_interval {
+        [lo, hi] if r.detection.is_finite() => {
+            format!("{:.1} ({:.1}–{:.1})", 100.0 * r.detection, 100.0 * lo, 100.0 * hi)
+        }
+        _ => "–".into(),
+    };
     let len = |x: f64| if x.is_finite() { format!("{:.1}", x * k) } else { "–".into() };
     let force = |x: f64| if x.is_finite() { format!("{:.1}", 100.0 * x / sweep.max_force) } else { "–".into() };
     let mut s = String::from("\n## Noise sweep: presses the methods do not assume, one to three at once\n\n");
     s += "Noise in dB below each value (66 dB = 0.05 %, 54 dB = 0.2 %, 50 dB = 0.32 %: the OpenEIT captures vary 0.3–0.5 %). ";
     s += "Single frames unless averaged; λ and the noise tests from 10 reference frames, as `eitskin run` takes them. ";
     s += &format!(
-        "A press is found when a touch lies within {:.0} {u}; forces (presses in Δv only) through one curve of the fitted drop, calibrated at each level on single presses of the same kind (the 15 mm indenter through the 10 mm one's: its force is ambiguous for any method); force RMS in % of {:.0} N.\n\n",
+        "A press is found when a touch lies within {:.0} {u}; forces (presses in Δv only) through one curve of the fitted drop, calibrated at each level on single presses of the same kind (the 15 mm indenter through the 10 mm one's: its force is ambiguous for any method); force RMS in % of {:.0} N. Found % with its 95 % interval (Wilson's, of so many presses). The bound beside the force RMS is the Cramér–Rao bound of the press model's drop (centre and drop of every press unknown) through the same curve: what no unbiased estimate from Δv can beat.\n\n",
         eitskin::study::sweep::MATCH_DISTANCE * k,
         sweep.max_force
     );
     s += "![](sweep_position.png)\n\n![](sweep_force.png)\n\n";
-    s += &format!("| dB | averaged | press kind | presses | method | frames | found % | false / 1000 frames | position [{u}] | force RMS [%] |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    s += &format!("| dB | averaged | press kind | presses | method | frames | found % | false / 1000 frames | position [{u}] | force RMS [%] | bound [%] |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in &sweep.rows {
         s += &format!(
-            "| {:.0} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} |\n",
+            "| {:.0} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} |\n",
             r.level.db,
             r.level.average,
             if r.kind.is_empty() { "untouched" } else { r.kind },
             r.presses,
             r.method,
             r.frames,
-            pct(r.detection),
+            found(r),
             r.false_per_1000,
             len(r.position_error),
-            force(r.force_rms)
+            force(r.force_rms),
+            force(r.force_rms_bound)
         );
     }
     s

@@ -34,12 +34,13 @@ pub struct Args {
     #[arg(long, value_parser = ranges::whole("a number of frames per press", 1, 1000))]
     repeats: Option<usize>,
     /// Noise sweep: frames with one press per press kind and level (half as many with two, and
-    /// with three: 60 presses each, so that one press missed is 1.7 %), 0–10,000; 0 leaves the
-    /// sweep out.
-    #[arg(long, default_value_t = 60, value_parser = ranges::whole("a number of presses", 0, 10_000))]
+    /// with three: 300 presses each, so that a share found near 95 % is known to about ±2.5
+    /// points; at 60 it was ±5), 0–10,000; 0 leaves the sweep out.
+    #[arg(long, default_value_t = 300, value_parser = ranges::whole("a number of presses", 0, 10_000))]
     sweep_presses: usize,
-    /// Noise sweep: untouched frames per level, for the false touches, 1–100,000.
-    #[arg(long, default_value_t = 1000, value_parser = ranges::whole("a number of frames", 1, 100_000))]
+    /// Noise sweep: untouched frames per level, for the false touches, 1–100,000 (10,000: a
+    /// rate of 1 per 1,000 is then about 10 ± 3 false touches, not 1 ± 1).
+    #[arg(long, default_value_t = 10_000, value_parser = ranges::whole("a number of frames", 1, 100_000))]
     sweep_untouched: usize,
     /// Learned calibration: robot presses of the imperfect virtual skin to train on, 0–10,000
     /// (the learning curves go up to it; 0 leaves the section out); 300 more are held out.

@@ -59,6 +59,10 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
     };
     let single = row(66.0, "flat 10 mm (the model's)", 1);
     assert_eq!(single["detection"], 1.0, "{single}");
+    // 6 of 6 found: Wilson's 95 % interval is [0.61, 1], not the point 1.
+    let interval = single["detection_95_interval"].as_array().unwrap();
+    let lower = interval[0].as_f64().unwrap();
+    assert!((0.60..0.62).contains(&lower) && interval[1].as_f64().unwrap() > 0.999, "{single}");
     assert!(single["mean_position_error_m"].as_f64().unwrap() < 0.003, "{single}");
     assert_eq!(row(66.0, "", 0)["false_touches_per_1000_frames"], 0.0);
 

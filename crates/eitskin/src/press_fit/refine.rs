@@ -299,27 +299,34 @@ mod tests {
     use crate::forward::LowRankUpdate;
     use crate::SensorSpec;
 
-    /// Two presses of the model's kind on the model's own mesh, started a few mm and 0.1 in drop
-    /// off: back to where they are, to 1e-4 m and 1e-3 in drop; the radius too when asked, of
-    /// every press or of the one that needs it.
-    #[test]
-    fn presses_return_to_their_place_and_drop() {
+    /// The paper's sensor meshed at about `triangles`, its exact presses at a background of 1 S/m,
+    /// and Δv of flat presses `truth` pressed together.
+    fn setup(triangles: usize, truth: &[Disk]) -> (crate::forward::ForwardModel, ExactPresses, Vec<f64>, Vec<f64>) {
         let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 1200;
+        spec.mesh.triangles = triangles;
         let model = spec.forward_model().unwrap();
         let sigma = vec![1.0; model.mesh().triangles().len()];
         let exact = ExactPresses::new(LowRankUpdate::new(&model, &sigma).unwrap(), 1.0);
         let v0 = model.measure(&sigma).unwrap();
-        let truth = [
-            Disk { centre: [0.07, -0.05], radius: 0.01, drop: 0.85 },
-            Disk { centre: [-0.02, 0.03], radius: 0.012, drop: 0.3 },
-        ];
         let inclusions: Vec<Inclusion> = truth
             .iter()
             .map(|d| Inclusion { centre: d.centre, radius: d.radius, conductivity: 1.0 - d.drop })
             .collect();
         let v = model.measure(&with_inclusions(model.mesh(), 1.0, &inclusions)).unwrap();
         let dv: Vec<f64> = v.iter().zip(&v0).map(|(v, v0)| v - v0).collect();
+        (model, exact, v0, dv)
+    }
+
+    /// Two presses of the model's kind on the model's own mesh, started a few mm and 0.1 in drop
+    /// off: back to where they are, to 1e-4 m and 1e-3 in drop; the radius too when asked, of
+    /// every press or of the one that needs it.
+    #[test]
+    fn presses_return_to_their_place_and_drop() {
+        let truth = [
+            Disk { centre: [0.07, -0.05], radius: 0.01, drop: 0.85 },
+            Disk { centre: [-0.02, 0.03], radius: 0.012, drop: 0.3 },
+        ];
+        let (model, exact, v0, dv) = setup(1200, &truth);
         let weights: Vec<f64> = v0.iter().map(|v| 1.0 / (1e-3 * v.abs())).collect();
         let bounds = model.mesh().bounds();
         for free_radii in [0b00, 0b11, 0b10] {
@@ -346,15 +353,8 @@ mod tests {
     /// bounded once a try fails: the fit reaches the press.
     #[test]
     fn a_press_sized_from_far_off_is_reached() {
-        let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 4000;
-        let model = spec.forward_model().unwrap();
-        let sigma = vec![1.0; model.mesh().triangles().len()];
-        let exact = ExactPresses::new(LowRankUpdate::new(&model, &sigma).unwrap(), 1.0);
-        let v0 = model.measure(&sigma).unwrap();
-        let truth = Inclusion { centre: [0.04, 0.03], radius: 0.01, conductivity: 1.0 - 0.865 };
-        let v = model.measure(&with_inclusions(model.mesh(), 1.0, &[truth])).unwrap();
-        let dv: Vec<f64> = v.iter().zip(&v0).map(|(v, v0)| v - v0).collect();
+        let truth = Disk { centre: [0.04, 0.03], radius: 0.01, drop: 0.865 };
+        let (model, exact, v0, dv) = setup(4000, &[truth]);
         let weights: Vec<f64> = v0.iter().map(|v| 1.0 / (5e-4 * v.abs())).collect();
         let params = RefineParams { free_radii: 1, radius_range: [0.005, 0.025], bounds: model.mesh().bounds() };
         let mut disks = [Disk { centre: [0.04, 0.03], radius: 0.01, drop: 0.3 }];

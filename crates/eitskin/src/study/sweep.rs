@@ -30,16 +30,17 @@ use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 
 use super::{Progress, StudyError};
-use crate::calibration::Calibration;
+use crate::calibration::{Calibration, Curve};
 use crate::chain::{Chain, LabelledFrame};
 use crate::inverse::{Reconstructor, ReconstructorParams};
 use crate::pipeline::{Pipeline, PipelineParams};
-use crate::press_fit::{PressModel, PressModelParams};
+use crate::press_fit::{refine, Disk, PressModel, PressModelParams, RefineParams, RefineScratch};
 use crate::pseudo_array::PseudoArray;
 use crate::sim::{add_relative_noise, ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
 use crate::spec::SensorSpec;
 use crate::strength::Strength;
 use crate::TouchParams;
+use faer::linalg::solvers::DenseSolveCore;
 
 /// A touch counts for a press within this distance of it, in m.
 pub const MATCH_DISTANCE: f64 = 0.02;
@@ -120,7 +121,7 @@ impl Default for SweepParams {
                 level(90.0, 1),
             ],
             scenes: [60, 30, 30],
-            untouched: 1000,
+            untouched: 10_000,
             calibration: 60,
             reference_frames: 10,
             false_alarm_rate: 1e-3,
@@ -144,12 +145,20 @@ pub struct SweepRow {
     pub frames: usize,
     /// Share of the presses found (NaN for untouched frames).
     pub detection: f64,
+    /// The 95 % interval of that share (Wilson's score interval of a binomial; NaN for
+    /// untouched frames): how well so many presses pin it down.
+    pub detection_interval: [f64; 2],
     /// Touches that matched no press, per 1,000 frames.
     pub false_per_1000: f64,
     /// Mean distance of a found press's touch from it, in m (NaN if none found).
     pub position_error: f64,
     /// RMS force error of the found presses, in N (NaN without forces).
     pub force_rms: f64,
+    /// The Cramér–Rao bound on that RMS over the scenes' presses: what no unbiased estimate of
+    /// the press model's drop from Δv, read through the same curve, can beat (from
+    /// [`drop_variance_bounds`] and the curve's slope at each press's force), in N; NaN for the
+    /// image, or without exact responses.
+    pub force_rms_bound: f64,
 }
 
 /// Everything the sweep measured.
@@ -188,13 +197,25 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
         let own = kind.hydrogel.indenter_radius == Hydrogel::default().indenter_radius;
         calibration_clean.push(if own { Some(skin.clean_frames(&calibration_presses)?) } else { None });
     }
-    let mut scenes = Vec::new(); // (kind, presses, clean frame)
+    let mut scenes = Vec::new();
+    let bounds = spec.outline.bounds();
     for (k, skin) in skins.iter().enumerate() {
         for (n, &count) in params.scenes.iter().enumerate() {
             progress("sweep: simulating presses", k * 3 + n, kinds.len() * 3);
             let cases: Vec<Vec<Press>> = (0..count).filter_map(|_| scene(spec, &mut rng, n + 1)).collect();
             let frames = skin.clean_frames(&cases)?;
-            scenes.extend(cases.into_iter().zip(frames).map(|(presses, frame)| (k, presses, frame)));
+            let variances: Vec<Vec<f64>> = cases
+                .par_iter()
+                .zip(&frames)
+                .map(|(presses, clean)| drop_variance_bounds(&press_model, bounds, &untouched, clean, presses))
+                .collect();
+            let made = cases.into_iter().zip(frames).zip(variances);
+            scenes.extend(made.map(|((presses, clean), drop_variance)| Scene {
+                kind: k,
+                presses,
+                clean,
+                drop_variance,
+            }));
         }
     }
 
@@ -202,7 +223,7 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     // are the same however many threads there are); progress as each level ends.
     let setup = Setup { params, recon: &recon, press_model: &press_model, array: &array, kinds: &kinds };
     let (untouched, calibration_presses) = (&untouched, &calibration_presses);
-    let (calibration_clean, scenes) = (&calibration_clean, &scenes);
+    let (calibration_clean, scenes) = (&calibration_clean, &scenes[..]);
     let levels = params.levels.len();
     progress("sweep: noise levels", 0, levels);
     let (done, finished) = std::sync::mpsc::channel();
@@ -236,6 +257,50 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     Ok(SweepReport { rows, max_force: FORCES[1] })
 }
 
+/// A frame of presses: the kind (index into [`press_kinds`]), the presses, the clean frame (V),
+/// and per press the Cramér–Rao bound on its fitted drop's variance at a relative noise of 1
+/// ([`drop_variance_bounds`]).
+struct Scene {
+    kind: usize,
+    presses: Vec<Press>,
+    clean: Vec<f64>,
+    drop_variance: Vec<f64>,
+}
+
+/// Per press of `presses`, the Cramér–Rao bound on the variance of its drop fitted to Δv (`clean`
+/// less the `untouched` frame, V) when each value has noise of standard deviation 1 × its
+/// magnitude (it scales as the noise's variance): the drop's diagonal entry of (JJᵀ)⁻¹, J the
+/// whitened Jacobian of the exact fit (centre and drop of each press, the indenter's radius) at
+/// the fit of the noiseless Δv, started at the presses. What no unbiased estimate of the press
+/// model's drop can beat, with the other presses' parameters unknown too; NaN without exact
+/// responses or where the fit fails. `bounds` is the box the centres stay in (m).
+pub fn drop_variance_bounds(
+    press_model: &PressModel,
+    bounds: [[f64; 2]; 2],
+    untouched: &[f64],
+    clean: &[f64],
+    presses: &[Press],
+) -> Vec<f64> {
+    let unknown = vec![f64::NAN; presses.len()];
+    let Some(exact) = press_model.exact() else { return unknown };
+    let dv: Vec<f64> = clean.iter().zip(untouched).map(|(v, u)| v - u).collect();
+    let weights: Vec<f64> =
+        clean.iter().map(|v| if *v != 0.0 && v.is_finite() { 1.0 / v.abs() } else { 0.0 }).collect();
+    let radius = press_model.radius();
+    let mut disks: Vec<Disk> = presses.iter().map(|p| Disk { centre: p.position, radius, drop: 0.5 }).collect();
+    let params = RefineParams { free_radii: 0, radius_range: [radius, radius], bounds };
+    let mut scratch = RefineScratch::default();
+    if refine(exact, &dv, &weights, &mut disks, &params, &mut scratch).is_err() {
+        return unknown;
+    }
+    let jacobian = scratch.jacobian();
+    if jacobian.nrows() != 3 * presses.len() {
+        return unknown;
+    }
+    let covariance = (jacobian * jacobian.transpose()).full_piv_lu().inverse();
+    (0..presses.len()).map(|i| covariance[(3 * i + 2, 3 * i + 2)]).map(|v| if v > 0.0 { v } else { f64::NAN }).collect()
+}
+
 /// What every level's rows are made from: the sweep's settings, the chains' parts and the
 /// kinds of press.
 struct Setup<'a> {
@@ -246,8 +311,8 @@ struct Setup<'a> {
     kinds: &'a [PressKind],
 }
 
-/// The rows of level `l`: every method on untouched frames and on each kind's scenes (kind,
-/// presses, clean frame), calibrated on `calibration_presses` (their clean frames per kind, or
+/// The rows of level `l`: every method on untouched frames and on each kind's scenes,
+/// calibrated on `calibration_presses` (their clean frames per kind, or
 /// `None` for a kind read through the model's calibration).
 fn level_rows(
     setup: &Setup<'_>,
@@ -256,7 +321,7 @@ fn level_rows(
     untouched: &[f64],
     calibration_presses: &[Vec<Press>],
     calibration_clean: &[Option<Vec<Vec<f64>>>],
-    scenes: &[(usize, Vec<Press>, Vec<f64>)],
+    scenes: &[Scene],
 ) -> Result<Vec<SweepRow>, StudyError> {
     let Setup { params, recon, press_model, array, kinds } = *setup;
     let mut rows = Vec::new();
@@ -313,10 +378,15 @@ fn level_rows(
             .with_press_model(press_model.clone())
             .with_calibration(array.clone(), calibration)?)
     };
+    // Each kind's curve, for the bound on the force RMS: a drop's variance over the curve's
+    // slope squared.
+    let curves: Vec<Option<Curve>> = calibrations.iter().map(|c| c.curves.first().copied()).collect();
     let image = || Chain::new(recon.clone(), TouchParams::default());
-    let mut methods: Vec<(&'static str, Vec<Chain>)> = vec![("image", vec![image(); kinds.len()])];
-    methods.push(("presses in Δv", calibrations.into_iter().map(presses_in_dv).collect::<Result<_, _>>()?));
-    for (method, chains) in methods {
+    let mut methods: Vec<(&'static str, Vec<Chain>, bool)> = vec![("image", vec![image(); kinds.len()], false)];
+    methods.push(("presses in Δv", calibrations.into_iter().map(presses_in_dv).collect::<Result<_, _>>()?, true));
+    // The noise's variance per value, relative to it, of a frame imaged (its mean of `average`).
+    let variance = relative * relative / level.average.max(1) as f64;
+    for (method, chains, forces) in methods {
         // One pipeline per kind (its own calibration), each from the same reference frames.
         let mut pipelines: Vec<Pipeline> = chains.into_iter().map(|c| Pipeline::new(c, pipeline_params)).collect();
         for pipeline in &mut pipelines {
@@ -336,11 +406,14 @@ fn level_rows(
         for (k, (kind, pipeline)) in kinds.iter().zip(&mut pipelines).enumerate() {
             for count in 1..=3 {
                 let mut tally = Tally::default();
-                for (_, presses, clean) in scenes.iter().filter(|(s, p, _)| *s == k && p.len() == count) {
+                for scene in scenes.iter().filter(|s| s.kind == k && s.presses.len() == count) {
                     for _ in 0..level.average.max(1) {
-                        pipeline.process(&noisy(clean))?;
+                        pipeline.process(&noisy(&scene.clean))?;
                     }
-                    tally.frame(presses, pipeline.touches());
+                    tally.frame(&scene.presses, pipeline.touches());
+                    if let (true, Some(curve)) = (forces, curves[k]) {
+                        tally.bound(&scene.presses, &scene.drop_variance, variance, &curve);
+                    }
                 }
                 rows.push(tally.row(*level, kind.name, count, method));
             }
@@ -396,6 +469,8 @@ struct Tally {
     false_touches: usize,
     distance: f64,
     force_error: Vec<f64>,
+    /// Per press, the Cramér–Rao bound on its force's variance (N²).
+    force_variance_bound: Vec<f64>,
 }
 
 impl Tally {
@@ -428,6 +503,16 @@ impl Tally {
         self.false_touches += touch_used.iter().filter(|u| !**u).count();
     }
 
+    /// Adds the bound on each press's force variance: its drop's at noise `variance` (relative,
+    /// per value) over the slope of `curve` at its force, squared.
+    fn bound(&mut self, presses: &[Press], drop_variance: &[f64], variance: f64, curve: &Curve) {
+        const STEP: f64 = 0.01; // N
+        for (press, v) in presses.iter().zip(drop_variance) {
+            let slope = (curve.peak(press.force + STEP) - curve.peak(press.force - STEP)) / (2.0 * STEP);
+            self.force_variance_bound.push(v * variance / (slope * slope));
+        }
+    }
+
     fn row(&self, level: Level, kind: &'static str, presses: usize, method: &'static str) -> SweepRow {
         let rms = (self.force_error.iter().map(|e| e * e).sum::<f64>() / self.force_error.len() as f64).sqrt();
         SweepRow {
@@ -437,17 +522,94 @@ impl Tally {
             method,
             frames: self.frames,
             detection: if self.presses > 0 { self.found as f64 / self.presses as f64 } else { f64::NAN },
+            detection_interval: wilson_interval(self.found, self.presses),
             false_per_1000: 1000.0 * self.false_touches as f64 / self.frames.max(1) as f64,
             position_error: if self.found > 0 { self.distance / self.found as f64 } else { f64::NAN },
             force_rms: if self.force_error.is_empty() { f64::NAN } else { rms },
+            force_rms_bound: if self.force_variance_bound.is_empty() {
+                f64::NAN
+            } else {
+                (self.force_variance_bound.iter().sum::<f64>() / self.force_variance_bound.len() as f64).sqrt()
+            },
         }
     }
+}
+
+/// The 95 % score interval (Wilson's) of a binomial share, `found` of `trials`; NaN for none.
+/// Unlike p ± 1.96·√(p(1−p)/n) it stays within [0, 1] and does not shrink to nothing at 0 or 1.
+pub fn wilson_interval(found: usize, trials: usize) -> [f64; 2] {
+    if trials == 0 {
+        return [f64::NAN; 2];
+    }
+    const Z: f64 = 1.959_963_984_540_054; // the normal's 97.5th percentile
+    let (n, p) = (trials as f64, found as f64 / trials as f64);
+    let z2 = Z * Z / n;
+    let centre = (p + z2 / 2.0) / (1.0 + z2);
+    let half = Z / (1.0 + z2) * (p * (1.0 - p) / n + z2 / (4.0 * n)).sqrt();
+    [(centre - half).max(0.0), (centre + half).min(1.0)]
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::Outline;
+
+    /// Wilson's interval against values worked by hand: 57 of 60 (0.95) is [0.863, 0.983]; 0 of
+    /// 10 is [0, 0.278]; all of 300 is [0.987, 1].
+    #[test]
+    fn detection_intervals_match_the_score_interval() {
+        let close = |got: [f64; 2], want: [f64; 2]| (got[0] - want[0]).abs() < 1e-3 && (got[1] - want[1]).abs() < 1e-3;
+        assert!(close(wilson_interval(57, 60), [0.8630, 0.9829]), "{:?}", wilson_interval(57, 60));
+        assert!(close(wilson_interval(0, 10), [0.0, 0.2775]), "{:?}", wilson_interval(0, 10));
+        assert!(close(wilson_interval(300, 300), [0.9874, 1.0]), "{:?}", wilson_interval(300, 300));
+        assert!(wilson_interval(0, 0)[0].is_nan());
+    }
+
+    /// The bound on a press's drop against the spread of its exact fits over 300 noise draws
+    /// (0.01 % per value, where the fit is near linear; at 0.1 % the spread is 1.2 × the bound) on
+    /// the model's own mesh, where the fit is the model: the two agree within what 300 draws can
+    /// tell (±8 % in variance); and a second press, its parameters unknown too, raises the first's
+    /// bound (here four times).
+    #[test]
+    fn drop_bounds_match_the_spread_of_fits_and_grow_with_a_second_press() {
+        use crate::conductivity::{with_inclusions, Inclusion};
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 1500;
+        let model = spec.forward_model().unwrap();
+        let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
+        let bounds = spec.outline.bounds();
+        let untouched = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let clean = |presses: &[Press]| {
+            let disks: Vec<Inclusion> =
+                presses.iter().map(|p| Inclusion { centre: p.position, radius: 0.01, conductivity: 0.4 }).collect();
+            model.measure(&with_inclusions(model.mesh(), 1.0, &disks)).unwrap()
+        };
+        let a = Press { position: [0.03, -0.04], force: 8.0 };
+        let b = Press { position: [-0.04, 0.03], force: 8.0 };
+        let alone = drop_variance_bounds(&press_model, bounds, &untouched, &clean(&[a]), &[a])[0];
+        let paired = drop_variance_bounds(&press_model, bounds, &untouched, &clean(&[a, b]), &[a, b])[0];
+        assert!(paired > alone, "{paired} against {alone} alone");
+
+        let (relative, frame) = (1e-4, clean(&[a]));
+        let weights: Vec<f64> = frame.iter().map(|v| 1.0 / (relative * v.abs())).collect();
+        let params = RefineParams { free_radii: 0, radius_range: [0.01, 0.01], bounds };
+        let exact = press_model.exact().unwrap();
+        let (mut rng, mut scratch) = (StdRng::seed_from_u64(4), RefineScratch::default());
+        let drops: Vec<f64> = (0..300)
+            .map(|_| {
+                let mut noisy = frame.clone();
+                add_relative_noise(&mut noisy, relative, &mut rng);
+                let dv: Vec<f64> = noisy.iter().zip(&untouched).map(|(v, u)| v - u).collect();
+                let mut disks = [Disk { centre: a.position, radius: 0.01, drop: 0.6 }];
+                refine(exact, &dv, &weights, &mut disks, &params, &mut scratch).unwrap();
+                disks[0].drop
+            })
+            .collect();
+        let mean = drops.iter().sum::<f64>() / drops.len() as f64;
+        let spread = drops.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / (drops.len() - 1) as f64;
+        let ratio = spread / (alone * relative * relative);
+        assert!((0.8..1.25).contains(&ratio), "fitted drops' variance {spread} is {ratio} of the bound");
+    }
 
     /// Presses are placed apart and inside; a sheet too small for them gives up, never hangs.
     #[test]
