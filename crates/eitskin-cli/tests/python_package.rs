@@ -11,10 +11,18 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// Runs `program args` in the checkout's root, failing the test with its output.
-fn step(what: &str, program: &Path, args: &[&str]) {
+/// Runs `program args` in the checkout's root with `bin` first on the search path (as an
+/// activated virtual environment has it: maturin's build backend runs the `maturin` program it
+/// installed), failing the test with its output.
+fn step(what: &str, program: &Path, args: &[&str], bin: &Path) {
+    let mut path = std::ffi::OsString::from(bin);
+    if let Some(rest) = std::env::var_os("PATH") {
+        path.push(":");
+        path.push(rest);
+    }
     let output = Command::new(program)
         .args(args)
+        .env("PATH", path)
         .current_dir(root())
         .output()
         .unwrap_or_else(|e| panic!("{what}: cannot start {}: {e}", program.display()));
@@ -26,16 +34,16 @@ fn step(what: &str, program: &Path, args: &[&str]) {
 #[test]
 fn the_python_package_installs_and_passes_its_tests() {
     let venv = root().join("target/python-test-venv");
-    let python = venv.join("bin/python");
+    let (python, bin) = (venv.join("bin/python"), venv.join("bin"));
     if !python.exists() {
-        step("creating a virtual environment", Path::new("python3"), &["-m", "venv", &venv.to_string_lossy()]);
+        step("creating a virtual environment", Path::new("python3"), &["-m", "venv", &venv.to_string_lossy()], &bin);
     }
     let python = python.as_path();
     let pip = |what: &str, arguments: &[&str]| {
         let quiet = ["-m", "pip", "install", "--quiet", "--disable-pip-version-check"];
-        step(what, python, &[&quiet[..], arguments].concat());
+        step(what, python, &[&quiet[..], arguments].concat(), &bin);
     };
     pip("installing maturin, numpy, pytest and matplotlib", &["maturin>=1.5,<2", "numpy", "pytest", "matplotlib"]);
     pip("pip install ./python", &["--no-build-isolation", "--force-reinstall", "--no-deps", "./python"]);
-    step("pytest python/tests", python, &["-m", "pytest", "-q", "python/tests"]);
+    step("pytest python/tests", python, &["-m", "pytest", "-q", "python/tests"], &bin);
 }

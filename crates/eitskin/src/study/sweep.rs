@@ -18,7 +18,10 @@
 //! single presses of the same kind (a user calibrates their own gel and indenter), except the
 //! 15 mm indenter, read through the 10 mm one's calibration. A press is found when a touch lies within [`MATCH_DISTANCE`] of
 //! it (each touch matched once, nearest first); touches left over are false, and so is any
-//! touch on an untouched frame.
+//! touch on an untouched frame. Each share found comes with its 95 % interval
+//! ([`wilson_interval`]), and each force RMS with its Cramér–Rao bound
+//! ([`drop_variance_bounds`] through the calibration's slope): how close a method comes to
+//! what Δv holds.
 //!
 //! The levels run at once, one per thread; each draws its own noise, so the numbers do not
 //! depend on the thread count.
