@@ -206,7 +206,14 @@ fn write_sweep_figures(sweep: &SweepReport, args: &Args, unit: LengthUnit) -> Re
         ("noise (dB below each value)", &format!("mean position error ({})", unit.symbol())),
         &position,
     )?;
-    let force: Vec<plot::Series> = kinds.iter().map(|k| line(k, &|r| 100.0 * r.force_rms / sweep.max_force)).collect();
+    let mut force: Vec<plot::Series> =
+        kinds.iter().map(|k| line(k, &|r| 100.0 * r.force_rms / sweep.max_force)).collect();
+    // Beside each kind, as dots, what no unbiased estimate from Δv can beat.
+    force.extend(kinds.iter().map(|k| plot::Series {
+        name: format!("{k}: Cramér–Rao bound"),
+        line: false,
+        ..line(k, &|r| 100.0 * r.force_rms_bound / sweep.max_force)
+    }));
     plot::chart(
         &args.out.join("sweep_force.png"),
         "One press: force RMS against noise (one curve of the fitted drop)",
