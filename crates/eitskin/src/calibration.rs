@@ -252,6 +252,11 @@ impl Curve {
         self.a * (-force / self.b).exp() + self.c
     }
 
+    /// The curve's slope dpeak/dF at `force` (N), in S/m per N: −(a/b)·e^(−F/b).
+    pub fn slope(&self, force: f64) -> f64 {
+        -self.a / self.b * (-force / self.b).exp()
+    }
+
     /// The force (N) for a measured `peak` (S/m), clamped to the calibrated range.
     pub fn force(&self, peak: f64) -> ForceEstimate {
         let [low, high] = self.force_range;
@@ -624,6 +629,17 @@ mod tests {
     fn exact_curve() -> Curve {
         let (forces, peaks) = synthetic(-0.02, 5.0, 0.021, 15, 1, 0.0, 1);
         Curve::fit(0, &forces, &peaks).unwrap()
+    }
+
+    /// The slope against a central difference of the peak, across the calibrated range.
+    #[test]
+    fn slope_is_the_peaks_derivative() {
+        let curve = exact_curve();
+        for force in [0.5, 4.0, 9.0, 14.5] {
+            let h = 1e-4;
+            let difference = (curve.peak(force + h) - curve.peak(force - h)) / (2.0 * h);
+            assert!(relative_error(curve.slope(force), difference) < 1e-6, "{force} N: {}", curve.slope(force));
+        }
     }
 
     /// Fits noisy samples of a·e^(−F/b) + c (forces 0..=15 N, 15 repeats, `seed`) and checks that

@@ -123,7 +123,7 @@ impl Default for SweepParams {
                 level(80.0, 1),
                 level(90.0, 1),
             ],
-            scenes: [60, 30, 30],
+            scenes: [300, 150, 150],
             untouched: 10_000,
             calibration: 60,
             reference_frames: 10,
@@ -210,7 +210,11 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
             let variances: Vec<Vec<f64>> = cases
                 .par_iter()
                 .zip(&frames)
-                .map(|(presses, clean)| drop_variance_bounds(&press_model, bounds, &untouched, clean, presses))
+                .map(|(presses, clean)| {
+                    // Noise relative to each value, at 1: the levels scale it.
+                    let std: Vec<f64> = clean.iter().map(|v| v.abs()).collect();
+                    drop_variance_bounds(&press_model, bounds, &untouched, clean, &std, presses)
+                })
                 .collect();
             let made = cases.into_iter().zip(frames).zip(variances);
             scenes.extend(made.map(|((presses, clean), drop_variance)| Scene {
@@ -271,24 +275,26 @@ struct Scene {
 }
 
 /// Per press of `presses`, the Cramér–Rao bound on the variance of its drop fitted to Δv (`clean`
-/// less the `untouched` frame, V) when each value has noise of standard deviation 1 × its
-/// magnitude (it scales as the noise's variance): the drop's diagonal entry of (JJᵀ)⁻¹, J the
-/// whitened Jacobian of the exact fit (centre and drop of each press, the indenter's radius) at
-/// the fit of the noiseless Δv, started at the presses. What no unbiased estimate of the press
-/// model's drop can beat, with the other presses' parameters unknown too; NaN without exact
-/// responses or where the fit fails. `bounds` is the box the centres stay in (m).
+/// less the `untouched` frame, V) under independent channel noise of standard deviation `std`
+/// (one per value, V; not positive or not finite: the channel is not used): the drop's diagonal
+/// entry of (JJᵀ)⁻¹, J the whitened Jacobian of the exact fit (centre and drop of each press,
+/// the indenter's radius) at the fit of the noiseless Δv, started at the presses. What no
+/// unbiased estimate of the press model's drop can beat, with the other presses' parameters
+/// unknown too; NaN without exact responses or where the fit fails. `bounds` is the box the
+/// centres stay in (m). For a board, `std` is its measured noise; the sweep passes |clean|
+/// (noise relative to each value, at 1) and scales by its levels' variance.
 pub fn drop_variance_bounds(
     press_model: &PressModel,
     bounds: [[f64; 2]; 2],
     untouched: &[f64],
     clean: &[f64],
+    std: &[f64],
     presses: &[Press],
 ) -> Vec<f64> {
     let unknown = vec![f64::NAN; presses.len()];
     let Some(exact) = press_model.exact() else { return unknown };
     let dv: Vec<f64> = clean.iter().zip(untouched).map(|(v, u)| v - u).collect();
-    let weights: Vec<f64> =
-        clean.iter().map(|v| if *v != 0.0 && v.is_finite() { 1.0 / v.abs() } else { 0.0 }).collect();
+    let weights: Vec<f64> = std.iter().map(|s| if *s > 0.0 && s.is_finite() { 1.0 / s } else { 0.0 }).collect();
     let radius = press_model.radius();
     let mut disks: Vec<Disk> = presses.iter().map(|p| Disk { centre: p.position, radius, drop: 0.5 }).collect();
     let params = RefineParams { free_radii: 0, radius_range: [radius, radius], bounds };
@@ -509,10 +515,8 @@ impl Tally {
     /// Adds the bound on each press's force variance: its drop's at noise `variance` (relative,
     /// per value) over the slope of `curve` at its force, squared.
     fn bound(&mut self, presses: &[Press], drop_variance: &[f64], variance: f64, curve: &Curve) {
-        const STEP: f64 = 0.01; // N
         for (press, v) in presses.iter().zip(drop_variance) {
-            let slope = (curve.peak(press.force + STEP) - curve.peak(press.force - STEP)) / (2.0 * STEP);
-            self.force_variance_bound.push(v * variance / (slope * slope));
+            self.force_variance_bound.push(v * variance / curve.slope(press.force).powi(2));
         }
     }
 
@@ -589,8 +593,12 @@ mod tests {
         };
         let a = Press { position: [0.03, -0.04], force: 8.0 };
         let b = Press { position: [-0.04, 0.03], force: 8.0 };
-        let alone = drop_variance_bounds(&press_model, bounds, &untouched, &clean(&[a]), &[a])[0];
-        let paired = drop_variance_bounds(&press_model, bounds, &untouched, &clean(&[a, b]), &[a, b])[0];
+        let bound = |presses: &[Press]| {
+            let frame = clean(presses);
+            let std: Vec<f64> = frame.iter().map(|v| v.abs()).collect();
+            drop_variance_bounds(&press_model, bounds, &untouched, &frame, &std, presses)[0]
+        };
+        let (alone, paired) = (bound(&[a]), bound(&[a, b]));
         assert!(paired > alone, "{paired} against {alone} alone");
 
         let (relative, frame) = (1e-4, clean(&[a]));
