@@ -80,6 +80,11 @@ pub struct Args {
     /// measured from them (and then from every frame without a touch).
     #[arg(long, default_value_t = 10, value_parser = ranges::whole("a number of reference frames", 1, 10_000))]
     reference_frames: usize,
+    /// Frames imaged the reference grows to, 1–1,000,000: each frame without a touch joins the
+    /// reference's mean until it holds this many (its noise is in every Δv); at or below
+    /// `--reference-frames` it stays as taken.
+    #[arg(long, default_value_t = 100, value_parser = ranges::whole("a number of reference frames", 1, 1_000_000))]
+    reference_limit: usize,
     /// False touches allowed per frame without a touch, in (0, 0.5]: a touch's peak must stand
     /// out from the measured noise by the z this rate calls for (about 4.6 at 0.001).
     #[arg(long, default_value = "0.001", value_parser = ranges::number("a false-alarm rate", "(0, 0.5]", "0.001", |r| r > 0.0 && r <= 0.5))]
@@ -229,6 +234,7 @@ pub fn run(args: Args) -> Result<()> {
     };
     let params = PipelineParams {
         reference_frames: args.reference_frames,
+        reference_limit: args.reference_limit,
         baseline_rate: args.baseline_rate,
         auto_hyperparameter: imaging.hyperparameter == Hyperparameter::Auto,
         noise_floor: NoiseFloor::FalseAlarm { rate: args.false_alarm_rate },

@@ -126,6 +126,11 @@ impl NoiseModel {
         self.reference_frames
     }
 
+    /// Sets the frames in the reference, as it grows.
+    pub fn set_reference_frames(&mut self, frames: usize) {
+        self.reference_frames = frames;
+    }
+
     /// The degrees of freedom behind the estimate, the median over channels (frames seen, less one).
     pub fn frames(&self) -> f64 {
         let mut dof: Vec<f64> = self.weight.iter().filter(|w| **w > 1.0).map(|w| w - 1.0).collect();

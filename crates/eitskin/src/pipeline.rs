@@ -2,7 +2,9 @@
 //! touches, fitted presses, forces) on every frame.
 //!
 //! The reference (no-touch) frame is the mean of the first N frames (and again after
-//! [`Pipeline::retake_reference`]). While referencing, the pipeline also measures its noise, each
+//! [`Pipeline::retake_reference`]); each later frame without a touch joins that mean until it
+//! holds [`PipelineParams::reference_limit`] frames, since the reference's noise is in every Δv.
+//! While referencing, the pipeline also measures its noise, each
 //! channel's ([`NoiseModel`]), and keeps measuring it on every later frame without a touch.
 //! With [`NoiseFloor::FalseAlarm`] (the default) a touch's peak must stand out from that noise
 //! at a stated false-alarm rate ([`Significance`]); with [`NoiseFloor::Auto`] it needs a peak
@@ -18,7 +20,8 @@
 //! N (a moving average, started from the reference frames), so the noise falls by √N and a
 //! change shows (N − 1)/2 frames late on average.
 //! An optional slow baseline update, while no touch is present, follows drift:
-//! v_ref ← (1 − α)·v_ref + α·v. Each later frame goes through the chain against the reference.
+//! v_ref ← (1 − α)·v_ref + α·v (while the reference grows, a frame weighs the larger of α and
+//! its share of the mean). Each later frame goes through the chain against the reference.
 //!
 //! Channels going bad. A channel whose value is not finite (NaN marks a missing value) in a
 //! reference frame is dropped, and so is one whose reference is zero with normalised
@@ -88,7 +91,8 @@ pub enum NoiseFloor {
     Fixed(f64),
 }
 
-/// Settings of the frame path; `Default` takes the mean of 10 frames, no baseline update, tests
+/// Settings of the frame path; `Default` takes the mean of 10 frames, grows it to 100 frames
+/// without a touch, no baseline update, tests
 /// touches at 1 false touch per 1,000 frames, images single frames and keeps the chain's λ.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PipelineParams {
@@ -97,6 +101,11 @@ pub struct PipelineParams {
     /// ([`frames_in_reference`](Self::frames_in_reference)), so that it stays as much quieter
     /// than a frame imaged as without averaging (its noise is in every Δv).
     pub reference_frames: usize,
+    /// Frames imaged the reference grows to: after it is taken, each frame without a touch joins
+    /// its mean until it is the mean of `reference_limit` × [`average`](Self::average) frames
+    /// (its noise's share of every Δv falls from 1/`reference_frames` of a frame's to
+    /// 1/`reference_limit`); at or below `reference_frames` it stays as taken.
+    pub reference_limit: usize,
     /// Baseline update weight α per frame without a touch (0 = off), dimensionless.
     pub baseline_rate: f64,
     /// How touches are told from noise (on top of the chain's own [`TouchParams::min_peak`](crate::TouchParams::min_peak)).
@@ -116,6 +125,7 @@ impl Default for PipelineParams {
     fn default() -> Self {
         PipelineParams {
             reference_frames: 10,
+            reference_limit: 100,
             baseline_rate: 0.0,
             noise_floor: NoiseFloor::FalseAlarm { rate: 1e-3 },
             auto_hyperparameter: false,
@@ -129,6 +139,12 @@ impl PipelineParams {
     /// The frames the reference is the mean of: `reference_frames` × `average` (each at least 1).
     pub fn frames_in_reference(&self) -> usize {
         self.reference_frames.max(1).saturating_mul(self.average.max(1))
+    }
+
+    /// The frames the reference grows to, without a touch: `reference_limit` × `average`, at
+    /// least [`frames_in_reference`](Self::frames_in_reference).
+    pub fn reference_limit_frames(&self) -> usize {
+        self.reference_limit.max(self.reference_frames).max(1).saturating_mul(self.average.max(1))
     }
 }
 
@@ -151,7 +167,8 @@ pub enum Status {
         count: usize,
     },
     /// The frame was imaged, and then the noise model, grown by it, gave a new λ, channel
-    /// weights and threshold for the frames after it.
+    /// weights and threshold for the frames after it (or the reference, grown by it, a new
+    /// threshold: its own noise is less of Δv's).
     NoiseUpdated,
 }
 
@@ -172,6 +189,9 @@ pub struct Pipeline {
     /// λ of the chain's reconstructor as given, for each new reference unless λ is chosen.
     given_hyperparameter: f64,
     reference: Vec<f64>,
+    /// Frames the reference is the mean of, and how many it was when the threshold was last derived.
+    reference_count: usize,
+    derived_reference_count: usize,
     collected: Vec<Vec<f64>>,
     /// Per channel, whether a reference frame collected so far missed it.
     missing: Vec<bool>,
@@ -209,6 +229,8 @@ impl Pipeline {
             chain,
             params,
             reference: Vec::new(),
+            reference_count: 0,
+            derived_reference_count: 0,
             collected: Vec::with_capacity(params.frames_in_reference()),
             missing: vec![false; count],
             noise_peak: 0.0,
@@ -344,14 +366,28 @@ impl Pipeline {
                     status = Status::NoiseUpdated;
                 }
             }
-            let alpha = self.params.baseline_rate;
-            if alpha > 0.0 {
-                for (r, v) in self.reference.iter_mut().zip(frame).filter(|(_, v)| v.is_finite()) {
-                    *r += alpha * (v - *r);
-                }
-            }
+            self.grow_reference(frame);
         }
         Ok(status)
+    }
+
+    /// Adds `frame`, without a touch, to the reference: as one more frame of its mean while it
+    /// holds fewer than the limit, and with the baseline rate α (the larger weight of the two).
+    fn grow_reference(&mut self, frame: &[f64]) {
+        let growing = self.reference_count < self.params.reference_limit_frames();
+        let share = if growing { 1.0 / (self.reference_count + 1) as f64 } else { 0.0 };
+        let weight = share.max(self.params.baseline_rate);
+        if growing {
+            self.reference_count += 1;
+            if let Some(noise) = self.noise.as_mut() {
+                noise.set_reference_frames(self.reference_count);
+            }
+        }
+        if weight > 0.0 {
+            for (r, v) in self.reference.iter_mut().zip(frame).filter(|(_, v)| v.is_finite()) {
+                *r += weight * (v - *r);
+            }
+        }
     }
 
     /// Puts `frame` into the ring of the last frames, and their mean into `averaged`.
@@ -368,7 +404,8 @@ impl Pipeline {
     }
 
     /// λ, the channel weights and the threshold again, from the noise model as it is now, when
-    /// the noise has changed since they were last derived ([`noise_changed`]); whether it did.
+    /// the noise has changed since they were last derived ([`noise_changed`]), or the threshold
+    /// alone when the reference has doubled or reached its limit since; whether either did.
     /// Deriving takes a fifth of a second on the paper's sensor, so a steady sensor is not made
     /// to wait for it every [`REFRESH_MAX`] frames.
     fn refresh(&mut self) -> Result<bool, InverseError> {
@@ -376,16 +413,22 @@ impl Pipeline {
         self.refreshed_at = noise.frames();
         self.since_refresh = 0.0;
         let variance = noise.relative_variance();
-        if !noise_changed(&self.refreshed_variance, &variance) {
+        let changed = noise_changed(&self.refreshed_variance, &variance);
+        let (count, derived) = (self.reference_count, self.derived_reference_count);
+        let grown = count >= 2 * derived || (count == self.params.reference_limit_frames() && derived < count);
+        if !changed && !grown {
             return Ok(false);
         }
-        self.refreshed_variance = variance;
-        if self.params.auto_hyperparameter {
-            let recon = self.chain.reconstructor();
-            let (derived, _) =
-                recon.with_auto_hyperparameter(recon.channels().clone(), Some(noise.relative_variance()))?;
-            self.chain.set_reconstructor(derived);
+        if changed {
+            self.refreshed_variance = variance;
+            if self.params.auto_hyperparameter {
+                let recon = self.chain.reconstructor();
+                let (derived, _) =
+                    recon.with_auto_hyperparameter(recon.channels().clone(), Some(noise.relative_variance()))?;
+                self.chain.set_reconstructor(derived);
+            }
         }
+        self.derived_reference_count = count;
         self.set_significance()?;
         Ok(true)
     }
@@ -449,6 +492,7 @@ impl Pipeline {
 
     fn take_reference(&mut self) -> Result<(), InverseError> {
         self.reference = mean_of_finite(&self.collected);
+        (self.reference_count, self.derived_reference_count) = (self.collected.len(), self.collected.len());
         let measured = NoiseModel::from_frames(&self.collected);
         self.noise_measured = measured.is_some();
         let count = self.reference.len();
@@ -668,6 +712,31 @@ mod tests {
         assert_eq!(pipeline.process(&skin.frame().unwrap()).unwrap(), Status::Processed);
     }
 
+    /// Frames without a touch join the reference's mean up to its limit; a touched frame does not.
+    #[test]
+    fn the_reference_grows_on_frames_without_a_touch_up_to_its_limit() {
+        let (pipeline, mut skin) = setup();
+        let params = PipelineParams { reference_frames: 4, reference_limit: 12, ..PipelineParams::default() };
+        let mut pipeline = Pipeline::new(pipeline.chain().clone(), params);
+        let untouched: Vec<Vec<f64>> = (0..15).map(|_| skin.frame().unwrap()).collect();
+        skin.press([0.03, 0.02], 10.0);
+        let pressed = skin.frame().unwrap();
+        for frame in &untouched[..8] {
+            pipeline.process(frame).unwrap();
+        }
+        pipeline.process(&pressed).unwrap();
+        assert_eq!(pipeline.touches().len(), 1, "the pressed frame has its touch");
+        for frame in &untouched[8..] {
+            pipeline.process(frame).unwrap();
+            assert!(pipeline.touches().is_empty(), "{:?}", pipeline.touches());
+        }
+        let mean: Vec<f64> = (0..120).map(|m| untouched[..12].iter().map(|f| f[m]).sum::<f64>() / 12.0).collect();
+        let reference = pipeline.reference().unwrap();
+        let off = reference.iter().zip(&mean).map(|(r, m)| ((r - m) / m).abs()).fold(0.0, f64::max);
+        assert!(off < 1e-12, "the reference is the mean of the first 12 untouched frames, off by {off:e}");
+        assert_eq!(pipeline.noise().map(NoiseModel::reference_frames), Some(12));
+    }
+
     #[test]
     fn baseline_update_follows_drift_without_touches() {
         let mut spec = SensorSpec::square_hydrogel();
@@ -675,6 +744,7 @@ mod tests {
         let recon = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &ReconstructorParams::default()).unwrap();
         let params = PipelineParams {
             reference_frames: 3,
+            reference_limit: 3,
             baseline_rate: 0.5,
             noise_floor: NoiseFloor::Fixed(0.01),
             auto_hyperparameter: false,

@@ -20,8 +20,10 @@
 //! it (each touch matched once, nearest first); touches left over are false, and so is any
 //! touch on an untouched frame. Each share found comes with its 95 % interval
 //! ([`wilson_interval`]), and each force RMS with its Cramér–Rao bound
-//! ([`drop_variance_bounds`] through the calibration's slope): how close a method comes to
-//! what Δv holds.
+//! ([`drop_variance_bounds`] through the calibration's slope, at the noise of Δv: the frame's
+//! and its reference's): how close a method comes to what Δv holds. Each pipeline takes its
+//! reference and sees the sheet at rest until the reference has grown to its limit
+//! ([`PipelineParams::reference_limit`]), as a user's sheet rests between presses.
 //!
 //! The levels run at once, one per thread; each draws its own noise, so the numbers do not
 //! depend on the thread count.
@@ -36,6 +38,7 @@ use super::{Progress, StudyError};
 use crate::calibration::{Calibration, Curve};
 use crate::chain::{Chain, LabelledFrame};
 use crate::inverse::{Reconstructor, ReconstructorParams};
+use crate::noise::NoiseModel;
 use crate::pipeline::{Pipeline, PipelineParams};
 use crate::press_fit::{refine, Disk, PressModel, PressModelParams, RefineParams, RefineScratch};
 use crate::pseudo_array::PseudoArray;
@@ -351,7 +354,10 @@ fn level_rows(
         carry_presses: false,
         ..PipelineParams::default()
     };
-    let reference: Vec<Vec<f64>> = (0..pipeline_params.frames_in_reference()).map(|_| noisy(untouched)).collect();
+    // The frames a pipeline starts on: its reference, then the sheet at rest until the reference
+    // has grown to its limit (a user's sheet rests between presses).
+    let resting = pipeline_params.reference_limit_frames();
+    let reference: Vec<Vec<f64>> = (0..resting).map(|_| noisy(untouched)).collect();
     // The press method's calibration: one curve of the fitted drop per kind, from presses of
     // that kind (a user calibrates their own gel and indenter); the 15 mm indenter is read
     // through the 10 mm one's, as a user pressing with another indenter would.
@@ -393,10 +399,8 @@ fn level_rows(
     let image = || Chain::new(recon.clone(), TouchParams::default());
     let mut methods: Vec<(&'static str, Vec<Chain>, bool)> = vec![("image", vec![image(); kinds.len()], false)];
     methods.push(("presses in Δv", calibrations.into_iter().map(presses_in_dv).collect::<Result<_, _>>()?, true));
-    // The noise's variance per value, relative to it, of a frame imaged (its mean of `average`).
-    let variance = relative * relative / level.average.max(1) as f64;
     for (method, chains, forces) in methods {
-        // One pipeline per kind (its own calibration), each from the same reference frames.
+        // One pipeline per kind (its own calibration), each from the same resting frames.
         let mut pipelines: Vec<Pipeline> = chains.into_iter().map(|c| Pipeline::new(c, pipeline_params)).collect();
         for pipeline in &mut pipelines {
             for frame in &reference {
@@ -413,6 +417,10 @@ fn level_rows(
         rows.push(tally.row(*level, "", 0, method));
         // Pressed frames, each after `average` frames of its press so the mean holds it alone.
         for (k, (kind, pipeline)) in kinds.iter().zip(&mut pipelines).enumerate() {
+            // The noise's variance per value of Δv, relative to it: a frame imaged's (the mean of
+            // `average`) and the reference's (the mean of as many frames as it grew to).
+            let in_reference = pipeline.noise().map_or(1, NoiseModel::reference_frames);
+            let variance = relative * relative * (1.0 / level.average.max(1) as f64 + 1.0 / in_reference as f64);
             for count in 1..=3 {
                 let mut tally = Tally::default();
                 for scene in scenes.iter().filter(|s| s.kind == k && s.presses.len() == count) {
