@@ -3,7 +3,9 @@
 //!
 //! The reference (no-touch) frame is the mean of the first N frames (and again after
 //! [`Pipeline::retake_reference`]); each later frame without a touch joins that mean until it
-//! holds [`PipelineParams::reference_limit`] frames, since the reference's noise is in every Δv.
+//! holds [`PipelineParams::reference_limit`] frames, since the reference's noise is in every Δv
+//! (averaging, a frame joins as it leaves the average, if none of the means that held it showed
+//! a touch).
 //! While referencing, the pipeline also measures its noise, each
 //! channel's ([`NoiseModel`]), and keeps measuring it on every later frame without a touch.
 //! With [`NoiseFloor::FalseAlarm`] (the default) a touch's peak must stand out from that noise
@@ -192,6 +194,10 @@ pub struct Pipeline {
     /// Frames the reference is the mean of, and how many it was when the threshold was last derived.
     reference_count: usize,
     derived_reference_count: usize,
+    /// Frames imaged since the reference was taken, and of them the last ones in a row without
+    /// a touch.
+    since_reference: usize,
+    quiet: usize,
     collected: Vec<Vec<f64>>,
     /// Per channel, whether a reference frame collected so far missed it.
     missing: Vec<bool>,
@@ -231,6 +237,8 @@ impl Pipeline {
             reference: Vec::new(),
             reference_count: 0,
             derived_reference_count: 0,
+            since_reference: 0,
+            quiet: 0,
             collected: Vec::with_capacity(params.frames_in_reference()),
             missing: vec![false; count],
             noise_peak: 0.0,
@@ -344,13 +352,29 @@ impl Pipeline {
                 return Err(e);
             }
         }
-        let imaged = if self.params.average > 1 {
+        let n = self.params.average.max(1);
+        let imaged = if n > 1 {
+            // The frame about to leave the ring joins the reference if none of the N means that
+            // held it showed a touch: a press's first frames, in means that do not show it yet,
+            // stay out.
+            if self.since_reference >= n && self.quiet >= n {
+                let oldest = &self.ring[self.ring_next * count..(self.ring_next + 1) * count];
+                self.reference_count = grow_reference(
+                    &mut self.reference,
+                    self.reference_count,
+                    self.noise.as_mut(),
+                    &self.params,
+                    oldest,
+                );
+            }
             self.average(frame);
             &self.averaged
         } else {
             frame
         };
+        self.since_reference += 1;
         let touched = !self.chain.process(&self.reference, imaged)?.is_empty();
+        self.quiet = if touched { 0 } else { self.quiet + 1 };
         let mut status = match self.newly_dropped.len() {
             0 => Status::Processed,
             count => Status::ChannelsDropped { count },
@@ -366,28 +390,12 @@ impl Pipeline {
                     status = Status::NoiseUpdated;
                 }
             }
-            self.grow_reference(frame);
+            if n == 1 {
+                self.reference_count =
+                    grow_reference(&mut self.reference, self.reference_count, self.noise.as_mut(), &self.params, frame);
+            }
         }
         Ok(status)
-    }
-
-    /// Adds `frame`, without a touch, to the reference: as one more frame of its mean while it
-    /// holds fewer than the limit, and with the baseline rate α (the larger weight of the two).
-    fn grow_reference(&mut self, frame: &[f64]) {
-        let growing = self.reference_count < self.params.reference_limit_frames();
-        let share = if growing { 1.0 / (self.reference_count + 1) as f64 } else { 0.0 };
-        let weight = share.max(self.params.baseline_rate);
-        if growing {
-            self.reference_count += 1;
-            if let Some(noise) = self.noise.as_mut() {
-                noise.set_reference_frames(self.reference_count);
-            }
-        }
-        if weight > 0.0 {
-            for (r, v) in self.reference.iter_mut().zip(frame).filter(|(_, v)| v.is_finite()) {
-                *r += weight * (v - *r);
-            }
-        }
     }
 
     /// Puts `frame` into the ring of the last frames, and their mean into `averaged`.
@@ -493,6 +501,7 @@ impl Pipeline {
     fn take_reference(&mut self) -> Result<(), InverseError> {
         self.reference = mean_of_finite(&self.collected);
         (self.reference_count, self.derived_reference_count) = (self.collected.len(), self.collected.len());
+        (self.since_reference, self.quiet) = (0, 0);
         let measured = NoiseModel::from_frames(&self.collected);
         self.noise_measured = measured.is_some();
         let count = self.reference.len();
@@ -552,6 +561,31 @@ impl Pipeline {
         }
         recon.derive(self.given_hyperparameter, channels).map(Some)
     }
+}
+
+/// Adds `frame`, without a touch, to `reference`, the mean of `count` frames: as one more frame
+/// of its mean while it holds fewer than the limit of `params`, and with the baseline rate α
+/// (the larger weight of the two); the frames it is the mean of now (the noise model told).
+fn grow_reference(
+    reference: &mut [f64],
+    count: usize,
+    noise: Option<&mut NoiseModel>,
+    params: &PipelineParams,
+    frame: &[f64],
+) -> usize {
+    let growing = count < params.reference_limit_frames();
+    let share = if growing { 1.0 / (count + 1) as f64 } else { 0.0 };
+    let weight = share.max(params.baseline_rate);
+    let count = if growing { count + 1 } else { count };
+    if let (true, Some(noise)) = (growing, noise) {
+        noise.set_reference_frames(count);
+    }
+    if weight > 0.0 {
+        for (r, v) in reference.iter_mut().zip(frame).filter(|(_, v)| v.is_finite()) {
+            *r += weight * (v - *r);
+        }
+    }
+    count
 }
 
 /// Refuses a set of used channels that drops more than a quarter of the `configured` ones
@@ -735,6 +769,44 @@ mod tests {
         let off = reference.iter().zip(&mean).map(|(r, m)| ((r - m) / m).abs()).fold(0.0, f64::max);
         assert!(off < 1e-12, "the reference is the mean of the first 12 untouched frames, off by {off:e}");
         assert_eq!(pipeline.noise().map(NoiseModel::reference_frames), Some(12));
+    }
+
+    /// Averaging N frames, a frame joins the reference as it leaves the ring, and only if none of
+    /// the N means that held it showed a touch: the frames beside a press stay out with it.
+    #[test]
+    fn averaged_frames_join_the_reference_only_when_no_mean_that_held_them_was_touched() {
+        let (pipeline, mut skin) = setup();
+        let params =
+            PipelineParams { reference_frames: 2, average: 4, reference_limit: 4, ..PipelineParams::default() };
+        let mut pipeline = Pipeline::new(pipeline.chain().clone(), params);
+        let reference: Vec<Vec<f64>> = (0..8).map(|_| skin.frame().unwrap()).collect();
+        let untouched: Vec<Vec<f64>> = (0..18).map(|_| skin.frame().unwrap()).collect();
+        skin.press([0.03, 0.02], 15.0);
+        let pressed = skin.frame().unwrap();
+        for frame in &reference {
+            pipeline.process(frame).unwrap();
+        }
+        // Frames imaged: u0…u5, the pressed one, u6…u17; the four means that hold it are touched.
+        let stream: Vec<&[f64]> = untouched[..6]
+            .iter()
+            .map(Vec::as_slice)
+            .chain([pressed.as_slice()])
+            .chain(untouched[6..].iter().map(Vec::as_slice))
+            .collect();
+        let mut touched = Vec::new();
+        for frame in &stream {
+            pipeline.process(frame).unwrap();
+            touched.push(!pipeline.touches().is_empty());
+        }
+        let expected: Vec<bool> = (0..stream.len()).map(|t| (6..10).contains(&t)).collect();
+        assert_eq!(touched, expected);
+        // u0, u1 and u2 left the ring before the press; u3…u8 shared a mean with it; u9…u13 then
+        // filled the reference to its 16 frames.
+        let joined: Vec<&Vec<f64>> = reference.iter().chain(&untouched[..3]).chain(&untouched[9..14]).collect();
+        let mean: Vec<f64> = (0..120).map(|m| joined.iter().map(|f| f[m]).sum::<f64>() / 16.0).collect();
+        let off = pipeline.reference().unwrap().iter().zip(&mean).map(|(r, m)| ((r - m) / m).abs()).fold(0.0, f64::max);
+        assert!(off < 1e-12, "the reference is off the mean of its 16 frames by {off:e}");
+        assert_eq!(pipeline.noise().map(NoiseModel::reference_frames), Some(16));
     }
 
     #[test]

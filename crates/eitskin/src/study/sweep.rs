@@ -356,7 +356,9 @@ fn level_rows(
     };
     // The frames a pipeline starts on: its reference, then the sheet at rest until the reference
     // has grown to its limit (a user's sheet rests between presses).
-    let resting = pipeline_params.reference_limit_frames();
+    // Twice the frames it grows to: averaging, a frame joins only once it has left the average,
+    // and a false touch keeps the frames beside it out.
+    let resting = 2 * pipeline_params.reference_limit_frames();
     let reference: Vec<Vec<f64>> = (0..resting).map(|_| noisy(untouched)).collect();
     // The press method's calibration: one curve of the fitted drop per kind, from presses of
     // that kind (a user calibrates their own gel and indenter); the 15 mm indenter is read
