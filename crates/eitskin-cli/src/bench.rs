@@ -11,7 +11,8 @@
 //! 0.05 % noise, median of 201 runs on the noiseless frame), `frame_three_presses_noisy` (the
 //! same on 201 frames of the presses held, each with its own 0.05 % noise) and
 //! `frame_three_presses_carried` (those frames as a stream, the presses carried from frame to
-//! frame); `simulated_frame` and `simulated_three_presses` (the virtual
+//! frame) and `frame_three_presses_carried_80db` (the same stream at 0.01 % noise, the reference
+//! of 100 frames); `simulated_frame` and `simulated_three_presses` (the virtual
 //! sensor's frame on its finer truth mesh, one press and three apart); `learn_1000_presses` and
 //! `learned_frame` (a Gaussian process on 1,000 robot presses of 192 channels, and its answer
 //! for one frame), and the same on the fitted press (`learn_1000_presses_press`,
@@ -223,6 +224,21 @@ pub fn run(args: Args) -> Result<()> {
         next += 1;
         Ok(detection.track_into(&held[next - 1], &mut whitened, &mut press_scratch, &mut track, &mut found)?)
     })?;
+    // The same stream at 80 dB (0.01 %, the virtual sensor's noise), against a detection for it.
+    let std80: Vec<f64> = values.iter().map(|v| 1e-4 * v.abs() * 1.01_f64.sqrt()).collect();
+    let detection80 = PressDetection::new(&press_model, &std80, 99.0, 1e-3)?;
+    let held80: Vec<Vec<f64>> = (0..201)
+        .map(|_| {
+            let noise: Vec<f64> =
+                std80.iter().map(|s| s * Distribution::<f64>::sample(&StandardNormal, &mut rng)).collect();
+            dv3.iter().zip(noise).map(|(d, n)| d + n).collect()
+        })
+        .collect();
+    let (mut track, mut next) = (PressTrack::default(), 0);
+    let (t_carried80, _) = time(held80.len(), || {
+        next += 1;
+        Ok(detection80.track_into(&held80[next - 1], &mut whitened, &mut press_scratch, &mut track, &mut found)?)
+    })?;
     let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
     // The virtual sensor's frame on its finer truth mesh: one press, then three presses apart
     // (corners of a triangle half the sheet wide, unequal forces).
@@ -254,6 +270,7 @@ pub fn run(args: Args) -> Result<()> {
         ("frame_three_presses", t_detect),
         ("frame_three_presses_noisy", t_noisy),
         ("frame_three_presses_carried", t_carried),
+        ("frame_three_presses_carried_80db", t_carried80),
         ("replay_latency", replay_latency),
         ("simulated_frame", t_simulated),
         ("simulated_three_presses", t_simulated_three),

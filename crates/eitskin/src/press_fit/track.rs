@@ -11,8 +11,9 @@ use super::{PressFit, PressScratch};
 use crate::forward::{grow, room, DenseLu};
 use crate::inverse::InverseError;
 
-/// The largest second-order term a carried step may leave, whitened (in units of the noise's
-/// standard deviation): half of it.
+/// The largest shift of the fitted parameters the second-order term a carried step leaves out
+/// may cause, in standard deviations of the fit (whitened: the term's part in the span of the
+/// Jacobian): half of one.
 pub const NONLINEAR: f64 = 0.5;
 
 /// The parameters carried per press, in the order of the Jacobian's rows (the radius stays
@@ -44,19 +45,22 @@ pub enum Tracked {
 /// afresh, as soon as the step cannot be trusted or the frame does not fit them:
 /// - **the linearisation no longer holds** — each press's own response is known to second order
 ///   along each parameter (a difference of exact responses at linearisation), and the step's
-///   second-order term, ½·Σₚ|∂²F/∂θₚ²|·δθₚ² whitened, is at most [`NONLINEAR`] of the noise's
-///   standard deviation; past it the presses are fitted again exactly from where the step put
-///   them, and linearised there;
+///   second-order term e = ½·Σₚ ∂²F/∂θₚ²·δθₚ², whitened, may move the parameters (its part in
+///   the span of the Jacobian) by at most [`NONLINEAR`] of their standard deviation; the rest of
+///   it is taken off the misfit the tests below read; past it the presses are fitted again
+///   exactly from where the step put them, and linearised there;
 /// - **a press is gone** — its z against the misfit with its own response put back, or its
 ///   drop, fails as in the detection;
 /// - **a new press is there** — the largest z of the misfit over the scan grid, against the part
 ///   of each point's response the presses cannot take up, passes the detection's threshold.
 ///
-/// A frame carried so is what the exact fit would give to within a fraction of the noise
-/// (`presses_held_are_carried_as_the_exact_fit_finds_them`), in microseconds. Where the noise
-/// moves a weak press's fit by millimetres from frame to frame, the step goes past the
-/// linearisation in most frames, and those are fitted again (`eitskin bench`,
-/// `frame_three_presses_carried`).
+/// A frame carried so is what the exact fit would give to within a fraction of the spread the
+/// noise gives the fit, 0.2–0.46 (`presses_held_are_carried_as_the_exact_fit_finds_them`), in
+/// microseconds: what is left is the Jacobian held at the linearisation, not the second-order
+/// term (bounding that tighter carries fewer frames no closer). Where the noise moves a weak
+/// press's fit by millimetres from frame to frame, the step goes past the linearisation in
+/// most frames, and those are fitted again (`eitskin bench`, `frame_three_presses_carried` at
+/// 0.05 % noise against `frame_three_presses_carried_80db` at 0.01 %).
 #[derive(Debug)]
 pub struct PressTrack {
     /// Whether a linearisation is held.
@@ -72,11 +76,15 @@ pub struct PressTrack {
     solver: Mat<f64>,
     normal: Mat<f64>,
     lu: DenseLu,
-    /// Each press's own response (rows), its Jacobian (rows per parameter) and second
-    /// differences' norms (per press and parameter), whitened.
+    /// Each press's own response (rows), its Jacobian and second derivatives (rows per press
+    /// and parameter), whitened.
     own: Vec<f64>,
     own_jacobian: Mat<f64>,
-    curvature: Vec<f64>,
+    curvature: Mat<f64>,
+    /// The rank of the Jacobian's orthonormal basis (its first rows in `basis`).
+    rank: usize,
+    /// The step's second-order term, whitened.
+    second: Vec<f64>,
     /// Per scan point, the part of its gᵀg the presses cannot take up.
     unexplained: Vec<f64>,
     basis: Mat<f64>,
@@ -104,7 +112,9 @@ impl Default for PressTrack {
             lu: DenseLu::default(),
             own: Vec::new(),
             own_jacobian: empty(),
-            curvature: Vec::new(),
+            curvature: empty(),
+            rank: 0,
+            second: Vec::new(),
             unexplained: Vec::new(),
             basis: empty(),
             projections: empty(),
@@ -140,14 +150,12 @@ impl PressTrack {
         let n = CARRIED.len() * k;
         let model = exact.presses;
         model.reserve(&mut self.exact);
-        for buffer in [&mut self.response, &mut self.residual, &mut self.row] {
+        for buffer in [&mut self.response, &mut self.residual, &mut self.row, &mut self.second] {
             room(buffer, m);
             buffer.resize(m, 0.0);
         }
         room(&mut self.own, MAX_PRESSES * m);
         self.own.resize(k * m, 0.0);
-        room(&mut self.curvature, CARRIED.len() * MAX_PRESSES);
-        self.curvature.resize(n, 0.0);
         room(&mut self.step, CARRIED.len() * MAX_PRESSES);
         self.step.resize(n, 0.0);
         for buffer in [&mut self.at, &mut self.current] {
@@ -159,6 +167,7 @@ impl PressTrack {
         room(&mut self.unexplained, scan.points.len());
         grow(&mut self.jacobian, n, m);
         grow(&mut self.own_jacobian, n, m);
+        grow(&mut self.curvature, n, m);
         grow(&mut self.solver, n, m);
         grow(&mut self.normal, n, n);
         let weigh = |out: &mut [f64]| out.iter_mut().zip(exact.weights).for_each(|(o, w)| *o *= w);
@@ -204,13 +213,12 @@ impl PressTrack {
                 }
                 model.response_into(&moved, &mut self.exact, &mut self.row)?;
                 weigh(&mut self.row);
-                // |F(θ + h) − F(θ) − h·∂F/∂θ| ≈ ½h²·|∂²F/∂θ²|.
+                // F(θ + h) − F(θ) − h·∂F/∂θ ≈ ½h²·∂²F/∂θ².
                 let own = &self.own[i * m..(i + 1) * m];
-                let left: f64 = (0..m)
-                    .map(|q| (self.row[q] - own[q] - h * self.own_jacobian[(3 * i + p, q)]).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
-                self.curvature[3 * i + p] = 2.0 * left / (h * h);
+                for (q, (moved, own)) in self.row.iter().zip(own).enumerate() {
+                    let left = moved - own - h * self.own_jacobian[(3 * i + p, q)];
+                    self.curvature[(3 * i + p, q)] = 2.0 * left / (h * h);
+                }
             }
         }
         // (JJᵀ)⁻¹J, once; and what of each scan point's response the presses can take up.
@@ -223,8 +231,8 @@ impl PressTrack {
         if (0..n).any(|a| (0..m).any(|q| !self.solver[(a, q)].is_finite())) {
             return Ok(false);
         }
-        let rank = orthonormal_rows(self.jacobian.as_ref(), &mut self.basis);
-        unexplained_into(scan, &self.basis, rank, &mut self.projections, &mut self.unexplained);
+        self.rank = orthonormal_rows(self.jacobian.as_ref(), &mut self.basis);
+        unexplained_into(scan, &self.basis, self.rank, &mut self.projections, &mut self.unexplained);
         self.at.clear();
         self.at.extend_from_slice(presses);
         self.linearised = true;
@@ -256,14 +264,28 @@ impl PressTrack {
         let left = ColMut::from_slice_mut(&mut self.residual);
         let step = ColRef::from_slice(&self.step[..n]);
         matmul(left.as_mat_mut(), Accum::Add, self.jacobian.transpose(), step.as_mat(), -1.0, Par::Seq);
+        // The second-order term the step leaves out, e = ½·Σₚ ∂²F/∂θₚ²·δθₚ²: its part in the span
+        // of the Jacobian is what it would move the parameters by (in standard deviations of the
+        // fit); the rest stays in the misfit.
+        self.second.fill(0.0);
+        for (a, d) in self.step[..n].iter().enumerate() {
+            self.second.iter_mut().enumerate().for_each(|(q, e)| *e += 0.5 * d * d * self.curvature[(a, q)]);
+        }
+        let second_order = (0..self.rank)
+            .map(|k| (0..m).map(|q| self.basis[(k, q)] * self.second[q]).sum::<f64>().powi(2))
+            .sum::<f64>()
+            .sqrt();
+        // Within the linearisation's reach the misfit the tests read is the better for it; past
+        // it the term is no estimate of anything, and the step is refitted anyway.
+        if second_order <= NONLINEAR {
+            self.residual.iter_mut().zip(&self.second).for_each(|(r, e)| *r -= e);
+        }
         let [lo, hi] = detection.model.grid.bounds();
-        let mut second_order = 0.0;
         let mut changed = false;
         self.current.clear();
         self.centres.clear();
         for (i, press) in self.at.iter().enumerate() {
             let d = &self.step[3 * i..3 * i + 3];
-            second_order += 0.5 * (0..3).map(|p| self.curvature[3 * i + p] * d[p] * d[p]).sum::<f64>();
             let mut carried = *press;
             carried.centre =
                 [(press.centre[0] + d[0]).clamp(lo[0], hi[0]), (press.centre[1] + d[1]).clamp(lo[1], hi[1])];
@@ -363,9 +385,11 @@ mod tests {
     use rand_distr::{Distribution, StandardNormal};
 
     /// Three presses held still for 40 frames of fresh 0.01 % noise, then a fourth pressed, then
-    /// two lifted: each held frame is what the exact fit finds afresh to within a fifth of the
-    /// spread the noise gives the fit, and some are carried without a fit at all; a press
-    /// pressed or lifted is found afresh.
+    /// two lifted: half the held frames are carried without a fit at all, each what the exact fit
+    /// finds afresh to within half the spread the noise gives the fit (0.46 in centre, 0.34 in
+    /// drop here; 0.31 and 0.38 when only the frames whose second-order term was under half a
+    /// standard deviation in full were carried, 10 of 40); a press pressed or lifted is found
+    /// afresh.
     #[test]
     fn presses_held_are_carried_as_the_exact_fit_finds_them() {
         let mut spec = SensorSpec::square_hydrogel();
@@ -396,6 +420,9 @@ mod tests {
             how.push(detection.track_into(&dv, &mut whitened, &mut scratch, &mut track, &mut carried).unwrap());
             detection.detect_into(&dv, &mut whitened, &mut PressScratch::default(), &mut full).unwrap();
             assert_eq!((carried.len(), full.len()), (3, 3), "{how:?}");
+            if how.last() != Some(&Tracked::Carried) {
+                continue;
+            }
             for ((c, f), truth) in carried.iter().zip(&full).zip(held.iter().rev()) {
                 off[0] += (c.centre[0] - f.centre[0]).powi(2) + (c.centre[1] - f.centre[1]).powi(2);
                 off[1] += (c.drop - f.drop).powi(2);
@@ -404,10 +431,13 @@ mod tests {
             }
         }
         for k in 0..2 {
-            assert!(off[k] < 0.2 * 0.2 * spread[k], "{k}: off {} against the fit's spread {}", off[k], spread[k]);
+            let ratio = (off[k] / spread[k]).sqrt();
+            assert!(ratio < 0.5, "{k}: carried frames off the exact fit by {ratio} of its spread");
         }
         assert_eq!(how[0], Tracked::Found);
-        assert!(how.iter().filter(|h| **h == Tracked::Carried).count() >= 5, "{how:?}");
+        // Half the frames: the second-order term's part in the span of the Jacobian, not its
+        // whole norm, is what is bounded (its whole norm carried 10 of these 40).
+        assert!(how.iter().filter(|h| **h == Tracked::Carried).count() >= 20, "{how:?}");
         let four = [held[0], held[1], held[2], disk([-0.06, -0.05], 0.4)];
         assert_eq!(
             detection.track_into(&frame(&four), &mut whitened, &mut scratch, &mut track, &mut carried),
