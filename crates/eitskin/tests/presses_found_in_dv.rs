@@ -199,6 +199,43 @@ fn a_wider_press_is_one_press_of_its_own_size() {
     }
 }
 
+/// At 90 dB (0.003 % per value) the model's mesh, against the sheet's finer one, leaves more
+/// misfit than the noise: presses of the model's own 10 mm indenter at these places (where the
+/// study found them sized) were fitted 8.8–9.7 mm wide, their forces 2–3 N off, when the
+/// size's test read that misfit as noise. It now asks for a fall of the misfit in proportion
+/// to the fit's misfit per degree of freedom.
+#[test]
+fn the_meshs_own_error_is_not_a_wider_or_narrower_press() {
+    let spec = SensorSpec::square_hydrogel();
+    let model = spec.forward_model().unwrap();
+    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
+    let noise = 10f64.powf(-90.0 / 20.0);
+    let sim = SimParams { noise_relative: noise, ..SimParams::default() };
+    let mut skin = VirtualSensor::with_params(&spec, sim, 5).unwrap();
+    let places = [
+        ([0.017, 0.051], 11.75),
+        ([0.041, -0.035], 14.25),
+        ([0.007, 0.052], 12.9),
+        ([-0.069, 0.012], 13.06),
+        ([-0.075, -0.078], 12.86),
+        ([-0.064, -0.016], 13.06),
+        ([-0.021, 0.079], 11.04),
+        ([-0.078, -0.014], 8.31),
+    ];
+    let mut sized = Vec::new();
+    for press in places {
+        for found in presses_found_at(noise, &model, &press_model, &mut skin, &[press], 2) {
+            assert_eq!(found.len(), 1, "{press:?}: {found:?}");
+            assert!(distance(found[0].centre, press.0) < 0.002, "{press:?}: {found:?}");
+            if found[0].radius != 0.01 {
+                sized.push((press.0, found[0].radius));
+            }
+        }
+    }
+    // 11 of these 16 fits were sized when the test read the mesh's error as noise; 4 still are.
+    assert!(sized.len() <= 5, "{} of 16 sized: {sized:?}", sized.len());
+}
+
 /// Two presses of a 15 mm indenter, one at the deepest drop a 10 mm press can take: the linear
 /// search splits them, and the weak part left of one beside it (35 mm off) took up what the
 /// size's score test reads, so it was kept as a third press. A weaker press near a stronger
@@ -269,8 +306,20 @@ fn presses_found(
     presses: &[([f64; 2], f64)],
     frames: usize,
 ) -> Vec<Vec<PressFit>> {
+    presses_found_at(5e-4, model, press_model, skin, presses, frames)
+}
+
+/// [`presses_found`] with the skin's noise, relative per value, known to be `noise`.
+fn presses_found_at(
+    noise: f64,
+    model: &ForwardModel,
+    press_model: &PressModel,
+    skin: &mut VirtualSensor,
+    presses: &[([f64; 2], f64)],
+    frames: usize,
+) -> Vec<Vec<PressFit>> {
     let v0 = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
-    let std: Vec<f64> = v0.iter().map(|v| 5e-4 * v.abs()).collect();
+    let std: Vec<f64> = v0.iter().map(|v| noise * v.abs()).collect();
     let detection = PressDetection::new(press_model, &std, f64::INFINITY, 1e-3).unwrap();
     skin.release();
     let reference = skin.clean_frame().unwrap();

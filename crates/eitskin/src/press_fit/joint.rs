@@ -107,8 +107,25 @@ pub(crate) enum Size {
 
 /// The fall of the misfit (χ², whitened) for which a press's radius is fitted: χ²₁ at a
 /// probability of 1e-3 is 10.8, doubled against the misfit the model's mesh leaves of a press
-/// of the model's kind.
+/// of the model's kind. Both it and the score test that screens for it are scaled by the
+/// fit's misfit per degree of freedom where that is over 1 ([`misfit_scale`]: the sized fit's,
+/// and the fit's before sizing).
 const SIZE_TEST: f64 = 25.0;
+
+/// The fit's misfit per degree of freedom, at least 1: `cost` (χ²) of `presses` fitted with
+/// `free_radii` radii besides their centres and drops, over the channels `exact` uses. Where
+/// the noise is so low that the model's own error (its mesh against the sheet's) is most of the
+/// misfit, a press of the model's kind no longer fits to the noise, and the size's test asks
+/// for as much more (an F-test in place of the χ² one): the mesh's error is not a wider press.
+fn misfit_scale(cost: f64, exact: Exact<'_>, presses: usize, free_radii: u32) -> f64 {
+    let used = exact.weights.iter().filter(|w| **w > 0.0).count() as f64;
+    let parameters = (3 * presses) as f64 + f64::from(free_radii.count_ones());
+    if used > parameters {
+        (cost / (used - parameters)).max(1.0)
+    } else {
+        1.0
+    }
+}
 
 /// Radii a press's size is fitted from, as multiples of its radius.
 const SIZE_STARTS: [f64; 2] = [1.0, 1.6];
@@ -251,7 +268,8 @@ impl PressModel {
                 // it may be what takes up the misfit of a press wider than the indenter.
                 let zz = self.size_z(exact, presses, i, rank, scratch)?;
                 let neighbour = self.weaker_neighbour(presses, i);
-                if zz.powi(2) < SIZE_TEST && neighbour.is_none() {
+                let scale = misfit_scale(cost, exact, presses.len(), fitted(&scratch.sizes));
+                if zz.powi(2) < SIZE_TEST * scale && neighbour.is_none() {
                     scratch.sizes[i] = Size::Nominal;
                     continue;
                 }
@@ -279,14 +297,15 @@ impl PressModel {
                     changed = true;
                     break;
                 }
-                if zz.powi(2) < SIZE_TEST {
+                if zz.powi(2) < SIZE_TEST * scale {
                     scratch.sizes[i] = Size::Nominal;
                     cost = self.refit(exact, presses, scratch)?;
                     continue;
                 }
                 save(presses, scratch, m);
                 let (sized, press) = self.sized(exact, presses, i, scratch)?;
-                if cost - sized > SIZE_TEST {
+                let sized_scale = misfit_scale(sized, exact, presses.len(), fitted(&scratch.sizes) | 1 << i);
+                if cost - sized > SIZE_TEST * sized_scale {
                     presses[i] = press;
                     retest_sizes(&mut scratch.sizes);
                     scratch.sizes[i] = Size::Fitted;
