@@ -196,6 +196,7 @@ class Pipeline:
         false_alarm_rate: float = 1e-3,
         average: int = 1,
         hyperparameter: float = 0.1,
+        reference_limit: int = 100,
     ) -> None: ...
     def process(self, frame: Floats) -> str: ...
     @property

@@ -338,6 +338,9 @@ impl TouchForce {
 ///     Fit a press (centre, conductivity drop) to each touch.
 /// reference_frames : int, default 10
 ///     Frames averaged into the reference, 1 to 10,000.
+/// reference_limit : int, default 100
+///     Frames the reference grows to, 1 to 1,000,000: each later frame without a touch joins its
+///     mean until it holds this many (its noise is in every Δv).
 /// false_alarm_rate : float, default 1e-3
 ///     False touches per no-touch frame that the noise test allows, in (0, 0.5].
 /// average : int, default 1
@@ -360,12 +363,13 @@ pub(crate) struct Pipeline(eitskin::pipeline::Pipeline);
 #[pymethods]
 impl Pipeline {
     /// The pipeline of `spec`: `calibration` turns touches into forces; `fit` fits a press to
-    /// each touch; `reference_frames` (1–10,000) are averaged into the reference;
+    /// each touch; `reference_frames` (1–10,000) are averaged into the reference, which grows
+    /// to `reference_limit` (1–1,000,000) on frames without a touch;
     /// `false_alarm_rate` (false touches per no-touch frame, in (0, 0.5]); `average` frames
     /// (1–1,000) per image; `hyperparameter` λ (the paper's 0.1).
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
-    #[pyo3(signature = (spec, calibration = None, fit = false, reference_frames = 10, false_alarm_rate = 1e-3, average = 1, hyperparameter = 0.1))]
+    #[pyo3(signature = (spec, calibration = None, fit = false, reference_frames = 10, false_alarm_rate = 1e-3, average = 1, hyperparameter = 0.1, reference_limit = 100))]
     fn new(
         py: Python<'_>,
         spec: &SensorSpec,
@@ -375,10 +379,14 @@ impl Pipeline {
         false_alarm_rate: f64,
         average: usize,
         hyperparameter: f64,
+        reference_limit: usize,
     ) -> PyResult<Pipeline> {
         use eitskin::pipeline::{NoiseFloor, PipelineParams};
         if !(1..=10_000).contains(&reference_frames) {
             return Err(fail(format!("reference_frames must be 1 to 10000, got {reference_frames}")));
+        }
+        if !(1..=1_000_000).contains(&reference_limit) {
+            return Err(fail(format!("reference_limit must be 1 to 1000000, got {reference_limit}")));
         }
         if !(false_alarm_rate > 0.0 && false_alarm_rate <= 0.5) {
             return Err(fail(format!("false_alarm_rate must be in (0, 0.5], got {false_alarm_rate}")));
@@ -416,6 +424,7 @@ impl Pipeline {
         let chain = chain.map_err(fail)?;
         let params = PipelineParams {
             reference_frames,
+            reference_limit,
             noise_floor: NoiseFloor::FalseAlarm { rate: false_alarm_rate },
             average,
             ..PipelineParams::default()

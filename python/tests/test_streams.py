@@ -44,6 +44,8 @@ def test_the_pipeline_finds_a_press_from_the_virtual_sensors_frames(spec):
         pipeline.process(np.ones(5))
     with pytest.raises(eitskin.EitskinError, match="false_alarm_rate"):
         eitskin.Pipeline(spec, false_alarm_rate=0.0)
+    with pytest.raises(eitskin.EitskinError, match="reference_limit must be 1 to 1000000, got 0"):
+        eitskin.Pipeline(spec, reference_limit=0)
 
 
 def test_a_calibration_is_fitted_saved_loaded_and_gives_forces(spec, tmp_path):

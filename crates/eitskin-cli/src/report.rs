@@ -177,7 +177,7 @@ pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
     let force = |x: f64| if x.is_finite() { format!("{:.1}", 100.0 * x / sweep.max_force) } else { "–".into() };
     let mut s = String::from("\n## Noise sweep: presses the methods do not assume, one to three at once\n\n");
     s += "Noise in dB below each value (66 dB = 0.05 %, 54 dB = 0.2 %, 50 dB = 0.32 %: the OpenEIT captures vary 0.3–0.5 %). ";
-    s += "Single frames unless averaged; λ and the noise tests from 10 reference frames, as `eitskin run` takes them. ";
+    s += "Single frames unless averaged; λ and the noise tests from 10 reference frames, as `eitskin run` takes them, the reference then grown to 100 frames on the sheet at rest (× the frames averaged). ";
     s += &format!(
         "A press is found when a touch lies within {:.0} {u}; forces (presses in Δv only) through one curve of the fitted drop, calibrated at each level on single presses of the same kind (the 15 mm indenter through the 10 mm one's: its force is ambiguous for any method); force RMS in % of {:.0} N. Found % with its 95 % interval (Wilson's, of so many presses). The bound beside the force RMS is the Cramér–Rao bound of the press model's drop (centre and drop of every press unknown) through the same curve: what no unbiased estimate from Δv can beat.\n\n",
         eitskin::study::sweep::MATCH_DISTANCE * k,
