@@ -207,13 +207,11 @@ pub fn run(args: Args) -> Result<()> {
     // The same presses held over a stream of 201 frames, each with its own draw of the noise:
     // found afresh in each, and carried from frame to frame.
     let mut rng = rand::rngs::StdRng::seed_from_u64(7);
-    let held: Vec<Vec<f64>> = (0..201)
-        .map(|_| {
-            let noise: Vec<f64> =
-                std.iter().map(|s| s * Distribution::<f64>::sample(&StandardNormal, &mut rng)).collect();
-            dv3.iter().zip(noise).map(|(d, n)| d + n).collect()
-        })
-        .collect();
+    let mut held_under = |std: &[f64]| -> Vec<Vec<f64>> {
+        let mut draw = || Distribution::<f64>::sample(&StandardNormal, &mut rng);
+        (0..201).map(|_| dv3.iter().zip(std).map(|(d, s)| d + s * draw()).collect()).collect()
+    };
+    let held = held_under(&std);
     let mut next = 0;
     let (t_noisy, ()) = time(held.len(), || {
         next += 1;
@@ -227,13 +225,7 @@ pub fn run(args: Args) -> Result<()> {
     // The same stream at 80 dB (0.01 %, the virtual sensor's noise), against a detection for it.
     let std80: Vec<f64> = values.iter().map(|v| 1e-4 * v.abs() * 1.01_f64.sqrt()).collect();
     let detection80 = PressDetection::new(&press_model, &std80, 99.0, 1e-3)?;
-    let held80: Vec<Vec<f64>> = (0..201)
-        .map(|_| {
-            let noise: Vec<f64> =
-                std80.iter().map(|s| s * Distribution::<f64>::sample(&StandardNormal, &mut rng)).collect();
-            dv3.iter().zip(noise).map(|(d, n)| d + n).collect()
-        })
-        .collect();
+    let held80 = held_under(&std80);
     let (mut track, mut next) = (PressTrack::default(), 0);
     let (t_carried80, _) = time(held80.len(), || {
         next += 1;
