@@ -295,6 +295,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut out = std::io::BufWriter::new(stdout.lock());
     let mut start =
         Start::new(args.source.to_string(), spec.length_unit.symbol(), protocol.len(), params.frames_in_reference());
+    start.reference_limit = Some(params.reference_limit_frames());
     start.normalised = imaging.normalized;
     start.polarity = args.polarity.name().to_owned();
     start.average = args.average;

@@ -53,7 +53,7 @@ fn the_stream_reads_back_with_its_schema_a_start_line_then_counted_frames_in_mm(
         typed_lines(dir.eitskin(&["run", "--source", &source, "--fast", "--frames", "40", "--triangles", "1500"]));
     assert_eq!((start.format.as_str(), start.version), (stream::FORMAT, stream::VERSION));
     assert_eq!((start.source.as_str(), start.length_unit.as_str()), (source.as_str(), "mm"));
-    assert_eq!((start.measurements, start.reference_frames), (120, 10));
+    assert_eq!((start.measurements, start.reference_frames, start.reference_limit), (120, 10, Some(100)));
     let frames = frame_lines(&lines);
     // Two events from a scripted virtual sensor: the reference taken, then the noise measured
     // again once the frames without a touch after it doubled what it was measured on.

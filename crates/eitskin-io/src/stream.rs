@@ -17,6 +17,8 @@
 //! `threshold`, `noise` and `noise_measured`, and the `noise_updated` event; read from an older
 //! line they are absent (`null`, or 1 frame averaged and the frame's peak). Version 4 added the
 //! press's `radius` (the indenter's, or fitted where the data ask for it); absent before.
+//! Version 5 added the start line's `reference_limit` (`null` before), and a `noise_updated`
+//! event also when the grown reference gave the threshold anew.
 //!
 //! # Lines
 //!
@@ -24,7 +26,7 @@
 //! order; events come where they happened, between frames.
 //!
 //! ```text
-//! {"event":"start","format":"eitskin-run","version":4,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"normalised":false,"polarity":"decrease","average":1,"peak_of":"frame","false_alarm_rate":0.001}
+//! {"event":"start","format":"eitskin-run","version":5,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"reference_limit":100,"normalised":false,"polarity":"decrease","average":1,"peak_of":"frame","false_alarm_rate":0.001}
 //! {"event":"reference_taken","hyperparameter":0.031,"chosen":true,"normalised":false,"channels_dropped":[],"threshold":4.6,"noise":0.0005,"noise_measured":true,"detail":"…"}
 //! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"z":48.2,"unit":7,"area":2,"force":8.7,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41,"radius":10.0}}],"counters":{"frames":11,"bad":0},"recorded":true}
 //! {"event":"bad","seq":11,"reason":"frame 11 has 3 values, expected 120; …"}
@@ -59,9 +61,9 @@
 //!
 //! | `event`        | fields                                                                       |
 //! |----------------|------------------------------------------------------------------------------|
-//! | `start`        | `format` (`"eitskin-run"`), `version`, `source` (as given), `length_unit` (`"mm"` or `"m"`), `measurements` (values per frame), `reference_frames` (frames averaged into the reference), `normalised` (differences Δv/v_ref), `polarity` (`"decrease"`, `"increase"` or `"both"`: which changes are touches), `average` (frames averaged into each frame imaged), `peak_of` (`"frame"` or `"touch"`: whose peak a touch's threshold is a fraction of), `false_alarm_rate` (false touches allowed per frame without a touch, or `null` without the noise test) |
+//! | `start`        | `format` (`"eitskin-run"`), `version`, `source` (as given), `length_unit` (`"mm"` or `"m"`), `measurements` (values per frame), `reference_frames` (frames averaged into the reference), `reference_limit` (frames the reference grows to on frames without a touch, or `null` before version 5), `normalised` (differences Δv/v_ref), `polarity` (`"decrease"`, `"increase"` or `"both"`: which changes are touches), `average` (frames averaged into each frame imaged), `peak_of` (`"frame"` or `"touch"`: whose peak a touch's threshold is a fraction of), `false_alarm_rate` (false touches allowed per frame without a touch, or `null` without the noise test) |
 //! | `reference_taken` | the reference is taken: `hyperparameter` (λ imaged with), `chosen` (whether λ was chosen from the reference frames' noise), `normalised`, `channels_dropped` (1-based: missing from a reference frame, or with a zero reference when normalised), `threshold` (the z a touch's peak must reach, or `null`), `noise` (the median channel's noise standard deviation relative to its value), `noise_measured` (false: assumed, from a single reference frame), `image_noise` (the image's noise standard deviation at its median pixel, in S/m: times `threshold`, the change a touch must reach there), `detail` |
-//! | `noise_updated` | the noise model, grown on the frames without a touch, gave λ, channel weights and the threshold anew after frame `seq`: `frames` (frames behind the noise model), `hyperparameter`, `threshold`, `noise`, `image_noise`, `detail` |
+//! | `noise_updated` | the noise model, grown on the frames without a touch, gave λ, channel weights and the threshold anew after frame `seq` (or the reference, grown on them, the threshold): `frames` (frames behind the noise model), `hyperparameter`, `threshold`, `noise`, `image_noise`, `detail` |
 //! | `channels_dropped` | channels went bad (not finite) in frame `seq` and are dropped until the reference is taken again: `channels` (1-based), `dropped` (channels dropped in all), `detail` |
 //! | `bad`          | `seq` (where in the stream, or `null` for bytes that belong to no frame), `reason` (a sentence) |
 //! | `skipped`      | a damaged record of a recording: `line` (from 1, the header is line 1), `torn` (the last record, torn by a crash), `reason` |
@@ -100,7 +102,7 @@ use crate::source::Acquired;
 pub const FORMAT: &str = "eitskin-run";
 
 /// The version of the stream this crate writes and reads.
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 
 /// Any line of the stream, for readers: an event if it has an `event` field, else a frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -501,6 +503,9 @@ pub struct Start {
     pub measurements: usize,
     /// The number of frames averaged into the reference.
     pub reference_frames: usize,
+    /// The frames the reference grows to on frames without a touch (absent before version 5).
+    #[serde(default)]
+    pub reference_limit: Option<usize>,
     /// Whether differences are normalised (Δv/v_ref).
     pub normalised: bool,
     /// Which changes are touches: `"decrease"`, `"increase"` or `"both"`.
@@ -535,6 +540,7 @@ impl Start {
             length_unit: length_unit.to_owned(),
             measurements,
             reference_frames,
+            reference_limit: None,
             normalised: false,
             polarity: eitskin::touch::Polarity::Decrease.name().to_owned(),
             average: 1,
