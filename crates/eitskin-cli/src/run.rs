@@ -471,10 +471,13 @@ fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: 
         Status::NoiseUpdated => {
             let (threshold, noise) = noise_figures(pipeline);
             let frames = pipeline.noise().map_or(0.0, |n| n.frames());
+            let reference = pipeline.noise().map_or(0, |n| n.reference_frames());
             let lambda = pipeline.hyperparameter();
             let z = threshold.map_or(String::new(), |z| format!(", a touch needs z ≥ {z:.2}"));
-            let detail =
-                format!("noise measured on {frames:.0} frames: {:.3} % per value; λ = {lambda:.4}{z}", 100.0 * noise);
+            let detail = format!(
+                "noise measured on {frames:.0} frames, reference the mean of {reference}: {:.3} % per value; λ = {lambda:.4}{z}",
+                100.0 * noise
+            );
             eprintln!("eitskin run: {detail}");
             let image_noise = pipeline.significance().map(|s| s.typical_std());
             Some(Event::NoiseUpdated { seq, frames, hyperparameter: lambda, threshold, noise, image_noise, detail })
