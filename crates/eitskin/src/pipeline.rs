@@ -191,8 +191,8 @@ pub struct Pipeline {
     /// λ of the chain's reconstructor as given, for each new reference unless λ is chosen.
     given_hyperparameter: f64,
     reference: Vec<f64>,
-    /// Frames the reference is the mean of, and how many it was when the threshold was last derived.
-    reference_count: usize,
+    /// Frames the reference was the mean of when the threshold was last derived (the noise
+    /// model holds how many it is now).
     derived_reference_count: usize,
     /// Frames imaged since the reference was taken, and of them the last ones in a row without
     /// a touch.
@@ -235,7 +235,6 @@ impl Pipeline {
             chain,
             params,
             reference: Vec::new(),
-            reference_count: 0,
             derived_reference_count: 0,
             since_reference: 0,
             quiet: 0,
@@ -357,15 +356,9 @@ impl Pipeline {
             // The frame about to leave the ring joins the reference if none of the N means that
             // held it showed a touch: a press's first frames, in means that do not show it yet,
             // stay out.
-            if self.since_reference >= n && self.quiet >= n {
+            if let (true, Some(noise)) = (self.since_reference >= n && self.quiet >= n, self.noise.as_mut()) {
                 let oldest = &self.ring[self.ring_next * count..(self.ring_next + 1) * count];
-                self.reference_count = grow_reference(
-                    &mut self.reference,
-                    self.reference_count,
-                    self.noise.as_mut(),
-                    &self.params,
-                    oldest,
-                );
+                grow_reference(&mut self.reference, noise, &self.params, oldest);
             }
             self.average(frame);
             &self.averaged
@@ -390,9 +383,8 @@ impl Pipeline {
                     status = Status::NoiseUpdated;
                 }
             }
-            if n == 1 {
-                self.reference_count =
-                    grow_reference(&mut self.reference, self.reference_count, self.noise.as_mut(), &self.params, frame);
+            if let (1, Some(noise)) = (n, self.noise.as_mut()) {
+                grow_reference(&mut self.reference, noise, &self.params, frame);
             }
         }
         Ok(status)
@@ -422,7 +414,7 @@ impl Pipeline {
         self.since_refresh = 0.0;
         let variance = noise.relative_variance();
         let changed = noise_changed(&self.refreshed_variance, &variance);
-        let (count, derived) = (self.reference_count, self.derived_reference_count);
+        let (count, derived) = (noise.reference_frames(), self.derived_reference_count);
         let grown = count >= 2 * derived || (count == self.params.reference_limit_frames() && derived < count);
         if !changed && !grown {
             return Ok(false);
@@ -500,7 +492,7 @@ impl Pipeline {
 
     fn take_reference(&mut self) -> Result<(), InverseError> {
         self.reference = mean_of_finite(&self.collected);
-        (self.reference_count, self.derived_reference_count) = (self.collected.len(), self.collected.len());
+        self.derived_reference_count = self.collected.len();
         (self.since_reference, self.quiet) = (0, 0);
         let measured = NoiseModel::from_frames(&self.collected);
         self.noise_measured = measured.is_some();
@@ -563,29 +555,22 @@ impl Pipeline {
     }
 }
 
-/// Adds `frame`, without a touch, to `reference`, the mean of `count` frames: as one more frame
-/// of its mean while it holds fewer than the limit of `params`, and with the baseline rate α
-/// (the larger weight of the two); the frames it is the mean of now (the noise model told).
-fn grow_reference(
-    reference: &mut [f64],
-    count: usize,
-    noise: Option<&mut NoiseModel>,
-    params: &PipelineParams,
-    frame: &[f64],
-) -> usize {
+/// Adds `frame`, without a touch, to `reference`, the mean of as many frames as `noise` says:
+/// as one more frame of its mean while it holds fewer than the limit of `params` (`noise` told),
+/// and with the baseline rate α (the larger weight of the two).
+fn grow_reference(reference: &mut [f64], noise: &mut NoiseModel, params: &PipelineParams, frame: &[f64]) {
+    let count = noise.reference_frames();
     let growing = count < params.reference_limit_frames();
     let share = if growing { 1.0 / (count + 1) as f64 } else { 0.0 };
     let weight = share.max(params.baseline_rate);
-    let count = if growing { count + 1 } else { count };
-    if let (true, Some(noise)) = (growing, noise) {
-        noise.set_reference_frames(count);
+    if growing {
+        noise.set_reference_frames(count + 1);
     }
     if weight > 0.0 {
         for (r, v) in reference.iter_mut().zip(frame).filter(|(_, v)| v.is_finite()) {
             *r += weight * (v - *r);
         }
     }
-    count
 }
 
 /// Refuses a set of used channels that drops more than a quarter of the `configured` ones
