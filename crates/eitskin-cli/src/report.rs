@@ -156,6 +156,7 @@ pub fn sweep_json(sweep: &SweepReport) -> Value {
             "mean_position_error_m": number(r.position_error),
             "force_rms_newton": number(r.force_rms),
             "force_rms_percent_of_max": number(100.0 * r.force_rms / sweep.max_force),
+            "force_rms_95_interval_percent_of_max": r.force_rms_interval.map(|x| number(100.0 * x / sweep.max_force)),
             "force_rms_bound_newton": number(r.force_rms_bound),
             "force_rms_bound_percent_of_max": number(100.0 * r.force_rms_bound / sweep.max_force),
         })).collect::<Vec<_>>(),
@@ -175,11 +176,15 @@ pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
     };
     let len = |x: f64| if x.is_finite() { format!("{:.1}", x * k) } else { "–".into() };
     let force = |x: f64| if x.is_finite() { format!("{:.1}", 100.0 * x / sweep.max_force) } else { "–".into() };
+    let force_rms = |r: &eitskin::study::sweep::SweepRow| match r.force_rms_interval {
+        [lo, hi] if lo.is_finite() => format!("{} ({}–{})", force(r.force_rms), force(lo), force(hi)),
+        _ => force(r.force_rms),
+    };
     let mut s = String::from("\n## Noise sweep: presses the methods do not assume, one to three at once\n\n");
     s += "Noise in dB below each value (66 dB = 0.05 %, 54 dB = 0.2 %, 50 dB = 0.32 %: the OpenEIT captures vary 0.3–0.5 %). ";
     s += "Single frames unless averaged; λ and the noise tests from 10 reference frames, as `eitskin run` takes them, the reference then grown to 100 frames on the sheet at rest (× the frames averaged). ";
     s += &format!(
-        "A press is found when a touch lies within {:.0} {u}; forces (presses in Δv only) through one curve of the fitted drop, calibrated at each level on single presses of the same kind (the 15 mm indenter through the 10 mm one's: its force is ambiguous for any method); force RMS in % of {:.0} N. Found % with its 95 % interval (Wilson's, of so many presses). The bound beside the force RMS is the Cramér–Rao bound of the press model's drop (centre and drop of every press unknown) through the same curve: what no unbiased estimate from Δv can beat.\n\n",
+        "A press is found when a touch lies within {:.0} {u}; forces (presses in Δv only) through one curve of the fitted drop, calibrated at each level on single presses of the same kind (the 15 mm indenter through the 10 mm one's: its force is ambiguous for any method); force RMS in % of {:.0} N. Found % with its 95 % interval (Wilson's, of so many presses); force RMS with its 95 % interval (normal in the log of the mean square, frames as the units; approximate where a few presses dominate). The bound beside the force RMS is the Cramér–Rao bound of the press model's drop (centre and drop of every press unknown) through the same curve: what no unbiased estimate from Δv can beat.\n\n",
         eitskin::study::sweep::MATCH_DISTANCE * k,
         sweep.max_force
     );
@@ -197,7 +202,7 @@ pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
             found(r),
             r.false_per_1000,
             len(r.position_error),
-            force(r.force_rms),
+            force_rms(r),
             force(r.force_rms_bound)
         );
     }

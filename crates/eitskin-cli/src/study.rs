@@ -33,9 +33,10 @@ pub struct Args {
     /// Noisy frames per calibration press, 1–1,000 (15 in the paper).
     #[arg(long, value_parser = ranges::whole("a number of frames per press", 1, 1000))]
     repeats: Option<usize>,
-    /// Noise sweep: frames with one press per press kind and level (half as many with two, and
-    /// with three: 300 presses each, so that a share found near 95 % is known to about ±2.5
-    /// points; at 60 it was ±5), 0–10,000; 0 leaves the sweep out.
+    /// Noise sweep: frames with one press per press kind and level, and as many with two and
+    /// with three (300: a share found near 95 % is known to about ±2.5 points, at 60 it was ±5;
+    /// a pair's force RMS, which a few strong presses dominate, to about ±20 %, and at half as
+    /// many frames one seed's RMS lay 30 % from another's), 0–10,000; 0 leaves the sweep out.
     #[arg(long, default_value_t = 300, value_parser = ranges::whole("a number of presses", 0, 10_000))]
     sweep_presses: usize,
     /// Noise sweep: untouched frames per level, for the false touches, 1–100,000 (10,000: a
@@ -76,7 +77,7 @@ pub fn run(args: Args) -> Result<()> {
         0 => None,
         n => {
             let sweep_params = SweepParams {
-                scenes: [n, n.div_ceil(2), n.div_ceil(2)],
+                scenes: [n; 3],
                 untouched: args.sweep_untouched,
                 seed: args.seed,
                 ..SweepParams::default()

@@ -64,6 +64,10 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
     let lower = interval[0].as_f64().unwrap();
     assert!((0.60..0.62).contains(&lower) && interval[1].as_f64().unwrap() > 0.999, "{single}");
     assert!(single["mean_position_error_m"].as_f64().unwrap() < 0.003, "{single}");
+    // The force RMS lies within its own interval.
+    let rms = single["force_rms_percent_of_max"].as_f64().unwrap();
+    let interval = single["force_rms_95_interval_percent_of_max"].as_array().unwrap();
+    assert!(interval[0].as_f64().unwrap() < rms && rms < interval[1].as_f64().unwrap(), "{single}");
     assert_eq!(row(66.0, "", 0)["false_touches_per_1000_frames"], 0.0);
 
     // Location dependence: the edges image several times stronger than the centre.
