@@ -184,6 +184,7 @@ class TouchForce:
     unit: Optional[int]
     calibration_area: Optional[int]
     force: Optional[float]
+    force_std: Optional[float]
     press_centre: Optional[Tuple[float, float]]
 
 class Pipeline:

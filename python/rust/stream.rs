@@ -313,6 +313,8 @@ pub(crate) struct TouchForce {
     calibration_area: Option<usize>,
     /// Its force in N, when calibrated.
     force: Option<f64>,
+    /// The force's standard deviation from the noise in N, when calibrated and fitting presses.
+    force_std: Option<f64>,
     /// The fitted press's centre, (x, y) in m, when the pipeline fits presses.
     press_centre: Option<(f64, f64)>,
 }
@@ -320,7 +322,8 @@ pub(crate) struct TouchForce {
 #[pymethods]
 impl TouchForce {
     fn __repr__(&self) -> String {
-        let force = self.force.map_or(String::new(), |f| format!(", force={f:.2} N"));
+        let spread = self.force_std.map_or(String::new(), |s| format!(" ± {s:.2}"));
+        let force = self.force.map_or(String::new(), |f| format!(", force={f:.2}{spread} N"));
         format!("TouchForce(centre=({:.4}, {:.4}) m, peak={:.4} S/m{force})", self.centre.0, self.centre.1, self.peak)
     }
 }
@@ -462,6 +465,7 @@ impl Pipeline {
                 unit: t.unit,
                 calibration_area: t.area,
                 force: t.force.map(|f| f.newtons),
+                force_std: t.force.and_then(|f| f.std),
                 press_centre: t.press.map(|p| (p.centre[0], p.centre[1])),
             })
             .collect()

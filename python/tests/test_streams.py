@@ -39,6 +39,8 @@ def test_the_pipeline_finds_a_press_from_the_virtual_sensors_frames(spec):
     [touch] = pipeline.touches
     assert np.hypot(touch.centre[0] - 0.05, touch.centre[1] - 0.04) < 0.012
     assert touch.significance is not None and touch.significance > 4
+    # Without a calibration, no force and no spread of one.
+    assert touch.force is None and touch.force_std is None
     assert pipeline.image.values.shape == (64, 64)
     with pytest.raises(eitskin.EitskinError, match="has 5 values"):
         pipeline.process(np.ones(5))

@@ -157,6 +157,7 @@ pub fn sweep_json(sweep: &SweepReport) -> Value {
             "force_rms_newton": number(r.force_rms),
             "force_rms_percent_of_max": number(100.0 * r.force_rms / sweep.max_force),
             "force_rms_95_interval_percent_of_max": r.force_rms_interval.map(|x| number(100.0 * x / sweep.max_force)),
+            "force_within_two_std": number(r.force_within_two_std),
             "force_rms_bound_newton": number(r.force_rms_bound),
             "force_rms_bound_percent_of_max": number(100.0 * r.force_rms_bound / sweep.max_force),
         })).collect::<Vec<_>>(),
@@ -184,15 +185,15 @@ pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
     s += "Noise in dB below each value (66 dB = 0.05 %, 54 dB = 0.2 %, 50 dB = 0.32 %: the OpenEIT captures vary 0.3–0.5 %). ";
     s += "Single frames unless averaged; λ and the noise tests from 10 reference frames, as `eitskin run` takes them, the reference then grown to 100 frames on the sheet at rest (× the frames averaged). ";
     s += &format!(
-        "A press is found when a touch lies within {:.0} {u}; forces (presses in Δv only) through one curve of the fitted drop, calibrated at each level on single presses of the same kind (the 15 mm indenter through the 10 mm one's: its force is ambiguous for any method); force RMS in % of {:.0} N. Found % with its 95 % interval (Wilson's, of so many presses); force RMS with its 95 % interval (normal in the log of the mean square, frames as the units; approximate where a few presses dominate). The bound beside the force RMS is the Cramér–Rao bound of the press model's drop (centre and drop of every press unknown) through the same curve: what no unbiased estimate from Δv can beat.\n\n",
+        "A press is found when a touch lies within {:.0} {u}; forces (presses in Δv only) through one curve of the fitted drop, calibrated at each level on single presses of the same kind (the 15 mm indenter through the 10 mm one's: its force is ambiguous for any method); force RMS in % of {:.0} N. Found % with its 95 % interval (Wilson's, of so many presses); force RMS with its 95 % interval (normal in the log of the mean square, frames as the units; approximate where a few presses dominate). The bound beside the force RMS is the Cramér–Rao bound of the press model's drop (centre and drop of every press unknown) through the same curve: what no unbiased estimate from Δv can beat. A force is the mean of its posterior over the calibrated range given its drop and the fit's standard deviation of it (uniform there, as the inverse's clamp assumes), so where the curve flattens it can fall below the bound; each comes with its posterior standard deviation, and the last column says how often the truth lay within twice it (about 95 % if they are honest).\n\n",
         eitskin::study::sweep::MATCH_DISTANCE * k,
         sweep.max_force
     );
     s += "![](sweep_position.png)\n\n![](sweep_force.png)\n\n";
-    s += &format!("| dB | averaged | press kind | presses | method | frames | found % | false / 1000 frames | position [{u}] | force RMS [%] | bound [%] |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s += &format!("| dB | averaged | press kind | presses | method | frames | found % | false / 1000 frames | position [{u}] | force RMS [%] | bound [%] | within 2 std [%] |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in &sweep.rows {
         s += &format!(
-            "| {:.0} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} |\n",
+            "| {:.0} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} | {} |\n",
             r.level.db,
             r.level.average,
             if r.kind.is_empty() { "untouched" } else { r.kind },
@@ -203,7 +204,12 @@ pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
             r.false_per_1000,
             len(r.position_error),
             force_rms(r),
-            force(r.force_rms_bound)
+            force(r.force_rms_bound),
+            if r.force_within_two_std.is_finite() {
+                format!("{:.0}", 100.0 * r.force_within_two_std)
+            } else {
+                "–".into()
+            }
         );
     }
     s

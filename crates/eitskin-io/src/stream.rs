@@ -26,9 +26,9 @@
 //! order; events come where they happened, between frames.
 //!
 //! ```text
-//! {"event":"start","format":"eitskin-run","version":5,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"reference_limit":100,"normalised":false,"polarity":"decrease","average":1,"peak_of":"frame","false_alarm_rate":0.001}
+//! {"event":"start","format":"eitskin-run","version":6,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"reference_limit":100,"normalised":false,"polarity":"decrease","average":1,"peak_of":"frame","false_alarm_rate":0.001}
 //! {"event":"reference_taken","hyperparameter":0.031,"chosen":true,"normalised":false,"channels_dropped":[],"threshold":4.6,"noise":0.0005,"noise_measured":true,"detail":"…"}
-//! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"z":48.2,"unit":7,"area":2,"force":8.7,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41,"radius":10.0}}],"counters":{"frames":11,"bad":0},"recorded":true}
+//! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"z":48.2,"unit":7,"area":2,"force":8.7,"force_std":0.3,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41,"radius":10.0}}],"counters":{"frames":11,"bad":0},"recorded":true}
 //! {"event":"bad","seq":11,"reason":"frame 11 has 3 values, expected 120; …"}
 //! ```
 //!
@@ -51,8 +51,11 @@
 //! change in the touch's own direction, in S/m (positive); `z`, that peak over the noise's
 //! standard deviation at its pixel (its detection confidence; `null` without the noise test);
 //! `unit` and `area`, the pseudo-array unit holding the
-//! centre and its area, counted from 1, or `null` without a calibration; `force`, in N, and
-//! `saturated`, whether the force is at the end of the calibrated range, or `null` without a
+//! centre and its area, counted from 1, or `null` without a calibration; `force`, in N,
+//! `force_std`, its standard deviation from the noise in N (with a press fitted to Δv whitened
+//! by the measured noise: the force is then the mean of its posterior over the calibrated
+//! range, see [`eitskin::calibration::Curve::force_given`]; else, and before version 6, `null`),
+//! and `saturated`, whether the force is at the end of the calibrated range, or `null` without a
 //! calibration; `press`, the press fitted to Δv, `{x, y, drop}` (centre in the length unit,
 //! conductivity drop under the indenter as a fraction of the background), or `null` without
 //! press fitting.
@@ -102,7 +105,7 @@ use crate::source::Acquired;
 pub const FORMAT: &str = "eitskin-run";
 
 /// The version of the stream this crate writes and reads.
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 
 /// Any line of the stream, for readers: an event if it has an `event` field, else a frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -286,6 +289,9 @@ pub struct Touch {
     pub area: Option<usize>,
     /// The force, in N, with a calibration.
     pub force: Option<f64>,
+    /// The force's standard deviation from the noise, in N, where it is known (from version 6).
+    #[serde(default)]
+    pub force_std: Option<f64>,
     /// Whether the force is at the end of the calibrated range, with a calibration.
     pub saturated: Option<bool>,
     /// The press fitted to Δv, with press fitting.
@@ -305,6 +311,7 @@ impl Touch {
             unit: t.unit.map(|u| u + 1),
             area: t.area.map(|a| a + 1),
             force: t.force.map(|f| f.newtons),
+            force_std: t.force.and_then(|f| f.std),
             saturated: t.force.map(|f| f.saturated),
             press: t.press.map(|p| Press {
                 x: p.centre[0] / metres,
@@ -584,6 +591,7 @@ mod tests {
             unit: Some(7),
             area: Some(2),
             force: Some(8.5),
+            force_std: Some(0.25),
             saturated: Some(false),
             press: Some(Press { x: -50.0, y: 41.0, drop: 0.4, radius: Some(10.0) }),
         };
@@ -611,7 +619,7 @@ mod tests {
         assert_eq!(
             line,
             "{\"seq\":12,\"t\":0.6,\"status\":\"ok\",\"touches\":[{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"z\":null,\"unit\":7,\
-             \"area\":2,\"force\":8.5,\"saturated\":false,\"press\":{\"x\":-50.0,\"y\":41.0,\"drop\":0.4,\"radius\":10.0}}],\
+             \"area\":2,\"force\":8.5,\"force_std\":0.25,\"saturated\":false,\"press\":{\"x\":-50.0,\"y\":41.0,\"drop\":0.4,\"radius\":10.0}}],\
              \"counters\":{\"frames\":13,\"bad\":1}}\n"
         );
         assert_eq!(Line::parse(line.trim_end()).unwrap(), Line::Frame(frame()));
@@ -624,10 +632,18 @@ mod tests {
 
     #[test]
     fn without_a_calibration_unit_area_force_and_press_are_null() {
-        let touch = Touch { unit: None, area: None, force: None, saturated: None, press: None, ..frame().touches[0] };
+        let touch = Touch {
+            unit: None,
+            area: None,
+            force: None,
+            force_std: None,
+            saturated: None,
+            press: None,
+            ..frame().touches[0]
+        };
         assert_eq!(
             text(&touch),
-            "{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"z\":null,\"unit\":null,\"area\":null,\"force\":null,\"saturated\":null,\
+            "{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"z\":null,\"unit\":null,\"area\":null,\"force\":null,\"force_std\":null,\"saturated\":null,\
              \"press\":null}\n"
         );
     }

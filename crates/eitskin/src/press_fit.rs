@@ -225,6 +225,11 @@ pub struct PressFit {
     /// Its response against Δv less the other presses', over the response's norm, gᵀr/|g|:
     /// with Δv and the model whitened by the noise ([`PressModel::whitened`]) a z-score, else in V.
     pub z: f64,
+    /// The standard deviation the noise gives its drop at the indenter's radius,
+    /// [`PressFit::equivalent_drop`] (dimensionless): from the exact fit's covariance, the
+    /// others' parameters unknown too, scaled up by the fit's misfit per degree of freedom where
+    /// that is over 1; `None` for a fit on the linear responses alone.
+    pub equivalent_drop_std: Option<f64>,
 }
 
 impl PressFit {
@@ -279,6 +284,8 @@ pub struct PressScratch {
     basis: Mat<f64>,
     projections: Mat<f64>,
     unexplained: Vec<f64>,
+    /// Per press of the last exact fit, its equivalent drop's variance (whitened noise of 1).
+    variances: Vec<f64>,
 }
 
 impl Default for PressScratch {
@@ -300,6 +307,7 @@ impl Default for PressScratch {
             basis: Mat::zeros(0, 0),
             projections: Mat::zeros(0, 0),
             unexplained: Vec::new(),
+            variances: Vec::new(),
         }
     }
 }
@@ -708,7 +716,14 @@ impl PressModel {
         let gv: f64 = response.iter().zip(dv).map(|(g, v)| g * v).sum();
         let (contrast, z) = (gv / gg, gv / gg.sqrt());
         let drop = self.drop(contrast, centre);
-        (gg > 0.0 && gv > 0.0).then_some(PressFit { centre, radius: self.radius, contrast, drop, z })
+        (gg > 0.0 && gv > 0.0).then_some(PressFit {
+            centre,
+            radius: self.radius,
+            contrast,
+            drop,
+            z,
+            equivalent_drop_std: None,
+        })
     }
 }
 

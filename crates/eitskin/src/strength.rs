@@ -56,6 +56,9 @@ pub struct Reading {
     pub centre: [f64; 2],
     /// The strength, in the unit of its [`Strength`].
     pub value: f64,
+    /// Its standard deviation from the measurement noise, in the same unit; `None` where it is
+    /// not known (a press fitted to Δv whitened by the measured noise knows it).
+    pub std: Option<f64>,
 }
 
 impl Strength {
@@ -116,9 +119,10 @@ impl Strength {
             Strength::Peak => touch.peak,
             // A touch with nothing in Δv that looks like a press has no drop.
             Strength::FittedDrop => {
-                return Some(press.map_or(Reading { centre: at, value: 0.0 }, |(p, indenter)| Reading {
+                return Some(press.map_or(Reading { centre: at, value: 0.0, std: None }, |(p, indenter)| Reading {
                     centre: p.centre,
                     value: p.equivalent_drop(indenter),
+                    std: p.equivalent_drop_std,
                 }))
             }
             Strength::Sensitivity => touch.peak / map?.sensitivity(at),
@@ -129,7 +133,7 @@ impl Strength {
                 0.5 * (map.drop(touch.peak, at, false) + map.drop(touch.volume, at, true))
             }
         };
-        Some(Reading { centre: at, value })
+        Some(Reading { centre: at, value, std: None })
     }
 }
 

@@ -87,7 +87,8 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     assert!(tracked.contains(&Some(eitskin::press_fit::Tracked::Carried)), "{tracked:?}");
     let touches = pipeline.touches();
     assert_eq!(touches.len(), 2, "{touches:?}");
-    assert!(touches.iter().all(|t| t.press.is_some() && t.force.is_some()), "{touches:?}");
+    // Each force with its standard deviation (its posterior's, from the fit's spread).
+    assert!(touches.iter().all(|t| t.press.is_some() && t.force.is_some_and(|f| f.std.is_some())), "{touches:?}");
     assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in 4 frames");
     // A channel going bad is an event (the reconstructor is derived again); after it, the frames
     // that still miss the channel cost nothing again.

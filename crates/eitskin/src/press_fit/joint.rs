@@ -507,6 +507,15 @@ impl PressModel {
         for (press, disk) in presses.iter_mut().zip(disks.iter()) {
             (press.centre, press.radius, press.drop) = (disk.centre, disk.radius, disk.drop);
         }
+        // Each drop's standard deviation: the fit's covariance, scaled by its misfit per degree
+        // of freedom where the model's own error makes that over 1.
+        room(&mut scratch.variances, MAX_PRESSES);
+        let PressScratch { disks, refine: refining, variances, .. } = &mut *scratch;
+        let known = refining.equivalent_drop_variances_into(disks, self.radius, variances);
+        let scale = misfit_scale(cost, exact, presses.len(), free_radii);
+        for (i, press) in presses.iter_mut().enumerate() {
+            press.equivalent_drop_std = if known { Some((scale * variances[i]).sqrt()) } else { None };
+        }
         // Each press's z against the fit's misfit with its own response put back: Δv less the
         // others as they are together.
         let misfit = scratch.refine.residual();

@@ -46,7 +46,6 @@ use crate::sim::{add_relative_noise, ForceLaw, Hydrogel, Press, Profile, SimPara
 use crate::spec::SensorSpec;
 use crate::strength::Strength;
 use crate::TouchParams;
-use faer::linalg::solvers::DenseSolveCore;
 
 /// A touch counts for a press within this distance of it, in m.
 pub const MATCH_DISTANCE: f64 = 0.02;
@@ -163,6 +162,9 @@ pub struct SweepRow {
     /// The 95 % interval of that RMS ([`rms_interval`] over the frames; NaN without forces):
     /// how well so many presses pin it down.
     pub force_rms_interval: [f64; 2],
+    /// Share of the forces with a standard deviation whose error is within twice it (about
+    /// 95 % if the standard deviations are honest; NaN without any).
+    pub force_within_two_std: f64,
     /// The Cramér–Rao bound on that RMS over the scenes' presses: what no unbiased estimate of
     /// the press model's drop from Δv, read through the same curve, can beat (from
     /// [`drop_variance_bounds`] and the curve's slope at each press's force), in N; NaN for the
@@ -308,12 +310,11 @@ pub fn drop_variance_bounds(
     if refine(exact, &dv, &weights, &mut disks, &params, &mut scratch).is_err() {
         return unknown;
     }
-    let jacobian = scratch.jacobian();
-    if jacobian.nrows() != 3 * presses.len() {
+    let mut variances = Vec::new();
+    if !scratch.equivalent_drop_variances_into(&disks, radius, &mut variances) {
         return unknown;
     }
-    let covariance = (jacobian * jacobian.transpose()).full_piv_lu().inverse();
-    (0..presses.len()).map(|i| covariance[(3 * i + 2, 3 * i + 2)]).map(|v| if v > 0.0 { v } else { f64::NAN }).collect()
+    variances
 }
 
 /// What every level's rows are made from: the sweep's settings, the chains' parts and the
@@ -493,6 +494,9 @@ struct Tally {
     force_error: Vec<f64>,
     /// Per frame with forces, their squared errors' sum (N²) and count.
     force_frames: Vec<(f64, usize)>,
+    /// Forces with a standard deviation, and those within twice it of the truth.
+    with_std: usize,
+    within_two_std: usize,
     /// Per press, the Cramér–Rao bound on its force's variance (N²).
     force_variance_bound: Vec<f64>,
 }
@@ -522,7 +526,12 @@ impl Tally {
             self.found += 1;
             self.distance += d;
             if let Some(force) = touches[j].force {
-                self.force_error.push(force.newtons - presses[i].force);
+                let error = force.newtons - presses[i].force;
+                self.force_error.push(error);
+                if let Some(std) = force.std {
+                    self.with_std += 1;
+                    self.within_two_std += usize::from(error.abs() <= 2.0 * std);
+                }
             }
         }
         self.false_touches += touch_used.iter().filter(|u| !**u).count();
@@ -554,6 +563,11 @@ impl Tally {
             position_error: if self.found > 0 { self.distance / self.found as f64 } else { f64::NAN },
             force_rms: if self.force_error.is_empty() { f64::NAN } else { rms },
             force_rms_interval: rms_interval(&self.force_frames),
+            force_within_two_std: if self.with_std > 0 {
+                self.within_two_std as f64 / self.with_std as f64
+            } else {
+                f64::NAN
+            },
             force_rms_bound: if self.force_variance_bound.is_empty() {
                 f64::NAN
             } else {
