@@ -36,6 +36,11 @@ pub struct RefineParams {
     pub radius_range: [f64; 2],
     /// Box the centres stay in, `[min, max]` in m.
     pub bounds: [[f64; 2]; 2],
+    /// The fit stops once a Gauss–Newton step would lower the misfit by less than this,
+    /// gᵀ(JJᵀ)⁻¹g with g = Jr: for weights of one over each channel's noise, the step's length
+    /// in the fit's standard deviations, squared (0.01: a tenth of one). 0: only where a step
+    /// moves less than the fixed tolerances (for weights in other units).
+    pub converged_below: f64,
 }
 
 /// Buffers of [`refine`].
@@ -54,6 +59,7 @@ pub struct RefineScratch {
     normal: Mat<f64>,
     damped: Mat<f64>,
     step: Mat<f64>,
+    gradient: Mat<f64>,
     lu: DenseLu,
     /// Whether the last fit's Jacobian was made whole (not cut short by a press solved in full).
     jacobian_whole: bool,
@@ -74,6 +80,7 @@ impl Default for RefineScratch {
             normal: empty(),
             damped: empty(),
             step: empty(),
+            gradient: empty(),
             lu: DenseLu::default(),
             jacobian_whole: false,
         }
@@ -219,6 +226,7 @@ pub fn refine(
         normal,
         damped,
         step,
+        gradient,
         lu,
         jacobian_whole,
     } = scratch;
@@ -231,6 +239,7 @@ pub fn refine(
     grow(normal, n, n);
     grow(damped, n, n);
     grow(step, n, 1);
+    grow(gradient, n, 1);
     let mut cost = misfit(exact, dv, weights, disks, ex, joint, residual)?;
     let mut damping = 1e-3;
     'iterations: for _ in 0..ITERATIONS {
@@ -261,6 +270,22 @@ pub fn refine(
         if largest <= 0.0 {
             break;
         }
+        // Settled: the undamped step would lower the misfit by less than asked.
+        gradient_into(j, residual, gradient.as_mut());
+        if params.converged_below > 0.0 {
+            damped.copy_from(normal.as_ref());
+            for a in 0..n {
+                if pinned(a / per, parameters[a % per]) || normal[(a, a)] <= 0.0 {
+                    damped[(a, a)] = 1.0;
+                }
+            }
+            step.copy_from(gradient.as_ref());
+            lu.solve_in_place(damped.as_mut(), step.as_mut());
+            let fall: f64 = (0..n).map(|a| step[(a, 0)] * gradient[(a, 0)]).sum();
+            if fall < params.converged_below {
+                break;
+            }
+        }
         let mut moved_little = false;
         let mut accepted = false;
         for attempt in 0..TRIES {
@@ -271,7 +296,7 @@ pub fn refine(
                     damped[(a, a)] = 1.0;
                 }
             }
-            gradient_into(j, residual, step.as_mut());
+            step.copy_from(gradient.as_ref());
             lu.solve_in_place(damped.as_mut(), step.as_mut());
             if attempt > 0 {
                 bound_step(disks, step.as_mut(), per);
@@ -399,7 +424,12 @@ mod tests {
         let relative = 1e-4;
         let std: Vec<f64> = v0.iter().map(|v| relative * v.abs()).collect();
         let weights: Vec<f64> = std.iter().map(|s| 1.0 / s).collect();
-        let params = RefineParams { free_radii: 1, radius_range: [0.005, 0.025], bounds: [[-0.1, -0.1], [0.1, 0.1]] };
+        let params = RefineParams {
+            free_radii: 1,
+            radius_range: [0.005, 0.025],
+            bounds: [[-0.1, -0.1], [0.1, 0.1]],
+            converged_below: 0.0,
+        };
         let (mut rng, mut scratch, mut variances) = (StdRng::seed_from_u64(3), RefineScratch::default(), Vec::new());
         let (mut equivalent, mut drops, mut predicted) = (Vec::new(), Vec::new(), 0.0);
         for _ in 0..300 {
@@ -444,7 +474,7 @@ mod tests {
                 Disk { centre: [0.074, -0.053], radius: 0.01, drop: 0.7 },
                 Disk { centre: [-0.024, 0.027], radius: if free_radii == 0 { 0.012 } else { 0.01 }, drop: 0.4 },
             ];
-            let params = RefineParams { free_radii, radius_range: [0.004, 0.025], bounds };
+            let params = RefineParams { free_radii, radius_range: [0.004, 0.025], bounds, converged_below: 0.0 };
             let mut scratch = RefineScratch::default();
             let cost = refine(&exact, &dv, &weights, &mut disks, &params, &mut scratch).unwrap();
             assert!(cost < 1e-4, "{free_radii:b}: misfit {cost}"); // of noise's χ² about 120
@@ -466,7 +496,12 @@ mod tests {
         let truth = Disk { centre: [0.04, 0.03], radius: 0.01, drop: 0.865 };
         let (model, exact, v0, dv) = setup(4000, &[truth]);
         let weights: Vec<f64> = v0.iter().map(|v| 1.0 / (5e-4 * v.abs())).collect();
-        let params = RefineParams { free_radii: 1, radius_range: [0.005, 0.025], bounds: model.mesh().bounds() };
+        let params = RefineParams {
+            free_radii: 1,
+            radius_range: [0.005, 0.025],
+            bounds: model.mesh().bounds(),
+            converged_below: 0.0,
+        };
         let mut disks = [Disk { centre: [0.04, 0.03], radius: 0.01, drop: 0.3 }];
         let cost = refine(&exact, &dv, &weights, &mut disks, &params, &mut RefineScratch::default()).unwrap();
         let d = disks[0];

@@ -305,7 +305,7 @@ pub fn drop_variance_bounds(
     let weights: Vec<f64> = std.iter().map(|s| if *s > 0.0 && s.is_finite() { 1.0 / s } else { 0.0 }).collect();
     let radius = press_model.radius();
     let mut disks: Vec<Disk> = presses.iter().map(|p| Disk { centre: p.position, radius, drop: 0.5 }).collect();
-    let params = RefineParams { free_radii: 0, radius_range: [radius, radius], bounds };
+    let params = RefineParams { free_radii: 0, radius_range: [radius, radius], bounds, converged_below: 0.0 };
     let mut scratch = RefineScratch::default();
     if refine(exact, &dv, &weights, &mut disks, &params, &mut scratch).is_err() {
         return unknown;
@@ -695,7 +695,7 @@ mod tests {
 
         let (relative, frame) = (1e-4, clean(&[a]));
         let weights: Vec<f64> = frame.iter().map(|v| 1.0 / (relative * v.abs())).collect();
-        let params = RefineParams { free_radii: 0, radius_range: [0.01, 0.01], bounds };
+        let params = RefineParams { free_radii: 0, radius_range: [0.01, 0.01], bounds, converged_below: 0.0 };
         let exact = press_model.exact().unwrap();
         let (mut rng, mut scratch) = (StdRng::seed_from_u64(4), RefineScratch::default());
         let drops: Vec<f64> = (0..300)
