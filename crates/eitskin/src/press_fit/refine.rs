@@ -20,7 +20,8 @@ const ITERATIONS: usize = 12;
 /// Tries of a larger damping per iteration before it gives up.
 const TRIES: usize = 6;
 
-/// A step smaller than this, in centre and radius (m) and in drop, ends the iterations.
+/// A step smaller than this, in centre and radius (m) and in drop, ends the iterations (as does
+/// one the noise could not tell, [`RefineParams::converged_below`]).
 const TOLERANCE: [f64; 2] = [1e-5, 1e-4];
 
 /// The parameters of a disk, in the order of the Jacobian's rows.

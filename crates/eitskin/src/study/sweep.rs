@@ -19,9 +19,11 @@
 //! 15 mm indenter, read through the 10 mm one's calibration. A press is found when a touch lies within [`MATCH_DISTANCE`] of
 //! it (each touch matched once, nearest first); touches left over are false, and so is any
 //! touch on an untouched frame. Each share found comes with its 95 % interval
-//! ([`wilson_interval`]), and each force RMS with its Cramér–Rao bound
-//! ([`drop_variance_bounds`] through the calibration's slope, at the noise of Δv: the frame's
-//! and its reference's): how close a method comes to what Δv holds. Each pipeline takes its
+//! ([`wilson_interval`]), and each force RMS with its own ([`rms_interval`]) and with its
+//! Cramér–Rao bound ([`drop_variance_bounds`] through the calibration's slope, at the noise of
+//! Δv: the frame's and its reference's): how close a method comes to what Δv holds (a force read
+//! as its posterior's mean over the calibrated range is not unbiased, and can fall below it).
+//! Each force's standard deviation is checked too: how often the truth lies within twice it. Each pipeline takes its
 //! reference and sees the sheet at rest until the reference has grown to its limit
 //! ([`PipelineParams::reference_limit`]), as a user's sheet rests between presses.
 //!
