@@ -512,6 +512,7 @@ impl ChangeScratch {
     /// Room for changes touching up to `rows` rows of the system.
     pub fn reserve(&mut self, rows: usize) {
         room(&mut self.rows, rows);
+        self.lu.reserve(rows);
     }
 }
 
@@ -566,6 +567,13 @@ impl std::fmt::Debug for DenseLu {
 }
 
 impl DenseLu {
+    /// Grows the row permutations at once to systems of `n` rows, so that a larger system than
+    /// the last does not reallocate them.
+    pub(crate) fn reserve(&mut self, n: usize) {
+        room(&mut self.perm, n);
+        room(&mut self.perm_inv, n);
+    }
+
     /// Overwrites `rhs` with `a`⁻¹·`rhs` (`a` square, overwritten by its factors).
     pub(crate) fn solve_in_place(&mut self, mut a: faer::MatMut<'_, f64>, rhs: faer::MatMut<'_, f64>) {
         let n = a.nrows();
