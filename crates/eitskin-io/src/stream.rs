@@ -5,7 +5,7 @@
 //! # Version
 //!
 //! The stream says its version once, in its first line, the [`Start`] event: format
-//! `"eitskin-run"`, [`VERSION`] 4, with what a reader needs to understand the rest (the length
+//! `"eitskin-run"`, [`VERSION`], with what a reader needs to understand the rest (the length
 //! unit, the number of measurements). One line at the start rather than a field in every line:
 //! frames stay short, and the unit, which the numbers cannot carry, is stated once. The version
 //! goes up whenever a field or an event is added, removed or changes meaning, so the types here,
@@ -19,6 +19,9 @@
 //! press's `radius` (the indenter's, or fitted where the data ask for it); absent before.
 //! Version 5 added the start line's `reference_limit` (`null` before), and a `noise_updated`
 //! event also when the grown reference gave the threshold anew.
+//! Version 6 added each touch's `force_std` (`null` before); with presses fitted to Δv, a
+//! touch's `force` is since then the mean of its posterior over the calibrated range, no longer
+//! the curve's inverse clamped to it.
 //!
 //! # Lines
 //!
@@ -55,8 +58,9 @@
 //! `force_std`, its standard deviation from the noise in N (with a press fitted to Δv whitened
 //! by the measured noise: the force is then the mean of its posterior over the calibrated
 //! range, see [`eitskin::calibration::Curve::force_given`]; else, and before version 6, `null`),
-//! and `saturated`, whether the force is at the end of the calibrated range, or `null` without a
-//! calibration; `press`, the press fitted to Δv, `{x, y, drop}` (centre in the length unit,
+//! and `saturated`, whether the reading lay where the curve's inverse leaves the calibrated
+//! range (the force is then its end, or with `force_std` what forces in the range could have
+//! given it), or `null` without a calibration; `press`, the press fitted to Δv, `{x, y, drop}` (centre in the length unit,
 //! conductivity drop under the indenter as a fraction of the background), or `null` without
 //! press fitting.
 //!
@@ -292,7 +296,8 @@ pub struct Touch {
     /// The force's standard deviation from the noise, in N, where it is known (from version 6).
     #[serde(default)]
     pub force_std: Option<f64>,
-    /// Whether the force is at the end of the calibrated range, with a calibration.
+    /// Whether the reading lay where the curve's inverse leaves the calibrated range, with a
+    /// calibration.
     pub saturated: Option<bool>,
     /// The press fitted to Δv, with press fitting.
     pub press: Option<Press>,

@@ -306,12 +306,14 @@ impl Curve {
         // On the midpoints of the range: the log-likelihood's largest value first, so that
         // the weights neither overflow nor all vanish.
         let force = |k: usize| low + (k as f64 + 0.5) * step;
-        let log_likelihood = |f: f64| -0.5 * ((peak - self.peak(f)) / std).powi(2);
-        let largest = (0..POSTERIOR_POINTS).map(|k| log_likelihood(force(k))).fold(f64::NEG_INFINITY, f64::max);
+        let mut log_likelihood = [0.0; POSTERIOR_POINTS];
+        for (k, l) in log_likelihood.iter_mut().enumerate() {
+            *l = -0.5 * ((peak - self.peak(force(k))) / std).powi(2);
+        }
+        let largest = log_likelihood.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let (mut weight, mut first, mut second) = (0.0, 0.0, 0.0);
-        for k in 0..POSTERIOR_POINTS {
-            let f = force(k);
-            let w = (log_likelihood(f) - largest).exp();
+        for (k, l) in log_likelihood.iter().enumerate() {
+            let (f, w) = (force(k), (l - largest).exp());
             (weight, first, second) = (weight + w, first + w * f, second + w * f * f);
         }
         let mean = first / weight;

@@ -228,7 +228,8 @@ pub struct PressFit {
     /// The standard deviation the noise gives its drop at the indenter's radius,
     /// [`PressFit::equivalent_drop`] (dimensionless): from the exact fit's covariance, the
     /// others' parameters unknown too, scaled up by the fit's misfit per degree of freedom where
-    /// that is over 1; `None` for a fit on the linear responses alone.
+    /// that is over 1 (a press carried from frame to frame keeps its last fit's); `None` for a
+    /// fit on the linear responses alone.
     pub equivalent_drop_std: Option<f64>,
 }
 

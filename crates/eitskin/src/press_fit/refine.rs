@@ -62,8 +62,10 @@ pub struct RefineScratch {
     step: Mat<f64>,
     gradient: Mat<f64>,
     lu: DenseLu,
-    /// Whether the last fit's Jacobian was made whole (not cut short by a press solved in full).
+    /// Whether the last fit's Jacobian was made whole (not cut short by a press solved in full),
+    /// and its rows per press and presses.
     jacobian_whole: bool,
+    jacobian_layout: [usize; 2],
 }
 
 impl Default for RefineScratch {
@@ -84,6 +86,7 @@ impl Default for RefineScratch {
             gradient: empty(),
             lu: DenseLu::default(),
             jacobian_whole: false,
+            jacobian_layout: [0, 0],
         }
     }
 }
@@ -127,17 +130,18 @@ impl RefineScratch {
 
     /// Per disk of the last [`refine`] (`disks` as it left them), the variance of its drop at
     /// radius `radius` (m), d·(r/`radius`)², into `out`: gᵀ(JJᵀ)⁻¹g, J that fit's weighted
-    /// Jacobian ([`RefineScratch::jacobian`]) and g the gradient of that drop along the
+    /// Jacobian ([`RefineScratch::jacobian`], made before its last step, which a fit that
+    /// converged took short) and g the gradient of that drop along the
     /// parameters fitted; with weights of one over each channel's noise, the Cramér–Rao bound
     /// at the fit, every other parameter unknown too. `false` where the fit left no whole
     /// Jacobian of these disks or JJᵀ is singular. Allocates nothing once `out` has grown.
     pub fn equivalent_drop_variances_into(&mut self, disks: &[Disk], radius: f64, out: &mut Vec<f64>) -> bool {
         out.clear();
-        let (n, k) = (self.jacobian.nrows(), disks.len());
-        if !self.jacobian_whole || k == 0 || n % k != 0 || !matches!(n / k, 3 | 4) {
+        let ([per, presses], k) = (self.jacobian_layout, disks.len());
+        let n = per * k;
+        if !self.jacobian_whole || k == 0 || presses != k || self.jacobian.nrows() != n {
             return false;
         }
-        let per = n / k;
         let j = self.jacobian.as_ref();
         matmul(self.normal.as_mut(), Accum::Replace, j, j.transpose(), 1.0, Par::Seq);
         for (i, disk) in disks.iter().enumerate() {
@@ -151,9 +155,14 @@ impl RefineScratch {
                     0.0
                 },
             ];
+            // Only a radius not fitted may have no row; any other such row leaves JJᵀ singular.
             self.damped.copy_from(self.normal.as_ref());
             for a in 0..n {
                 if self.normal[(a, a)] <= 0.0 {
+                    if a % per != 3 {
+                        out.clear();
+                        return false;
+                    }
                     self.damped[(a, a)] = 1.0;
                 }
             }
@@ -230,8 +239,10 @@ pub fn refine(
         gradient,
         lu,
         jacobian_whole,
+        jacobian_layout,
     } = scratch;
     *jacobian_whole = false;
+    *jacobian_layout = [per, k];
     joint.resize(m, 0.0);
     residual.resize(m, 0.0);
     own.resize(k * m, 0.0);
@@ -247,7 +258,8 @@ pub fn refine(
         if k == 0 {
             break;
         }
-        // The Jacobian at `disks`, from the solve that gave their misfit.
+        // The Jacobian at `disks`, from the solve that gave their misfit; not whole until made.
+        *jacobian_whole = false;
         for (i, _) in disks.iter().enumerate() {
             for (p, &parameter) in parameters.iter().enumerate() {
                 if pinned(i, parameter) {
@@ -453,6 +465,9 @@ mod tests {
             let mean = x.iter().sum::<f64>() / x.len() as f64;
             x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (x.len() - 1) as f64
         };
+        // Asked of other presses than the fit's, it has none to give.
+        let pair = [truth[0], truth[0]];
+        assert!(!scratch.equivalent_drop_variances_into(&pair, 0.01, &mut variances) && variances.is_empty());
         let ratio = variance(&equivalent) / predicted;
         assert!((0.65..1.25).contains(&ratio), "fitted equivalent drops' variance is {ratio} of the fit's");
         assert!(variance(&drops) > 2.0 * variance(&equivalent), "{} {}", variance(&drops), variance(&equivalent));

@@ -595,7 +595,7 @@ pub fn wilson_interval(found: usize, trials: usize) -> [f64; 2] {
 
 /// The 95 % interval of an RMS from groups of errors, each given as its squared errors' sum and
 /// count (errors within a group may be correlated, as two presses' forces in one frame are); NaN
-/// for fewer than two groups. The mean square R = Σe²/Σn is a ratio of sums over the groups: its
+/// for fewer than two groups, 0 where every error is 0. The mean square R = Σe²/Σn is a ratio of sums over the groups: its
 /// standard error by the delta method, s = √(Σ(sᵢ − R·nᵢ)² / (G(G−1))) / n̄ over G groups, and
 /// the interval R·e^(±1.96·s/R) (normal in log R, which a few large errors skew less than R),
 /// square-rooted. Approximate: where a few presses dominate, it holds the truth less often
@@ -609,6 +609,9 @@ pub fn rms_interval(groups: &[(f64, usize)]) -> [f64; 2] {
     let squares: f64 = groups.iter().map(|(s, _)| s).sum();
     let count = groups.iter().map(|(_, n)| *n as f64).sum::<f64>();
     let ratio = squares / count;
+    if ratio == 0.0 {
+        return [0.0; 2]; // no error at all
+    }
     let mean_count = count / g;
     let spread: f64 = groups.iter().map(|(s, n)| (s - ratio * *n as f64).powi(2)).sum();
     let relative = Z * (spread / (g * (g - 1.0))).sqrt() / mean_count / ratio;
