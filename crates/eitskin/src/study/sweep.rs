@@ -493,8 +493,7 @@ struct Tally {
     found: usize,
     false_touches: usize,
     distance: f64,
-    force_error: Vec<f64>,
-    /// Per frame with forces, their squared errors' sum (N²) and count.
+    /// Per frame with forces, their squared errors' sum (N²) and count: the RMS and its interval.
     force_frames: Vec<(f64, usize)>,
     /// Forces with a standard deviation, and those within twice it of the truth.
     with_std: usize,
@@ -519,7 +518,7 @@ impl Tally {
         }
         pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
         let (mut press_used, mut touch_used) = (vec![false; presses.len()], vec![false; touches.len()]);
-        let before = self.force_error.len();
+        let (mut squares, mut forces) = (0.0, 0);
         for (d, i, j) in pairs {
             if press_used[i] || touch_used[j] {
                 continue;
@@ -529,7 +528,7 @@ impl Tally {
             self.distance += d;
             if let Some(force) = touches[j].force {
                 let error = force.newtons - presses[i].force;
-                self.force_error.push(error);
+                (squares, forces) = (squares + error * error, forces + 1);
                 if let Some(std) = force.std {
                     self.with_std += 1;
                     self.within_two_std += usize::from(error.abs() <= 2.0 * std);
@@ -537,9 +536,8 @@ impl Tally {
             }
         }
         self.false_touches += touch_used.iter().filter(|u| !**u).count();
-        let errors = &self.force_error[before..];
-        if !errors.is_empty() {
-            self.force_frames.push((errors.iter().map(|e| e * e).sum(), errors.len()));
+        if forces > 0 {
+            self.force_frames.push((squares, forces));
         }
     }
 
@@ -552,7 +550,8 @@ impl Tally {
     }
 
     fn row(&self, level: Level, kind: &'static str, presses: usize, method: &'static str) -> SweepRow {
-        let rms = (self.force_error.iter().map(|e| e * e).sum::<f64>() / self.force_error.len() as f64).sqrt();
+        let squares: f64 = self.force_frames.iter().map(|(s, _)| s).sum();
+        let forces: usize = self.force_frames.iter().map(|(_, n)| n).sum();
         SweepRow {
             level,
             kind,
@@ -563,7 +562,7 @@ impl Tally {
             detection_interval: wilson_interval(self.found, self.presses),
             false_per_1000: 1000.0 * self.false_touches as f64 / self.frames.max(1) as f64,
             position_error: if self.found > 0 { self.distance / self.found as f64 } else { f64::NAN },
-            force_rms: if self.force_error.is_empty() { f64::NAN } else { rms },
+            force_rms: if forces == 0 { f64::NAN } else { (squares / forces as f64).sqrt() },
             force_rms_interval: rms_interval(&self.force_frames),
             force_within_two_std: if self.with_std > 0 {
                 self.within_two_std as f64 / self.with_std as f64
@@ -579,13 +578,16 @@ impl Tally {
     }
 }
 
+/// The normal distribution's 97.5th percentile: a 95 % interval's half-width in its standard
+/// deviations.
+const Z: f64 = 1.959_963_984_540_054;
+
 /// The 95 % score interval (Wilson's) of a binomial share, `found` of `trials`; NaN for none.
 /// Unlike p ± 1.96·√(p(1−p)/n) it stays within [0, 1] and does not shrink to nothing at 0 or 1.
 pub fn wilson_interval(found: usize, trials: usize) -> [f64; 2] {
     if trials == 0 {
         return [f64::NAN; 2];
     }
-    const Z: f64 = 1.959_963_984_540_054; // the normal's 97.5th percentile
     let (n, p) = (trials as f64, found as f64 / trials as f64);
     let z2 = Z * Z / n;
     let centre = (p + z2 / 2.0) / (1.0 + z2);
@@ -604,7 +606,6 @@ pub fn rms_interval(groups: &[(f64, usize)]) -> [f64; 2] {
     if groups.len() < 2 {
         return [f64::NAN; 2];
     }
-    const Z: f64 = 1.959_963_984_540_054; // the normal's 97.5th percentile
     let g = groups.len() as f64;
     let squares: f64 = groups.iter().map(|(s, _)| s).sum();
     let count = groups.iter().map(|(_, n)| *n as f64).sum::<f64>();
