@@ -5,12 +5,14 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use eitskin::calibration::{force_errors, Calibration, ForceEstimate, Sample};
-use eitskin::chain::LabelledFrame;
+use eitskin::chain::{LabelledFrame, TouchForce};
+use eitskin::labelled::{self, process_labelled, split_references, MATCH_DISTANCE};
+use eitskin::pipeline::PipelineParams;
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::spec::Quantity;
 use eitskin::strength::Strength;
 use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
-use eitskin_io::{CalibrationFile, Imaging, Location, Measured, SampleRow};
+use eitskin_io::{CalibrationFile, FrameSelect, Imaging, Location, Measured, SampleRow};
 
 use crate::{load, outputs, ranges};
 
@@ -28,7 +30,9 @@ pub struct CalibrateArgs {
     /// Units per side of the pseudo-array, 1–100 (the paper's 5; 1: one curve for the sheet).
     #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of units per side", 1, 100))]
     grid: usize,
-    /// Reference (no-touch) frame, needed when the samples hold raw frames.
+    /// Frames without a press (a MAT, NPY or text file of one or many frames), for samples of
+    /// raw frames: the reference is their mean (with the samples' rows of 0 N) and each
+    /// channel's noise is measured on them.
     #[arg(long)]
     reference: Option<PathBuf>,
     /// What the curves take as the touch's strength: `peak` (the image's, the paper's),
@@ -69,9 +73,15 @@ pub struct EvaluateArgs {
     /// Samples (CSV), as for `calibrate`.
     #[arg(long)]
     samples: PathBuf,
-    /// Reference (no-touch) frame, needed when the samples hold raw frames.
+    /// Frames without a press (a MAT, NPY or text file of one or many frames), for samples of
+    /// raw frames: the reference is their mean (with the samples' rows of 0 N) and each
+    /// channel's noise is measured on them.
     #[arg(long)]
     reference: Option<PathBuf>,
+    /// Write each sample's result here (CSV: the label, whether its press was found, where, the
+    /// force read and its standard deviation).
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 /// Runs `eitskin calibrate`.
@@ -93,14 +103,11 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
             )
         }
         Labelled::Frames(frames) => {
-            let reference = reference(args.reference.as_deref(), &args.samples)?;
-            let mut chain = load::chain(&spec, strength, false)?;
-            let samples = chain.samples(&reference, &array, &frames)?;
-            let missed = samples.iter().filter(|s| s.is_none()).count();
-            if missed > 0 {
-                eprintln!("{missed} of {} frames show no touch and are left out", samples.len());
-            }
-            samples.into_iter().flatten().collect()
+            let (references, pressed) = references(args.reference.as_deref(), &args.samples, frames)?;
+            let chain = load::chain(&spec, strength, false)?;
+            let found = process_labelled(chain, PipelineParams::default(), &references, &pressed)?;
+            report_missed(&args.samples, &pressed, &found);
+            labelled::samples(&array, &pressed, &found)
         }
     };
     let calibration = Calibration::fit_strength(&samples, array.area_count(), strength)?;
@@ -110,28 +117,46 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     std::fs::write(&args.out, eitskin_io::calibration_file_to_json(&spec, &array, &calibration, imaging)?)
         .with_context(|| format!("writing {}", args.out.display()))?;
     let unit = format!("[{}]", strength.unit());
+    // One curve for every sample, to say how far each area's curve reads from it.
+    let pooled: Vec<Sample> = samples.iter().map(|s| Sample { area: 0, ..*s }).collect();
+    let offsets = match Calibration::fit_strength(&pooled, 1, strength) {
+        Ok(one) if calibration.curves.len() > 1 => calibration.offsets_from(&one.curves[0]),
+        _ => vec![f64::NAN; calibration.curves.len()],
+    };
     println!("{} samples, {} areas; {strength}(F) = a·e^(−F/b) + c:", samples.len(), array.area_count());
     println!(
-        "{:>5} {:>12} {:>10} {:>12} {:>7} {:>10} {:>8}",
+        "{:>5} {:>12} {:>10} {:>12} {:>7} {:>12} {:>10} {:>8} {:>13}",
         "area",
         format!("a {unit}"),
         "b [N]",
         format!("c {unit}"),
         "R²",
+        format!("spread {unit}"),
         "F [N]",
-        "samples"
+        "samples",
+        "vs one [N]"
     );
-    for (k, c) in calibration.curves.iter().enumerate() {
+    for (k, (c, offset)) in calibration.curves.iter().zip(&offsets).enumerate() {
+        let offset = if offset.is_finite() { format!("{offset:.2}") } else { "–".into() };
         println!(
-            "{:>5} {:>12.4e} {:>10.3} {:>12.4e} {:>7.3} {:>4.0}–{:<5.0} {:>8}",
+            "{:>5} {:>12.4e} {:>10.3} {:>12.4e} {:>7.3} {:>12.3e} {:>4.0}–{:<5.0} {:>8} {:>13}{}",
             k + 1,
             c.a,
             c.b,
             c.c,
             c.r_squared,
+            c.spread,
             c.force_range[0],
             c.force_range[1],
-            c.samples
+            c.samples,
+            offset,
+            if c.fallback { "  (Levenberg–Marquardt did not converge: the best curve on a grid of b)" } else { "" }
+        );
+    }
+    if offsets.iter().any(|o| o.is_finite()) {
+        println!(
+            "vs one: the RMS force (N) one curve for every sample reads for each area's curve, less the force; \
+             areas within the noise of each other read better as one curve (--grid 1)"
         );
     }
     println!("wrote {}", args.out.display());
@@ -147,21 +172,21 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
         let model = args.model.as_deref().context("give --calibration or --model")?;
         return crate::learn::evaluate_model(&spec, model, &args.samples, args.reference.as_deref());
     };
+    if let Some(out) = &args.out {
+        let mut read = vec![("--samples", args.samples.as_path()), ("--calibration", path.as_path())];
+        read.extend(args.reference.as_deref().map(|p| ("--reference", p)));
+        read.extend(args.spec.as_deref().map(|p| ("the spec", p)));
+        outputs::check(&[("--out", out)], &read)?;
+    }
     let CalibrationFile { array, calibration, imaging } = eitskin_io::read_calibration_file(path, &spec)?;
     let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
-    let (mut truth, mut predicted, mut saturated, mut missed) = (Vec::new(), Vec::new(), 0, 0);
-    let mut add = |force: f64, estimate: Option<ForceEstimate>| match estimate {
-        Some(f) => {
-            saturated += usize::from(f.saturated);
-            truth.push(force);
-            predicted.push(f.newtons);
-        }
-        None => missed += 1,
-    };
+    // Per sample: where it was pressed, its force (N), and what the chain read there.
+    let mut results: Vec<([f64; 2], f64, Option<Found>)> = Vec::new();
     match Labelled::of(&spec, &array, &args.samples, rows)? {
         Labelled::Peaks(peaks) if calibration.strength == Strength::Peak => {
             for s in &peaks {
-                add(s.force, Some(calibration.force(s.area, s.peak)?));
+                let force = calibration.force(s.area, s.peak)?;
+                results.push(([f64::NAN; 2], s.force, Some(Found { centre: [f64::NAN; 2], force: Some(force) })));
             }
         }
         Labelled::Peaks(_) => bail!(
@@ -170,34 +195,125 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
             calibration.strength
         ),
         Labelled::Frames(frames) => {
-            let reference = reference(args.reference.as_deref(), &args.samples)?;
+            let (references, pressed) = references(args.reference.as_deref(), &args.samples, frames)?;
             let params = ReconstructorParams {
                 hyperparameter: imaging.hyperparameter,
                 normalized: imaging.normalized,
                 ..ReconstructorParams::default()
             };
             let strength = calibration.strength;
-            let mut chain = load::chain_with(&spec, &params, TouchParams::default(), strength, false)?
+            let chain = load::chain_with(&spec, &params, TouchParams::default(), strength, false)?
                 .with_calibration(array, calibration)?;
-            for (k, f) in frames.iter().enumerate() {
-                let touches = chain.process(&reference, &f.frame).with_context(|| format!("sample {}", k + 1))?;
-                add(f.force, touches.first().and_then(|t| t.force));
+            let found = process_labelled(chain, PipelineParams::default(), &references, &pressed)?;
+            report_missed(&args.samples, &pressed, &found);
+            for (labelled, touch) in pressed.iter().zip(&found) {
+                let found =
+                    touch.map(|t| Found { centre: t.press.map_or(t.touch.centre, |p| p.centre), force: t.force });
+                results.push((labelled.position, labelled.force, found));
             }
         }
     }
+    let estimates: Vec<(f64, ForceEstimate)> =
+        results.iter().filter_map(|(_, truth, found)| Some((*truth, found.as_ref()?.force?))).collect();
+    let (truth, predicted): (Vec<f64>, Vec<f64>) = estimates.iter().map(|(t, f)| (*t, f.newtons)).unzip();
+    let saturated = estimates.iter().filter(|(_, f)| f.saturated).count();
+    let found = results.iter().filter(|r| r.2.is_some()).count();
     let e = force_errors(&truth, &predicted);
-    println!("{} samples ({saturated} saturated, {missed} without a touch on the pseudo-array, left out)", e.count);
+    println!(
+        "{} samples: {found} found, {} missed, {} with a force ({saturated} saturated); errors over those with a force",
+        results.len(),
+        results.len() - found,
+        e.count
+    );
     println!(
         "RMS error {:.3} N ({:.2} % of the largest force), correlation {:.3}, mean absolute error {:.3} N",
         e.rms, e.rms_percent_of_max, e.correlation, e.mean_absolute
     );
+    let with_std: Vec<(f64, f64)> =
+        estimates.iter().filter_map(|(t, f)| f.std.map(|s| ((f.newtons - t).abs(), s))).collect();
+    if !with_std.is_empty() {
+        let within = with_std.iter().filter(|(error, std)| *error <= 2.0 * std).count();
+        println!(
+            "the true force lies within twice the force's standard deviation for {:.1} % of the {} forces",
+            100.0 * within as f64 / with_std.len() as f64,
+            with_std.len()
+        );
+    }
+    if let Some(out) = &args.out {
+        let per_unit = 1.0 / spec.length_unit.metres();
+        let u = spec.length_unit.symbol();
+        let mut csv = format!("sample,x_{u},y_{u},force_n,found,found_x_{u},found_y_{u},predicted_n,std_n,saturated\n");
+        for (k, (at, truth, found)) in results.iter().enumerate() {
+            let blank = |v: f64| if v.is_finite() { format!("{v}") } else { String::new() };
+            let centre = found.as_ref().map_or([f64::NAN; 2], |f| f.centre);
+            let force = found.as_ref().and_then(|f| f.force);
+            csv += &format!(
+                "{},{},{},{truth},{},{},{},{},{},{}\n",
+                k + 1,
+                blank(at[0] * per_unit),
+                blank(at[1] * per_unit),
+                u8::from(found.is_some()),
+                blank(centre[0] * per_unit),
+                blank(centre[1] * per_unit),
+                force.map_or(String::new(), |f| blank(f.newtons)),
+                force.and_then(|f| f.std).map_or(String::new(), blank),
+                force.map_or(String::new(), |f| u8::from(f.saturated).to_string()),
+            );
+        }
+        std::fs::write(out, csv).with_context(|| format!("writing {}", out.display()))?;
+        println!("wrote {}", out.display());
+    }
     Ok(())
 }
 
-/// The reference frame of a samples file of raw frames.
-fn reference(path: Option<&Path>, samples: &Path) -> Result<Vec<f64>> {
-    let Some(path) = path else { bail!("{} holds raw frames: give --reference FILE", samples.display()) };
-    Ok(eitskin_io::read_frame(path)?)
+/// What the chain found for a labelled sample: its centre (the fitted press's, m) and force.
+struct Found {
+    centre: [f64; 2],
+    force: Option<ForceEstimate>,
+}
+
+/// The frames without a press (those of `--reference`, then the samples' rows of 0 N, in
+/// order) and the pressed ones, of a samples file of raw frames.
+fn references(
+    path: Option<&Path>,
+    samples: &Path,
+    frames: Vec<LabelledFrame>,
+) -> Result<(Vec<Vec<f64>>, Vec<LabelledFrame>)> {
+    let mut references = match path {
+        Some(path) => eitskin_io::read_frames(path, &FrameSelect::default())?.frames,
+        None => Vec::new(),
+    };
+    let (rest, pressed) = split_references(frames);
+    references.extend(rest);
+    if references.is_empty() {
+        bail!(
+            "{} holds raw frames but none without a press (force 0): give the frames at rest with --reference FILE",
+            samples.display()
+        );
+    }
+    Ok((references, pressed))
+}
+
+/// Says on stderr which samples' presses were not found (no touch within
+/// [`MATCH_DISTANCE`] of the label), rows counted among the pressed ones from 1.
+fn report_missed(samples: &Path, pressed: &[LabelledFrame], found: &[Option<TouchForce>]) {
+    let missed: Vec<String> =
+        found.iter().enumerate().filter(|(_, t)| t.is_none()).map(|(k, _)| (k + 1).to_string()).collect();
+    if missed.is_empty() {
+        return;
+    }
+    let forces = pressed.iter().zip(found).filter(|(_, t)| t.is_none()).map(|(p, _)| p.force);
+    let weakest = forces.clone().fold(f64::INFINITY, f64::min);
+    let strongest = forces.fold(0.0, f64::max);
+    let shown = missed.iter().take(20).cloned().collect::<Vec<_>>().join(", ");
+    let more = if missed.len() > 20 { ", …" } else { "" };
+    eprintln!(
+        "{}: {} of {} presses not found within {:.0} mm of their label ({weakest}–{strongest} N; pressed samples {shown}{more})",
+        samples.display(),
+        missed.len(),
+        pressed.len(),
+        MATCH_DISTANCE * 1e3,
+    );
 }
 
 /// A samples file's rows, all peaks or all raw frames.
@@ -237,7 +353,7 @@ impl Labelled {
                 bail!("{}: sample {}: ({x}, {y}) is off the sheet", path.display(), k + 1);
             };
             match measured {
-                Measured::Peak(peak) => peaks.push(Sample { area: array.area_of(unit), force, peak }),
+                Measured::Peak(peak) => peaks.push(Sample { area: array.area_of(unit), force, peak, std: None }),
                 Measured::Frame(frame) => frames.push(LabelledFrame { position, force, frame }),
             }
         }

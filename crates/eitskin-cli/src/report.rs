@@ -3,6 +3,7 @@
 use eitskin::strength::Strength;
 use eitskin::study::learning::LearningReport;
 use eitskin::study::sweep::SweepReport;
+use eitskin::study::users::{UsersParams, UsersReport, COUNTED_FROM, MAX_FORCE, PAIR_APART};
 use eitskin::study::{ForceMethod, StudyParams, StudyReport};
 use eitskin::LengthUnit;
 use serde_json::{json, Value};
@@ -274,6 +275,73 @@ pub fn learning_markdown(learning: &LearningReport) -> String {
             s += &format!("| {} |{cells}\n", c.method.name());
         }
         s += "\n";
+    }
+    s
+}
+
+/// The section calibrated as users calibrate, as JSON: one object per row.
+pub fn users_json(users: &UsersReport) -> Value {
+    let number = |v: f64| if v.is_finite() { json!(v) } else { Value::Null };
+    Value::Array(
+        users
+            .rows
+            .iter()
+            .map(|r| {
+                json!({
+                    "kind": r.kind,
+                    "noise": r.noise,
+                    "calibrated": r.calibrated,
+                    "strength": r.strength.name(),
+                    "grid": r.grid,
+                    "refused": r.refused,
+                    "calibration_found": number(r.calibration_found),
+                    "single_found": number(r.single_found),
+                    "single_rms_newton": number(r.single_rms),
+                    "single_within_2_std": number(r.single_within),
+                    "pair_found": number(r.pair_found),
+                    "pair_rms_newton": number(r.pair_rms),
+                    "pair_within_2_std": number(r.pair_within),
+                })
+            })
+            .collect(),
+    )
+}
+
+/// The section calibrated as users calibrate, as Markdown.
+pub fn users_markdown(users: &UsersReport, params: &UsersParams) -> String {
+    let mut s = String::from("\n## Calibrated as users calibrate\n\n");
+    s += &format!(
+        "Presses of kinds the press model does not assume, on the virtual sensor's finer mesh. Calibrated by the paper's protocol (the six unit centres of the lower-left 3×3 units, 0–15 N in 1 N steps, one frame each) or by {} random robot presses (0.5–16 N, one frame each), with a reference of {} frames at rest; validated on {} single presses of 0.5–16 N at random places outside the calibrated units and {} frames of two presses of 2–16 N at least {:.0} mm apart, through the path `eitskin calibrate`, `evaluate` and `run --fresh-presses` take (the pipeline: measured noise, presses found in Δv, forces as their posterior's mean). Found: share of presses of {} N and more with a touch within 20 mm; force RMS in % of {:.0} N over the presses found; within 2σ: share whose truth lies within twice the force's standard deviation. The frames are in `users/`.\n\n",
+        params.robot,
+        params.reference_frames,
+        params.validation,
+        params.pairs,
+        PAIR_APART * 1e3,
+        COUNTED_FROM,
+        MAX_FORCE
+    );
+    s += "| kind | noise | calibrated by | method | single: found | force RMS | within 2σ | pairs: found | force RMS | within 2σ |\n|---|---|---|---|---|---|---|---|---|---|\n";
+    let pct = |v: f64| if v.is_finite() { format!("{:.1} %", 100.0 * v) } else { "–".into() };
+    let force = |v: f64| if v.is_finite() { format!("{:.1} %", 100.0 * v / MAX_FORCE) } else { "–".into() };
+    for r in &users.rows {
+        let method = format!(
+            "{}, {}",
+            r.strength.name(),
+            if r.grid == 1 { "one curve".into() } else { format!("{0}×{0}", r.grid) }
+        );
+        let cells = match &r.refused {
+            Some(reason) => format!("refused: {reason} | | | | | |"),
+            None => format!(
+                "{} | {} | {} | {} | {} | {} |",
+                pct(r.single_found),
+                force(r.single_rms),
+                pct(r.single_within),
+                pct(r.pair_found),
+                force(r.pair_rms),
+                pct(r.pair_within)
+            ),
+        };
+        s += &format!("| {} | {} % | {} | {method} | {cells}\n", r.kind, 100.0 * r.noise, r.calibrated);
     }
     s
 }

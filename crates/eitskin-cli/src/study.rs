@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use eitskin::study::sweep::{self, SweepParams, SweepReport};
+use eitskin::study::users::{self, UsersParams, UsersReport};
 use eitskin::study::{run as run_study, StudyParams, StudyReport};
 use eitskin::LengthUnit;
 
@@ -36,17 +37,25 @@ pub struct Args {
     /// Noise sweep: frames with one press per press kind and level, and as many with two and
     /// with three (300: a share found near 95 % is known to about ±2.5 points, at 60 it was ±5;
     /// a pair's force RMS, which a few strong presses dominate, to about ±20 %, and at half as
-    /// many frames one seed's RMS lay 30 % from another's), 0–10,000; 0 leaves the sweep out.
-    #[arg(long, default_value_t = 300, value_parser = ranges::whole("a number of presses", 0, 10_000))]
+    /// many frames one seed's RMS lay 30 % from another's), 0–10,000; 0 (the default) leaves the
+    /// sweep out: `--sweep-presses 300` runs it (about 30 minutes on 2 cores).
+    #[arg(long, default_value_t = 0, value_parser = ranges::whole("a number of presses", 0, 10_000))]
     sweep_presses: usize,
     /// Noise sweep: untouched frames per level, for the false touches, 1–100,000 (10,000: a
     /// rate of 1 per 1,000 is then about 10 ± 3 false touches, not 1 ± 1).
     #[arg(long, default_value_t = 10_000, value_parser = ranges::whole("a number of frames", 1, 100_000))]
     sweep_untouched: usize,
     /// Learned calibration: robot presses of the imperfect virtual skin to train on, 0–10,000
-    /// (the learning curves go up to it; 0 leaves the section out); 300 more are held out.
-    #[arg(long, default_value_t = 500, value_parser = ranges::whole("a number of presses", 0, 10_000))]
+    /// (the learning curves go up to it; 0, the default, leaves the section out: 500 gives the
+    /// curves to 500 presses); 300 more are held out.
+    #[arg(long, default_value_t = 0, value_parser = ranges::whole("a number of presses", 0, 10_000))]
     learning_presses: usize,
+    /// Calibrate as users do (the paper's six units, or random robot presses) and validate at
+    /// random places elsewhere on presses of kinds the press model does not assume, at 0.01 %,
+    /// 0.05 % and 0.2 % noise, through `calibrate`'s and `evaluate`'s path; writes the frames
+    /// under `users/` (a few minutes).
+    #[arg(long)]
+    as_users: bool,
 }
 
 /// Runs `eitskin study`.
@@ -65,14 +74,9 @@ pub fn run(args: Args) -> Result<()> {
         params.repeats = n;
     }
     let start = Instant::now();
-    let mut last = String::new();
-    let mut progress = |stage: &str, done: usize, all: usize| {
-        if stage != last || done == all {
-            eprintln!("[{:>5.1} s] {stage} {done}/{all}", start.elapsed().as_secs_f64());
-            last = stage.to_string();
-        }
-    };
-    let study = run_study(&spec, &params, &mut progress)?;
+    let mut progress = Bars::default();
+    let mut report = |stage: &str, done: usize, all: usize| progress.update(stage, done, all);
+    let study = run_study(&spec, &params, &mut report)?;
     let sweep = match args.sweep_presses {
         0 => None,
         n => {
@@ -82,16 +86,19 @@ pub fn run(args: Args) -> Result<()> {
                 seed: args.seed,
                 ..SweepParams::default()
             };
-            Some(sweep::run(&spec, &sweep_params, &mut progress)?)
+            Some(sweep::run(&spec, &sweep_params, &mut report)?)
         }
     };
     let learning = match args.learning_presses {
         0 => None,
         n => {
-            progress("learned calibration: robot presses and learning curves", 0, 1);
+            report("learned calibration: robot presses and learning curves", 0, 1);
             Some(eitskin::study::learning::run(&spec, n, args.seed)?)
         }
     };
+    let users_params = UsersParams { seed: args.seed, ..UsersParams::default() };
+    let users = if args.as_users { Some(users::run(&spec, &users_params, &mut report)?) } else { None };
+    progress.finish();
     let seconds = start.elapsed().as_secs_f64();
     write_figures(&study, &args, spec.length_unit)?;
     let mut json = report::json(&study, &params, seconds);
@@ -103,6 +110,10 @@ pub fn run(args: Args) -> Result<()> {
         object.insert("learning".into(), report::learning_json(learning));
         crate::learn::write_learning_figures(&learning.curves, Some(learning.max_force), &args.out)?;
     }
+    if let (Some(users), Some(object)) = (&users, json.as_object_mut()) {
+        object.insert("as_users".into(), report::users_json(users));
+        write_users_frames(users, &args, spec.length_unit.metres())?;
+    }
     std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
     write_frames(&study, &args, spec.length_unit.metres())?;
     let mut markdown = report::markdown(&study, &params, spec.length_unit, seconds);
@@ -112,6 +123,9 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(learning) = &learning {
         markdown += &report::learning_markdown(learning);
     }
+    if let Some(users) = &users {
+        markdown += &report::users_markdown(users, &users_params);
+    }
     std::fs::write(args.out.join("report.md"), &markdown)?;
     println!("{markdown}");
     eprintln!("wrote {} in {seconds:.1} s", args.out.display());
@@ -119,11 +133,12 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// The frames the study measured, for `eitskin calibrate` and `evaluate` to reproduce its
-/// numbers: `reference.csv` (one frame), `calibration_frames.csv` and `validation_frames.csv`
+/// numbers: `reference.csv` (the frames at rest, one per line), `calibration_frames.csv` and `validation_frames.csv`
 /// (`x,y,force,v1…`: the press's centre in the spec's units, its force, its noisy frame).
 fn write_frames(study: &StudyReport, args: &Args, metres: f64) -> Result<()> {
     let values = |csv: &mut String, frame: &[f64]| frame.iter().for_each(|v| csv.push_str(&format!(",{v:e}")));
-    let reference: Vec<String> = study.reference.iter().map(|v| format!("{v:e}")).collect();
+    let row = |frame: &[f64]| frame.iter().map(|v| format!("{v:e}")).collect::<Vec<_>>().join(",");
+    let reference: Vec<String> = study.reference_frames.iter().map(|f| row(f)).collect();
     std::fs::write(args.out.join("reference.csv"), reference.join("\n") + "\n")?;
     for (name, frames) in
         [("calibration_frames.csv", &study.calibration), ("validation_frames.csv", &study.validation_frames)]
@@ -221,4 +236,83 @@ fn write_sweep_figures(sweep: &SweepReport, args: &Args, unit: LengthUnit) -> Re
         ("noise (dB below each value)", "force RMS (% of the largest force)"),
         &force,
     )
+}
+
+/// The study's progress on stderr: a bar per stage, with the time spent and an estimate of the
+/// time left (hidden where stderr is not a terminal, where a line per stage is printed instead).
+#[derive(Default)]
+struct Bars {
+    stage: String,
+    bar: Option<indicatif::ProgressBar>,
+    start: Option<Instant>,
+}
+
+impl Bars {
+    /// Stage `stage` has done `done` of `all` steps.
+    fn update(&mut self, stage: &str, done: usize, all: usize) {
+        let start = *self.start.get_or_insert_with(Instant::now);
+        if stage != self.stage {
+            self.finish();
+            self.stage = stage.to_string();
+            let bar = indicatif::ProgressBar::new(all as u64);
+            let style = indicatif::ProgressStyle::with_template(
+                "{msg:50} {bar:30} {pos}/{len} [{elapsed} elapsed, {eta} left]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+            bar.set_style(style);
+            bar.set_message(stage.to_string());
+            if bar.is_hidden() {
+                eprintln!("[{:>6.1} s] {stage}", start.elapsed().as_secs_f64());
+            }
+            self.bar = Some(bar);
+        }
+        if let Some(bar) = &self.bar {
+            bar.set_length(all as u64);
+            bar.set_position(done as u64);
+        }
+    }
+
+    /// Ends the stage's bar, leaving it on the screen.
+    fn finish(&mut self) {
+        if let Some(bar) = self.bar.take() {
+            bar.finish();
+        }
+    }
+}
+
+/// The frames of the section calibrated as users do, per kind and level, in a folder
+/// `users/<kind>_<noise>/`: `rest.csv` (frames at rest, one per line), `paper.csv` and
+/// `robot.csv` (calibration samples `x,y,force,v1…`, 0 N rows included), `validation.csv`
+/// (single presses), and `pairs.csv` (`x1,y1,force1,x2,y2,force2,v1…`).
+fn write_users_frames(users: &UsersReport, args: &Args, metres: f64) -> Result<()> {
+    let row = |frame: &[f64]| frame.iter().map(|v| format!("{v:e}")).collect::<Vec<_>>().join(",");
+    let channels = |n: usize| (1..=n).map(|m| format!("v{m}")).collect::<Vec<_>>().join(",");
+    for frames in &users.frames {
+        let name: String =
+            frames.kind.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
+        let dir = args.out.join("users").join(format!("{name}_{}", frames.noise));
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        let rest: Vec<String> = frames.rest.iter().map(|f| row(f)).collect();
+        std::fs::write(dir.join("rest.csv"), rest.join("\n") + "\n")?;
+        let n = frames.rest.first().map_or(0, Vec::len);
+        for (file, labelled) in
+            [("paper.csv", &frames.paper), ("robot.csv", &frames.robot), ("validation.csv", &frames.validation)]
+        {
+            let mut csv = format!("x,y,force,{}\n", channels(n));
+            for f in labelled {
+                csv +=
+                    &format!("{},{},{},{}\n", f.position[0] / metres, f.position[1] / metres, f.force, row(&f.frame));
+            }
+            std::fs::write(dir.join(file), csv)?;
+        }
+        let mut csv = format!("x1,y1,force1,x2,y2,force2,{}\n", channels(n));
+        for (presses, frame) in &frames.pairs {
+            for p in presses {
+                csv += &format!("{},{},{},", p.position[0] / metres, p.position[1] / metres, p.force);
+            }
+            csv += &format!("{}\n", row(frame));
+        }
+        std::fs::write(dir.join("pairs.csv"), csv)?;
+    }
+    Ok(())
 }

@@ -1,7 +1,7 @@
 //! Past the paper, through the real binary: a calibration on the drop of the press
 //! fitted to Δv (`--strength fitted-drop`, one curve for the sheet) from raw frames of the
 //! virtual sensor, against the paper's per-area peak calibration from the same frames; then
-//! `eitskin run` on a file of frames gives forces and fitted presses with it.
+//! `eitskin run` on a file of the same frames gives the forces `evaluate` gave, frame for frame.
 
 mod binary;
 
@@ -44,13 +44,11 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
             })
             .collect()
     };
-    // Reference: the mean of 15 noisy frames of the untouched sheet.
+    // Frames at rest: 15 noisy frames of the untouched sheet, one per line.
     let blank = skin.clean_frame().unwrap();
-    let reference: Vec<f64> = noisy(&mut skin, vec![blank.clone(); 15])
-        .iter()
-        .fold(vec![0.0; blank.len()], |acc, v| acc.iter().zip(v).map(|(a, x)| a + x / 15.0).collect());
-    std::fs::write(dir.join("reference.txt"), reference.iter().map(|x| format!("{x:e}")).collect::<Vec<_>>().join(" "))
-        .unwrap();
+    let rest = noisy(&mut skin, vec![blank; 15]);
+    let line = |v: &Vec<f64>| v.iter().map(|x| format!("{x:e}")).collect::<Vec<_>>().join(",");
+    std::fs::write(dir.join("reference.txt"), rest.iter().map(line).collect::<Vec<_>>().join("\n")).unwrap();
 
     // Calibration: the centres of the lower-left 3×3 units of the 5×5 grid, 0–12 N, twice each.
     let centres: Vec<[f64; 2]> =
@@ -116,11 +114,30 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
     ]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("needs each sample's raw frame"));
 
-    // Live: 10 reference frames, then the validation frames, through `eitskin run`.
+    // Live: the same frames at rest, then the validation frames, through `eitskin run`, each
+    // frame a scene of its own: the forces `evaluate` gave, frame for frame.
+    let results = path("results.csv");
+    ok(dir.eitskin(&[
+        "evaluate",
+        "--calibration",
+        &path("fitted-drop.json"),
+        "--samples",
+        &path("validation.csv"),
+        "--reference",
+        &path("reference.txt"),
+        "--out",
+        &results,
+    ]));
+    let evaluated: Vec<Option<f64>> = std::fs::read_to_string(&results)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(7).unwrap().parse::<f64>().ok())
+        .collect();
+    assert_eq!(evaluated.len(), validation.len());
     let mut lines = String::new();
-    let blanks = noisy(&mut skin, vec![blank; 10]);
-    for v in blanks.iter().chain(&validation_frames) {
-        lines += &v.iter().map(|x| format!("{x:e}")).collect::<Vec<_>>().join(",");
+    for v in rest.iter().chain(&validation_frames) {
+        lines += &line(v);
         lines.push('\n');
     }
     std::fs::write(dir.join("frames.txt"), lines).unwrap();
@@ -130,6 +147,9 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
         &format!("file:{}", path("frames.txt")),
         "--rate",
         "0",
+        "--reference-frames",
+        "15",
+        "--fresh-presses",
         "--calibration",
         &path("fitted-drop.json"),
     ]));
@@ -140,13 +160,28 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
         .collect();
     assert_eq!(processed.len(), validation.len());
     let (mut sum, mut count) = (0.0, 0);
-    for (line, press) in processed.iter().zip(&validation) {
-        let Some(touch) = line["touches"].as_array().and_then(|t| t.first()) else { continue };
-        let fitted = &touch["press"];
-        let (x, y) = (fitted["x"].as_f64().unwrap() / per_metre, fitted["y"].as_f64().unwrap() / per_metre);
-        assert!((x - press.position[0]).hypot(y - press.position[1]) < 0.015, "{touch} for {press:?}");
-        sum += (touch["force"].as_f64().unwrap() - press.force).powi(2);
-        count += 1;
+    for ((line, press), evaluated) in processed.iter().zip(&validation).zip(&evaluated) {
+        // The touch `evaluate` matched: the one nearest the press within 20 mm.
+        let touches = line["touches"].as_array().unwrap();
+        let nearest = touches
+            .iter()
+            .map(|t| {
+                let (x, y) =
+                    (t["press"]["x"].as_f64().unwrap() / per_metre, t["press"]["y"].as_f64().unwrap() / per_metre);
+                ((x - press.position[0]).hypot(y - press.position[1]), t)
+            })
+            .filter(|(d, _)| *d <= 0.02)
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        let live = nearest.map(|(_, t)| t["force"].as_f64().unwrap());
+        match (live, evaluated) {
+            (Some(live), Some(evaluated)) => {
+                assert!((live - evaluated).abs() <= 1e-9 * live.abs().max(1.0), "run {live} N, evaluate {evaluated} N");
+                sum += (live - press.force).powi(2);
+                count += 1;
+            }
+            (None, None) => {}
+            other => panic!("run and evaluate disagree on whether {press:?} was found: {other:?}"),
+        }
     }
     let live = (sum / count as f64).sqrt();
     eprintln!("RMS error: peak per area {} N, fitted drop {} N; live {live} N over {count} touches", rms[0], rms[1]);

@@ -2,9 +2,9 @@
 //! to the sensor they were made for.
 //!
 //! ```json
-//! { "format": "eitskin-calibration", "version": 4, "spec_key": "…", "strength": "peak",
+//! { "format": "eitskin-calibration", "version": 5, "spec_key": "…", "strength": "peak",
 //!   "hyperparameter": 0.1, "normalised": false, "grid": [5, 5], "areas": [6, 5, 3, …], "curves": [{ "a": …, "b": …, "c": …,
-//!   "r_squared": …, "force_range": [0, 15], "samples": 240 }, …] }
+//!   "r_squared": …, "force_range": [0, 15], "samples": 240, "spread": 0.004 }, …] }
 //! ```
 //! `areas` gives each unit's area, counting both from 1, units row-major from the bottom-left;
 //! curve k is area k + 1, s(F) = a·e^(−F/b) + c with F in N and the strength s named as in
@@ -13,7 +13,10 @@
 //! `strength`) are read as peak. A strength depends on how the images were made, so version 4
 //! records it ([`Imaging`]): the hyperparameter λ and whether differences were normalised
 //! (Δv/v_ref); older files were all made with the paper's λ = 0.1 and absolute differences, and
-//! are read so. A file made for another sensor (another `spec_key`) is refused.
+//! are read so. Version 5 adds each curve's `spread`: the standard deviation of the strength
+//! about the curve that its samples' own noise does not explain, added to each reading's when a
+//! force's standard deviation is given (read as 0 from older files). A file made for another
+//! sensor (another `spec_key`) is refused.
 //!
 //! The key ([`spec_key`]) is a SHA-256 of the sensor's canonical values, serialised as JSON: a
 //! key version; thickness and background conductivity; the outline's kind and lengths; the
@@ -35,7 +38,7 @@ use sha2::{Digest, Sha256};
 use crate::Error;
 
 const FORMAT: &str = "eitskin-calibration";
-const VERSION: u32 = 4;
+const VERSION: u32 = 5;
 /// The version of the canonical sensor values hashed into the key.
 const KEY_VERSION: u32 = 1;
 
@@ -65,19 +68,26 @@ struct CurveJson {
     r_squared: f64,
     force_range: [f64; 2],
     samples: usize,
+    /// The strength's spread about the curve its samples' noise does not explain (version 5;
+    /// 0 before).
+    #[serde(default)]
+    spread: f64,
+    /// Whether the curve is the fallback's, not a converged fit (version 5; false before).
+    #[serde(default)]
+    fallback: bool,
 }
 
 impl From<&Curve> for CurveJson {
     fn from(c: &Curve) -> CurveJson {
-        let Curve { a, b, c, r_squared, force_range, samples } = *c;
-        CurveJson { a, b, c, r_squared, force_range, samples }
+        let Curve { a, b, c, r_squared, force_range, samples, spread, fallback } = *c;
+        CurveJson { a, b, c, r_squared, force_range, samples, spread, fallback }
     }
 }
 
 impl From<&CurveJson> for Curve {
     fn from(c: &CurveJson) -> Curve {
-        let CurveJson { a, b, c, r_squared, force_range, samples } = *c;
-        Curve { a, b, c, r_squared, force_range, samples }
+        let CurveJson { a, b, c, r_squared, force_range, samples, spread, fallback } = *c;
+        Curve { a, b, c, r_squared, force_range, samples, spread, fallback }
     }
 }
 
@@ -95,6 +105,8 @@ fn curve_problem(c: &CurveJson) -> Option<String> {
         Some("`a` = 0: the curve is flat, so no strength tells one force from another".into())
     } else if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi) {
         Some(format!("`force_range` = [{lo}, {hi}] N must run from a force ≥ 0 to a larger one"))
+    } else if !(c.spread.is_finite() && c.spread >= 0.0) {
+        Some(format!("`spread` = {} must be a finite number ≥ 0 (the strength's spread about the curve)", c.spread))
     } else {
         None
     }
@@ -275,8 +287,8 @@ pub fn parse_calibration_file(text: &str, spec: &SensorSpec) -> Result<Calibrati
         (_, Some(hyperparameter), Some(_)) => {
             return refuse("hyperparameter", format!("is {hyperparameter}; it must be positive and finite"));
         }
-        (_, None, _) => return refuse("hyperparameter", "is missing: a version-4 file records λ".into()),
-        (_, _, None) => return refuse("normalised", "is missing: a version-4 file records it".into()),
+        (_, None, _) => return refuse("hyperparameter", "is missing: a file of version 4 or later records λ".into()),
+        (_, _, None) => return refuse("normalised", "is missing: a file of version 4 or later records it".into()),
     };
     let key = if file.version >= 3 { spec_key(spec)? } else { legacy_spec_key(spec)? };
     if file.spec_key != key {
@@ -322,6 +334,7 @@ mod tests {
                     area,
                     force: f as f64,
                     peak: 0.1 * (area + 1) as f64 * (1.0 - (-(f as f64) / 5.0).exp()),
+                    std: None,
                 })
             })
             .collect();
@@ -343,8 +356,8 @@ mod tests {
         let mut denser = spec.clone();
         denser.mesh.triangles = 9000;
         assert!(parse_calibration(&text, &denser).is_ok(), "the mesh density is not part of the sensor");
-        let err = parse_calibration(&text.replace("\"version\": 4", "\"version\": 7"), &spec).unwrap_err();
-        assert!(err.to_string().contains("reads versions 1 to 4"), "{err}");
+        let err = parse_calibration(&text.replace("\"version\": 5", "\"version\": 7"), &spec).unwrap_err();
+        assert!(err.to_string().contains("reads versions 1 to 5"), "{err}");
         // A fitted-drop calibration keeps its kind; an unknown kind is refused by name.
         let drop = Calibration { strength: Strength::FittedDrop, ..calibration.clone() };
         let text = calibration_to_json(&spec, &array, &drop).unwrap();
@@ -399,10 +412,11 @@ mod tests {
         let (array, calibration) = fitted(&spec);
         let v3 = version_3(&calibration_to_json(&spec, &array, &calibration).unwrap());
         let v2 = v3.replace("\"version\": 3", "\"version\": 2").replace(CANONICAL_KEY, LEGACY_KEY);
-        assert_eq!(parse_calibration(&v2, &spec).unwrap().1, calibration);
+        let old = before_version_5(&calibration);
+        assert_eq!(parse_calibration(&v2, &spec).unwrap().1, old);
         // Version 1 had no strength: its curves are of the peak.
         let v1 = v2.replace("\"version\": 2", "\"version\": 1").replace("\"strength\": \"peak\",", "");
-        assert_eq!(parse_calibration(&v1, &spec).unwrap().1, calibration);
+        assert_eq!(parse_calibration(&v1, &spec).unwrap().1, old);
         // A version-2 file with the new key, or the other way round, is another sensor's.
         assert!(parse_calibration(&v3.replace("\"version\": 3", "\"version\": 2"), &spec).is_err());
         // Placing the same electrodes another way is the same sensor.
@@ -412,11 +426,25 @@ mod tests {
         assert_eq!(spec_key(&explicit).unwrap(), CANONICAL_KEY);
     }
 
-    /// A version-4 file as version 3 wrote it: without `hyperparameter` and `normalised`.
-    fn version_3(v4: &str) -> String {
-        let lines: Vec<&str> =
-            v4.lines().filter(|l| !l.contains("\"hyperparameter\"") && !l.contains("\"normalised\"")).collect();
-        lines.join("\n").replace("\"version\": 4", "\"version\": 3")
+    /// A version-5 file as version 3 wrote it: without `hyperparameter`, `normalised`, and each
+    /// curve's `spread` and `fallback`.
+    fn version_3(v5: &str) -> String {
+        let new = ["\"hyperparameter\"", "\"normalised\"", "\"spread\"", "\"fallback\""];
+        let lines: Vec<&str> = v5.lines().filter(|l| !new.iter().any(|k| l.contains(k))).collect();
+        // A key left last in its object loses its comma: JSON allows none after the last.
+        let kept: Vec<&str> = (0..lines.len())
+            .map(|k| match lines.get(k + 1) {
+                Some(next) if next.trim_start().starts_with('}') => lines[k].trim_end_matches(','),
+                _ => lines[k],
+            })
+            .collect();
+        kept.join("\n").replace("\"version\": 5", "\"version\": 3")
+    }
+
+    /// `calibration` as a file older than version 5 holds it: no spread, no fallback.
+    fn before_version_5(calibration: &Calibration) -> Calibration {
+        let curves = calibration.curves.iter().map(|c| Curve { spread: 0.0, fallback: false, ..*c }).collect();
+        Calibration { curves, ..calibration.clone() }
     }
 
     /// Version 4 records λ and the normalisation, and reads them back; a file of version 3 or
@@ -434,7 +462,7 @@ mod tests {
         assert!(!v3.contains("hyperparameter") && v3.contains("\"version\": 3"), "{v3}");
         let old = parse_calibration_file(&v3, &spec).unwrap();
         assert_eq!(old.imaging, Imaging { hyperparameter: 0.1, normalized: false });
-        assert_eq!(old.calibration, calibration);
+        assert_eq!(old.calibration, before_version_5(&calibration));
         let err = parse_calibration_file(&v4.replace("0.0316", "-1.0"), &spec).unwrap_err().to_string();
         assert!(err.contains("`hyperparameter` is -1"), "{err}");
         let missing = v3.replace("\"version\": 3", "\"version\": 4");

@@ -28,6 +28,10 @@
 //! D + B·x as b → ∞ instead of sending a and c to ∞. It starts from b₀·{1, 0.3, 3, −1, −3}, b₀
 //! from the data (c₀ the mean peak at the largest force, a₀ that at the smallest less c₀, b₀ from
 //! a straight-line fit of ln|peak − c₀| against F), and keeps the best fit that converges.
+//! Where none converges, the fit falls back to the best curve of the family on a grid of decay
+//! rates κ ∈ [−40, 40] (D and B in closed form at each, a straight line at κ = 0) and says so
+//! ([`Curve::fallback`]): every curve of the family is monotone, so data that rise with force
+//! always get one.
 //!
 //! ```
 //! use eitskin::calibration::Curve;
@@ -104,17 +108,6 @@ pub enum CalibrationError {
         /// 1-based area.
         area: usize,
     },
-    /// Levenberg–Marquardt did not converge from any start.
-    #[error(
-        "the fit for area {area} did not converge in {iterations} iterations from any start: \
-         check that the peaks follow a saturating exponential in the force"
-    )]
-    NotConverged {
-        /// 1-based area.
-        area: usize,
-        /// The iteration cap per start.
-        iterations: usize,
-    },
     /// The fit converged to a parameter that is not finite.
     #[error(
         "the fit for area {area} gave a = {a}, b = {b}, c = {c}, which is not finite: \
@@ -180,6 +173,14 @@ pub struct Curve {
     pub force_range: [f64; 2],
     /// Number of samples fitted.
     pub samples: usize,
+    /// Standard deviation of the strength about the curve that the samples' own noise does not
+    /// explain (where the press was, its shape, the model's error), in the strength's unit: the
+    /// calibration's own residual spread, added to each reading's noise
+    /// ([`Curve::force_given`]); 0 where unknown.
+    pub spread: f64,
+    /// Whether Levenberg–Marquardt converged from no start and the curve is the best of a grid
+    /// of decay forces b instead (monotone like every curve of the family, but not a minimum).
+    pub fallback: bool,
 }
 
 /// A force read off a curve.
@@ -234,8 +235,11 @@ impl Curve {
             .into_iter()
             .map(|decay| levenberg_marquardt(&xs, &ys, start_at(&xs, &ys, decay)))
             .filter(|fit| fit.converged)
-            .min_by(|left, right| left.sum_of_squares.total_cmp(&right.sum_of_squares))
-            .ok_or(CalibrationError::NotConverged { area: area_number, iterations: MAX_ITERATIONS })?;
+            .min_by(|left, right| left.sum_of_squares.total_cmp(&right.sum_of_squares));
+        // Where no start converges, the best curve of the family on a grid of decay rates,
+        // each with its closed-form D and B: it cannot fail, and every such curve is monotone.
+        let fallback = best.is_none();
+        let best = best.unwrap_or_else(|| profile(&xs, &ys));
         // Back to y = A·e^(−κx) + C, holding |b| ≤ MAX_DECAY_PER_SPAN·span, then to physical units:
         // peak = spread·A·e^(−(F − F_min)/b) + spread·C + mean.
         let [value, slope, decay] = best.theta;
@@ -248,9 +252,15 @@ impl Curve {
         if !(a.is_finite() && b.is_finite() && c.is_finite() && b != 0.0) {
             return Err(CalibrationError::NotFiniteFit { area: area_number, a, b, c });
         }
-        let mut curve = Curve { a, b, c, r_squared: f64::NAN, force_range: [low, high], samples: forces.len() };
+        let force_range = [low, high];
+        let mut curve =
+            Curve { a, b, c, r_squared: f64::NAN, force_range, samples: forces.len(), spread: 0.0, fallback };
         let residual = forces.iter().zip(peaks).map(|(&f, p)| (p - curve.peak(f)).powi(2)).sum::<f64>();
         curve.r_squared = 1.0 - residual / total;
+        // The residual's standard deviation, per degree of freedom (3 parameters fitted).
+        if forces.len() > 3 {
+            curve.spread = (residual / (forces.len() - 3) as f64).sqrt();
+        }
         Ok(curve)
     }
 
@@ -285,8 +295,8 @@ impl Curve {
     }
 
     /// The force (N) for a `peak` measured with standard deviation `std` (both in the curve's
-    /// unit): the mean of its posterior over the calibrated range, with that posterior's
-    /// standard deviation. The prior is uniform over the range (the sheet is pressed as it was
+    /// unit), the curve's own [`spread`](Curve::spread) added to it: the mean of its posterior
+    /// over the calibrated range, with that posterior's standard deviation. The prior is uniform over the range (the sheet is pressed as it was
     /// calibrated, which the inverse's clamp assumes too), the peak normal about the curve.
     /// Where the peak pins the force (std/|slope| under 4 of the range's 512 points it sums
     /// on) this is the inverse, [`Curve::force`], with std/|slope|; where
@@ -295,9 +305,11 @@ impl Curve {
     pub fn force_given(&self, peak: f64, std: Option<f64>) -> ForceEstimate {
         let inverse = self.force(peak);
         let [low, high] = self.force_range;
-        let Some(std) = std.filter(|s| s.is_finite() && *s > 0.0 && peak.is_finite() && high > low) else {
+        let measured = std.filter(|s| s.is_finite() && *s > 0.0).unwrap_or(0.0);
+        let std = measured.hypot(if self.spread.is_finite() { self.spread } else { 0.0 });
+        if !(std > 0.0 && peak.is_finite() && high > low) {
             return inverse;
-        };
+        }
         let step = (high - low) / POSTERIOR_POINTS as f64;
         let linear = std / self.slope(inverse.newtons).abs();
         if linear < NARROW_POSTERIOR * step {
@@ -332,6 +344,8 @@ pub struct Sample {
     /// Strength of the touch, in the unit of the calibration's [`Strength`] (the image's peak
     /// in S/m, the fitted press's drop as a fraction of the background, …).
     pub peak: f64,
+    /// The strength's standard deviation from the measurement noise, in its unit, where known.
+    pub std: Option<f64>,
 }
 
 /// A per-area calibration: one curve per area, indexed by the 0-based area.
@@ -350,7 +364,9 @@ impl Calibration {
         Calibration::fit_strength(samples, areas, Strength::Peak)
     }
 
-    /// [`Calibration::fit`] with the samples' `peak` holding the given kind of strength.
+    /// [`Calibration::fit`] with the samples' `peak` holding the given kind of strength. Each
+    /// curve's [`spread`](Curve::spread) is its residual's less what the samples' own noise
+    /// (their `std`, where known) explains.
     pub fn fit_strength(samples: &[Sample], areas: usize, strength: Strength) -> Result<Calibration, CalibrationError> {
         if areas == 0 {
             return Err(CalibrationError::NoAreas);
@@ -374,10 +390,36 @@ impl Calibration {
                 if forces[area].is_empty() {
                     return Err(CalibrationError::NoSamples { area: area + 1 });
                 }
-                Curve::fit(area, &forces[area], &peaks[area])
+                let mut curve = Curve::fit(area, &forces[area], &peaks[area])?;
+                let noise: Vec<f64> =
+                    samples.iter().filter(|s| s.area == area).filter_map(|s| s.std).filter(|s| s.is_finite()).collect();
+                if !noise.is_empty() {
+                    let variance = noise.iter().map(|s| s * s).sum::<f64>() / noise.len() as f64;
+                    curve.spread = (curve.spread.powi(2) - variance).max(0.0).sqrt();
+                }
+                Ok(curve)
             })
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Calibration { curves, strength })
+    }
+
+    /// How far each area's curve reads from `pooled` (one curve fitted to every sample), in N:
+    /// the RMS, over 32 forces F spread across the area's range, of the force `pooled` gives
+    /// for the strength the area's curve predicts at F, less F. Areas whose curves are within
+    /// the noise of each other are one curve: fewer samples per curve, read anywhere.
+    pub fn offsets_from(&self, pooled: &Curve) -> Vec<f64> {
+        const POINTS: usize = 32;
+        self.curves
+            .iter()
+            .map(|curve| {
+                let [low, high] = curve.force_range;
+                let squares: f64 = (0..POINTS)
+                    .map(|k| low + (high - low) * (k as f64 + 0.5) / POINTS as f64)
+                    .map(|f| (pooled.force(curve.peak(f)).newtons - f).powi(2))
+                    .sum();
+                (squares / POINTS as f64).sqrt()
+            })
+            .collect()
     }
 
     /// The unit and area of `reading` on `array`, and the force its area's curve gives (`None`
@@ -547,6 +589,26 @@ fn start_at(xs: &[f64], ys: &[f64], decay: f64) -> [f64; 3] {
         let (low, high) = (mean_at(xs, ys, 0.0), mean_at(xs, ys, 1.0));
         [low, (high - low) / rise(decay, 1.0).0, decay]
     }
+}
+
+/// Decay rates κ of the fallback's grid: ±[`PROFILE_DECAYS`] in [`PROFILE_STEPS`] steps each way.
+const PROFILE_DECAYS: f64 = 40.0;
+/// Steps of the fallback's grid each way from κ = 0.
+const PROFILE_STEPS: usize = 400;
+
+/// The best [D, B, κ] over a grid of κ in [−40, 40] (a straight line at κ = 0), D and B by
+/// linear least squares at each: the fit where Levenberg–Marquardt converged from no start.
+fn profile(xs: &[f64], ys: &[f64]) -> LmFit {
+    let steps = PROFILE_STEPS as f64;
+    (0..=2 * PROFILE_STEPS)
+        .map(|k| PROFILE_DECAYS * (k as f64 - steps) / steps)
+        .map(|decay| {
+            let theta = start_at(xs, ys, decay);
+            LmFit { theta, sum_of_squares: sum_of_squares(&theta, xs, ys), converged: false }
+        })
+        .filter(|fit| fit.sum_of_squares.is_finite())
+        .min_by(|left, right| left.sum_of_squares.total_cmp(&right.sum_of_squares))
+        .unwrap_or(LmFit { theta: [0.0, 1.0, 0.0], sum_of_squares: f64::INFINITY, converged: false })
 }
 
 /// The outcome of one Levenberg–Marquardt run on the scaled problem.
@@ -820,7 +882,8 @@ mod tests {
     /// with that standard deviation; no noise given, no standard deviation.
     #[test]
     fn a_force_pinned_by_its_peak_is_the_inverse_with_its_spread() {
-        let curve = exact_curve();
+        // No spread of its own: the reading's noise alone.
+        let curve = Curve { spread: 0.0, ..exact_curve() };
         let peak = curve.peak(7.7);
         let estimate = curve.force_given(peak, Some(1e-6));
         let spread = 1e-6 / curve.slope(7.7).abs();
@@ -904,9 +967,9 @@ mod tests {
         let mut samples = Vec::new();
         for i in 0..forces_0.len() {
             if let (Some(&force), Some(&peak)) = (forces_1.get(i), peaks_1.get(i)) {
-                samples.push(Sample { area: 1, force, peak });
+                samples.push(Sample { area: 1, force, peak, std: None });
             }
-            samples.push(Sample { area: 0, force: forces_0[i], peak: peaks_0[i] });
+            samples.push(Sample { area: 0, force: forces_0[i], peak: peaks_0[i], std: None });
         }
         let calibration = Calibration::fit(&samples, 2).unwrap();
         let [first, second] = [calibration.curves[0], calibration.curves[1]];
@@ -922,7 +985,9 @@ mod tests {
         let samples: Vec<Sample> = forces
             .iter()
             .zip(&peaks)
-            .flat_map(|(&force, &peak)| [Sample { area: 0, force, peak }, Sample { area: 2, force, peak }])
+            .flat_map(|(&force, &peak)| {
+                [Sample { area: 0, force, peak, std: None }, Sample { area: 2, force, peak, std: None }]
+            })
             .collect();
         let error = Calibration::fit(&samples, 3).unwrap_err();
         assert_eq!(error, CalibrationError::NoSamples { area: 2 });
@@ -935,7 +1000,7 @@ mod tests {
     #[test]
     fn calibration_refuses_bad_samples_and_unknown_areas() {
         let mut samples: Vec<Sample> =
-            (0..5).map(|f| Sample { area: 0, force: f64::from(f), peak: 0.01 * f64::from(f) }).collect();
+            (0..5).map(|f| Sample { area: 0, force: f64::from(f), peak: 0.01 * f64::from(f), std: None }).collect();
         samples[3].force = f64::NAN;
         let error = Calibration::fit(&samples, 1).unwrap_err();
         assert_eq!(error, CalibrationError::NotFinite { area: 1, sample: 4, quantity: "force" });
@@ -959,5 +1024,52 @@ mod tests {
         assert!((errors.rms_percent_of_max - 100.0 * 0.75_f64.sqrt() / 6.0).abs() < 1e-12, "{errors:?}");
         assert!((errors.mean_absolute - 0.75).abs() < 1e-15, "{errors:?}");
         assert!((errors.correlation - 19.0 / (20.0_f64 * 20.75).sqrt()).abs() < 1e-15, "{errors:?}");
+    }
+
+    /// The calibration's own spread widens a force's standard deviation as the sum of the two
+    /// variances, and the fit's spread is its residual's less what the samples' noise explains.
+    #[test]
+    fn the_curves_spread_adds_to_the_readings_noise() {
+        let curve = Curve { spread: 2e-6, ..exact_curve() };
+        let peak = curve.peak(7.7);
+        let std = curve.force_given(peak, Some(1e-6)).std.unwrap();
+        let expected = 1e-6_f64.hypot(2e-6) / curve.slope(7.7).abs();
+        assert!((std / expected - 1.0).abs() < 1e-6, "{std} against {expected}");
+        // With no noise of its own, the spread alone.
+        let alone = curve.force_given(peak, None).std.unwrap();
+        assert!((alone / (2e-6 / curve.slope(7.7).abs()) - 1.0).abs() < 1e-6, "{alone}");
+        // Residuals of ±0.01 about an exact curve, half of them explained by the samples' noise.
+        let samples: Vec<Sample> = (0..=15)
+            .map(|f| {
+                let force = f64::from(f);
+                let sign = if f % 2 == 0 { 1.0 } else { -1.0 };
+                Sample { area: 0, force, peak: 0.5 * (1.0 - (-force / 5.0).exp()) + sign * 0.01, std: Some(0.005) }
+            })
+            .collect();
+        let fitted = Calibration::fit_strength(&samples, 1, Strength::FittedDrop).unwrap().curves[0];
+        let residual = Curve::fit(
+            0,
+            &samples.iter().map(|s| s.force).collect::<Vec<_>>(),
+            &samples.iter().map(|s| s.peak).collect::<Vec<_>>(),
+        )
+        .unwrap()
+        .spread;
+        assert!((fitted.spread - (residual.powi(2) - 0.005_f64.powi(2)).sqrt()).abs() < 1e-12, "{fitted:?}");
+        assert!(residual > 0.009 && residual < 0.012 && !fitted.fallback, "{residual}");
+    }
+
+    /// Data no start converges on still get a monotone curve, flagged as the fallback's.
+    #[test]
+    fn the_fallback_fits_every_monotone_data_set() {
+        // A step: flat, then a jump, then flat again; each start's fit chases the step.
+        let forces: Vec<f64> = (0..=15).map(f64::from).collect();
+        let peaks: Vec<f64> = forces.iter().map(|&f| if f < 7.5 { 0.1 } else { 0.9 }).collect();
+        let xs: Vec<f64> = forces.iter().map(|f| f / 15.0).collect();
+        let ys: Vec<f64> = peaks.iter().map(|p| (p - 0.5) / 0.4).collect();
+        let fit = profile(&xs, &ys);
+        assert!(fit.sum_of_squares.is_finite() && fit.theta[2].abs() <= PROFILE_DECAYS, "{:?}", fit.theta);
+        let curve = Curve::fit(0, &forces, &peaks).unwrap();
+        let rising = forces.windows(2).all(|w| curve.peak(w[1]) >= curve.peak(w[0]));
+        assert!(rising && curve.r_squared > 0.5, "{curve:?}");
     }
 }

@@ -353,6 +353,7 @@ impl Chain {
                     area: array.area_of(unit),
                     force: labelled.force,
                     peak: reading.value,
+                    std: reading.std,
                 }))
             })
             .collect()

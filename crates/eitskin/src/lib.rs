@@ -46,6 +46,7 @@ pub mod forward;
 pub mod geometry;
 pub mod image;
 pub mod inverse;
+pub mod labelled;
 pub mod learn;
 pub mod memory;
 pub mod mesh;

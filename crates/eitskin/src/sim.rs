@@ -109,7 +109,16 @@ impl Hydrogel {
     /// (N): what a fitted-drop calibration of this gel should find.
     pub fn drop_curve(&self, max_force: f64) -> crate::calibration::Curve {
         let (a, b, c) = (-self.max_drop, self.force_scale, self.max_drop);
-        crate::calibration::Curve { a, b, c, r_squared: 1.0, force_range: [0.0, max_force], samples: 0 }
+        crate::calibration::Curve {
+            a,
+            b,
+            c,
+            r_squared: 1.0,
+            force_range: [0.0, max_force],
+            samples: 0,
+            spread: 0.0,
+            fallback: false,
+        }
     }
 }
 

@@ -24,6 +24,7 @@
 
 pub mod learning;
 pub mod sweep;
+pub mod users;
 
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -34,7 +35,10 @@ use crate::chain::{Chain, ChainError, LabelledFrame};
 use crate::conductivity::Inclusion;
 use crate::contrast_map::{ContrastMap, ContrastMapParams};
 use crate::forward::ForwardError;
+use crate::inverse::mean_of_finite;
 use crate::inverse::{InverseError, Reconstructor, ReconstructorParams};
+use crate::labelled::{self, process_labelled, split_references};
+use crate::pipeline::PipelineParams;
 use crate::press_fit::{PressFit, PressModel, PressModelParams};
 use crate::pseudo_array::{PseudoArray, PseudoArrayError};
 use crate::sensitivity::{along_x, peaks};
@@ -64,6 +68,9 @@ pub enum StudyError {
     /// A chain lacked what a method needs.
     #[error("the frame chain could not be set up")]
     Chain(#[from] ChainError),
+    /// Labelled frames could not go through the pipeline.
+    #[error("labelled frames could not go through the pipeline")]
+    Labelled(#[from] crate::labelled::LabelledError),
     /// A calibration could not be learned.
     #[error("a calibration could not be learned")]
     Learn(#[from] crate::learn::LearnError),
@@ -162,8 +169,12 @@ pub struct StudyReport {
     pub right_unit: f64,
     /// The force methods, the faithful pseudo-array first.
     pub methods: Vec<MethodResult>,
-    /// The reference frame all frames are imaged against (mean of `repeats` noisy frames), V at 1 A.
+    /// The reference frame the paper's touch positions are imaged against (mean of
+    /// `reference_frames`), V at 1 A.
     pub reference: Vec<f64>,
+    /// The frames at rest (`repeats` noisy frames) each method's pipeline takes its reference
+    /// from, with the 0 N calibration frames, V at 1 A.
+    pub reference_frames: Vec<Vec<f64>>,
     /// The calibration presses of the faithful pseudo-array, with their noisy frames.
     pub calibration: Vec<LabelledFrame>,
     /// The validation presses with their noisy frames.
@@ -206,7 +217,8 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     let side = hi[0] - lo[0];
     let radius = params.sim.hydrogel.indenter_radius;
     let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams { radius, ..Default::default() })?;
-    let reference = reference_frame(&mut skin, params.repeats)?;
+    let reference_frames = rest_frames(&mut skin, params.repeats)?;
+    let reference = mean_of_finite(&reference_frames);
 
     progress("location dependence (Fig. 3c)", 0, 1);
     let (inclusion_radius, half) = (0.05 * side, 0.5 * spec.conductivity);
@@ -250,7 +262,8 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     progress("continuous calibration: contrast map", 0, 1);
     let map_params = ContrastMapParams { points: params.sensitivity_map, ..ContrastMapParams::default() };
     let map = ContrastMap::new(&model, spec.conductivity, &recon, spec.outline.bounds(), &map_params)?;
-    let mut chain = Chain::new(recon, TouchParams::default()).with_press_model(press_model).with_contrast_map(map);
+    let base = Chain::new(recon, TouchParams::default()).with_contrast_map(map);
+    let mut chain = base.clone().with_press_model(press_model.clone());
 
     // Where the strongest touch and its fitted press put each validation press.
     let (mut validation_touches, mut validation_fits) = (Vec::new(), Vec::new());
@@ -267,16 +280,23 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
         progress("force methods", k, methods.len());
         let division = if method.grid == params.grid { array.clone() } else { division(method.grid)? };
         let frames = if method.grid == params.fine_grid { &fine_frames } else { &coarse_frames };
-        let mut chain = chain.clone().with_strength(method.strength)?;
-        let samples: Vec<_> = chain.samples(&reference, &division, frames)?.into_iter().flatten().collect();
+        // As `calibrate` and `evaluate` read them: through the pipeline, the reference the mean
+        // of the frames at rest and the 0 N presses, a press model only where the strength reads it.
+        let mut chain = base.clone();
+        if method.strength.needs_press_model() {
+            chain = chain.with_press_model(press_model.clone());
+        }
+        let chain = chain.with_strength(method.strength)?;
+        let (mut references, pressed) = split_references(frames.clone());
+        references.splice(0..0, reference_frames.iter().cloned());
+        let found = process_labelled(chain.clone(), PipelineParams::default(), &references, &pressed)?;
+        let samples = labelled::samples(&division, &pressed, &found);
         let calibration = Calibration::fit_strength(&samples, division.area_count(), method.strength)?;
         let curves = calibration.curves.clone();
-        let mut chain = chain.with_calibration(division, calibration)?;
-        let mut predicted = Vec::with_capacity(validation_frames.len());
-        for frame in &validation_frames {
-            let force = chain.process(&reference, &frame.frame)?.first().and_then(|t| t.force);
-            predicted.push(force.map_or(f64::NAN, |f| f.newtons));
-        }
+        let chain = chain.with_calibration(division, calibration)?;
+        let found = process_labelled(chain, PipelineParams::default(), &reference_frames, &validation_frames)?;
+        let predicted: Vec<f64> =
+            found.iter().map(|t| t.and_then(|t| t.force).map_or(f64::NAN, |f| f.newtons)).collect();
         let (t, p): (Vec<f64>, Vec<f64>) =
             truth.iter().zip(&predicted).filter(|(_, p)| p.is_finite()).map(|(t, p)| (*t, *p)).unzip();
         let errors = force_errors(&t, &p);
@@ -307,22 +327,17 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
         right_unit,
         methods: results,
         reference,
+        reference_frames,
         calibration: coarse_frames,
         validation_frames,
     })
 }
 
-/// The reference: the mean of `frames` noisy frames of the untouched sheet.
-fn reference_frame(skin: &mut VirtualSensor, frames: usize) -> Result<Vec<f64>, ForwardError> {
+/// `frames` noisy frames of the untouched sheet.
+fn rest_frames(skin: &mut VirtualSensor, frames: usize) -> Result<Vec<Vec<f64>>, ForwardError> {
     skin.release();
     let clean = skin.clean_frame()?;
-    let mut reference = vec![0.0; clean.len()];
-    for _ in 0..frames.max(1) {
-        let mut v = clean.clone();
-        skin.add_noise(&mut v);
-        reference.iter_mut().zip(&v).for_each(|(r, x)| *r += x / frames.max(1) as f64);
-    }
-    Ok(reference)
+    Ok((0..frames.max(1)).map(|_| skin.noisy(&clean)).collect())
 }
 
 /// Presses one unit per area of `division` (the first met in its lower-left 3×3 block) at its
@@ -377,7 +392,7 @@ fn validation_frames(
 
 /// The first unit of each area met when scanning the lower-left block of [`units_block`]
 /// (then the rest of the grid, for areas the block misses).
-fn representatives(array: &PseudoArray) -> Vec<usize> {
+pub(crate) fn representatives(array: &PseudoArray) -> Vec<usize> {
     let mut found: Vec<Option<usize>> = vec![None; array.area_count()];
     for unit in units_block(array, 0, 0).into_iter().chain(0..array.unit_count()) {
         let area = array.area_of(unit);
@@ -390,7 +405,7 @@ fn representatives(array: &PseudoArray) -> Vec<usize> {
 
 /// The units of the 3×3 block (of a 5×5 grid; scaled for others) whose bottom-left unit is at
 /// column `col`·n/5 … and row `row`·n/5 ….
-fn units_block(array: &PseudoArray, col: usize, row: usize) -> Vec<usize> {
+pub(crate) fn units_block(array: &PseudoArray, col: usize, row: usize) -> Vec<usize> {
     let [nx, ny] = array.grid();
     let span = |n: usize| (3 * n).div_ceil(5);
     let (c0, r0) = (col * nx / 5, row * ny / 5);
