@@ -79,8 +79,8 @@ pub struct EvaluateArgs {
     #[arg(long)]
     reference: Option<PathBuf>,
     /// Write each sample's result here (CSV: the label, whether its press was found, where, the
-    /// force read and its standard deviation).
-    #[arg(long)]
+    /// force read and its standard deviation); with --calibration.
+    #[arg(long, conflicts_with = "model")]
     out: Option<PathBuf>,
 }
 

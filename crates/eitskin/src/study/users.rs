@@ -274,10 +274,8 @@ fn method_row(
     let calibration = match Calibration::fit_strength(&samples, array.area_count(), row.strength) {
         Ok(c) => c,
         Err(e) => {
-            return Ok(UsersRow {
-                refused: Some(e.to_string()),
-                ..UsersRow { calibration_found: row.calibration_found, ..row }
-            })
+            row.refused = Some(e.to_string());
+            return Ok(row);
         }
     };
     row.refused = None;
