@@ -37,6 +37,7 @@ const TEXT: &[(&str, &str)] = &[
     ("evaluate", "model"),
     ("evaluate", "samples"),
     ("evaluate", "reference"),
+    ("evaluate", "out"),
     ("learn", "samples"),
     ("learn", "out"),
     ("learn", "held-out"),
