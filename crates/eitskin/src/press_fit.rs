@@ -234,13 +234,13 @@ pub struct PressFit {
 }
 
 impl PressFit {
-    /// The drop of a press of radius `indenter_radius` (m) with the same drop × area,
-    /// d·(r/r₀)²: what Δv fixes best when the radius is fitted too (a wider press of a smaller
-    /// drop changes Δv much as a narrower, deeper one), so the strength a force is read from
-    /// ([`Strength::FittedDrop`](crate::strength::Strength::FittedDrop)); the drop itself at
-    /// the indenter's radius.
+    /// The drop of a press of radius `indenter_radius` (m) with the same polarisation
+    /// ([`Disk::equivalent_drop`]): what Δv fixes best when the radius is fitted too (a wider
+    /// press of a smaller drop changes Δv much as a narrower, deeper one), so the strength a
+    /// force is read from ([`Strength::FittedDrop`](crate::strength::Strength::FittedDrop));
+    /// the drop itself at the indenter's radius.
     pub fn equivalent_drop(&self, indenter_radius: f64) -> f64 {
-        self.drop * (self.radius / indenter_radius).powi(2)
+        Disk { centre: self.centre, radius: self.radius, drop: self.drop }.equivalent_drop(indenter_radius).0
     }
 }
 

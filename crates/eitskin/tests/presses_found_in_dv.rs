@@ -4,7 +4,7 @@
 use eitskin::chain::Chain;
 use eitskin::forward::ForwardModel;
 use eitskin::pipeline::{Pipeline, PipelineParams, Status};
-use eitskin::press_fit::{exact_model_for, PressDetection, PressFit, PressModel, PressModelParams, PressScratch};
+use eitskin::press_fit::{exact_model_for, Disk, PressDetection, PressFit, PressModel, PressModelParams, PressScratch};
 use eitskin::sim::{Hydrogel, Profile, SimParams, VirtualSensor};
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 
@@ -169,8 +169,9 @@ fn several_presses_keep_their_own_drops() {
 
 /// A 15 mm indenter on a model of 10 mm: a strong press is one press, wider than the indenter
 /// (the linear search may split it in two; the exact fit merges and sizes it). At 0.05 % noise
-/// its size is only roughly known: the misfit changes little along d·r² = constant, so the
-/// radius found is 12–21 mm; its drop × area is known better than its drop. A 10 mm press keeps
+/// its size is only roughly known: the misfit changes little along its polarisation
+/// r²·d/(2−d), so the radius found is 12–21 mm; the drop of a 10 mm press of the same
+/// polarisation is known better than its drop. A 10 mm press keeps
 /// the indenter's radius (its misfit does not ask for another) and the gel's drop.
 #[test]
 fn a_wider_press_is_one_press_of_its_own_size() {
@@ -187,9 +188,10 @@ fn a_wider_press_is_one_press_of_its_own_size() {
             let press = found[0];
             assert!(distance(press.centre, [0.03, -0.02]) < 0.002, "{radius} m: {press:?}");
             if sized {
-                // The drop × area varies less along the misfit's valley than either: as a 10 mm
-                // press, 2.25 times the drop, found within 20 % (the drop alone 26–35 % off).
-                let equivalent = hydrogel.drop(10.0) * (radius / 0.01).powi(2);
+                // The polarisation varies less along the misfit's valley than either: as a
+                // 10 mm press of the same polarisation (the drop alone 26–35 % off).
+                let truth = Disk { centre: [0.03, -0.02], radius, drop: hydrogel.drop(10.0) };
+                let equivalent = truth.equivalent_drop(0.01).0;
                 let off = press.equivalent_drop(0.01) / equivalent - 1.0;
                 assert!(press.radius > 0.012 && off.abs() < 0.25, "{radius} m: {press:?}, {off}");
             } else {

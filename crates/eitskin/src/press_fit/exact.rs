@@ -24,6 +24,31 @@ pub struct Disk {
     pub drop: f64,
 }
 
+impl Disk {
+    /// The drop of a disk of radius `radius` (m) with this disk's polarisation, and its
+    /// derivatives along this disk's drop and radius (per m).
+    ///
+    /// A disk of radius r whose conductivity is lowered by d adds to a uniform field the dipole
+    /// of strength r²·d/(2−d) (the contrast factor of a disk, (σ₀−σ₁)/(σ₀+σ₁), times its area):
+    /// the far field Δv fixes best, whatever trade of drop against radius a fit makes. So a
+    /// press fitted wider than the indenter reads on the same scale as one fitted at the
+    /// indenter's radius, continuously where the fit starts sizing it (drop × area, exact
+    /// only for shallow presses, jumps there). Equal to the drop at `radius` itself; a drop
+    /// past 1 (a conductivity below 0, which a fit on linear responses may extrapolate to) is
+    /// read as 1.
+    pub fn equivalent_drop(&self, radius: f64) -> (f64, [f64; 2]) {
+        let d = self.drop.min(1.0);
+        let area = (self.radius / radius).powi(2);
+        let q = area * d / (2.0 - d);
+        let dq = [
+            if self.drop < 1.0 { area * 2.0 / (2.0 - d).powi(2) } else { 0.0 },
+            2.0 * self.radius / (radius * radius) * d / (2.0 - d),
+        ];
+        let outer = 2.0 / (1.0 + q).powi(2);
+        (2.0 * q / (1.0 + q), [outer * dq[0], outer * dq[1]])
+    }
+}
+
 /// Exact responses of flat presses on one sensor at a homogeneous background.
 #[derive(Debug, Clone)]
 pub struct ExactPresses {
@@ -247,6 +272,51 @@ mod tests {
     use super::*;
     use crate::conductivity::{with_inclusions, Inclusion};
     use crate::SensorSpec;
+
+    /// A 15 mm press read as a 10 mm one: the 10 mm drop whose exact response is closest to
+    /// the wide press's is the one of the same polarisation, within 0.03, and not the one of
+    /// the same drop × area, for a shallow and a deep press; the derivatives are central
+    /// differences of the value; at its own radius the value is the drop.
+    #[test]
+    fn the_equivalent_drop_keeps_the_polarisation_the_response_reads() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 3000;
+        let model = spec.forward_model().unwrap();
+        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let exact = ExactPresses::new(update, 1.0);
+        let mut scratch = ExactScratch::default();
+        let m = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap().len();
+        let (mut wide_dv, mut narrow_dv) = (vec![0.0; m], vec![0.0; m]);
+        // Drop × area off by 0.05 and 0.22 for these.
+        for (drop, apart) in [(0.2, 0.03), (0.45, 0.1)] {
+            let wide = Disk { centre: [0.03, -0.02], radius: 0.015, drop };
+            exact.response_into(&[wide], &mut scratch, &mut wide_dv).unwrap();
+            let misfit = |d: f64, scratch: &mut ExactScratch, narrow_dv: &mut Vec<f64>| {
+                exact.response_into(&[Disk { radius: 0.01, drop: d, ..wide }], scratch, narrow_dv).unwrap();
+                narrow_dv.iter().zip(&wide_dv).map(|(a, b)| (a - b).powi(2)).sum::<f64>()
+            };
+            let best = (0..=980)
+                .map(|k| f64::from(k) / 1000.0)
+                .min_by(|a, b| {
+                    misfit(*a, &mut scratch, &mut narrow_dv).total_cmp(&misfit(*b, &mut scratch, &mut narrow_dv))
+                })
+                .unwrap();
+            let (equivalent, _) = wide.equivalent_drop(0.01);
+            let by_area = drop * 2.25;
+            assert!((best - equivalent).abs() < 0.03, "drop {drop}: best {best}, equivalent {equivalent}");
+            assert!((best - by_area).abs() > apart, "drop {drop}: best {best}, drop × area {by_area}");
+        }
+        let disk = Disk { centre: [0.0; 2], radius: 0.013, drop: 0.6 };
+        assert!((Disk { radius: 0.01, ..disk }.equivalent_drop(0.01).0 - 0.6).abs() < 1e-15);
+        let (_, gradient) = disk.equivalent_drop(0.01);
+        let h = 1e-6;
+        let value = |d: Disk| d.equivalent_drop(0.01).0;
+        let by_drop = (value(Disk { drop: 0.6 + h, ..disk }) - value(Disk { drop: 0.6 - h, ..disk })) / (2.0 * h);
+        let by_radius =
+            (value(Disk { radius: 0.013 + h, ..disk }) - value(Disk { radius: 0.013 - h, ..disk })) / (2.0 * h);
+        assert!((gradient[0] - by_drop).abs() < 1e-6 * by_drop.abs(), "{gradient:?} {by_drop}");
+        assert!((gradient[1] - by_radius).abs() < 1e-6 * by_radius.abs(), "{gradient:?} {by_radius}");
+    }
 
     /// Against full solves of the same presses: one, two at once, at an edge, a wide one.
     #[test]

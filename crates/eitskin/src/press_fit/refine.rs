@@ -129,7 +129,7 @@ impl RefineScratch {
     }
 
     /// Per disk of the last [`refine`] (`disks` as it left them), the variance of its drop at
-    /// radius `radius` (m), d·(r/`radius`)², into `out`: gᵀ(JJᵀ)⁻¹g, J that fit's weighted
+    /// radius `radius` (m), [`Disk::equivalent_drop`], into `out`: gᵀ(JJᵀ)⁻¹g, J that fit's weighted
     /// Jacobian ([`RefineScratch::jacobian`], made before its last step, which a fit that
     /// converged took short) and g the gradient of that drop along the
     /// parameters fitted; with weights of one over each channel's noise, the Cramér–Rao bound
@@ -147,14 +147,10 @@ impl RefineScratch {
         for (i, disk) in disks.iter().enumerate() {
             // A radius not fitted has a row of 0: it stays, and adds nothing.
             let (drop_row, radius_row) = (i * per + 2, i * per + 3);
-            let gradient = [
-                (disk.radius / radius).powi(2),
-                if per == 4 && self.normal[(radius_row, radius_row)] > 0.0 {
-                    2.0 * disk.drop * disk.radius / (radius * radius)
-                } else {
-                    0.0
-                },
-            ];
+            let (_, mut gradient) = disk.equivalent_drop(radius);
+            if per != 4 || self.normal[(radius_row, radius_row)] <= 0.0 {
+                gradient[1] = 0.0;
+            }
             // Only a radius not fitted may have no row; any other such row leaves JJᵀ singular.
             self.damped.copy_from(self.normal.as_ref());
             for a in 0..n {
@@ -423,7 +419,7 @@ mod tests {
     }
 
     /// A press 12 mm wide on an indenter of 10 mm, its radius fitted too, over 300 draws of
-    /// 0.01 % noise: the spread of its drop at the indenter's radius, d·(r/r₀)², against the
+    /// 0.01 % noise: the spread of its drop at the indenter's radius (same polarisation), against the
     /// variance the fit gives it, 0.74 of it here (300 draws tell ±8 % in variance): the drop
     /// and radius trade along a curved valley (the drop alone spreads 3.2 times as far), which
     /// the Jacobian at each fit sees straight, so the fit's standard deviation errs on the
@@ -458,7 +454,7 @@ mod tests {
             refine(&exact, &noisy, &weights, &mut disks, &params, &mut scratch).unwrap();
             assert!(scratch.equivalent_drop_variances_into(&disks, 0.01, &mut variances));
             predicted += variances[0] / 300.0;
-            equivalent.push(disks[0].drop * (disks[0].radius / 0.01).powi(2));
+            equivalent.push(disks[0].equivalent_drop(0.01).0);
             drops.push(disks[0].drop);
         }
         let variance = |x: &[f64]| {
