@@ -43,6 +43,7 @@ pub fn json(study: &StudyReport, params: &StudyParams, seconds: f64) -> Value {
             "correlation": m.errors.correlation,
             "mean_absolute_newton": m.errors.mean_absolute,
             "count": m.errors.count,
+            "refused": m.refused,
         })).collect::<Vec<_>>(),
     })
 }
@@ -109,6 +110,10 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
     s += "| method | calibration samples | RMS error [N] | RMS [% of max force] | correlation | mean abs. error [N] |\n|---|---|---|---|---|---|\n";
     s += "| paper, experiment (5×5 pseudo-array) | 1245 | 1.62 | 10.15 | 0.91 | |\n";
     for m in &study.methods {
+        if let Some(reason) = &m.refused {
+            s += &format!("| {} | {} | refused: {reason} | | | |\n", m.method.name(), m.calibration_samples);
+            continue;
+        }
         s += &format!(
             "| {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |\n",
             m.method.name(),
@@ -131,7 +136,7 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
             gel.force_scale
         );
     }
-    for (i, m) in study.methods.iter().enumerate() {
+    for (i, m) in study.methods.iter().enumerate().filter(|(_, m)| m.refused.is_none()) {
         s += &format!("\n![{}](fig12_{}.png)\n", m.method.name(), i + 1);
     }
     s

@@ -181,7 +181,7 @@ fn write_figures(study: &StudyReport, args: &Args, unit: LengthUnit) -> Result<(
         ("drop (fraction of the background)", "peak |Δσ| (S/m)"),
         &curves,
     )?;
-    for (k, method) in study.methods.iter().enumerate() {
+    for (k, method) in study.methods.iter().enumerate().filter(|(_, m)| m.refused.is_none()) {
         let points: Vec<(f64, f64)> = study
             .validation
             .iter()

@@ -142,8 +142,11 @@ pub struct MethodResult {
     pub calibration_samples: usize,
     /// Predicted force per validation press, in N (NaN where no touch was found).
     pub predicted: Vec<f64>,
-    /// Errors against the true forces, over the presses that gave a touch.
+    /// Errors against the true forces, over the presses that gave a touch (NaN when refused).
     pub errors: ForceErrors,
+    /// Why its calibration was refused, as `calibrate` would say it (then no curves and every
+    /// prediction NaN).
+    pub refused: Option<String>,
 }
 
 /// Everything the study measured.
@@ -291,7 +294,23 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
         references.splice(0..0, reference_frames.iter().cloned());
         let found = process_labelled(chain.clone(), PipelineParams::default(), &references, &pressed)?;
         let samples = labelled::samples(&division, &pressed, &found);
-        let calibration = Calibration::fit_strength(&samples, division.area_count(), method.strength)?;
+        let calibration = match Calibration::fit_strength(&samples, division.area_count(), method.strength) {
+            Ok(c) => c,
+            // A method the frames cannot calibrate is reported so; the others go on.
+            Err(e) => {
+                let (predicted, errors) = (vec![f64::NAN; truth.len()], force_errors(&[], &[]));
+                let (calibration_samples, refused) = (samples.len(), Some(e.to_string()));
+                results.push(MethodResult {
+                    method,
+                    curves: Vec::new(),
+                    calibration_samples,
+                    predicted,
+                    errors,
+                    refused,
+                });
+                continue;
+            }
+        };
         let curves = calibration.curves.clone();
         let chain = chain.with_calibration(division, calibration)?;
         let found = process_labelled(chain, PipelineParams::default(), &reference_frames, &validation_frames)?;
@@ -300,7 +319,8 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
         let (t, p): (Vec<f64>, Vec<f64>) =
             truth.iter().zip(&predicted).filter(|(_, p)| p.is_finite()).map(|(t, p)| (*t, *p)).unzip();
         let errors = force_errors(&t, &p);
-        results.push(MethodResult { method, curves, calibration_samples: samples.len(), predicted, errors });
+        let calibration_samples = samples.len();
+        results.push(MethodResult { method, curves, calibration_samples, predicted, errors, refused: None });
     }
 
     let found: Vec<(&Press, &Touch)> =
