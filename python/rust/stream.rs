@@ -243,7 +243,13 @@ impl Calibration {
         let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.outline, &electrodes, [grid.0, grid.1])
             .map_err(fail)?;
         let samples: Vec<eitskin::calibration::Sample> = (0..area.len())
-            .map(|k| eitskin::calibration::Sample { area: area[k], force: force[k], peak: strength[k], std: None })
+            .map(|k| eitskin::calibration::Sample {
+                area: area[k],
+                force: force[k],
+                peak: strength[k],
+                std: None,
+                place: None,
+            })
             .collect();
         let calibration = eitskin::calibration::Calibration::fit(&samples, array.area_count()).map_err(fail)?;
         let imaging = eitskin_io::Imaging::default();

@@ -280,7 +280,18 @@ fn references(
     frames: Vec<LabelledFrame>,
 ) -> Result<(Vec<Vec<f64>>, Vec<LabelledFrame>)> {
     let mut references = match path {
-        Some(path) => eitskin_io::read_frames(path, &FrameSelect::default())?.frames,
+        Some(path) => {
+            let table = eitskin_io::read_frames(path, &FrameSelect::default())?;
+            // The samples' frames are real: which part of a complex value they are is not ours
+            // to guess.
+            if table.imaginary.is_some() {
+                bail!(
+                    "--reference {}: holds complex values, and the samples' frames are real: give the frames at rest as the same real values the samples hold (magnitudes, or real parts)",
+                    path.display()
+                );
+            }
+            table.frames
+        }
         None => Vec::new(),
     };
     let (rest, pressed) = split_references(frames);
@@ -353,7 +364,9 @@ impl Labelled {
                 bail!("{}: sample {}: ({x}, {y}) is off the sheet", path.display(), k + 1);
             };
             match measured {
-                Measured::Peak(peak) => peaks.push(Sample { area: array.area_of(unit), force, peak, std: None }),
+                Measured::Peak(peak) => {
+                    peaks.push(Sample { area: array.area_of(unit), force, peak, std: None, place: Some(position) })
+                }
                 Measured::Frame(frame) => frames.push(LabelledFrame { position, force, frame }),
             }
         }

@@ -399,3 +399,38 @@ fn a_frame_of_another_length_is_refused_not_a_panic() {
     );
     assert_eq!(out.status.code(), Some(1));
 }
+
+/// Labelled samples of real values against frames at rest that are complex: which part the
+/// samples hold is not the command's to guess, so it refuses and says what to give; a samples
+/// file of a header and no rows, made by a spreadsheet (byte-order mark first), is named so.
+#[test]
+fn samples_and_references_that_cannot_go_together_are_refused() {
+    let dir = scratch("complex-reference");
+    let samples = dir.join("samples.csv");
+    let channels: Vec<String> = (1..=120).map(|m| format!("v{m}")).collect();
+    let values = vec!["1.0"; 120].join(",");
+    std::fs::write(&samples, format!("x,y,force,{}\n10,20,5,{values}\n", channels.join(","))).unwrap();
+    // Three frames of 120 complex values (NPY version 1.0, little-endian complex128).
+    let mut header = "{'descr': '<c16', 'fortran_order': False, 'shape': (3, 120), }".to_string();
+    header += &(" ".repeat(63 - (10 + header.len()) % 64) + "\n");
+    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
+    npy.extend((header.len() as u16).to_le_bytes());
+    npy.extend(header.as_bytes());
+    (0..360).for_each(|_| npy.extend([1.0f64.to_le_bytes(), 0.1f64.to_le_bytes()].concat()));
+    let reference = dir.join("rest.npy");
+    std::fs::write(&reference, npy).unwrap();
+    let (s, r) = (samples.to_str().unwrap(), reference.to_str().unwrap());
+    let out_path = dir.join("c.json");
+    let o = out_path.to_str().unwrap();
+    let out = dir.eitskin(&["calibrate", "--samples", s, "--reference", r, "--strength", "fitted-drop", "--out", o]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        format!("error: --reference {r}: holds complex values, and the samples' frames are real: give the frames at rest as the same real values the samples hold (magnitudes, or real parts)\n")
+    );
+    std::fs::write(&samples, "\u{feff}x,y,force,v1\n").unwrap();
+    let out = dir.eitskin(&["calibrate", "--samples", s, "--out", o]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        format!("error: {s}: `samples` line 1: a header and no samples under it\n")
+    );
+}

@@ -335,6 +335,7 @@ mod tests {
                     force: f as f64,
                     peak: 0.1 * (area + 1) as f64 * (1.0 - (-(f as f64) / 5.0).exp()),
                     std: None,
+                    place: None,
                 })
             })
             .collect();

@@ -227,6 +227,11 @@ pub fn full_message(error: &dyn std::error::Error) -> String {
     text
 }
 
+/// The text of `path`, without the byte-order mark a spreadsheet's "CSV UTF-8" starts with.
 fn read_text(path: &Path) -> Result<String, Error> {
-    std::fs::read_to_string(path).map_err(|source| Error::Read { path: path.to_path_buf(), source })
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Read { path: path.to_path_buf(), source })?;
+    Ok(match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
+    })
 }

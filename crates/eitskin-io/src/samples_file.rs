@@ -56,11 +56,19 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
         key: "samples",
         reason: format!("line {line}: {reason}"),
     };
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
     let Some((_, header)) = lines.next() else {
         return Err(fail(1, "no header line".into()));
     };
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    // A label named twice would leave its second copy read as a channel.
+    for label in LABELS {
+        let at: Vec<String> = (0..names.len()).filter(|k| names[*k] == label).map(|k| (k + 1).to_string()).collect();
+        if at.len() > 1 {
+            return Err(fail(1, format!("column `{label}` is named {} times (columns {})", at.len(), at.join(", "))));
+        }
+    }
     let column = |name: &str| names.iter().position(|n| *n == name);
     let location = match (column("unit"), column("x"), column("y")) {
         (Some(u), _, _) => Ok(u),
@@ -78,6 +86,12 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
     let mut rows = Vec::new();
     for (n, line) in lines {
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() != names.len() {
+            return Err(fail(
+                n + 1,
+                format!("holds {} values, and the header names {} columns", fields.len(), names.len()),
+            ));
+        }
         let number = |k: usize| -> Result<f64, Error> {
             let text = fields.get(k).copied().unwrap_or("");
             text.parse::<f64>()
@@ -118,8 +132,14 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
         let depth = label(depth, "depth", "")?.map(|d| d * metres);
         rows.push(SampleRow { location, force, depth, measured });
     }
+    if rows.is_empty() {
+        return Err(fail(1, "a header and no samples under it".into()));
+    }
     Ok(rows)
 }
+
+/// The columns a samples file names, beside the channels.
+const LABELS: [&str; 6] = ["unit", "x", "y", "force", "depth", "peak"];
 
 /// Reads a samples file of labelled presses for a learned model (`x`, `y`, optional `force`,
 /// then the channels), positions converted to m by `metres`.
@@ -209,5 +229,14 @@ mod tests {
         assert_eq!(err, "`samples` line 3: force -0.5 N is negative: a press's force is 0 N or more");
         let err = parse_samples("x,y,depth,v1\n1,2,-3,1\n", 1e-3).unwrap_err().to_string();
         assert_eq!(err, "`samples` line 2: depth -3 is negative: a press's depth is 0 or more");
+        let err = parse_samples("# made by hand\nx,y,force,v1\n", 1.0).unwrap_err().to_string();
+        assert_eq!(err, "`samples` line 1: a header and no samples under it");
+        let err = parse_samples("x,y,force,v1,v2\n1,2,3,4,5\n1,2,3,4\n", 1.0).unwrap_err().to_string();
+        assert_eq!(err, "`samples` line 3: holds 4 values, and the header names 5 columns");
+        let err = parse_samples("x,y,force,v1,force\n1,2,3,4,5\n", 1.0).unwrap_err().to_string();
+        assert_eq!(err, "`samples` line 1: column `force` is named 2 times (columns 3, 5)");
+        // A spreadsheet's "CSV UTF-8" starts with a byte-order mark.
+        let rows = parse_samples("\u{feff}x,y,force,v1\n1,2,3,4\n", 1e-3).unwrap();
+        assert_eq!(rows[0].force, Some(3.0));
     }
 }

@@ -346,6 +346,9 @@ pub struct Sample {
     pub peak: f64,
     /// The strength's standard deviation from the measurement noise, in its unit, where known.
     pub std: Option<f64>,
+    /// Where the press was, in m, where known: a curve whose samples come from three places or
+    /// more has its spread cross-validated place by place ([`Calibration::fit_strength`]).
+    pub place: Option<[f64; 2]>,
 }
 
 /// A per-area calibration: one curve per area, indexed by the 0-based area.
@@ -365,8 +368,10 @@ impl Calibration {
     }
 
     /// [`Calibration::fit`] with the samples' `peak` holding the given kind of strength. Each
-    /// curve's [`spread`](Curve::spread) is its residual's less what the samples' own noise
-    /// (their `std`, where known) explains.
+    /// curve's [`spread`](Curve::spread) is its error less what the samples' own noise (their
+    /// `std`, where known) explains: the error on places it did not see where its samples name
+    /// three places or more (up to [`PLACE_FOLDS`]-fold cross-validation, each place's samples
+    /// held out together), else its residual.
     pub fn fit_strength(samples: &[Sample], areas: usize, strength: Strength) -> Result<Calibration, CalibrationError> {
         if areas == 0 {
             return Err(CalibrationError::NoAreas);
@@ -391,12 +396,11 @@ impl Calibration {
                     return Err(CalibrationError::NoSamples { area: area + 1 });
                 }
                 let mut curve = Curve::fit(area, &forces[area], &peaks[area])?;
-                let noise: Vec<f64> =
-                    samples.iter().filter(|s| s.area == area).filter_map(|s| s.std).filter(|s| s.is_finite()).collect();
-                if !noise.is_empty() {
-                    let variance = noise.iter().map(|s| s * s).sum::<f64>() / noise.len() as f64;
-                    curve.spread = (curve.spread.powi(2) - variance).max(0.0).sqrt();
-                }
+                let own: Vec<&Sample> = samples.iter().filter(|s| s.area == area).collect();
+                let error = held_out_variance(&own).unwrap_or(curve.spread.powi(2));
+                let noise: Vec<f64> = own.iter().filter_map(|s| s.std).filter(|s| s.is_finite()).collect();
+                let variance = noise.iter().map(|s| s * s).sum::<f64>() / noise.len().max(1) as f64;
+                curve.spread = (error - variance).max(0.0).sqrt();
                 Ok(curve)
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -472,6 +476,43 @@ pub struct ForceErrors {
     pub mean_absolute: f64,
     /// Number of force pairs.
     pub count: usize,
+}
+
+/// The most folds a curve's spread is cross-validated over, places taken in turn.
+pub const PLACE_FOLDS: usize = 10;
+
+/// The mean squared error, in the strength's unit squared, of curves fitted without each fold
+/// of places on the samples of that fold: every sample's place known and three places or more,
+/// else `None` (so too when no fold leaves a curve that fits).
+fn held_out_variance(samples: &[&Sample]) -> Option<f64> {
+    let places: Vec<[f64; 2]> = samples.iter().map(|s| s.place).collect::<Option<_>>()?;
+    let mut distinct: Vec<[f64; 2]> = Vec::new();
+    let fold_of: Vec<usize> = places
+        .iter()
+        .map(|p| {
+            distinct.iter().position(|d| d == p).unwrap_or_else(|| {
+                distinct.push(*p);
+                distinct.len() - 1
+            })
+        })
+        .collect();
+    if distinct.len() < 3 {
+        return None;
+    }
+    let folds = distinct.len().min(PLACE_FOLDS);
+    let (mut squared, mut count) = (0.0, 0usize);
+    for fold in 0..folds {
+        let held = |k: &usize| fold_of[*k] % folds == fold;
+        let kept: Vec<&Sample> = (0..samples.len()).filter(|k| !held(k)).map(|k| samples[k]).collect();
+        let forces: Vec<f64> = kept.iter().map(|s| s.force).collect();
+        let peaks: Vec<f64> = kept.iter().map(|s| s.peak).collect();
+        let Ok(curve) = Curve::fit(0, &forces, &peaks) else { continue };
+        for s in (0..samples.len()).filter(|k| held(k)).map(|k| samples[k]) {
+            squared += (s.peak - curve.peak(s.force)).powi(2);
+            count += 1;
+        }
+    }
+    (count > 0).then(|| squared / count as f64)
 }
 
 /// RMS error (N), RMS as % of the largest true force, Pearson correlation, mean absolute error (N).
@@ -967,9 +1008,9 @@ mod tests {
         let mut samples = Vec::new();
         for i in 0..forces_0.len() {
             if let (Some(&force), Some(&peak)) = (forces_1.get(i), peaks_1.get(i)) {
-                samples.push(Sample { area: 1, force, peak, std: None });
+                samples.push(Sample { area: 1, force, peak, std: None, place: None });
             }
-            samples.push(Sample { area: 0, force: forces_0[i], peak: peaks_0[i], std: None });
+            samples.push(Sample { area: 0, force: forces_0[i], peak: peaks_0[i], std: None, place: None });
         }
         let calibration = Calibration::fit(&samples, 2).unwrap();
         let [first, second] = [calibration.curves[0], calibration.curves[1]];
@@ -986,7 +1027,10 @@ mod tests {
             .iter()
             .zip(&peaks)
             .flat_map(|(&force, &peak)| {
-                [Sample { area: 0, force, peak, std: None }, Sample { area: 2, force, peak, std: None }]
+                [
+                    Sample { area: 0, force, peak, std: None, place: None },
+                    Sample { area: 2, force, peak, std: None, place: None },
+                ]
             })
             .collect();
         let error = Calibration::fit(&samples, 3).unwrap_err();
@@ -999,8 +1043,9 @@ mod tests {
 
     #[test]
     fn calibration_refuses_bad_samples_and_unknown_areas() {
-        let mut samples: Vec<Sample> =
-            (0..5).map(|f| Sample { area: 0, force: f64::from(f), peak: 0.01 * f64::from(f), std: None }).collect();
+        let mut samples: Vec<Sample> = (0..5)
+            .map(|f| Sample { area: 0, force: f64::from(f), peak: 0.01 * f64::from(f), std: None, place: None })
+            .collect();
         samples[3].force = f64::NAN;
         let error = Calibration::fit(&samples, 1).unwrap_err();
         assert_eq!(error, CalibrationError::NotFinite { area: 1, sample: 4, quantity: "force" });
@@ -1043,7 +1088,13 @@ mod tests {
             .map(|f| {
                 let force = f64::from(f);
                 let sign = if f % 2 == 0 { 1.0 } else { -1.0 };
-                Sample { area: 0, force, peak: 0.5 * (1.0 - (-force / 5.0).exp()) + sign * 0.01, std: Some(0.005) }
+                Sample {
+                    area: 0,
+                    force,
+                    peak: 0.5 * (1.0 - (-force / 5.0).exp()) + sign * 0.01,
+                    std: Some(0.005),
+                    place: None,
+                }
             })
             .collect();
         let fitted = Calibration::fit_strength(&samples, 1, Strength::FittedDrop).unwrap().curves[0];
@@ -1056,6 +1107,53 @@ mod tests {
         .spread;
         assert!((fitted.spread - (residual.powi(2) - 0.005_f64.powi(2)).sqrt()).abs() < 1e-12, "{fitted:?}");
         assert!(residual > 0.009 && residual < 0.012 && !fitted.fallback, "{residual}");
+    }
+
+    /// Six places whose curves differ by a gain each: one curve through them all has a residual
+    /// about as large as the places' own differences, but a curve read at a seventh place errs
+    /// by more; the spread cross-validated place by place says so, and is the residual's where
+    /// the places are not known or fewer than three.
+    #[test]
+    fn the_spread_is_the_error_at_places_the_curve_did_not_see() {
+        let gains = [0.85, 0.95, 1.0, 1.05, 1.1, 1.2];
+        let samples: Vec<Sample> = gains
+            .iter()
+            .enumerate()
+            .flat_map(|(k, gain)| {
+                (0..=15).map(move |f| {
+                    let force = f64::from(f);
+                    let peak = gain * 0.5 * (1.0 - (-force / 5.0).exp());
+                    Sample { area: 0, force, peak, std: None, place: Some([0.01 * k as f64, 0.0]) }
+                })
+            })
+            .collect();
+        let crossed = Calibration::fit_strength(&samples, 1, Strength::FittedDrop).unwrap().curves[0];
+        let unplaced: Vec<Sample> = samples.iter().map(|s| Sample { place: None, ..*s }).collect();
+        let residual = Calibration::fit_strength(&unplaced, 1, Strength::FittedDrop).unwrap().curves[0];
+        // By hand: each place left out, the curve of the other five.
+        let (mut squared, mut count) = (0.0, 0);
+        for k in 0..gains.len() {
+            let kept: Vec<&Sample> = samples.iter().filter(|s| s.place != Some([0.01 * k as f64, 0.0])).collect();
+            let curve = Curve::fit(
+                0,
+                &kept.iter().map(|s| s.force).collect::<Vec<_>>(),
+                &kept.iter().map(|s| s.peak).collect::<Vec<_>>(),
+            )
+            .unwrap();
+            for s in samples.iter().filter(|s| s.place == Some([0.01 * k as f64, 0.0])) {
+                squared += (s.peak - curve.peak(s.force)).powi(2);
+                count += 1;
+            }
+        }
+        let expected = (squared / f64::from(count)).sqrt();
+        assert!((crossed.spread - expected).abs() < 1e-12 * expected, "{} against {expected}", crossed.spread);
+        assert!(crossed.spread > 1.1 * residual.spread, "{} {}", crossed.spread, residual.spread);
+        // Two places: the residual's.
+        let two: Vec<Sample> = samples.iter().filter(|s| s.place.is_some_and(|p| p[0] < 0.015)).copied().collect();
+        let two_unplaced: Vec<Sample> = two.iter().map(|s| Sample { place: None, ..*s }).collect();
+        let [a, b] =
+            [&two, &two_unplaced].map(|s| Calibration::fit_strength(s, 1, Strength::FittedDrop).unwrap().curves[0]);
+        assert_eq!(a.spread, b.spread);
     }
 
     /// Data no start converges on still get a monotone curve, flagged as the fallback's.

@@ -354,6 +354,7 @@ impl Chain {
                     force: labelled.force,
                     peak: reading.value,
                     std: reading.std,
+                    place: Some(labelled.position),
                 }))
             })
             .collect()

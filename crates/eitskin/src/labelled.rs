@@ -121,7 +121,13 @@ pub fn samples(array: &PseudoArray, frames: &[LabelledFrame], found: &[Option<To
         .filter_map(|(labelled, touch)| {
             let reading = touch.as_ref()?.reading?;
             let unit = array.unit_at(labelled.position)?;
-            Some(Sample { area: array.area_of(unit), force: labelled.force, peak: reading.value, std: reading.std })
+            Some(Sample {
+                area: array.area_of(unit),
+                force: labelled.force,
+                peak: reading.value,
+                std: reading.std,
+                place: Some(labelled.position),
+            })
         })
         .collect()
 }

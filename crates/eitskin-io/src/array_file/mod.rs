@@ -247,10 +247,11 @@ pub fn read_frames(path: &Path, select: &FrameSelect) -> Result<FrameTable, Erro
                     let io = std::io::Error::new(std::io::ErrorKind::InvalidData, e);
                     Error::Read { path: path.to_path_buf(), source: io }
                 })?;
-                match text::frame_log(&text) {
+                let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+                match text::frame_log(text) {
                     Some(log) => log.map_err(|p| problem(None, p))?,
                     None => {
-                        let real = crate::frame_file::parse_values(&text).map_err(|e| e.in_file(path))?;
+                        let real = crate::frame_file::parse_values(text).map_err(|e| e.in_file(path))?;
                         Array { shape: vec![real.len()], column_major: false, real, imaginary: None }
                     }
                 }
