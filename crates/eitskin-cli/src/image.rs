@@ -337,7 +337,7 @@ pub fn run(args: Args) -> Result<()> {
             .collect(),
     };
     match &args.out {
-        Some(path) if path.extension().is_some_and(|e| e == "npy") => eitskin_io::write_raster_npy(path, &image)?,
+        Some(path) if outputs::has_extension(path, "npy") => eitskin_io::write_raster_npy(path, &image)?,
         Some(path) => eitskin_io::write_raster_csv(path, &image, spec.length_unit)?,
         None => {}
     }

@@ -31,6 +31,11 @@ pub fn check(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> 
     Ok(())
 }
 
+/// Whether `path` names a file of that extension (`"npy"`), in any case: `X.NPY` is NPY too.
+pub fn has_extension(path: &Path, extension: &str) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case(extension))
+}
+
 /// `path` made absolute with its folder's links resolved, so that two spellings of one file
 /// compare equal whether or not the file exists yet.
 fn resolved(path: &Path) -> PathBuf {
@@ -50,6 +55,12 @@ fn resolved(path: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn extensions_are_read_in_any_case() {
+        assert!(has_extension(Path::new("out/X.NPY"), "npy") && has_extension(Path::new("x.npy"), "npy"));
+        assert!(!has_extension(Path::new("x.npy.csv"), "npy") && !has_extension(Path::new("npy"), "npy"));
+    }
 
     #[test]
     fn outputs_that_overwrite_inputs_or_each_other_are_refused() {

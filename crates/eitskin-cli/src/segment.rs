@@ -39,7 +39,7 @@ pub fn run(args: Args) -> Result<()> {
     outputs::check(&[("--out", &args.out)], &args.input.files())?;
     let Reconstruction { spec, image, touch, report, .. } = reconstruct(&args.input)?;
     let labels = labels(&image, &touch);
-    if args.out.extension().is_some_and(|e| e == "npy") {
+    if outputs::has_extension(&args.out, "npy") {
         eitskin_io::write_labels_npy(&args.out, &labels, image.size)?;
     } else {
         eitskin_io::write_labels_csv(&args.out, &image, &labels, spec.length_unit)?;
