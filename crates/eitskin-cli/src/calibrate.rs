@@ -79,8 +79,9 @@ pub struct EvaluateArgs {
     #[arg(long)]
     reference: Option<PathBuf>,
     /// Write each sample's result here (CSV: the label, whether its press was found, where, the
-    /// force read and its standard deviation); with --calibration.
-    #[arg(long, conflicts_with = "model")]
+    /// force read and its standard deviation; with --model, the model's position, force and
+    /// depth with their standard deviations).
+    #[arg(long)]
     out: Option<PathBuf>,
 }
 
@@ -168,16 +169,22 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
 /// sample's own unit.
 pub fn evaluate(args: EvaluateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
-    let Some(path) = &args.calibration else {
-        let model = args.model.as_deref().context("give --calibration or --model")?;
-        return crate::learn::evaluate_model(&spec, model, &args.samples, args.reference.as_deref());
-    };
     if let Some(out) = &args.out {
-        let mut read = vec![("--samples", args.samples.as_path()), ("--calibration", path.as_path())];
+        if outputs::has_extension(out, "npy") {
+            bail!("--out {}: evaluate writes a CSV table (labels, answers, flags); give a .csv path", out.display());
+        }
+        let mut read = vec![("--samples", args.samples.as_path())];
+        read.extend(args.calibration.as_deref().map(|p| ("--calibration", p)));
+        read.extend(args.model.as_deref().map(|p| ("--model", p)));
         read.extend(args.reference.as_deref().map(|p| ("--reference", p)));
         read.extend(args.spec.as_deref().map(|p| ("the spec", p)));
         outputs::check(&[("--out", out)], &read)?;
     }
+    let Some(path) = &args.calibration else {
+        let model = args.model.as_deref().context("give --calibration or --model")?;
+        let (samples, reference, out) = (&args.samples, args.reference.as_deref(), args.out.as_deref());
+        return crate::learn::evaluate_model(&spec, model, samples, reference, out);
+    };
     let CalibrationFile { array, calibration, imaging } = eitskin_io::read_calibration_file(path, &spec)?;
     let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
     // Per sample: where it was pressed, its force (N), and what the chain read there.

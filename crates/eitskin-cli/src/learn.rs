@@ -6,9 +6,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use eitskin::learn::{choose, evaluate, train, Errors, Features, LabelledPress, LearningCurve, Method, NominalSensor};
+use eitskin::learn::{
+    choose, evaluate, train, Errors, Features, LabelledPress, LearningCurve, Method, NominalSensor, PressFeatures,
+};
 use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
-use eitskin::SensorSpec;
+use eitskin::{LengthUnit, SensorSpec};
 
 use crate::{load, outputs, plot, ranges};
 
@@ -91,6 +93,16 @@ pub struct PressesArgs {
 /// holds raw frames.
 fn presses(path: &Path, spec: &SensorSpec, reference: Option<&(PathBuf, Vec<f64>)>) -> Result<Vec<LabelledPress>> {
     let mut presses = eitskin_io::read_labelled_presses(path, spec.length_unit.metres())?;
+    // A press is one frame of the protocol or several (complex pairs, the frames a board sends
+    // per press): a whole number of the protocol's measurements.
+    let channels = spec.protocol()?.len();
+    if let Some(first) = presses.first().filter(|p| p.inputs.len() % channels != 0) {
+        bail!(
+            "{}: presses have {} channels; the sensor's protocol has {channels} measurements",
+            path.display(),
+            first.inputs.len()
+        );
+    }
     if let Some((file, frame)) = reference {
         for (k, p) in presses.iter_mut().enumerate() {
             if p.inputs.len() != frame.len() {
@@ -139,13 +151,6 @@ pub fn run(args: Args) -> Result<()> {
     let training = presses(&args.samples, &spec, reference.as_ref())?;
     let held_out = args.held_out.as_deref().map(|p| presses(p, &spec, reference.as_ref())).transpose()?;
     let channels = spec.protocol()?.len();
-    if let Some(first) = training.first().filter(|p| p.inputs.len() % channels != 0) {
-        bail!(
-            "{}: presses have {} channels; the sensor's protocol has {channels} measurements",
-            args.samples.display(),
-            first.inputs.len()
-        );
-    }
     // Press features read Δv on the sensor as specified: one value per measurement.
     let sensor = match training.first() {
         Some(p) if p.inputs.len() == channels => Some(load::nominal_sensor(&spec)?),
@@ -169,9 +174,30 @@ pub fn run(args: Args) -> Result<()> {
     let depth_header = if depths { format!(" {:>14}", "depth RMS (mm)") } else { String::new() };
     println!("  {:14} {:>14} {:>14}{depth_header}", "method", "position (mm)", "force RMS (N)");
     for (m, e) in &scores {
+        let e = match e {
+            Ok(e) => e,
+            // A method that cannot use these presses drops out of the choice; the others go on.
+            Err(why) => {
+                println!("  {:14} left out: {why}", m.name());
+                continue;
+            }
+        };
         let force = e.force_rms.map_or("—".into(), |f| format!("{f:.2}"));
         let depth = e.depth_rms.map_or(String::new(), |d| format!(" {:>14.3}", mm(d)));
-        println!("  {:14} {:>14.1} {:>14}{depth}", m.name(), mm(e.mean_position), force);
+        let unanswered = if e.unanswered > 0 { format!("  ({} unanswered)", e.unanswered) } else { String::new() };
+        println!("  {:14} {:>14.1} {:>14}{depth}{unanswered}", m.name(), mm(e.mean_position), force);
+    }
+    if let Some(sensor) = &sensor {
+        let unlike = PressFeatures::fit(sensor, &training)?.unlike(&training);
+        if !unlike.is_empty() {
+            let list: Vec<String> = unlike.iter().map(|i| (i + 1).to_string()).collect();
+            println!(
+                "{} of {} presses' Δv look like no press on the sensor as specified, left out of the -press methods: {}",
+                unlike.len(),
+                training.len(),
+                list.join(", ")
+            );
+        }
     }
     let method = forced.unwrap_or(method);
     let started = Instant::now();
@@ -337,9 +363,17 @@ pub fn presses_run(args: PressesArgs) -> Result<()> {
 
 /// `eitskin evaluate --model`: the model's errors on the presses of `samples` (less the frame at
 /// `reference`, when they are raw frames).
-pub fn evaluate_model(spec: &SensorSpec, model: &Path, samples: &Path, reference_frame: Option<&Path>) -> Result<()> {
-    let learned = eitskin_io::read_learned_model(model, spec, spec.protocol()?.len(), load::cache_dir().as_deref())?;
+pub fn evaluate_model(
+    spec: &SensorSpec,
+    model: &Path,
+    samples: &Path,
+    reference_frame: Option<&Path>,
+    out: Option<&Path>,
+) -> Result<()> {
+    // The model's presses and these agree in their channels as `learn` read them.
     let held = presses(samples, spec, reference(reference_frame)?.as_ref())?;
+    let channels = held.first().map_or(spec.protocol()?.len(), |p| p.inputs.len());
+    let learned = eitskin_io::read_learned_model(model, spec, channels, load::cache_dir().as_deref())?;
     let e = evaluate(&learned, &held);
     println!(
         "{} on {} presses of {}: mean position error {:.1} mm{}",
@@ -359,5 +393,41 @@ pub fn evaluate_model(spec: &SensorSpec, model: &Path, samples: &Path, reference
             100.0 * rms / largest.max(f64::MIN_POSITIVE)
         );
     }
+    if let Some(out) = out {
+        std::fs::write(out, answers_csv(&learned, &held, spec.length_unit))
+            .with_context(|| format!("writing {}", out.display()))?;
+        println!("wrote {}", out.display());
+    }
     Ok(())
+}
+
+/// Each press's label and `model`'s answer as CSV, lengths in `unit`, forces in N; a blank
+/// where the press has no such label or the model no such answer (a Δv like no press).
+fn answers_csv(model: &eitskin::learn::LearnedModel, presses: &[LabelledPress], unit: LengthUnit) -> String {
+    let (per_unit, u) = (1.0 / unit.metres(), unit.symbol());
+    let mut csv = format!(
+        "sample,x_{u},y_{u},force_n,depth_{u},answered,predicted_x_{u},predicted_y_{u},position_std_{u},predicted_force_n,force_std_n,predicted_depth_{u},depth_std_{u}\n"
+    );
+    let cell =
+        |v: Option<f64>, scale: f64| v.filter(|v| v.is_finite()).map_or(String::new(), |v| format!("{}", v * scale));
+    let mut scratch = eitskin::learn::PredictScratch::default();
+    for (k, p) in presses.iter().enumerate() {
+        let answer = model.predict(&p.inputs, &mut scratch);
+        let cells = [
+            cell(Some(p.position[0]), per_unit),
+            cell(Some(p.position[1]), per_unit),
+            cell(p.force, 1.0),
+            cell(p.depth, per_unit),
+            u8::from(answer.is_some()).to_string(),
+            cell(answer.map(|a| a.position[0]), per_unit),
+            cell(answer.map(|a| a.position[1]), per_unit),
+            cell(answer.and_then(|a| a.position_std), per_unit),
+            cell(answer.and_then(|a| a.force), 1.0),
+            cell(answer.and_then(|a| a.force_std), 1.0),
+            cell(answer.and_then(|a| a.depth), per_unit),
+            cell(answer.and_then(|a| a.depth_std), per_unit),
+        ];
+        csv += &format!("{},{}\n", k + 1, cells.join(","));
+    }
+    csv
 }

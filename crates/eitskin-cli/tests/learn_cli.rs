@@ -104,4 +104,85 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("--curve needs --held-out"));
     let refused = dir.eitskin(&["learn", "--samples", t, "--method", "svm"]);
     assert!(String::from_utf8_lossy(&refused.stderr).contains("\"svm\" is not a method"));
+
+    // A press whose Δv carries nothing (a failed press on a real skin) is named and left out of
+    // the methods that need a press; the command runs to the end.
+    let text = std::fs::read_to_string(&train).unwrap();
+    let weak: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(k, line)| {
+            if k != 4 {
+                return line.to_owned();
+            }
+            let fields: Vec<&str> = line.split(',').collect();
+            fields[..3]
+                .iter()
+                .map(|f| f.to_string())
+                .chain((3..fields.len()).map(|_| "0".into()))
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect();
+    let weak_path = dir.join("weak.csv");
+    std::fs::write(&weak_path, weak.join("\n")).unwrap();
+    let out = ok(dir.eitskin(&["learn", "--samples", weak_path.to_str().unwrap()]));
+    assert!(
+        out.contains(
+            "1 of 100 presses' Δv look like no press on the sensor as specified, left out of the -press methods: 3\n"
+        ),
+        "{out}"
+    );
+
+    // Two frames a press (here the same one twice): `learn` takes a whole number of the
+    // protocol's measurements, and `evaluate --model` takes what `learn` wrote.
+    let doubled = |from: &std::path::Path, to: &std::path::Path| {
+        let lines: Vec<String> = std::fs::read_to_string(from)
+            .unwrap()
+            .lines()
+            .map(|line| match line.starts_with('#') {
+                true => line.to_owned(),
+                false => {
+                    let fields: Vec<&str> = line.split(',').collect();
+                    let second = fields[3..].iter().map(|f| match f.strip_prefix('v') {
+                        Some(channel) => format!("w{channel}"),
+                        None => f.to_string(),
+                    });
+                    fields.iter().map(|f| f.to_string()).chain(second).collect::<Vec<_>>().join(",")
+                }
+            })
+            .collect();
+        std::fs::write(to, lines.join("\n")).unwrap();
+    };
+    let (double_train, double_held, double_model) = (dir.join("dt.csv"), dir.join("dh.csv"), dir.join("dm.json"));
+    doubled(&train, &double_train);
+    doubled(&held, &double_held);
+    let dm = double_model.to_str().unwrap();
+    ok(dir.eitskin(&["learn", "--samples", double_train.to_str().unwrap(), "--method", "knn-3", "--out", dm]));
+    let out = ok(dir.eitskin(&["evaluate", "--model", dm, "--samples", double_held.to_str().unwrap()]));
+    assert!(out.contains("knn-3 on 40 presses"), "{out}");
+
+    // Each press's answer, to plot or compare: the label and the model's answer with its
+    // standard deviation (the Gaussian process gives one).
+    let answers = dir.join("answers.csv");
+    let out = ok(dir.eitskin(&["evaluate", "--model", m, "--samples", h, "--out", answers.to_str().unwrap()]));
+    assert!(out.contains("wrote"), "{out}");
+    let text = std::fs::read_to_string(&answers).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("sample,x_mm,y_mm,force_n,depth_mm,answered,predicted_x_mm,predicted_y_mm,position_std_mm,predicted_force_n,force_std_n,predicted_depth_mm,depth_std_mm")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 40);
+    for row in &rows {
+        let number = |k: usize| row[k].parse::<f64>().unwrap_or_else(|_| panic!("column {k} of {row:?}"));
+        assert!(
+            row[5] == "1" && number(8) > 0.0 && number(10) > 0.0 && row[4].is_empty() && row[11].is_empty(),
+            "{row:?}"
+        );
+        assert!((number(1) - number(6)).hypot(number(2) - number(7)) < 40.0, "{row:?}");
+    }
+    let refused = dir.eitskin(&["evaluate", "--model", m, "--samples", h, "--out", "answers.NPY"]);
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("evaluate writes a CSV table"), "{refused:?}");
 }

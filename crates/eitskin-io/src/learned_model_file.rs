@@ -108,7 +108,7 @@ pub fn parse_learned_model(
         return Err(key("protocol", format!("is {:?}, but the sensor's protocol is {protocol:?}", file.protocol)));
     }
     if file.channels != channels {
-        return Err(key("channels", format!("is {}, but the sensor's frames have {channels} values", file.channels)));
+        return Err(key("channels", format!("is {}, but the frames given have {channels} values", file.channels)));
     }
     let method =
         Method::from_name(&file.method).ok_or_else(|| key("method", format!("{:?} is not a method", file.method)))?;
@@ -144,7 +144,7 @@ mod tests {
         assert_eq!(model.method, Method::knn(1));
         assert!(model.forces && model.depths);
         let err = parse_learned_model(&text, &spec, 120, None).unwrap_err().to_string();
-        assert_eq!(err, "`channels` is 3, but the sensor's frames have 120 values");
+        assert_eq!(err, "`channels` is 3, but the frames given have 120 values");
         let mut other = spec.clone();
         other.protocol = eitskin::ProtocolSpec::Adjacent;
         let err = parse_learned_model(&text, &other, 3, None).unwrap_err().to_string();

@@ -84,6 +84,19 @@ fn press_features_learn_an_imperfect_skin_from_100_presses() {
     // Without the sensor, press features are refused.
     let refused = train(&training, Method::from_name("gp-press").unwrap(), None).unwrap_err();
     assert_eq!(refused, eitskin::learn::LearnError::NoSensor);
+
+    // A press that failed (its Δv all zero) is left out of press features, named, and the rest
+    // still teach as well; the channels' methods keep it.
+    let mut weak = training.clone();
+    weak[17].inputs.fill(0.0);
+    let kept = train(&weak, Method::from_name("gp-press").unwrap(), Some(&sensor)).unwrap();
+    assert_eq!(kept.left_out, vec![17]);
+    assert!(evaluate(&kept, &held_out).mean_position <= 1.1 * learned.mean_position);
+    assert!(train(&weak, Method::knn(5), None).unwrap().left_out.is_empty());
+    let mut dead = training[..4].to_vec();
+    dead.iter_mut().skip(1).for_each(|p| p.inputs.fill(0.0));
+    let refused = train(&dead, Method::from_name("gp-press").unwrap(), Some(&sensor)).unwrap_err();
+    assert_eq!(refused, eitskin::learn::LearnError::FewLikePresses { like: 1, given: 4 });
 }
 
 /// A robot that sets depth, not force: presses labelled with the indenter's depth only (here a

@@ -87,11 +87,13 @@ pub enum LearnError {
     /// Press features were asked for without the sensor as specified.
     #[error("press features need the sensor's spec (its press model), and none was given")]
     NoSensor,
-    /// A press's Δv matches no press on the sensor's model.
-    #[error("press {press}'s Δv looks like no press on the sensor as specified (zero, not finite, or unlike any press): leave it out, or learn from the channels")]
-    NotAPress {
-        /// 1-based press.
-        press: usize,
+    /// Too few presses' Δv match a press on the sensor's model for press features.
+    #[error("only {like} of {given} presses' Δv look like a press on the sensor as specified (the others zero, not finite, or unlike any press): too few for press features; learn from the channels")]
+    FewLikePresses {
+        /// Presses whose Δv looks like a press.
+        like: usize,
+        /// Presses given.
+        given: usize,
     },
     /// The spec does not make a sensor.
     #[error("the sensor spec does not make a sensor")]
@@ -241,6 +243,9 @@ pub struct LearnedModel {
     pub depths: bool,
     /// The fitted press, for press features.
     pub press: Option<PressFeatures>,
+    /// The training presses (0-based) it left out: for press features, those whose Δv looks
+    /// like no press ([`PressFeatures::unlike`]).
+    pub left_out: Vec<usize>,
 }
 
 /// One answer of a model.
@@ -304,24 +309,28 @@ pub fn train(
         Features::Press => Some(PressFeatures::fit(sensor.ok_or(LearnError::NoSensor)?, presses)?),
         _ => None,
     };
+    // Press features learn from the presses that look like one; the others are named.
+    let left_out = press.as_ref().map_or(Vec::new(), |p| p.unlike(presses));
+    let presses: Vec<&LabelledPress> =
+        presses.iter().enumerate().filter(|(i, _)| !left_out.contains(i)).map(|(_, p)| p).collect();
+    if presses.len() < 2 {
+        return Err(LearnError::FewLikePresses { like: presses.len(), given: presses.len() + left_out.len() });
+    }
     let mut scratch = FeatureScratch::default();
     let inputs: Vec<Vec<f64>> = presses
         .iter()
-        .enumerate()
-        .map(|(i, p)| {
+        .map(|p| {
             let mut f = Vec::new();
             match &press {
-                Some(press) if !press.features_into(&p.inputs, &mut scratch, &mut f) => {
-                    Err(LearnError::NotAPress { press: i + 1 })
+                // Every press kept gives features: `unlike` tried the same.
+                Some(press) => {
+                    press.features_into(&p.inputs, &mut scratch, &mut f);
                 }
-                Some(_) => Ok(f),
-                None => {
-                    method.features.of_into(&p.inputs, &mut f);
-                    Ok(f)
-                }
+                None => method.features.of_into(&p.inputs, &mut f),
             }
+            f
         })
-        .collect::<Result<_, _>>()?;
+        .collect();
     let standardiser = Standardiser::fit(&inputs);
     if standardiser.used().is_empty() {
         return Err(LearnError::NoChannels);
@@ -352,7 +361,7 @@ pub fn train(
             Regressor::GaussianProcess(GaussianProcess::fit(&points, &targets, linear).ok_or(LearnError::NotFitted)?)
         }
     };
-    Ok(LearnedModel { method, standardiser, regressor, forces, depths, press })
+    Ok(LearnedModel { method, standardiser, regressor, forces, depths, press, left_out })
 }
 
 impl LearnedModel {
@@ -502,24 +511,30 @@ impl Tally {
     }
 }
 
+/// A candidate's cross-validated errors, or why it could not be cross-validated.
+pub type Score = (Method, Result<Errors, LearnError>);
+
 /// The candidate with the smallest cross-validated mean position error, and every candidate's
-/// errors (in the order given); press features need `sensor`.
+/// errors (in the order given), or why it could not be cross-validated on these presses (it is
+/// then left out of the choice); press features need `sensor`. An error only when no candidate
+/// could be: the first one's.
 pub fn choose(
     presses: &[LabelledPress],
     candidates: &[Method],
     folds: usize,
     sensor: Option<&NominalSensor>,
-) -> Result<(Method, Vec<(Method, Errors)>), LearnError> {
-    let scores: Vec<(Method, Errors)> = candidates
-        .iter()
-        .map(|&m| cross_validate(presses, m, folds, sensor).map(|e| (m, e)))
-        .collect::<Result<_, _>>()?;
+) -> Result<(Method, Vec<Score>), LearnError> {
+    let mut scores: Vec<Score> = candidates.iter().map(|&m| (m, cross_validate(presses, m, folds, sensor))).collect();
     let best = scores
         .iter()
-        .min_by(|a, b| a.1.mean_position.total_cmp(&b.1.mean_position))
-        .map(|s| s.0)
-        .ok_or(LearnError::TooFewPresses { got: 0, needed: 2 })?;
-    Ok((best, scores))
+        .filter_map(|(m, e)| Some((*m, e.as_ref().ok()?.mean_position)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|s| s.0);
+    match best {
+        Some(best) => Ok((best, scores)),
+        None if scores.is_empty() => Err(LearnError::TooFewPresses { got: 0, needed: 2 }),
+        None => Err(scores.swap_remove(0).1.err().unwrap_or(LearnError::NotFitted)),
+    }
 }
 
 /// The training-set sizes of learning curves: 25, 50, 100, 200, 500 and 1,000 presses.
@@ -566,6 +581,26 @@ mod tests {
         }
         assert_eq!(Method::from_name("knn-0"), None);
         assert_eq!(Method::from_name("svm"), None);
+    }
+
+    /// A candidate that cannot be cross-validated on the presses (here press features without
+    /// the sensor) is left out of the choice with its reason; the others are compared; with no
+    /// candidate left, the first one's reason.
+    #[test]
+    fn a_method_that_cannot_use_the_presses_drops_out_of_the_choice() {
+        let presses: Vec<LabelledPress> = (0..20)
+            .map(|i| {
+                let x = f64::from(i) / 20.0;
+                LabelledPress { inputs: vec![x, x * x, 1.0 - x], position: [x, 0.0], force: None, depth: None }
+            })
+            .collect();
+        let press = Method::from_name("gp-press").unwrap();
+        let candidates = [press, Method::knn(1), Method::from_name("gp").unwrap()];
+        let (best, scores) = choose(&presses, &candidates, 4, None).unwrap();
+        assert_ne!(best, press);
+        assert_eq!(scores[0].1, Err(LearnError::NoSensor));
+        assert!(scores[1..].iter().all(|(_, e)| e.is_ok()), "{scores:?}");
+        assert_eq!(choose(&presses, &[press], 4, None).unwrap_err(), LearnError::NoSensor);
     }
 
     #[test]

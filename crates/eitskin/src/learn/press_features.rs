@@ -75,7 +75,8 @@ impl PressFeatures {
     /// The features for presses like `presses`: the channels constant over them are left out,
     /// and Δv is read as a change of magnitudes or of signed values, whichever the presses match
     /// better (the larger sum of the fitted presses' z²). An error if a press's Δv has another
-    /// length than the sensor's measurements, or looks like no press.
+    /// length than the sensor's measurements; a press whose Δv looks like no press is one of
+    /// [`PressFeatures::unlike`].
     pub fn fit(sensor: &NominalSensor, presses: &[LabelledPress]) -> Result<PressFeatures, LearnError> {
         let m = sensor.measurements();
         if let Some((i, p)) = presses.iter().enumerate().find(|(_, p)| p.inputs.len() != m) {
@@ -117,12 +118,14 @@ impl PressFeatures {
                 best = Some((evidence, features));
             }
         }
-        let (_, features) = best.ok_or(LearnError::NoChannels)?;
-        let mut scratch = FeatureScratch::default();
-        for (i, p) in presses.iter().enumerate() {
-            features.fit_into(&p.inputs, &mut scratch).ok_or(LearnError::NotAPress { press: i + 1 })?;
-        }
-        Ok(features)
+        best.map(|(_, features)| features).ok_or(LearnError::NoChannels)
+    }
+
+    /// The presses (0-based) whose Δv looks like no press on the sensor as specified: no
+    /// features to give them (a real skin's weak or failed presses).
+    pub fn unlike(&self, presses: &[LabelledPress]) -> Vec<usize> {
+        let (mut scratch, mut out) = (FeatureScratch::default(), Vec::new());
+        (0..presses.len()).filter(|&i| !self.features_into(&presses[i].inputs, &mut scratch, &mut out)).collect()
     }
 
     /// The channels left out as constant over the training presses (0-based).
@@ -166,7 +169,7 @@ mod tests {
     use crate::sim::imperfect::{ImperfectSkin, Imperfections};
 
     /// Whether a board sends magnitudes or signed values is read from its presses (on a protocol
-    /// whose background has both signs), and a Δv like no press is refused with its number.
+    /// whose background has both signs), and a Δv like no press is named.
     #[test]
     fn magnitudes_are_told_from_signed_values_by_the_presses() {
         let mut spec = SensorSpec::square_hydrogel();
@@ -188,7 +191,7 @@ mod tests {
             assert!(features.features_into(&presses[1].inputs, &mut FeatureScratch::default(), &mut out));
             assert!(out.iter().all(|v| v.is_finite()), "{out:?}");
             presses[7].inputs.fill(0.0);
-            assert_eq!(PressFeatures::fit(&sensor, &presses).unwrap_err(), LearnError::NotAPress { press: 8 });
+            assert_eq!(PressFeatures::fit(&sensor, &presses).unwrap().unlike(&presses), vec![7]);
         }
     }
 }
