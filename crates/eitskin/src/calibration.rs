@@ -280,18 +280,23 @@ impl Curve {
         if peak.is_nan() {
             return ForceEstimate { newtons: f64::NAN, saturated: true, std: None };
         }
+        let inverse = self.inverse(peak);
+        let tolerance = RANGE_TOLERANCE * (high - low);
+        let saturated = !inverse.is_finite() || inverse < low - tolerance || inverse > high + tolerance;
+        ForceEstimate { newtons: inverse.clamp(low, high), saturated, std: None }
+    }
+
+    /// The force (N) whose peak is `peak` on the curve extended past the calibrated range;
+    /// ±∞ at or past the asymptote c (+∞ for b > 0, which reaches c as F → +∞).
+    fn inverse(&self, peak: f64) -> f64 {
         let ratio = (peak - self.c) / self.a;
-        let invertible = ratio > 0.0;
-        let inverse = if invertible {
+        if ratio > 0.0 {
             -self.b * ratio.ln()
         } else if self.b > 0.0 {
-            f64::INFINITY // at or past the asymptote c, which the curve reaches as F → +∞
+            f64::INFINITY
         } else {
-            f64::NEG_INFINITY // for b < 0 the curve reaches c as F → −∞
-        };
-        let tolerance = RANGE_TOLERANCE * (high - low);
-        let saturated = !invertible || inverse < low - tolerance || inverse > high + tolerance;
-        ForceEstimate { newtons: inverse.clamp(low, high), saturated, std: None }
+            f64::NEG_INFINITY
+        }
     }
 
     /// The force (N) for a `peak` measured with standard deviation `std` (both in the curve's
@@ -301,7 +306,9 @@ impl Curve {
     /// Where the peak pins the force (std/|slope| under 4 of the range's 512 points it sums
     /// on) this is the inverse, [`Curve::force`], with std/|slope|; where
     /// the curve flattens, a noisy peak no longer reads as the range's end but as what forces
-    /// could have given it. `std` `None`, not finite or not positive: the inverse alone.
+    /// could have given it. A reading outside the range (`saturated`) adds to its standard
+    /// deviation how far the curve, extended past the range, puts the force from the one given.
+    /// `std` `None`, not finite or not positive: the inverse alone.
     pub fn force_given(&self, peak: f64, std: Option<f64>) -> ForceEstimate {
         let inverse = self.force(peak);
         let [low, high] = self.force_range;
@@ -310,10 +317,20 @@ impl Curve {
         if !(std > 0.0 && peak.is_finite() && high > low) {
             return inverse;
         }
+        // A reading the curve puts outside the calibrated range is given at the range's end;
+        // how far the curve, extended, puts it beyond is part of its uncertainty.
+        let beyond = |newtons: f64| {
+            let extended = self.inverse(peak);
+            if inverse.saturated && extended.is_finite() {
+                extended - newtons
+            } else {
+                0.0
+            }
+        };
         let step = (high - low) / POSTERIOR_POINTS as f64;
         let linear = std / self.slope(inverse.newtons).abs();
         if linear < NARROW_POSTERIOR * step {
-            return ForceEstimate { std: Some(linear), ..inverse };
+            return ForceEstimate { std: Some(linear.hypot(beyond(inverse.newtons))), ..inverse };
         }
         // On the midpoints of the range: the log-likelihood's largest value first, so that
         // the weights neither overflow nor all vanish.
@@ -330,7 +347,7 @@ impl Curve {
         }
         let mean = first / weight;
         let variance = (second / weight - mean * mean).max(0.0);
-        ForceEstimate { newtons: mean, saturated: inverse.saturated, std: Some(variance.sqrt()) }
+        ForceEstimate { newtons: mean, saturated: inverse.saturated, std: Some(variance.sqrt().hypot(beyond(mean))) }
     }
 }
 
@@ -959,6 +976,24 @@ mod tests {
         // Past the range's top the inverse reads 15 N; the posterior, what forces could give it.
         let past = curve.force_given(curve.peak(20.0), Some(std));
         assert!(past.saturated && past.newtons < 14.5, "{past:?}");
+    }
+
+    /// A peak the curve puts 2 N below or 1 N above the calibrated range (0–15 N here from 2 N)
+    /// is given at the range's end, flagged, its standard deviation the reading's and that
+    /// distance added as variances; inside the range, the reading's alone.
+    #[test]
+    fn a_force_outside_the_range_says_how_far_the_curve_puts_it() {
+        let curve = Curve { force_range: [2.0, 15.0], ..exact_curve() };
+        let std = 1e-7; // S/m: pins the force to a few mN
+        for (truth, given) in [(0.5, 2.0), (16.0, 15.0)] {
+            let estimate = curve.force_given(curve.peak(truth), Some(std));
+            let reading = std / curve.slope(given).abs();
+            let expected = reading.hypot(truth - given);
+            assert!(estimate.saturated && (estimate.newtons - given).abs() < 1e-6, "{truth}: {estimate:?}");
+            assert!((estimate.std.unwrap() - expected).abs() < 1e-3 * expected, "{truth}: {estimate:?} {expected}");
+        }
+        let inside = curve.force_given(curve.peak(9.0), Some(std));
+        assert!(!inside.saturated && inside.std.unwrap() < 0.01, "{inside:?}");
     }
 
     /// Forces drawn evenly over the range, their peaks read with noise that leaves the top of the
