@@ -187,6 +187,18 @@ pub fn run(args: Args) -> Result<()> {
         let unanswered = if e.unanswered > 0 { format!("  ({} unanswered)", e.unanswered) } else { String::new() };
         println!("  {:14} {:>14.1} {:>14}{depth}{unanswered}", m.name(), mm(e.mean_position), force);
     }
+    // The plain baseline, scored on the same folds: what the choice above has to beat.
+    let baseline = eitskin::learn::baseline(&training, args.folds);
+    match &baseline {
+        Ok(b) => println!(
+            "  plain kernel ridge (RBF on the z-scored channels, ℓ {} and λ {} by the same folds): {:.1} mm{}",
+            b.model.length_scale,
+            b.model.lambda,
+            mm(b.errors.mean_position),
+            b.errors.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"))
+        ),
+        Err(why) => println!("  plain kernel ridge: not fitted: {why}"),
+    }
     if let Some(sensor) = &sensor {
         let unlike = PressFeatures::fit(sensor, &training)?.unlike(&training);
         if !unlike.is_empty() {
@@ -218,6 +230,11 @@ pub fn run(args: Args) -> Result<()> {
             mm(e.mean_position),
             unanswered(&e)
         );
+        if let Ok(b) = &baseline {
+            let e = eitskin::learn::evaluate_baseline(&b.model, held);
+            let force = e.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"));
+            println!("  the plain kernel ridge on them: {:.1} mm{force}", mm(e.mean_position));
+        }
     }
     if args.curve {
         if let Some(held) = &held_out {

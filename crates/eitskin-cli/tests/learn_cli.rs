@@ -33,6 +33,9 @@ fn robot_presses_are_learned_and_the_curves_reported() {
         assert_eq!(&std::fs::read(plots.join(png)).unwrap()[1..4], b"PNG", "{png}");
     }
     assert!(out.contains("5-fold cross-validation on 100 presses"), "{out}");
+    // The plain baseline beside the choice, on the same folds and on the held-out presses.
+    assert!(out.contains("  plain kernel ridge (RBF on the z-scored channels, ℓ "), "{out}");
+    assert!(out.contains("  the plain kernel ridge on them: "), "{out}");
     assert!(out.contains("channels that carry nothing (left out): 1\n"), "{out}");
     let held_error: f64 = out
         .split("mean position error ")

@@ -88,7 +88,7 @@ pub struct GpScratch {
 }
 
 /// Squared distances between the rows of `a` and `b` (|a|² + |b|² − 2a·b, floored at 0).
-fn squared_distances(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+pub(super) fn squared_distances(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let gram = a * b.transpose();
     let na: Vec<f64> = (0..a.nrows()).map(|i| (0..a.ncols()).map(|k| a[(i, k)] * a[(i, k)]).sum()).collect();
     let nb: Vec<f64> = (0..b.nrows()).map(|i| (0..b.ncols()).map(|k| b[(i, k)] * b[(i, k)]).sum()).collect();

@@ -11,7 +11,9 @@
 //! as specified ([`Features`]; [`PressFeatures`], given a [`NominalSensor`]): physics features
 //! that are nearly the label already, so that 100 presses teach what the spec got wrong.
 //!
-//! [`choose`] picks one by k-fold cross-validation on the training presses alone.
+//! [`choose`] picks one by k-fold cross-validation on the training presses alone; [`baseline`]
+//! scores the plain kernel ridge a user would try first on the same folds, to say whether the
+//! choice beats it.
 //!
 //! ```
 //! use eitskin::learn::{choose, train, LabelledPress, Method, PredictScratch};
@@ -34,11 +36,13 @@
 //! ```
 
 mod gp;
+mod kernel_ridge;
 mod knn;
 mod press_features;
 mod standardise;
 
 pub use gp::{GaussianProcess, GpScratch, LENGTH_SCALES, LINEAR_WEIGHTS, NOISE_VARIANCES};
+pub use kernel_ridge::{baseline, evaluate_baseline, Baseline, KernelRidge};
 pub use knn::Knn;
 pub use press_features::{FeatureScratch, NominalSensor, PressFeatures, NOISE_FLOOR};
 pub use standardise::{Standardiser, DEAD_SPREAD};
@@ -486,15 +490,25 @@ impl Tally {
                 self.unanswered += 1;
                 continue;
             };
-            self.answered += 1;
-            self.distance += (answer.position[0] - p.position[0]).hypot(answer.position[1] - p.position[1]);
-            for (sum, answer, truth) in
-                [(&mut self.force, answer.force, p.force), (&mut self.depth, answer.depth, p.depth)]
-            {
-                if let (Some(a), Some(t)) = (answer, truth) {
-                    sum.0 += (a - t) * (a - t);
-                    sum.1 += 1;
-                }
+            self.record(p, answer.position, answer.force, answer.depth);
+        }
+    }
+
+    /// Adds an answer given as x, y (m), then the force (N) and the depth (m) where `p` has them.
+    fn answer(&mut self, p: &LabelledPress, answer: &[f64]) {
+        let force = p.force.and(answer.get(2).copied());
+        let depth = p.depth.and(answer.get(2 + usize::from(p.force.is_some())).copied());
+        self.record(p, [answer[0], answer[1]], force, depth);
+    }
+
+    /// Adds one answer against `p`'s labels.
+    fn record(&mut self, p: &LabelledPress, position: [f64; 2], force: Option<f64>, depth: Option<f64>) {
+        self.answered += 1;
+        self.distance += (position[0] - p.position[0]).hypot(position[1] - p.position[1]);
+        for (sum, answer, truth) in [(&mut self.force, force, p.force), (&mut self.depth, depth, p.depth)] {
+            if let (Some(a), Some(t)) = (answer, truth) {
+                sum.0 += (a - t) * (a - t);
+                sum.1 += 1;
             }
         }
     }
