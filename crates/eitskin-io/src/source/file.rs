@@ -106,6 +106,8 @@ pub struct CaptureSource {
     read_all: bool,
     /// The period of the clock, one frame, if there is a rate.
     period: Option<Duration>,
+    /// Frames a second of the clock (0: none).
+    rate: f64,
     /// Whether to wait until each frame is due.
     wait: bool,
     /// The frames delivered so far.
@@ -134,6 +136,7 @@ impl CaptureSource {
             pending: VecDeque::new(),
             read_all: false,
             period,
+            rate,
             wait: speed == Speed::Recorded,
             delivered: 0,
             start: None,
@@ -187,7 +190,8 @@ impl CaptureSource {
                 if self.wait {
                     wait_for_frame(start, period, k);
                 }
-                k as f64 * period.as_secs_f64()
+                // k / rate, rounded once.
+                k as f64 / self.rate
             }
             None => start.elapsed().as_secs_f64(),
         }
