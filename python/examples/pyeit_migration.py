@@ -12,6 +12,7 @@ pyEIT (1.2.4):                                   eitskin:
     python pyeit_migration.py [path/to/square16_4k.json]
 """
 import json
+import os
 import pathlib
 import sys
 
@@ -19,8 +20,10 @@ import numpy as np
 
 import eitskin
 
+# The file given, else under $EITSKIN_SHARED, else ../shared beside the checkout.
 here = pathlib.Path(__file__).resolve()
-default = here.parents[2] / ".." / "shared" / "reference" / "pyeit" / "square16_4k.json"
+root = pathlib.Path(os.environ.get("EITSKIN_SHARED") or here.parents[2] / ".." / "shared")
+default = root / "reference" / "pyeit" / "square16_4k.json"
 data = json.loads(pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else default).read_text())
 m = data["mesh"]
 mesh = eitskin.mesh_from_pyeit(node=m["nodes"], element=m["triangles"], el_pos=m["electrode_nodes"])

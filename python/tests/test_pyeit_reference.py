@@ -2,21 +2,17 @@
 voltages to 1e-10, Jacobian and one-step NOSER images (plain and normalised) to 1e-8 of the peak."""
 
 import json
-import pathlib
 
 import numpy as np
 import pytest
 
 import eitskin
 
-REFERENCE = pathlib.Path(__file__).resolve().parents[2] / ".." / "shared" / "reference" / "pyeit"
+from conftest import shared
 
 
 def load(name):
-    path = REFERENCE / name
-    if not path.exists():
-        pytest.skip(f"NOT RUN: {path} is missing; the pyEIT comparison needs ../shared beside the checkout")
-    return json.loads(path.read_text())
+    return json.loads(shared("reference", "pyeit", name).read_text())
 
 
 def relative(ours, theirs):
