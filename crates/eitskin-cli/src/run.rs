@@ -105,6 +105,11 @@ pub struct Args {
     /// A calibration (JSON, from `eitskin calibrate`): forces in N per touch.
     #[arg(long)]
     calibration: Option<PathBuf>,
+    /// With the virtual sensor (`--source sim`): calibrate it first as a user calibrates a board
+    /// (the paper's protocol, six unit centres at 0–15 N, one frame each, through `calibrate`'s
+    /// path, the fitted press's drop on the 5×5 pseudo-array), then read forces with it.
+    #[arg(long, conflicts_with = "calibration")]
+    virtual_calibration: bool,
     /// A learned model (JSON, from `eitskin learn`): each frame with a touch also gets the model's
     /// position, force and uncertainty from its Δv (`learned` in the line).
     #[arg(long)]
@@ -182,6 +187,32 @@ fn check_record(path: &Path, args: &Args) -> Result<()> {
     outputs::check(&[("--record", path)], &read)
 }
 
+/// The virtual sensor's calibration, made now as `calibrate` makes one from a board's presses
+/// (frames drawn with another seed than the run's), and what to call it in messages.
+fn virtual_calibration(spec: &SensorSpec, args: &Args) -> Result<(PathBuf, eitskin_io::CalibrationFile)> {
+    if !matches!(args.source, SourceSpec::Sim { .. }) {
+        bail!("--virtual-calibration calibrates the virtual sensor: it goes with --source sim");
+    }
+    eprintln!(
+        "eitskin run: calibrating the virtual sensor as the paper does (six unit centres, 0–15 N, one frame each)…"
+    );
+    let started = std::time::Instant::now();
+    let strength = Strength::FittedDrop;
+    let chain = load::chain_with(spec, &ReconstructorParams::default(), TouchParams::default(), strength, false)?;
+    let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [5, 5])?;
+    let sim = eitskin::sim::SimParams::default();
+    let seed = args.seed ^ 0x00ca_11b0;
+    let (calibration, found) = eitskin::study::users::calibrate_virtual(spec, sim, seed, chain, &array, 20)?;
+    eprintln!(
+        "eitskin run: {:.0} % of the calibration presses found, {} curves of the fitted drop ({:.1} s)",
+        100.0 * found,
+        calibration.curves.len(),
+        started.elapsed().as_secs_f64()
+    );
+    let imaging = eitskin_io::Imaging::default();
+    Ok((PathBuf::from("of the virtual sensor"), eitskin_io::CalibrationFile { array, calibration, imaging }))
+}
+
 /// Runs `eitskin run`.
 pub fn run(args: Args) -> Result<()> {
     if let Some(path) = &args.record {
@@ -189,7 +220,8 @@ pub fn run(args: Args) -> Result<()> {
     }
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
     let calibration = match &args.calibration {
-        Some(path) => Some((path, eitskin_io::read_calibration_file(path, &spec)?)),
+        Some(path) => Some((path.clone(), eitskin_io::read_calibration_file(path, &spec)?)),
+        None if args.virtual_calibration => Some(virtual_calibration(&spec, &args)?),
         None => None,
     };
     // A learned model of this sensor's frames, trained again from its presses: another

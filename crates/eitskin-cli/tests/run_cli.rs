@@ -204,6 +204,47 @@ fn the_virtual_sensor_pressed_by_a_script_gives_a_touch_where_and_when_pressed()
     }
 }
 
+/// A first run that ends in newtons: the virtual sensor calibrated first as a user calibrates a
+/// board (the paper's six units, 0–15 N), then pressed by a script at places it was not
+/// calibrated: each touch has a force within 1 N of the script's, with its standard deviation.
+#[test]
+fn the_virtual_sensor_calibrated_as_the_paper_does_gives_forces_in_newtons() {
+    let dir = scratch("sim-calibrated");
+    let script = dir.join("script.txt");
+    std::fs::write(&script, "# start end x y force\n1.0 1.5 -50 40 9\n2.0 2.5 60 -20 4\n").unwrap();
+    let source = format!("sim:{}", script.display());
+    let out = dir.eitskin(&[
+        "run",
+        "--source",
+        &source,
+        "--frames",
+        "60",
+        "--rate",
+        "20",
+        "--triangles",
+        "1500",
+        "--virtual-calibration",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(stderr.contains("calibrating the virtual sensor as the paper does"), "{stderr}");
+    let mut pressed = 0;
+    for line in frames_only(out) {
+        let t = line["t"].as_f64().unwrap();
+        let scripted = match t {
+            _ if (1.0..1.5).contains(&t) => 9.0,
+            _ if (2.0..2.5).contains(&t) => 4.0,
+            _ => continue,
+        };
+        let touch = &line["touches"][0];
+        let force = touch["force"].as_f64().unwrap_or_else(|| panic!("no force at t = {t}: {line}"));
+        assert!((force - scripted).abs() < 1.0 && touch["force_std"].as_f64().unwrap() > 0.0, "t = {t}: {line}");
+        pressed += 1;
+    }
+    assert_eq!(pressed, 20);
+    let refused = dir.eitskin(&["run", "--source", "file:x.csv", "--virtual-calibration"]);
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("it goes with --source sim"), "{refused:?}");
+}
+
 /// A source that ends before anything was imaged says so: an empty file is an error (it used
 /// to end with the start line alone and exit 0), and a run that ends before its reference is
 /// taken warns that nothing was imaged.

@@ -91,6 +91,48 @@ pub fn press_kinds() -> Vec<(&'static str, Hydrogel)> {
     ]
 }
 
+/// The paper's calibration presses on `array`: the centre of one unit per area (the first met in
+/// its lower-left 3×3 units), 0–15 N in 1 N steps.
+pub fn paper_protocol(array: &PseudoArray) -> Vec<Press> {
+    super::representatives(array)
+        .into_iter()
+        .flat_map(|unit| (0..=15).map(move |f| (unit, f64::from(f))))
+        .map(|(unit, force)| Press { position: array.unit_centre(unit), force })
+        .collect()
+}
+
+/// A calibration of the virtual sensor of `spec` and `sim` (its gel, indenter and noise; frames
+/// drawn with `seed`) made as a user makes one with `calibrate`: the paper's protocol on
+/// `array` ([`paper_protocol`], one frame a press), `reference_frames` frames at rest, read by
+/// `chain` through the pipeline ([`process_labelled`]); the calibration and the share of its
+/// presses found.
+pub fn calibrate_virtual(
+    spec: &SensorSpec,
+    sim: SimParams,
+    seed: u64,
+    chain: Chain,
+    array: &PseudoArray,
+    reference_frames: usize,
+) -> Result<(Calibration, f64), StudyError> {
+    let mut skin = VirtualSensor::with_params(spec, sim, seed)?;
+    let rest = skin.clean_frame()?;
+    let mut references: Vec<Vec<f64>> = (0..reference_frames.max(1)).map(|_| skin.noisy(&rest)).collect();
+    let presses = paper_protocol(array);
+    let clean = skin.clean_frames(&presses.iter().map(|p| vec![*p]).collect::<Vec<_>>())?;
+    let frames: Vec<LabelledFrame> = presses
+        .iter()
+        .zip(&clean)
+        .map(|(p, c)| LabelledFrame { position: p.position, force: p.force, frame: skin.noisy(c) })
+        .collect();
+    let (rest, pressed) = split_references(frames);
+    references.extend(rest);
+    let strength = chain.strength();
+    let found = process_labelled(chain, PipelineParams::default(), &references, &pressed)?;
+    let share = found.iter().filter(|f| f.is_some()).count() as f64 / found.len().max(1) as f64;
+    let calibration = Calibration::fit_strength(&samples(array, &pressed, &found), array.area_count(), strength)?;
+    Ok((calibration, share))
+}
+
 /// One method, calibrated one way, on one kind at one noise level.
 #[derive(Debug, Clone, PartialEq)]
 pub struct UsersRow {
@@ -163,11 +205,7 @@ pub fn run(spec: &SensorSpec, params: &UsersParams, progress: Progress<'_>) -> R
     let one = PseudoArray::by_symmetry(&spec.outline, &electrodes, [1, 1])?;
     let mut rng = StdRng::seed_from_u64(params.seed ^ 0x05e7_5ca1);
     let places = Places::new(spec, &paper_array);
-    let paper: Vec<Press> = super::representatives(&paper_array)
-        .into_iter()
-        .flat_map(|unit| (0..=15).map(move |f| (unit, f64::from(f))))
-        .map(|(unit, force)| Press { position: paper_array.unit_centre(unit), force })
-        .collect();
+    let paper = paper_protocol(&paper_array);
     let robot: Vec<Press> =
         (0..params.robot).map(|_| Press { position: places.anywhere(&mut rng), force: force(&mut rng, 0.5) }).collect();
     let validation: Vec<Press> = (0..params.validation)
