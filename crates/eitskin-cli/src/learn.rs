@@ -150,6 +150,18 @@ pub fn run(args: Args) -> Result<()> {
     let reference = reference(args.reference.as_deref())?;
     let training = presses(&args.samples, &spec, reference.as_ref())?;
     let held_out = args.held_out.as_deref().map(|p| presses(p, &spec, reference.as_ref())).transpose()?;
+    if let (Some(held), Some(path), Some(first)) = (&held_out, args.held_out.as_deref(), training.first()) {
+        if let Some((k, p)) = held.iter().enumerate().find(|(_, p)| p.inputs.len() != first.inputs.len()) {
+            bail!(
+                "{}: press {} has {} channels, and the training presses of {} have {}",
+                path.display(),
+                k + 1,
+                p.inputs.len(),
+                args.samples.display(),
+                first.inputs.len()
+            );
+        }
+    }
     let channels = spec.protocol()?.len();
     // Press features read Δv on the sensor as specified: one value per measurement.
     let sensor = match training.first() {

@@ -164,6 +164,11 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     ok(dir.eitskin(&["learn", "--samples", double_train.to_str().unwrap(), "--method", "knn-3", "--out", dm]));
     let out = ok(dir.eitskin(&["evaluate", "--model", dm, "--samples", double_held.to_str().unwrap()]));
     assert!(out.contains("knn-3 on 40 presses"), "{out}");
+    // Held-out presses of another channel count than the training ones are refused, not
+    // answered from the channels they share.
+    let refused = dir.eitskin(&["learn", "--samples", t, "--held-out", double_held.to_str().unwrap()]);
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(message.contains("press 1 has 240 channels, and the training presses of"), "{message}");
 
     // Each press's answer, to plot or compare: the label and the model's answer with its
     // standard deviation (the Gaussian process gives one).

@@ -79,8 +79,11 @@ impl KernelRidge {
     }
 
     /// The answer for `frame`: x, y (m), then the force (N) and the depth (m) where trained
-    /// with them.
-    pub fn predict(&self, frame: &[f64]) -> Vec<f64> {
+    /// with them; `None` for a frame of another length than the training presses'.
+    pub fn predict(&self, frame: &[f64]) -> Option<Vec<f64>> {
+        if frame.len() != self.standardiser.channels() {
+            return None;
+        }
         let used = self.standardiser.used().len();
         let mut z = vec![0.0; used];
         self.standardiser.apply_into(frame, &mut z);
@@ -88,12 +91,11 @@ impl KernelRidge {
         let kernel: Vec<f64> = (0..self.points.nrows())
             .map(|i| (-(0..used).map(|k| (self.points[(i, k)] - z[k]).powi(2)).sum::<f64>() * scale).exp())
             .collect();
-        (0..self.alpha.ncols())
-            .map(|t| {
-                let value: f64 = kernel.iter().enumerate().map(|(i, k)| k * self.alpha[(i, t)]).sum();
-                value * self.target_std[t] + self.target_mean[t]
-            })
-            .collect()
+        let answer = (0..self.alpha.ncols()).map(|t| {
+            let value: f64 = kernel.iter().enumerate().map(|(i, k)| k * self.alpha[(i, t)]).sum();
+            value * self.target_std[t] + self.target_mean[t]
+        });
+        Some(answer.collect())
     }
 }
 
@@ -120,7 +122,7 @@ pub fn baseline(presses: &[LabelledPress], folds: usize) -> Result<Baseline, Lea
                     presses.iter().enumerate().filter(|(i, _)| i % folds != fold).map(|(_, p)| p).collect();
                 let Some(model) = KernelRidge::fit(&kept, length, lambda) else { continue };
                 for p in presses.iter().enumerate().filter(|(i, _)| i % folds == fold).map(|(_, p)| p) {
-                    tally.answer(p, &model.predict(&p.inputs));
+                    tally.answer(p, model.predict(&p.inputs).as_deref());
                 }
             }
             let errors = tally.errors();
@@ -138,7 +140,7 @@ pub fn baseline(presses: &[LabelledPress], folds: usize) -> Result<Baseline, Lea
 /// The errors of the baseline's `model` on `presses`.
 pub fn evaluate_baseline(model: &KernelRidge, presses: &[LabelledPress]) -> Errors {
     let mut tally = Tally::default();
-    presses.iter().for_each(|p| tally.answer(p, &model.predict(&p.inputs)));
+    presses.iter().for_each(|p| tally.answer(p, model.predict(&p.inputs).as_deref()));
     tally.errors()
 }
 
@@ -165,6 +167,10 @@ mod tests {
         assert!(errors.mean_position < 0.03 && held.mean_position < 0.03, "{errors:?} {held:?}");
         assert!(held.mean_position < 2.0 * errors.mean_position + 0.005, "{errors:?} {held:?}");
         assert!(LENGTH_SCALES.contains(&model.length_scale) && NOISE_VARIANCES.contains(&model.lambda));
+        // A frame of another length has no answer, and counts as unanswered.
+        assert_eq!(model.predict(&[0.1, 0.2]), None);
+        let short = [LabelledPress { inputs: vec![0.1], ..held_out[0].clone() }];
+        assert_eq!(evaluate_baseline(&model, &short).unanswered, 1);
         assert_eq!(baseline(&training[..5], 5).unwrap_err(), LearnError::TooFewPresses { got: 5, needed: 10 });
     }
 }

@@ -389,9 +389,12 @@ impl LearnedModel {
     }
 
     /// The answer for `frame` (its channels in protocol order; `channels()` of them); `None` for
-    /// press features of a frame that looks like no press. Allocates nothing once `scratch` has
-    /// grown.
+    /// a frame of another length, and for press features of a frame that looks like no press.
+    /// Allocates nothing once `scratch` has grown.
     pub fn predict(&self, frame: &[f64], scratch: &mut PredictScratch) -> Option<Prediction> {
+        if frame.len() != self.channels() {
+            return None;
+        }
         let used = self.standardiser.used().len();
         match &self.press {
             Some(press) => {
@@ -494,8 +497,13 @@ impl Tally {
         }
     }
 
-    /// Adds an answer given as x, y (m), then the force (N) and the depth (m) where `p` has them.
-    fn answer(&mut self, p: &LabelledPress, answer: &[f64]) {
+    /// Adds an answer given as x, y (m), then the force (N) and the depth (m) where `p` has them;
+    /// `None`: unanswered.
+    fn answer(&mut self, p: &LabelledPress, answer: Option<&[f64]>) {
+        let Some(answer) = answer else {
+            self.unanswered += 1;
+            return;
+        };
         let force = p.force.and(answer.get(2).copied());
         let depth = p.depth.and(answer.get(2 + usize::from(p.force.is_some())).copied());
         self.record(p, [answer[0], answer[1]], force, depth);
