@@ -94,9 +94,10 @@ impl LearnedModel {
         depths: Option<&Bound<'_, PyAny>>,
         method: Option<&str>,
         spec: Option<&SensorSpec>,
-        folds: usize,
+        folds: i64,
     ) -> PyResult<LearnedModel> {
         use eitskin::learn::{choose, train, LabelledPress, Method, NominalSensor};
+        let folds = crate::count(folds, "folds")?;
         if !(2..=20).contains(&folds) {
             return Err(fail(format!("folds must be 2 to 20, got {folds}")));
         }
@@ -246,13 +247,15 @@ impl LearnedModel {
 pub(crate) fn robot_presses<'py>(
     py: Python<'py>,
     spec: &SensorSpec,
-    count: usize,
-    seed: u64,
-    frames_per_press: usize,
+    count: i64,
+    seed: i64,
+    frames_per_press: i64,
     noise: f64,
     circle: bool,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
     use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
+    let (count, seed) = (crate::count(count, "count")?, crate::seed(seed, "seed")?);
+    let frames_per_press = crate::count(frames_per_press, "frames_per_press")?;
     if !(1..=1_000_000).contains(&count) {
         return Err(fail(format!("count must be 1 to 1000000 presses, got {count}")));
     }

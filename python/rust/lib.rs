@@ -55,6 +55,17 @@ pub(crate) fn rows<const K: usize, T: numpy::Element + Copy>(
     Ok(values.chunks_exact(K).map(|c| std::array::from_fn(|k| c[k])).collect())
 }
 
+/// A count from Python for `name`: a negative one is refused with its value (PyO3 would raise
+/// OverflowError on its way to an unsigned number).
+pub(crate) fn count(value: i64, name: &str) -> PyResult<usize> {
+    usize::try_from(value).map_err(|_| fail(format!("{name} must be a whole number 0 or more, got {value}")))
+}
+
+/// A seed from Python for `name`: 0 or more.
+pub(crate) fn seed(value: i64, name: &str) -> PyResult<u64> {
+    u64::try_from(value).map_err(|_| fail(format!("{name} must be a whole number 0 or more, got {value}")))
+}
+
 /// Indices as usize, refusing negative ones.
 pub(crate) fn indices(values: &[i64], what: &str) -> PyResult<Vec<usize>> {
     values.iter().map(|&i| usize::try_from(i).map_err(|_| fail(format!("{what}: index {i} is negative")))).collect()

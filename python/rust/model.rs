@@ -70,7 +70,8 @@ impl SensorSpec {
     }
 
     /// The same spec meshed with about `triangles` triangles.
-    fn with_triangles(&self, triangles: usize) -> PyResult<SensorSpec> {
+    fn with_triangles(&self, triangles: i64) -> PyResult<SensorSpec> {
+        let triangles = crate::count(triangles, "triangles")?;
         if !(1..=100_000_000).contains(&triangles) {
             return Err(fail(format!("triangles must be 1 to 100000000, got {triangles}")));
         }
@@ -241,22 +242,22 @@ impl Protocol {
     /// Every pair of electrodes driven and measured across itself (the paper's board: 120 values
     /// for 16 electrodes).
     #[staticmethod]
-    fn two_terminal(electrodes: usize) -> PyResult<Protocol> {
-        eitskin::Protocol::two_terminal(electrodes).map(Protocol).map_err(fail)
+    fn two_terminal(electrodes: i64) -> PyResult<Protocol> {
+        eitskin::Protocol::two_terminal(crate::count(electrodes, "electrodes")?).map(Protocol).map_err(fail)
     }
 
     /// Adjacent drive, adjacent measurement (pyEIT's `dist_exc=1, step_meas=1`); `skip_driven`
     /// leaves out pairs that touch a driven electrode.
     #[staticmethod]
     #[pyo3(signature = (electrodes, skip_driven = true))]
-    fn adjacent(electrodes: usize, skip_driven: bool) -> PyResult<Protocol> {
-        eitskin::Protocol::adjacent(electrodes, skip_driven).map(Protocol).map_err(fail)
+    fn adjacent(electrodes: i64, skip_driven: bool) -> PyResult<Protocol> {
+        eitskin::Protocol::adjacent(crate::count(electrodes, "electrodes")?, skip_driven).map(Protocol).map_err(fail)
     }
 
     /// Opposite drive, adjacent measurement.
     #[staticmethod]
-    fn opposite(electrodes: usize) -> PyResult<Protocol> {
-        eitskin::Protocol::opposite(electrodes).map(Protocol).map_err(fail)
+    fn opposite(electrodes: i64) -> PyResult<Protocol> {
+        eitskin::Protocol::opposite(crate::count(electrodes, "electrodes")?).map(Protocol).map_err(fail)
     }
 
     /// A protocol from arrays: `stimulations` (s, L) currents per electrode (A per unit, each row

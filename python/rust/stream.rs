@@ -23,8 +23,8 @@ impl VirtualSensor {
     /// The sensor of `spec`, its noise seeded by `seed`.
     #[new]
     #[pyo3(signature = (spec, seed = 0))]
-    fn new(py: Python<'_>, spec: &SensorSpec, seed: u64) -> PyResult<VirtualSensor> {
-        let spec = &spec.0;
+    fn new(py: Python<'_>, spec: &SensorSpec, seed: i64) -> PyResult<VirtualSensor> {
+        let (spec, seed) = (&spec.0, crate::seed(seed, "seed")?);
         py.detach(|| eitskin::sim::VirtualSensor::new(spec, seed)).map(VirtualSensor).map_err(fail)
     }
 
@@ -139,13 +139,20 @@ impl Source {
         spec: &SensorSpec,
         rate: f64,
         fast: bool,
-        frames: Option<u64>,
+        frames: Option<i64>,
         codec: &str,
-        seed: u64,
-        values_per_measurement: usize,
+        seed: i64,
+        values_per_measurement: i64,
     ) -> PyResult<Source> {
         use eitskin_io::replay::Speed;
         use eitskin_io::source::{Codec, SourceSettings, SourceSpec};
+        // A source of no frames is a mistake, not an empty loop.
+        let frames = match frames {
+            Some(f) if f < 1 => return Err(fail(format!("frames must be 1 or more (None: every frame), got {f}"))),
+            f => f.map(|f| f as u64),
+        };
+        let seed = crate::seed(seed, "seed")?;
+        let values_per_measurement = crate::count(values_per_measurement, "values_per_measurement")?;
         let which: SourceSpec = source.parse().map_err(fail)?;
         if !(rate >= 0.0 && rate.is_finite()) {
             return Err(fail(format!("rate must be ≥ 0 frames/s and finite, got {rate}")));
@@ -224,11 +231,13 @@ impl Calibration {
     #[pyo3(signature = (spec, area, force, strength, grid = (5, 5)))]
     fn fit(
         spec: &SensorSpec,
-        area: Vec<usize>,
+        area: Vec<i64>,
         force: &Bound<'_, PyAny>,
         strength: &Bound<'_, PyAny>,
-        grid: (usize, usize),
+        grid: (i64, i64),
     ) -> PyResult<Calibration> {
+        let area = crate::indices(&area, "area")?;
+        let grid = (crate::count(grid.0, "grid")?, crate::count(grid.1, "grid")?);
         let (force, strength) = (crate::floats(force)?, crate::floats(strength)?);
         if force.len() != area.len() || strength.len() != area.len() {
             return Err(fail(format!(
@@ -260,7 +269,8 @@ impl Calibration {
     /// units grouped by symmetry (the paper's 5 × 5 has 6 areas), or None off the array.
     #[staticmethod]
     #[pyo3(signature = (spec, x, y, grid = (5, 5)))]
-    fn area_of(spec: &SensorSpec, x: f64, y: f64, grid: (usize, usize)) -> PyResult<Option<usize>> {
+    fn area_of(spec: &SensorSpec, x: f64, y: f64, grid: (i64, i64)) -> PyResult<Option<usize>> {
+        let grid = (crate::count(grid.0, "grid")?, crate::count(grid.1, "grid")?);
         let electrodes = spec.0.electrode_positions().map_err(fail)?;
         let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.0.outline, &electrodes, [grid.0, grid.1])
             .map_err(fail)?;
@@ -295,7 +305,8 @@ impl Calibration {
 
     /// The force (N) for a touch of `strength` in `area`, and whether it is past the curve's
     /// range (saturated).
-    fn force(&self, area: usize, strength: f64) -> PyResult<(f64, bool)> {
+    fn force(&self, area: i64, strength: f64) -> PyResult<(f64, bool)> {
+        let area = crate::count(area, "area")?;
         let estimate = self.file.calibration.force(area, strength).map_err(fail)?;
         Ok((estimate.newtons, estimate.saturated))
     }
@@ -384,13 +395,16 @@ impl Pipeline {
         spec: &SensorSpec,
         calibration: Option<&Calibration>,
         fit: bool,
-        reference_frames: usize,
+        reference_frames: i64,
         false_alarm_rate: f64,
-        average: usize,
+        average: i64,
         hyperparameter: f64,
-        reference_limit: usize,
+        reference_limit: i64,
     ) -> PyResult<Pipeline> {
         use eitskin::pipeline::{NoiseFloor, PipelineParams};
+        let reference_frames = crate::count(reference_frames, "reference_frames")?;
+        let average = crate::count(average, "average")?;
+        let reference_limit = crate::count(reference_limit, "reference_limit")?;
         if !(1..=10_000).contains(&reference_frames) {
             return Err(fail(format!("reference_frames must be 1 to 10000, got {reference_frames}")));
         }

@@ -100,6 +100,18 @@ def test_bad_input_raises_with_the_message(spec):
     with pytest.raises(eitskin.EitskinError, match="a force"):
         eitskin.VirtualSensor(spec).press(0.0, 0.0, -1.0)
     assert issubclass(eitskin.EitskinError, ValueError)
+    # A negative count is a ValueError that quotes it, never an OverflowError.
+    for call, name in [
+        (lambda: spec.with_triangles(-5), "triangles"),
+        (lambda: eitskin.Protocol.adjacent(-16), "electrodes"),
+        (lambda: eitskin.VirtualSensor(spec, seed=-1), "seed"),
+        (lambda: eitskin.robot_presses(spec, -3), "count"),
+        (lambda: eitskin.Pipeline(spec, reference_frames=-1), "reference_frames"),
+    ]:
+        with pytest.raises(eitskin.EitskinError, match=f"{name} must be a whole number 0 or more, got -"):
+            call()
+    with pytest.raises(eitskin.EitskinError, match="frames must be 1 or more"):
+        eitskin.Source("sim", spec, frames=0)
 
 
 def test_a_spec_from_keyword_arguments():
