@@ -325,6 +325,7 @@ fn report_missed(samples: &Path, pressed: &[LabelledFrame], found: &[Option<Touc
     let strongest = forces.fold(0.0, f64::max);
     let shown = missed.iter().take(20).cloned().collect::<Vec<_>>().join(", ");
     let more = if missed.len() > 20 { ", …" } else { "" };
+    let [weakest, strongest] = [weakest, strongest].map(crate::plot::number);
     eprintln!(
         "{}: {} of {} presses not found within {:.0} mm of their label ({weakest}–{strongest} N; pressed samples {shown}{more})",
         samples.display(),
