@@ -102,6 +102,8 @@ pub struct Viewer {
     frames: tokio::sync::mpsc::Sender<String>,
     commands: mpsc::Receiver<Command>,
     dropped: Arc<AtomicU64>,
+    /// The pages' channel: how many pages are open.
+    pages: broadcast::Sender<Utf8Bytes>,
 }
 
 /// What the server's handlers share.
@@ -127,9 +129,10 @@ impl Viewer {
         let (frames, queue) = tokio::sync::mpsc::channel(QUEUE_FRAMES);
         let (command_tx, commands) = mpsc::channel();
         let dropped = Arc::new(AtomicU64::new(0));
+        let pages = broadcast::channel(PAGE_BACKLOG).0;
         let shared = Arc::new(Shared {
             setup: Utf8Bytes::from(serde_json::to_string(&Tagged { kind: "setup", body: setup })?),
-            frames: broadcast::channel(PAGE_BACKLOG).0,
+            frames: pages.clone(),
             commands: command_tx,
             dropped: Arc::clone(&dropped),
         });
@@ -141,7 +144,7 @@ impl Viewer {
                 }
             })
             .context("starting the viewer's thread")?;
-        Ok(Viewer { addr, frames, commands, dropped })
+        Ok(Viewer { addr, frames, commands, dropped, pages })
     }
 
     /// The address the server listens on (the real port when asked for port 0).
@@ -167,6 +170,10 @@ impl Viewer {
     }
 
     fn offer(&self, kind: &'static str, body: &impl Serialize) {
+        // With no page open there is no one to drop a frame for: none is made, none counted.
+        if self.pages.receiver_count() == 0 {
+            return;
+        }
         // `try_reserve` is `try_send` with the message built only once there is room for it.
         let Ok(permit) = self.frames.try_reserve() else {
             self.dropped.fetch_add(1, Ordering::Relaxed);
@@ -281,12 +288,19 @@ mod tests {
         // A viewer whose server never takes anything from the queue.
         let (frames, mut queue) = tokio::sync::mpsc::channel(QUEUE_FRAMES);
         let (_command_tx, commands) = mpsc::channel();
+        let pages = broadcast::channel(PAGE_BACKLOG).0;
         let viewer = Viewer {
             addr: SocketAddr::from(([127, 0, 0, 1], 0)),
             frames,
             commands,
             dropped: Arc::new(AtomicU64::new(0)),
+            pages: pages.clone(),
         };
+        // No page open: nothing is queued, nothing counted as dropped.
+        let line = FrameLine::default();
+        viewer.offer_frame(&Frame { line: &line, referencing: None, image: &[0.5] });
+        assert!(viewer.dropped() == 0 && queue.try_recv().is_err());
+        let _page = pages.subscribe();
         for seq in 0..10 {
             let line = FrameLine { seq, ..FrameLine::default() };
             viewer.offer_frame(&Frame { line: &line, referencing: None, image: &[0.5] });
