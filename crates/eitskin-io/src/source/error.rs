@@ -111,6 +111,21 @@ pub enum SourceError {
         /// The number of values in the sensor's frames.
         measurements: usize,
     },
+    /// A table of frames (MAT, NPY) that does not hold the sensor's frames.
+    #[error("{}: {reason}", path.display())]
+    Table {
+        /// The file.
+        path: PathBuf,
+        /// What it holds instead, and what to do.
+        reason: String,
+    },
+    /// A table of frames (MAT, NPY) that cannot be read, as the array reader says it (the file
+    /// named in it).
+    #[error("{message}")]
+    TableRead {
+        /// The reader's whole message.
+        message: String,
+    },
     /// A virtual sensor without a positive frame rate for its clock.
     #[error(
         "the virtual sensor needs a positive frame rate for its clock, not {rate} frames/s; to deliver frames \

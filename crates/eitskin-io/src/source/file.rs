@@ -1,5 +1,6 @@
-//! Files as sources: a recording, replayed at its pace, or a capture of a board's bytes, decoded
-//! and timed at a rate. Both read the file as they deliver it, through a buffer.
+//! Files as sources: a recording, replayed at its pace; a table of frames (MAT, NPY), read whole
+//! and timed at a rate; or a capture of a board's bytes, decoded and timed at a rate. Recordings
+//! and captures are read as they are delivered, through a buffer.
 
 use std::collections::VecDeque;
 use std::fs::File;
@@ -14,8 +15,8 @@ use crate::replay::{Entry, Pace, RecordReader, Speed};
 /// How much of a file is read at once, in bytes.
 const READ_BUFFER: usize = 64 * 1024;
 
-/// Opens `path` as a recording or as a capture, as its first character says (see the
-/// [module doc](super)), for frames of `measurements` values.
+/// Opens `path` as a table of frames (MAT, NPY), a recording or a capture, as its first bytes
+/// say (see the [module doc](super)), for frames of `measurements` values.
 pub(super) fn open(
     path: &Path,
     measurements: usize,
@@ -24,6 +25,9 @@ pub(super) fn open(
     let read_error = |e: std::io::Error| SourceError::Read { path: path.to_path_buf(), reason: e.to_string() };
     let mut reader = BufReader::with_capacity(READ_BUFFER, File::open(path).map_err(read_error)?);
     let head = reader.fill_buf().map_err(read_error)?;
+    if head.starts_with(b"\x93NUMPY") || head.starts_with(b"MATLAB") {
+        return Ok(Box::new(TableSource::open(path, measurements, settings)?));
+    }
     if head.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
         Ok(Box::new(RecordingSource::new(path, reader, measurements, settings.speed)?))
     } else {
@@ -88,6 +92,60 @@ impl FrameSource for RecordingSource {
     }
 }
 
+/// A table of frames from a MAT (v5, v7.3) or NPY file, as published data sets and numpy save
+/// them (MATLAB's frames in columns, numpy's in rows; the file's only numeric array), read whole
+/// and timed as a capture. Complex values come as (re, im) pairs, two numbers per measurement.
+#[derive(Debug)]
+pub struct TableSource {
+    /// Its frames, in order.
+    frames: std::vec::IntoIter<Vec<f64>>,
+    /// The number of the next frame.
+    seq: u64,
+    /// When each frame is timed and delivered.
+    clock: Clock,
+}
+
+impl TableSource {
+    /// The frames of the table in `path`, each of `measurements` values (per measurement, one
+    /// real number, or two for a complex table read with two values a measurement), timed as
+    /// `settings` say.
+    pub fn open(path: &Path, measurements: usize, settings: &SourceSettings) -> Result<TableSource, SourceError> {
+        let table = crate::read_frames(path, &crate::FrameSelect::default())
+            .map_err(|e| SourceError::TableRead { message: crate::full_message(&e) })?;
+        let per = settings.values_per_measurement;
+        let frames: Vec<Vec<f64>> = match (table.imaginary, per) {
+            (Some(imaginary), 2) => table
+                .frames
+                .iter()
+                .zip(&imaginary)
+                .map(|(re, im)| re.iter().zip(im).flat_map(|(r, i)| [*r, *i]).collect())
+                .collect(),
+            (Some(_), _) => {
+                let reason = "holds complex values: read them as (re, im) pairs (`--values complex`)".to_string();
+                return Err(SourceError::Table { path: path.to_path_buf(), reason });
+            }
+            (None, _) => table.frames,
+        };
+        if let Some(first) = frames.first().filter(|f| f.len() != measurements) {
+            let reason = format!(
+                "its frames hold {} values, but the sensor's frames have {measurements}; is it another protocol, or its frames the other way (rows for columns)?",
+                first.len()
+            );
+            return Err(SourceError::Table { path: path.to_path_buf(), reason });
+        }
+        Ok(TableSource { frames: frames.into_iter(), seq: 0, clock: Clock::new(settings.rate, settings.speed) })
+    }
+}
+
+impl FrameSource for TableSource {
+    fn acquire(&mut self) -> Option<Result<Acquired, SourceError>> {
+        let values = self.frames.next()?;
+        let (seq, t) = (self.seq, self.clock.tick());
+        self.seq += 1;
+        Some(Ok(Acquired::Frame { seq, t, values }))
+    }
+}
+
 /// A capture: the bytes a board sends (one frame per text line, or binary frames), saved to a
 /// file, decoded with a [`Codec`]. A capture has no times: frame k is timed at k / rate s and, in
 /// real time, delivered then; without a rate, frames are timed as they are read.
@@ -104,9 +162,17 @@ pub struct CaptureSource {
     pending: VecDeque<Event>,
     /// Whether the file has been read to its end.
     read_all: bool,
-    /// The period of the clock, one frame, if there is a rate.
+    /// When each frame is timed and delivered.
+    clock: Clock,
+}
+
+/// The clock of a file without times: frame k at k / rate s, delivered then in real time;
+/// without a rate, each frame timed as it is read.
+#[derive(Debug)]
+struct Clock {
+    /// One frame, if there is a rate.
     period: Option<Duration>,
-    /// Frames a second of the clock (0: none).
+    /// Frames a second (0: none).
     rate: f64,
     /// Whether to wait until each frame is due.
     wait: bool,
@@ -114,6 +180,31 @@ pub struct CaptureSource {
     delivered: u64,
     /// When the first frame was delivered.
     start: Option<Instant>,
+}
+
+impl Clock {
+    /// At `rate` frames/s (0: none), delivered at `speed`.
+    fn new(rate: f64, speed: Speed) -> Clock {
+        let period = (rate > 0.0).then(|| Duration::try_from_secs_f64(1.0 / rate).ok()).flatten();
+        Clock { period, rate, wait: speed == Speed::Recorded, delivered: 0, start: None }
+    }
+
+    /// The time of the next frame, in s, waiting until it is due in real time.
+    fn tick(&mut self) -> f64 {
+        let k = self.delivered;
+        self.delivered += 1;
+        let start = *self.start.get_or_insert_with(Instant::now);
+        match self.period {
+            Some(period) => {
+                if self.wait {
+                    wait_for_frame(start, period, k);
+                }
+                // k / rate, rounded once.
+                k as f64 / self.rate
+            }
+            None => start.elapsed().as_secs_f64(),
+        }
+    }
 }
 
 impl CaptureSource {
@@ -127,7 +218,6 @@ impl CaptureSource {
         rate: f64,
         speed: Speed,
     ) -> CaptureSource {
-        let period = (rate > 0.0).then(|| Duration::try_from_secs_f64(1.0 / rate).ok()).flatten();
         CaptureSource {
             path: path.to_path_buf(),
             reader,
@@ -135,11 +225,7 @@ impl CaptureSource {
             decoded: Vec::new(),
             pending: VecDeque::new(),
             read_all: false,
-            period,
-            rate,
-            wait: speed == Speed::Recorded,
-            delivered: 0,
-            start: None,
+            clock: Clock::new(rate, speed),
         }
     }
 
@@ -179,23 +265,6 @@ impl CaptureSource {
         self.pending.extend(self.decoded.drain(..));
         Ok(())
     }
-
-    /// The time of the next frame, in s, waiting until it is due in real time.
-    fn clock(&mut self) -> f64 {
-        let k = self.delivered;
-        self.delivered += 1;
-        let start = *self.start.get_or_insert_with(Instant::now);
-        match self.period {
-            Some(period) => {
-                if self.wait {
-                    wait_for_frame(start, period, k);
-                }
-                // k / rate, rounded once.
-                k as f64 / self.rate
-            }
-            None => start.elapsed().as_secs_f64(),
-        }
-    }
 }
 
 impl FrameSource for CaptureSource {
@@ -203,7 +272,7 @@ impl FrameSource for CaptureSource {
         loop {
             match self.pending.pop_front() {
                 Some(Event::Frame(frame)) => {
-                    let t = self.clock();
+                    let t = self.clock.tick();
                     return Some(Ok(Acquired::Frame { seq: frame.seq, t, values: frame.values }));
                 }
                 Some(Event::Bad(bad)) => return Some(Ok(Acquired::Bad(bad))),
@@ -220,12 +289,7 @@ impl FrameSource for CaptureSource {
 
 impl std::fmt::Debug for CaptureSource {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("CaptureSource")
-            .field("path", &self.path)
-            .field("period", &self.period)
-            .field("wait", &self.wait)
-            .field("delivered", &self.delivered)
-            .finish_non_exhaustive()
+        f.debug_struct("CaptureSource").field("path", &self.path).field("clock", &self.clock).finish_non_exhaustive()
     }
 }
 
@@ -249,6 +313,42 @@ mod tests {
 
     fn all(mut source: Box<dyn FrameSource>) -> Vec<Acquired> {
         std::iter::from_fn(|| source.acquire()).map(|item| item.unwrap()).collect()
+    }
+
+    /// An NPY file (version 1.0) of `rows` × `columns` numbers of dtype `descr` from `bytes`.
+    fn npy(path: &Path, descr: &str, [rows, columns]: [usize; 2], bytes: &[u8]) {
+        let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({rows}, {columns}), }}");
+        header += &(" ".repeat(63 - (10 + header.len()) % 64) + "\n");
+        let mut file = b"\x93NUMPY\x01\x00".to_vec();
+        file.extend((header.len() as u16).to_le_bytes());
+        file.extend(header.as_bytes());
+        file.extend(bytes);
+        std::fs::write(path, file).unwrap();
+    }
+
+    /// A numpy table of frames (one per row) is a source of its frames, timed at k / rate; a
+    /// complex one gives (re, im) pairs with two values a measurement and is refused with one;
+    /// frames of another length are refused, saying so.
+    #[test]
+    fn a_table_of_frames_streams_each_row() {
+        let (_dir, path) = scratch("frames.npy");
+        let values: Vec<f64> = (0..12).map(f64::from).collect();
+        npy(&path, "<f8", [3, 4], &values.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>());
+        let frames = all(open(&path, 4, &settings(Codec::Lines, 20.0)).unwrap());
+        let expected: Vec<Acquired> = (0..3)
+            .map(|k| Acquired::Frame { seq: k, t: k as f64 / 20.0, values: values[4 * k as usize..][..4].to_vec() })
+            .collect();
+        assert_eq!(frames, expected);
+        let refused = open(&path, 5, &settings(Codec::Lines, 20.0)).err().unwrap().to_string();
+        assert!(refused.contains("its frames hold 4 values, but the sensor's frames have 5"), "{refused}");
+
+        let complex: Vec<u8> = values.iter().flat_map(|v| [v.to_le_bytes(), (-v).to_le_bytes()].concat()).collect();
+        npy(&path, "<c16", [3, 4], &complex);
+        let pairs = SourceSettings { values_per_measurement: 2, ..settings(Codec::Lines, 20.0) };
+        let Acquired::Frame { values: first, .. } = &all(open(&path, 8, &pairs).unwrap())[0] else { panic!() };
+        assert_eq!(first, &[0.0, -0.0, 1.0, -1.0, 2.0, -2.0, 3.0, -3.0]);
+        let refused = open(&path, 4, &settings(Codec::Lines, 20.0)).err().unwrap().to_string();
+        assert!(refused.contains("holds complex values: read them as (re, im) pairs"), "{refused}");
     }
 
     #[test]

@@ -4,7 +4,9 @@
 //! A [`SourceSpec`] names the source (parsed from `sim`, `sim:SCRIPT`, `file:PATH` or
 //! `serial:PATH[@BAUD]`); [`Source::open`] opens it, checking up front what it can (the script
 //! parses, the file opens and its kind is known, the port opens), and yields [`Acquired`] items
-//! until the source ends or the frame limit is reached:
+//! until the source ends or the frame limit is reached. A file is a recording (it starts with
+//! `{`), a table of frames (MAT or NPY, read whole: a published data set's recording), or else a
+//! capture of a board's bytes:
 //!
 //! * [`Acquired::Frame`]: a frame, with its sequence number, its time in s and its values;
 //! * [`Acquired::Bad`]: input the codec refused ([`BadFrame`], with its place);
