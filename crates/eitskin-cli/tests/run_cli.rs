@@ -245,6 +245,34 @@ fn the_virtual_sensor_calibrated_as_the_paper_does_gives_forces_in_newtons() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("it goes with --source sim"), "{refused:?}");
 }
 
+/// A published recording as a table of frames (NPY, one frame per row): replayed through the
+/// same path as a capture, the press found where the virtual sensor was pressed.
+#[test]
+fn a_table_of_frames_replays_like_a_capture() {
+    let dir = scratch("table");
+    let spec = eitskin::SensorSpec::square_hydrogel();
+    let mut skin = eitskin::sim::VirtualSensor::new(&spec, 7).unwrap();
+    let mut frames: Vec<Vec<f64>> = (0..12).map(|_| skin.frame().unwrap()).collect();
+    skin.press([0.04, -0.05], 10.0);
+    frames.extend((0..3).map(|_| skin.frame().unwrap()));
+    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, 120), }}", frames.len());
+    header += &(" ".repeat(63 - (10 + header.len()) % 64) + "\n");
+    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
+    npy.extend((header.len() as u16).to_le_bytes());
+    npy.extend(header.as_bytes());
+    frames.iter().flatten().for_each(|v| npy.extend(v.to_le_bytes()));
+    let path = dir.join("frames.npy");
+    std::fs::write(&path, npy).unwrap();
+    let source = format!("file:{}", path.display());
+    let out = frames_only(dir.eitskin(&["run", "--source", &source, "--fast"]));
+    assert_eq!(out.len(), 15);
+    for line in &out[12..] {
+        let touch = &line["touches"][0];
+        let (x, y) = (touch["x"].as_f64().unwrap(), touch["y"].as_f64().unwrap());
+        assert!((x - 40.0).hypot(y + 50.0) < 15.0, "{line}");
+    }
+}
+
 /// A source that ends before anything was imaged says so: an empty file is an error (it used
 /// to end with the start line alone and exit 0), and a run that ends before its reference is
 /// taken warns that nothing was imaged.
