@@ -410,15 +410,10 @@ fn samples_and_references_that_cannot_go_together_are_refused() {
     let channels: Vec<String> = (1..=120).map(|m| format!("v{m}")).collect();
     let values = vec!["1.0"; 120].join(",");
     std::fs::write(&samples, format!("x,y,force,{}\n10,20,5,{values}\n", channels.join(","))).unwrap();
-    // Three frames of 120 complex values (NPY version 1.0, little-endian complex128).
-    let mut header = "{'descr': '<c16', 'fortran_order': False, 'shape': (3, 120), }".to_string();
-    header += &(" ".repeat(63 - (10 + header.len()) % 64) + "\n");
-    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
-    npy.extend((header.len() as u16).to_le_bytes());
-    npy.extend(header.as_bytes());
-    (0..360).for_each(|_| npy.extend([1.0f64.to_le_bytes(), 0.1f64.to_le_bytes()].concat()));
+    // Three frames of 120 complex values, 1 + 0.1i each.
+    let values: Vec<u8> = (0..360).flat_map(|_| [1.0f64.to_le_bytes(), 0.1f64.to_le_bytes()].concat()).collect();
     let reference = dir.join("rest.npy");
-    std::fs::write(&reference, npy).unwrap();
+    std::fs::write(&reference, eitskin_testdata::npy("<c16", [3, 120], &values)).unwrap();
     let (s, r) = (samples.to_str().unwrap(), reference.to_str().unwrap());
     let out_path = dir.join("c.json");
     let o = out_path.to_str().unwrap();

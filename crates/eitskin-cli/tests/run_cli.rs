@@ -255,14 +255,9 @@ fn a_table_of_frames_replays_like_a_capture() {
     let mut frames: Vec<Vec<f64>> = (0..12).map(|_| skin.frame().unwrap()).collect();
     skin.press([0.04, -0.05], 10.0);
     frames.extend((0..3).map(|_| skin.frame().unwrap()));
-    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, 120), }}", frames.len());
-    header += &(" ".repeat(63 - (10 + header.len()) % 64) + "\n");
-    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
-    npy.extend((header.len() as u16).to_le_bytes());
-    npy.extend(header.as_bytes());
-    frames.iter().flatten().for_each(|v| npy.extend(v.to_le_bytes()));
+    let values: Vec<u8> = frames.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
     let path = dir.join("frames.npy");
-    std::fs::write(&path, npy).unwrap();
+    std::fs::write(&path, eitskin_testdata::npy("<f8", [frames.len(), 120], &values)).unwrap();
     let source = format!("file:{}", path.display());
     let out = frames_only(dir.eitskin(&["run", "--source", &source, "--fast"]));
     assert_eq!(out.len(), 15);

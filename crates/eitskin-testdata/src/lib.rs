@@ -50,6 +50,19 @@ pub fn max_relative_error(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
 }
 
+/// The bytes of an NPY file (version 1.0, C order) of `rows` × `columns` values of numpy dtype
+/// `descr` (`"<f8"`, `"<c16"`, …), `data` their little-endian bytes: numpy's format, without numpy.
+pub fn npy(descr: &str, [rows, columns]: [usize; 2], data: &[u8]) -> Vec<u8> {
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({rows}, {columns}), }}");
+    // Magic, version and length take 10 bytes; the header ends in a newline at a multiple of 64.
+    header += &(" ".repeat(63 - (10 + header.len()) % 64) + "\n");
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend(u16::try_from(header.len()).expect("a short header").to_le_bytes());
+    bytes.extend(header.as_bytes());
+    bytes.extend(data);
+    bytes
+}
+
 /// The bytes of a MAT v5 file (uncompressed, little-endian, as MATLAB's `-v6` writes) holding
 /// real double matrices, each `(name, rows, columns, values in column-major order)`: test
 /// input in the format published EIT data come in, without MATLAB.

@@ -315,15 +315,9 @@ mod tests {
         std::iter::from_fn(|| source.acquire()).map(|item| item.unwrap()).collect()
     }
 
-    /// An NPY file (version 1.0) of `rows` × `columns` numbers of dtype `descr` from `bytes`.
-    fn npy(path: &Path, descr: &str, [rows, columns]: [usize; 2], bytes: &[u8]) {
-        let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({rows}, {columns}), }}");
-        header += &(" ".repeat(63 - (10 + header.len()) % 64) + "\n");
-        let mut file = b"\x93NUMPY\x01\x00".to_vec();
-        file.extend((header.len() as u16).to_le_bytes());
-        file.extend(header.as_bytes());
-        file.extend(bytes);
-        std::fs::write(path, file).unwrap();
+    /// An NPY file of `rows` × `columns` numbers of dtype `descr` from `bytes`.
+    fn npy(path: &Path, descr: &str, shape: [usize; 2], bytes: &[u8]) {
+        std::fs::write(path, eitskin_testdata::npy(descr, shape, bytes)).unwrap();
     }
 
     /// A numpy table of frames (one per row) is a source of its frames, timed at k / rate; a
