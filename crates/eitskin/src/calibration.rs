@@ -368,6 +368,14 @@ pub struct Sample {
     pub place: Option<[f64; 2]>,
 }
 
+impl Sample {
+    /// The sample of a press of `force` (N) labelled at `place` (m) in `area` (0-based), whose
+    /// touch gave `reading`.
+    pub fn read(area: usize, force: f64, place: [f64; 2], reading: Reading) -> Sample {
+        Sample { area, force, peak: reading.value, std: reading.std, place: Some(place) }
+    }
+}
+
 /// A per-area calibration: one curve per area, indexed by the 0-based area.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Calibration {

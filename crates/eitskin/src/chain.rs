@@ -349,13 +349,10 @@ impl Chain {
                 let touches = self
                     .process(reference, &labelled.frame)
                     .map_err(|source| ChainError::Frame { sample: k + 1, source })?;
-                Ok(touches.first().and_then(|t| t.reading).map(|reading| Sample {
-                    area: array.area_of(unit),
-                    force: labelled.force,
-                    peak: reading.value,
-                    std: reading.std,
-                    place: Some(labelled.position),
-                }))
+                Ok(touches
+                    .first()
+                    .and_then(|t| t.reading)
+                    .map(|reading| Sample::read(array.area_of(unit), labelled.force, labelled.position, reading)))
             })
             .collect()
     }

@@ -121,13 +121,7 @@ pub fn samples(array: &PseudoArray, frames: &[LabelledFrame], found: &[Option<To
         .filter_map(|(labelled, touch)| {
             let reading = touch.as_ref()?.reading?;
             let unit = array.unit_at(labelled.position)?;
-            Some(Sample {
-                area: array.area_of(unit),
-                force: labelled.force,
-                peak: reading.value,
-                std: reading.std,
-                place: Some(labelled.position),
-            })
+            Some(Sample::read(array.area_of(unit), labelled.force, labelled.position, reading))
         })
         .collect()
 }

@@ -87,6 +87,25 @@ pub struct GpScratch {
     partial: Vec<AtomicU64>,
 }
 
+/// Each output's mean and standard deviation over `targets` (N rows of T outputs; 1 for an
+/// output that does not vary) and the targets standardised by them, N × T.
+pub(super) fn standardised(targets: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>, Mat<f64>) {
+    let (n, outputs) = (targets.len(), targets.first().map_or(0, Vec::len));
+    let mean: Vec<f64> = (0..outputs).map(|t| targets.iter().map(|r| r[t]).sum::<f64>() / n as f64).collect();
+    let std: Vec<f64> = (0..outputs)
+        .map(|t| {
+            let v = targets.iter().map(|r| (r[t] - mean[t]).powi(2)).sum::<f64>() / n as f64;
+            if v > 0.0 {
+                v.sqrt()
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let y = Mat::from_fn(n, outputs, |i, t| (targets[i][t] - mean[t]) / std[t]);
+    (mean, std, y)
+}
+
 /// Squared distances between the rows of `a` and `b` (|a|² + |b|² − 2a·b, floored at 0).
 pub(super) fn squared_distances(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let gram = a * b.transpose();
@@ -107,19 +126,7 @@ impl GaussianProcess {
             return None;
         }
         let x = Mat::from_fn(n, dimensions, |i, k| points[i][k]);
-        let target_mean: Vec<f64> =
-            (0..outputs).map(|t| targets.iter().map(|r| r[t]).sum::<f64>() / n as f64).collect();
-        let target_std: Vec<f64> = (0..outputs)
-            .map(|t| {
-                let v = targets.iter().map(|r| (r[t] - target_mean[t]).powi(2)).sum::<f64>() / n as f64;
-                if v > 0.0 {
-                    v.sqrt()
-                } else {
-                    1.0
-                }
-            })
-            .collect();
-        let y = Mat::from_fn(n, outputs, |i, t| (targets[i][t] - target_mean[t]) / target_std[t]);
+        let (target_mean, target_std, y) = standardised(targets);
         let distances = squared_distances(&x, &x);
         let gram = &x * x.transpose();
         let dims = dimensions as f64;

@@ -11,7 +11,7 @@
 use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};
 
-use super::gp::{squared_distances, LENGTH_SCALES, NOISE_VARIANCES};
+use super::gp::{squared_distances, standardised, LENGTH_SCALES, NOISE_VARIANCES};
 use super::{check, Errors, LabelledPress, LearnError, Standardiser, Tally};
 
 /// Kernel ridge fitted to labelled presses: the z-scoring, the training points and weights.
@@ -55,20 +55,7 @@ impl KernelRidge {
             z.iter().enumerate().for_each(|(k, v)| points[(i, k)] = *v);
         }
         let targets: Vec<Vec<f64>> = presses.iter().map(|p| targets(p)).collect();
-        let outputs = targets[0].len();
-        let n = presses.len() as f64;
-        let target_mean: Vec<f64> = (0..outputs).map(|t| targets.iter().map(|r| r[t]).sum::<f64>() / n).collect();
-        let target_std: Vec<f64> = (0..outputs)
-            .map(|t| {
-                let v = targets.iter().map(|r| (r[t] - target_mean[t]).powi(2)).sum::<f64>() / n;
-                if v > 0.0 {
-                    v.sqrt()
-                } else {
-                    1.0
-                }
-            })
-            .collect();
-        let y = Mat::from_fn(presses.len(), outputs, |i, t| (targets[i][t] - target_mean[t]) / target_std[t]);
+        let (target_mean, target_std, y) = standardised(&targets);
         let scale = 1.0 / (2.0 * length_scale * length_scale * used as f64);
         let distances = squared_distances(&points, &points);
         let kernel = Mat::from_fn(presses.len(), presses.len(), |i, j| {
