@@ -396,7 +396,10 @@ impl Calibration {
     /// curve's [`spread`](Curve::spread) is its error less what the samples' own noise (their
     /// `std`, where known) explains: the error on places it did not see where its samples name
     /// three places or more (up to [`PLACE_FOLDS`]-fold cross-validation, each place's samples
-    /// held out together), else its residual.
+    /// held out together), else its residual. A spread measured on n places is known to n − 1
+    /// degrees of freedom ν: the error at a new place is Student's t, whose standard deviation
+    /// is the spread's times √(ν/(ν − 2)) (×1.29 for the paper's six places; ν held at 3 or
+    /// more).
     pub fn fit_strength(samples: &[Sample], areas: usize, strength: Strength) -> Result<Calibration, CalibrationError> {
         if areas == 0 {
             return Err(CalibrationError::NoAreas);
@@ -422,10 +425,11 @@ impl Calibration {
                 }
                 let mut curve = Curve::fit(area, &forces[area], &peaks[area])?;
                 let own: Vec<&Sample> = samples.iter().filter(|s| s.area == area).collect();
-                let error = held_out_variance(&own).unwrap_or(curve.spread.powi(2));
+                let (error, places) = held_out_variance(&own).unwrap_or((curve.spread.powi(2), usize::MAX));
                 let noise: Vec<f64> = own.iter().filter_map(|s| s.std).filter(|s| s.is_finite()).collect();
                 let variance = noise.iter().map(|s| s * s).sum::<f64>() / noise.len().max(1) as f64;
-                curve.spread = (error - variance).max(0.0).sqrt();
+                let freedom = places.saturating_sub(1).max(3) as f64;
+                curve.spread = ((error - variance).max(0.0) * freedom / (freedom - 2.0)).sqrt();
                 Ok(curve)
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -507,9 +511,9 @@ pub struct ForceErrors {
 pub const PLACE_FOLDS: usize = 10;
 
 /// The mean squared error, in the strength's unit squared, of curves fitted without each fold
-/// of places on the samples of that fold: every sample's place known and three places or more,
-/// else `None` (so too when no fold leaves a curve that fits).
-fn held_out_variance(samples: &[&Sample]) -> Option<f64> {
+/// of places on the samples of that fold, and the number of places: every sample's place known
+/// and three places or more, else `None` (so too when no fold leaves a curve that fits).
+fn held_out_variance(samples: &[&Sample]) -> Option<(f64, usize)> {
     let places: Vec<[f64; 2]> = samples.iter().map(|s| s.place).collect::<Option<_>>()?;
     let mut distinct: Vec<[f64; 2]> = Vec::new();
     let fold_of: Vec<usize> = places
@@ -537,7 +541,7 @@ fn held_out_variance(samples: &[&Sample]) -> Option<f64> {
             count += 1;
         }
     }
-    (count > 0).then(|| squared / count as f64)
+    (count > 0).then(|| (squared / count as f64, distinct.len()))
 }
 
 /// RMS error (N), RMS as % of the largest true force, Pearson correlation, mean absolute error (N).
@@ -1188,7 +1192,8 @@ mod tests {
                 count += 1;
             }
         }
-        let expected = (squared / f64::from(count)).sqrt();
+        // Known to 5 degrees of freedom: Student's t's standard deviation, √(5/3) times.
+        let expected = (squared / f64::from(count) * 5.0 / 3.0).sqrt();
         assert!((crossed.spread - expected).abs() < 1e-12 * expected, "{} against {expected}", crossed.spread);
         assert!(crossed.spread > 1.1 * residual.spread, "{} {}", crossed.spread, residual.spread);
         // Two places: the residual's.
