@@ -70,11 +70,13 @@ impl LearnedModel {
     /// forces, depths : array_like, shape (presses,), optional
     ///     Each press's force (N) and indenter depth (m), when labelled.
     /// method : str, optional
-    ///     "knn-K" (K ≥ 1) or "gp", either with "-shape" or "-press"; by default the one with the
-    ///     smallest `folds`-fold cross-validated position error.
+    ///     "knn-K" (K ≥ 1) or "gp", either with "-shape" or "-press", or "curve-press" (the
+    ///     physics alone) or "gp-curve-press" (with a learned residual); by default the one whose
+    ///     `folds`-fold cross-validated errors are least, position and force (and depth) each
+    ///     relative to the best candidate's, as `eitskin learn` chooses.
     /// spec : SensorSpec, optional
-    ///     The sensor as specified: with it (and Δv of its protocol's length), the "-press"
-    ///     methods, on the press fitted to Δv, are candidates too.
+    ///     The sensor as specified: with it (and Δv of its protocol's length), the methods on the
+    ///     press fitted to Δv are candidates too.
     /// folds : int, default 5
     ///     Folds of the cross-validation, 2 to 20.
     ///

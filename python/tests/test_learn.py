@@ -30,7 +30,7 @@ def test_robot_presses_are_arrays_in_metres_and_newtons(spec, presses):
 def test_press_features_place_held_out_presses_within_millimetres(spec, presses):
     dv, positions, forces = presses
     model = eitskin.LearnedModel.train(dv[:100], positions[:100], forces=forces[:100], spec=spec)
-    assert model.method == "gp-press"
+    assert model.method in ("gp-press", "gp-curve-press")  # chosen by cross-validation
     assert 0 in model.dead_channels
     errors, force_errors = [], []
     for k in range(100, 140):

@@ -29,8 +29,8 @@ pub struct Args {
     /// Samples to report the trained model's error on (held out of training).
     #[arg(long)]
     held_out: Option<PathBuf>,
-    /// Reference (no-touch) frame, when the samples hold raw frames: each press's Δv is its
-    /// frame less this one.
+    /// Frames at rest (one, or many: their mean), when the samples hold raw frames: each
+    /// press's Δv is its frame less this reference. Text, MAT or NPY, as `calibrate` reads them.
     #[arg(long)]
     reference: Option<PathBuf>,
     /// Learning curves: every method trained on the first N = 25, 50, 100, 200, 500, 1000
@@ -45,7 +45,9 @@ pub struct Args {
     #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of folds", 2, 20))]
     folds: usize,
     /// Train this method instead of choosing: knn-K (K ≥ 1) or gp, either with -shape or -press
-    /// (the press fitted on the spec's sensor as specified; Δv of the protocol's length only).
+    /// (the press fitted on the spec's sensor as specified; Δv of the protocol's length only),
+    /// or on the fitted press curve-press (the physics alone) or gp-curve-press (with a learned
+    /// residual).
     #[arg(long)]
     method: Option<String>,
 }
@@ -121,9 +123,26 @@ fn presses(path: &Path, spec: &SensorSpec, reference: Option<&(PathBuf, Vec<f64>
     Ok(presses)
 }
 
-/// The reference frame at `path`, if given, with its path.
+/// The reference frame at `path`, if given, with its path: the mean of the frames it holds (one,
+/// or many at rest, read as `calibrate --reference` reads them).
 fn reference(path: Option<&Path>) -> Result<Option<(PathBuf, Vec<f64>)>> {
-    path.map(|p| Ok((p.to_path_buf(), eitskin_io::read_frame(p)?))).transpose()
+    let Some(path) = path else { return Ok(None) };
+    let table = eitskin_io::read_frames(path, &eitskin_io::FrameSelect::default())?;
+    if table.imaginary.is_some() {
+        bail!(
+            "--reference {}: holds complex values; give the frames at rest as the samples hold them, (re, im) pairs or magnitudes, as real numbers",
+            path.display()
+        );
+    }
+    let Some(first) = table.frames.first() else { bail!("--reference {}: holds no frame", path.display()) };
+    let mut mean = vec![0.0; first.len()];
+    for (k, frame) in table.frames.iter().enumerate() {
+        if let Some(c) = frame.iter().position(|v| !v.is_finite()) {
+            bail!("--reference {}: frame {} channel {} is not a number", path.display(), k + 1, c + 1);
+        }
+        mean.iter_mut().zip(frame).for_each(|(m, v)| *m += v / table.frames.len() as f64);
+    }
+    Ok(Some((path.to_path_buf(), mean)))
 }
 
 /// Runs `eitskin learn`.
@@ -140,7 +159,7 @@ pub fn run(args: Args) -> Result<()> {
         .as_deref()
         .map(|m| {
             Method::from_name(m).with_context(|| {
-                format!("{m:?} is not a method: give knn-K (K ≥ 1) or gp, either with -shape or -press")
+                format!("{m:?} is not a method: give knn-K (K ≥ 1) or gp, either with -shape or -press, or curve-press or gp-curve-press")
             })
         })
         .transpose()?;

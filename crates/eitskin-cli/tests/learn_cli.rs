@@ -48,7 +48,10 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     assert!(out.contains("  gp-shape ") && out.contains("N=100"), "{out}");
     // On the press fitted to Δv on the spec's sensor, chosen by cross-validation: what `run`
     // then answers with, live.
-    assert!(out.contains("trained gp-press on 100 presses") && out.contains("force RMS (N) on 40"), "{out}");
+    let trained = out.lines().find(|l| l.starts_with("trained ")).unwrap_or_default();
+    assert!(trained.contains("-press on 100 presses") && out.contains("force RMS (N) on 40"), "{out}");
+    // The physics alone and with its learned residual are compared with the rest.
+    assert!(out.contains("\n  curve-press ") && out.contains("\n  gp-curve-press "), "{out}");
     let file: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     assert_eq!((file["format"].as_str(), file["channels"].as_u64()), (Some("eitskin-learned-model"), Some(120)));
 

@@ -113,7 +113,7 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     let mut skin = ImperfectSkin::new(&spec, &Imperfections::default(), 5).unwrap();
     let presses = skin.robot_presses(60, 0.08, 2.0..16.0).unwrap();
     let sensor = NominalSensor::of_spec(&spec, None).unwrap();
-    for name in ["gp-shape", "knn-5", "gp-press"] {
+    for name in ["gp-shape", "knn-5", "gp-press", "curve-press", "gp-curve-press"] {
         let model = train(&presses, Method::from_name(name).unwrap(), Some(&sensor)).unwrap();
         let mut scratch = PredictScratch::default();
         assert!(model.predict(&presses[0].inputs, &mut scratch).is_some());

@@ -127,3 +127,39 @@ fn depths_are_learned_when_the_presses_have_them() {
     let refused = train(&mixed, Method::knn(5), None).unwrap_err();
     assert_eq!(refused, eitskin::learn::LearnError::MixedDepths { press: 4 });
 }
+
+/// The physics alone (the fitted centre, and the force its drop gives on one curve) cannot
+/// learn that the skin is larger than its spec; with a Gaussian process on what it gets wrong
+/// it places presses as well as the process on the fitted press, and keeps the physics' forces
+/// where presses are few.
+#[test]
+fn the_physics_and_its_learned_residual_each_mend_the_other() {
+    let (spec, mut skin) = skin(14);
+    let sensor = NominalSensor::of_spec(&spec, None).unwrap();
+    let held_out = skin.robot_presses(200, 0.08, 2.0..16.0).unwrap();
+    let training = skin.robot_presses(100, 0.08, 2.0..16.0).unwrap();
+    let names = ["gp-press", "curve-press", "gp-curve-press"];
+    let errors = |n: usize| {
+        let errors = names.map(|name| {
+            let model = train(&training[..n], Method::from_name(name).unwrap(), Some(&sensor)).unwrap();
+            let errors = evaluate(&model, &held_out);
+            (errors.mean_position, errors.force_rms.unwrap())
+        });
+        let line: Vec<String> =
+            names.iter().zip(&errors).map(|(name, (p, f))| format!("{name} {:.1} mm {f:.2} N", p * 1e3)).collect();
+        eprintln!("{n} presses: {}", line.join(", "));
+        errors
+    };
+    // Few presses: the physics reads forces better than a process on the fitted press, and the
+    // residual keeps most of that.
+    let [gp, physics, both] = errors(25);
+    assert!(physics.1 <= gp.1 && both.1 <= gp.1, "25 presses: {physics:?} {both:?} {gp:?}");
+    // More: the residual has learned the outline's size the physics cannot know.
+    let [gp, physics, both] = errors(100);
+    assert!(both.0 <= 0.7 * physics.0 && both.0 <= 1.1 * gp.0, "100 presses: {both:?} {physics:?} {gp:?}");
+    assert!(both.1 <= gp.1, "100 presses: {both:?} {gp:?}");
+    // The physics' force comes with its curve's spread, the residual's with the process's.
+    let model = train(&training, Method::from_name("curve-press").unwrap(), Some(&sensor)).unwrap();
+    let answer = model.predict(&held_out[0].inputs, &mut PredictScratch::default()).unwrap();
+    assert!(answer.position_std.is_none() && answer.force_std.is_some_and(|s| s > 0.0), "{answer:?}");
+}

@@ -11,6 +11,10 @@
 //! as specified ([`Features`]; [`PressFeatures`], given a [`NominalSensor`]): physics features
 //! that are nearly the label already, so that 100 presses teach what the spec got wrong.
 //!
+//! and, on press features, the physics alone ([`RegressorKind::Curve`]: the fitted centre, and
+//! the force its drop gives on one calibration curve) or the physics with a Gaussian process on
+//! what it gets wrong ([`RegressorKind::CurveResidual`]).
+//!
 //! [`choose`] picks one by k-fold cross-validation on the training presses alone; [`baseline`]
 //! scores the plain kernel ridge a user would try first on the same folds, to say whether the
 //! choice beats it.
@@ -35,12 +39,14 @@
 //! # Ok::<(), eitskin::learn::LearnError>(())
 //! ```
 
+mod curve;
 mod gp;
 mod kernel_ridge;
 mod knn;
 mod press_features;
 mod standardise;
 
+pub use curve::PressCurves;
 pub use gp::{GaussianProcess, GpScratch, LENGTH_SCALES, LINEAR_WEIGHTS, NOISE_VARIANCES};
 pub use kernel_ridge::{baseline, evaluate_baseline, Baseline, KernelRidge};
 pub use knn::Knn;
@@ -48,6 +54,8 @@ pub use press_features::{FeatureScratch, NominalSensor, PressFeatures, NOISE_FLO
 pub use standardise::{Standardiser, DEAD_SPREAD};
 
 use thiserror::Error;
+
+use crate::press_fit::PressFit;
 
 /// What is wrong with a training set or a frame.
 #[derive(Debug, PartialEq, Error)]
@@ -102,6 +110,15 @@ pub enum LearnError {
     /// The spec does not make a sensor.
     #[error("the sensor spec does not make a sensor")]
     Spec(#[from] crate::SpecError),
+    /// A method that reads the fitted press was given other features.
+    #[error("{method} reads the press fitted on the sensor as specified: give it press features")]
+    NotPressFeatures {
+        /// The method's name.
+        method: String,
+    },
+    /// The physical curve could not be fitted to the presses' labels.
+    #[error("no curve of the label on the fitted press's drop")]
+    Curve(#[from] crate::calibration::CalibrationError),
     /// The sensor as specified could not be solved.
     #[error("the sensor as specified could not be solved")]
     Forward(#[from] crate::ForwardError),
@@ -142,6 +159,19 @@ pub enum RegressorKind {
     },
     /// Gaussian-process regression on z-scored features.
     GaussianProcess,
+    /// The physics alone ([`PressCurves`]): the fitted press's centre, and the force (and
+    /// depth) its drop gives on one curve fitted to the training presses. Press features only.
+    Curve,
+    /// [`RegressorKind::Curve`] plus a Gaussian process on what it gets wrong: the physics
+    /// where presses are few, corrected where they teach. Press features only.
+    CurveResidual,
+}
+
+impl RegressorKind {
+    /// Whether it reads the fitted press itself (and so needs press features).
+    pub const fn reads_press(self) -> bool {
+        matches!(self, RegressorKind::Curve | RegressorKind::CurveResidual)
+    }
 }
 
 /// What the regressor sees of a press's channels.
@@ -165,20 +195,31 @@ impl Method {
     }
 
     /// The methods [`choose`] tries: k = 1, 3, 5, 10 neighbours and the Gaussian process, each on
-    /// raw and on shape features, and on press features when `sensor` (the spec is known).
+    /// raw and on shape features, and on press features when `sensor` (the spec is known),
+    /// with the physical curve alone and with its learned residual.
     pub fn candidates(sensor: bool) -> Vec<Method> {
         let regressors =
             [1, 3, 5, 10].map(|k| RegressorKind::Knn { k }).into_iter().chain([RegressorKind::GaussianProcess]);
         let features: &[Features] =
             if sensor { &[Features::Raw, Features::Shape, Features::Press] } else { &[Features::Raw, Features::Shape] };
-        regressors.flat_map(|regressor| features.iter().map(move |&features| Method { regressor, features })).collect()
+        let physics = [RegressorKind::Curve, RegressorKind::CurveResidual]
+            .into_iter()
+            .filter(|_| sensor)
+            .map(|regressor| Method { regressor, features: Features::Press });
+        regressors
+            .flat_map(|regressor| features.iter().map(move |&features| Method { regressor, features }))
+            .chain(physics)
+            .collect()
     }
 
-    /// Its name, as files and reports write it ("knn-5", "gp", "gp-shape", "gp-press").
+    /// Its name, as files and reports write it ("knn-5", "gp", "gp-shape", "gp-press",
+    /// "curve-press", "gp-curve-press").
     pub fn name(&self) -> String {
         let base = match self.regressor {
             RegressorKind::Knn { k } => format!("knn-{k}"),
             RegressorKind::GaussianProcess => "gp".into(),
+            RegressorKind::Curve => "curve".into(),
+            RegressorKind::CurveResidual => "gp-curve".into(),
         };
         match self.features {
             Features::Raw => base,
@@ -196,6 +237,14 @@ impl Method {
         };
         let regressor = if base == "gp" {
             RegressorKind::GaussianProcess
+        } else if let Some(regressor) = [("curve", RegressorKind::Curve), ("gp-curve", RegressorKind::CurveResidual)]
+            .into_iter()
+            .find_map(|(name, regressor)| (name == base).then_some(regressor))
+        {
+            if features != Features::Press {
+                return None;
+            }
+            regressor
         } else {
             let k: usize = base.strip_prefix("knn-")?.parse().ok()?;
             if k == 0 {
@@ -230,6 +279,13 @@ pub enum Regressor {
     Knn(Knn),
     /// A Gaussian process.
     GaussianProcess(GaussianProcess),
+    /// The physical answer, and a Gaussian process on what it gets wrong where trained with one.
+    Curve {
+        /// The curves of the labels on the fitted drop.
+        curves: PressCurves,
+        /// The process on the physical answer's error, for [`RegressorKind::CurveResidual`].
+        residual: Option<GaussianProcess>,
+    },
 }
 
 /// A trained model: frame → position (m), force (N) when trained with forces, uncertainty.
@@ -262,7 +318,8 @@ pub struct Prediction {
     /// The predictive standard deviation of the position (the larger of x and y), in m; only
     /// a Gaussian process gives one.
     pub position_std: Option<f64>,
-    /// The predictive standard deviation of the force, in N.
+    /// The predictive standard deviation of the force, in N (a Gaussian process's, or the
+    /// physical curve's).
     pub force_std: Option<f64>,
     /// How deep, in m, when the model was trained with depths.
     pub depth: Option<f64>,
@@ -309,6 +366,9 @@ pub fn train(
     sensor: Option<&NominalSensor>,
 ) -> Result<LearnedModel, LearnError> {
     let (forces, depths) = check(presses, 2)?;
+    if method.regressor.reads_press() && method.features != Features::Press {
+        return Err(LearnError::NotPressFeatures { method: method.name() });
+    }
     let press = match method.features {
         Features::Press => Some(PressFeatures::fit(sensor.ok_or(LearnError::NoSensor)?, presses)?),
         _ => None,
@@ -321,15 +381,18 @@ pub fn train(
         return Err(LearnError::FewLikePresses { like: presses.len(), given: presses.len() + left_out.len() });
     }
     let mut scratch = FeatureScratch::default();
+    // Every press kept has a fitted press: `unlike` tried the same.
+    let fits: Vec<PressFit> = match &press {
+        Some(press) => presses.iter().filter_map(|p| press.press_into(&p.inputs, &mut scratch)).collect(),
+        None => Vec::new(),
+    };
     let inputs: Vec<Vec<f64>> = presses
         .iter()
-        .map(|p| {
+        .enumerate()
+        .map(|(i, p)| {
             let mut f = Vec::new();
-            match &press {
-                // Every press kept gives features: `unlike` tried the same.
-                Some(press) => {
-                    press.features_into(&p.inputs, &mut scratch, &mut f);
-                }
+            match fits.get(i) {
+                Some(fit) => PressFeatures::of_press_into(fit, &mut f),
                 None => method.features.of_into(&p.inputs, &mut f),
             }
             f
@@ -347,7 +410,7 @@ pub fn train(
             z
         })
         .collect();
-    let targets: Vec<Vec<f64>> = presses
+    let mut targets: Vec<Vec<f64>> = presses
         .iter()
         .map(|p| {
             let mut t = p.position.to_vec();
@@ -356,13 +419,28 @@ pub fn train(
             t
         })
         .collect();
+    // A linear term is the physics of press features (the fitted position is nearly the
+    // label up to a linear map); on channels it over-fits (at N = 100: 9.7 → 10.7 mm).
+    let linear: &[f64] = if press.is_some() { &LINEAR_WEIGHTS } else { &[0.0] };
     let regressor = match method.regressor {
         RegressorKind::Knn { k } => Regressor::Knn(Knn::new(k, &points, &targets)),
         RegressorKind::GaussianProcess => {
-            // A linear term is the physics of press features (the fitted position is nearly the
-            // label up to a linear map); on channels it over-fits (at N = 100: 9.7 → 10.7 mm).
-            let linear: &[f64] = if press.is_some() { &LINEAR_WEIGHTS } else { &[0.0] };
             Regressor::GaussianProcess(GaussianProcess::fit(&points, &targets, linear).ok_or(LearnError::NotFitted)?)
+        }
+        RegressorKind::Curve | RegressorKind::CurveResidual => {
+            let curves = PressCurves::fit(&fits, &presses)?;
+            let residual = if method.regressor == RegressorKind::CurveResidual {
+                // What the physics gets wrong, press by press.
+                let (mut answer, mut std) = ([0.0; 4], [0.0; 4]);
+                for (t, fit) in targets.iter_mut().zip(&fits) {
+                    curves.answer_into(fit, &mut answer, &mut std);
+                    t.iter_mut().zip(answer).for_each(|(t, a)| *t -= a);
+                }
+                Some(GaussianProcess::fit(&points, &targets, linear).ok_or(LearnError::NotFitted)?)
+            } else {
+                None
+            };
+            Regressor::Curve { curves, residual }
         }
     };
     Ok(LearnedModel { method, standardiser, regressor, forces, depths, press, left_out })
@@ -396,37 +474,53 @@ impl LearnedModel {
             return None;
         }
         let used = self.standardiser.used().len();
-        match &self.press {
+        let fit = match &self.press {
             Some(press) => {
-                if !press.features_into(frame, &mut scratch.press, &mut scratch.features) {
-                    return None;
-                }
+                let fit = press.press_into(frame, &mut scratch.press)?;
+                PressFeatures::of_press_into(&fit, &mut scratch.features);
+                Some(fit)
             }
-            None => self.method.features.of_into(frame, &mut scratch.features),
-        }
-        scratch.z.resize(used, 0.0);
-        self.standardiser.apply_into(&scratch.features, &mut scratch.z);
-        let (mut out, mut std) = ([f64::NAN; 4], [f64::NAN; 4]);
-        let outputs = 2 + usize::from(self.forces) + usize::from(self.depths);
-        let gives_std = match &self.regressor {
-            Regressor::Knn(knn) => {
-                knn.predict_into(&scratch.z, &mut scratch.nearest, &mut out[..outputs]);
-                false
-            }
-            Regressor::GaussianProcess(gp) => {
-                gp.predict_into(&scratch.z, &mut scratch.gp, &mut out[..outputs], &mut std[..outputs]);
-                true
+            None => {
+                self.method.features.of_into(frame, &mut scratch.features);
+                None
             }
         };
+        scratch.z.resize(used, 0.0);
+        self.standardiser.apply_into(&scratch.features, &mut scratch.z);
+        // Each output's answer and standard deviation (NaN where the regressor gives none).
+        let (mut out, mut std) = ([f64::NAN; 4], [f64::NAN; 4]);
+        let outputs = 2 + usize::from(self.forces) + usize::from(self.depths);
+        match &self.regressor {
+            Regressor::Knn(knn) => knn.predict_into(&scratch.z, &mut scratch.nearest, &mut out[..outputs]),
+            Regressor::GaussianProcess(gp) => {
+                gp.predict_into(&scratch.z, &mut scratch.gp, &mut out[..outputs], &mut std[..outputs]);
+            }
+            Regressor::Curve { curves, residual } => {
+                curves.answer_into(&fit?, &mut out, &mut std);
+                if let Some(gp) = residual {
+                    let (mut correction, mut correction_std) = ([0.0; 4], [0.0; 4]);
+                    gp.predict_into(
+                        &scratch.z,
+                        &mut scratch.gp,
+                        &mut correction[..outputs],
+                        &mut correction_std[..outputs],
+                    );
+                    out.iter_mut().zip(correction).for_each(|(o, c)| *o += c);
+                    // The physics is a function of the frame: its error is what the process knows.
+                    std = correction_std;
+                }
+            }
+        }
+        let known = |s: f64| s.is_finite().then_some(s);
         // Outputs: x, y, then the force and the depth when trained with them.
         let depth = 2 + usize::from(self.forces);
         Some(Prediction {
             position: [out[0], out[1]],
             force: self.forces.then_some(out[2]),
-            position_std: gives_std.then(|| std[0].max(std[1])),
-            force_std: (gives_std && self.forces).then_some(std[2]),
+            position_std: known(std[0].max(std[1])),
+            force_std: self.forces.then(|| known(std[2])).flatten(),
             depth: self.depths.then_some(out[depth]),
-            depth_std: (gives_std && self.depths).then_some(std[depth]),
+            depth_std: self.depths.then(|| known(std[depth])).flatten(),
         })
     }
 }
@@ -536,10 +630,12 @@ impl Tally {
 /// A candidate's cross-validated errors, or why it could not be cross-validated.
 pub type Score = (Method, Result<Errors, LearnError>);
 
-/// The candidate with the smallest cross-validated mean position error, and every candidate's
-/// errors (in the order given), or why it could not be cross-validated on these presses (it is
-/// then left out of the choice); press features need `sensor`. An error only when no candidate
-/// could be: the first one's.
+/// The candidate whose cross-validated errors are least, and every candidate's errors (in the
+/// order given), or why it could not be cross-validated on these presses (it is then left out
+/// of the choice); press features need `sensor`. Least: the smallest sum, over what the presses
+/// label (position, force, depth), of the candidate's error over the best candidate's
+/// ([`relative_errors`]): on positions alone the smallest mean position error. An error only
+/// when no candidate could be: the first one's.
 pub fn choose(
     presses: &[LabelledPress],
     candidates: &[Method],
@@ -547,9 +643,10 @@ pub fn choose(
     sensor: Option<&NominalSensor>,
 ) -> Result<(Method, Vec<Score>), LearnError> {
     let mut scores: Vec<Score> = candidates.iter().map(|&m| (m, cross_validate(presses, m, folds, sensor))).collect();
-    let best = scores
-        .iter()
-        .filter_map(|(m, e)| Some((*m, e.as_ref().ok()?.mean_position)))
+    let best = relative_errors(&scores)
+        .into_iter()
+        .zip(&scores)
+        .filter_map(|(relative, (m, _))| Some((*m, relative?)))
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map(|s| s.0);
     match best {
@@ -557,6 +654,34 @@ pub fn choose(
         None if scores.is_empty() => Err(LearnError::TooFewPresses { got: 0, needed: 2 }),
         None => Err(scores.swap_remove(0).1.err().unwrap_or(LearnError::NotFitted)),
     }
+}
+
+/// Each score's errors relative to the best: the sum over the labelled quantities (mean
+/// position error, force RMS, depth RMS) of its error over the smallest any candidate has
+/// (so 1 per quantity for the best at it); `None` for a candidate that could not be scored.
+/// The presses' answers count as one more quantity, its error the share unanswered plus one
+/// (press features give none for a Δv like no press).
+pub fn relative_errors(scores: &[Score]) -> Vec<Option<f64>> {
+    let quantities = |e: &Errors| {
+        let unanswered = e.unanswered as f64 / (e.presses + e.unanswered).max(1) as f64;
+        [Some(e.mean_position), e.force_rms, e.depth_rms, Some(1.0 + unanswered)]
+    };
+    let mut best = [f64::INFINITY; 4];
+    for (_, errors) in scores {
+        if let Ok(e) = errors {
+            for (b, q) in best.iter_mut().zip(quantities(e)) {
+                *b = b.min(q.unwrap_or(f64::INFINITY));
+            }
+        }
+    }
+    scores
+        .iter()
+        .map(|(_, errors)| {
+            let e = errors.as_ref().ok()?;
+            let ratio = |(q, b): (Option<f64>, &f64)| q.map_or(0.0, |q| if *b > 0.0 { q / b } else { 1.0 });
+            Some(quantities(e).into_iter().zip(&best).map(ratio).sum())
+        })
+        .collect()
 }
 
 /// The training-set sizes of learning curves: 25, 50, 100, 200, 500 and 1,000 presses.
@@ -603,6 +728,34 @@ mod tests {
         }
         assert_eq!(Method::from_name("knn-0"), None);
         assert_eq!(Method::from_name("svm"), None);
+        // The physics reads the fitted press: on channels it is no method.
+        assert_eq!(Method::from_name("curve"), None);
+        assert_eq!(Method::from_name("gp-curve-shape"), None);
+        assert!(!Method::candidates(false).iter().any(|m| m.regressor.reads_press()));
+    }
+
+    /// The choice weighs each labelled quantity by the best candidate's error at it: the one
+    /// that is nearly best at both beats one best at position and far off in force.
+    #[test]
+    fn the_choice_weighs_position_and_force_alike() {
+        let errors = |position: f64, force: f64, unanswered: usize| Errors {
+            mean_position: position,
+            force_rms: Some(force),
+            depth_rms: None,
+            presses: 100 - unanswered,
+            unanswered,
+        };
+        let scores: Vec<Score> = vec![
+            (Method::knn(1), Ok(errors(0.003, 1.0, 0))),
+            (Method::knn(3), Ok(errors(0.0033, 0.5, 0))),
+            (Method::knn(5), Err(LearnError::NotFitted)),
+            (Method::knn(10), Ok(errors(0.0033, 0.5, 20))),
+        ];
+        let relative = relative_errors(&scores);
+        assert_eq!(relative[0], Some(1.0 + 2.0 + 1.0));
+        assert!((relative[1].unwrap() - (1.1 + 1.0 + 1.0)).abs() < 1e-12);
+        assert_eq!(relative[2], None);
+        assert!((relative[3].unwrap() - (1.1 + 1.0 + 1.2)).abs() < 1e-12);
     }
 
     /// A candidate that cannot be cross-validated on the presses (here press features without

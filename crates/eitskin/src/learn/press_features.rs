@@ -4,7 +4,7 @@
 //! outline's real size, the electrodes' real places, the gel's law.
 
 use super::{LabelledPress, LearnError, Standardiser};
-use crate::press_fit::{Locator, PressModel, PressModelParams, PressScratch};
+use crate::press_fit::{Locator, PressFit, PressModel, PressModelParams, PressScratch};
 use crate::SensorSpec;
 
 /// The sensor as specified: its press model and its measurements without a press (V).
@@ -139,7 +139,7 @@ impl PressFeatures {
     }
 
     /// The fitted press of `dv`.
-    fn fit_into(&self, dv: &[f64], scratch: &mut FeatureScratch) -> Option<crate::press_fit::PressFit> {
+    fn fit_into(&self, dv: &[f64], scratch: &mut FeatureScratch) -> Option<PressFit> {
         if dv.len() != self.weights.len() {
             return None;
         }
@@ -148,17 +148,30 @@ impl PressFeatures {
         self.locator.locate_into(&scratch.weighted, &mut scratch.press)
     }
 
-    /// The features of `dv` into `out` (cleared): the fitted press's x and y (m) and the log of
-    /// its contrast; false (and `out` empty) where `dv` looks like no press. Allocates nothing
-    /// once `scratch` and `out` have grown.
+    /// The press fitted to `dv`; `None` where `dv` looks like no press (no fit, or a contrast
+    /// that is not a drop).
+    pub fn press_into(&self, dv: &[f64], scratch: &mut FeatureScratch) -> Option<PressFit> {
+        self.fit_into(dv, scratch).filter(|fit| fit.contrast > 0.0)
+    }
+
+    /// The features of a fitted press into `out` (cleared): its x and y (m) and the log of its
+    /// contrast.
+    pub fn of_press_into(fit: &PressFit, out: &mut Vec<f64>) {
+        out.clear();
+        out.extend([fit.centre[0], fit.centre[1], fit.contrast.ln()]);
+    }
+
+    /// The features of `dv` into `out` (cleared): [`PressFeatures::of_press_into`] of
+    /// [`PressFeatures::press_into`]; false (and `out` empty) where `dv` looks like no press.
+    /// Allocates nothing once `scratch` and `out` have grown.
     pub fn features_into(&self, dv: &[f64], scratch: &mut FeatureScratch, out: &mut Vec<f64>) -> bool {
         out.clear();
-        match self.fit_into(dv, scratch) {
-            Some(fit) if fit.contrast > 0.0 => {
-                out.extend([fit.centre[0], fit.centre[1], fit.contrast.ln()]);
+        match self.press_into(dv, scratch) {
+            Some(fit) => {
+                PressFeatures::of_press_into(&fit, out);
                 true
             }
-            _ => false,
+            None => false,
         }
     }
 }
