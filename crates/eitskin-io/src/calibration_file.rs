@@ -260,12 +260,8 @@ pub fn read_calibration_file(path: &Path, spec: &SensorSpec) -> Result<Calibrati
 
 /// Parses calibration JSON made for `spec`, with how its images were made.
 pub fn parse_calibration_file(text: &str, spec: &SensorSpec) -> Result<CalibrationFile, Error> {
-    let file: CalibrationJson =
-        serde_json::from_str(text).map_err(|e| Error::Json { path: None, message: e.to_string() })?;
+    let file: CalibrationJson = crate::parse_json_file(text, FORMAT)?;
     let refuse = |key: &'static str, reason: String| Err(Error::Key { path: None, key, reason });
-    if file.format != FORMAT {
-        return refuse("format", format!("is \"{}\", not \"{FORMAT}\": this is not a calibration file", file.format));
-    }
     if !(1..=VERSION).contains(&file.version) {
         return refuse("version", format!("is {}, but this eitskin reads versions 1 to {VERSION}", file.version));
     }
@@ -281,11 +277,14 @@ pub fn parse_calibration_file(text: &str, spec: &SensorSpec) -> Result<Calibrati
     };
     let imaging = match (file.version, file.hyperparameter, file.normalised) {
         (..=3, _, _) => Imaging::default(),
-        (_, Some(hyperparameter), Some(normalized)) if hyperparameter > 0.0 && hyperparameter.is_finite() => {
+        (_, Some(hyperparameter), Some(normalized))
+            if hyperparameter > 0.0 && hyperparameter <= eitskin::inverse::LARGEST_HYPERPARAMETER =>
+        {
             Imaging { hyperparameter, normalized }
         }
         (_, Some(hyperparameter), Some(_)) => {
-            return refuse("hyperparameter", format!("is {hyperparameter}; it must be positive and finite"));
+            let largest = eitskin::inverse::LARGEST_HYPERPARAMETER;
+            return refuse("hyperparameter", format!("is {hyperparameter:?}; λ must be in (0, {largest}]"));
         }
         (_, None, _) => return refuse("hyperparameter", "is missing: a file of version 4 or later records λ".into()),
         (_, _, None) => return refuse("normalised", "is missing: a file of version 4 or later records it".into()),
@@ -466,6 +465,9 @@ mod tests {
         assert_eq!(old.calibration, before_version_5(&calibration));
         let err = parse_calibration_file(&v4.replace("0.0316", "-1.0"), &spec).unwrap_err().to_string();
         assert!(err.contains("`hyperparameter` is -1"), "{err}");
+        // Beyond the flag's own range, as `--hyperparameter` refuses it.
+        let err = parse_calibration_file(&v4.replace("0.0316", "1e300"), &spec).unwrap_err().to_string();
+        assert!(err.contains("`hyperparameter` is 1e300; λ must be in (0, 1000]"), "{err}");
         let missing = v3.replace("\"version\": 3", "\"version\": 4");
         let err = parse_calibration_file(&missing, &spec).unwrap_err().to_string();
         assert!(err.contains("`hyperparameter` is missing"), "{err}");

@@ -95,11 +95,8 @@ pub fn parse_learned_model(
     channels: usize,
     cache: Option<&Path>,
 ) -> Result<LearnedModel, Error> {
-    let file: ModelJson = serde_json::from_str(text).map_err(|e| Error::Json { path: None, message: e.to_string() })?;
+    let file: ModelJson = crate::parse_json_file(text, FORMAT)?;
     let key = |key: &'static str, reason: String| Error::Key { path: None, key, reason };
-    if file.format != FORMAT {
-        return Err(key("format", format!("is {:?}, not {FORMAT:?}: not a learned model", file.format)));
-    }
     if file.version != VERSION {
         return Err(key("version", format!("is {}; this eitskin reads version {VERSION}", file.version)));
     }
@@ -149,5 +146,17 @@ mod tests {
         other.protocol = eitskin::ProtocolSpec::Adjacent;
         let err = parse_learned_model(&text, &other, 3, None).unwrap_err().to_string();
         assert_eq!(err, "`protocol` is \"two-terminal\", but the sensor's protocol is \"adjacent\"");
+        // A model given where a calibration is wanted, and the other way round, is named as what
+        // it is, before any of its fields is read.
+        let err = crate::parse_calibration(&text, &spec).unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "`format` is \"eitskin-learned-model\": this is a learned model (what `eitskin learn --out` writes), and a calibration (what `eitskin calibrate --out` writes) is needed here"
+        );
+        let calibration = r#"{"format": "eitskin-calibration", "version": 5, "curves": []}"#;
+        let err = parse_learned_model(calibration, &spec, 3, None).unwrap_err().to_string();
+        assert!(err.starts_with("`format` is \"eitskin-calibration\": this is a calibration"), "{err}");
+        let err = parse_learned_model(r#"{"x": 1}"#, &spec, 3, None).unwrap_err().to_string();
+        assert!(err.ends_with("this is not a learned model (what `eitskin learn --out` writes)"), "{err}");
     }
 }

@@ -227,6 +227,34 @@ pub fn full_message(error: &dyn std::error::Error) -> String {
     text
 }
 
+/// eitskin's JSON files by their `format`, with what each is and which command writes it.
+const JSON_FILES: [(&str, &str); 2] = [
+    ("eitskin-calibration", "a calibration (what `eitskin calibrate --out` writes)"),
+    ("eitskin-learned-model", "a learned model (what `eitskin learn --out` writes)"),
+];
+
+/// `text` as the eitskin JSON file of `format`: a file of another kind is named as such (its
+/// `format` read first) before any of its fields is checked.
+fn parse_json_file<T: serde::de::DeserializeOwned>(text: &str, format: &str) -> Result<T, Error> {
+    let json = |e: serde_json::Error| Error::Json { path: None, message: e.to_string() };
+    let value: serde_json::Value = serde_json::from_str(text).map_err(json)?;
+    let found = value.get("format").and_then(serde_json::Value::as_str).unwrap_or_default();
+    let name = |f: &str| JSON_FILES.iter().find(|(known, _)| *known == f).map(|(_, what)| *what);
+    if found != format {
+        let want = name(format).unwrap_or(format);
+        let reason = match name(found) {
+            Some(what) => format!("is \"{found}\": this is {what}, and {want} is needed here"),
+            None => match value.get("format") {
+                Some(other) => format!("is {other}, not \"{format}\": this is not {want}"),
+                None => format!("is missing: this is not {want}"),
+            },
+        };
+        return Err(Error::Key { path: None, key: "format", reason });
+    }
+    // Again from the text, so that a message names its line and column.
+    serde_json::from_str(text).map_err(json)
+}
+
 /// The text of `path`, without the byte-order mark a spreadsheet's "CSV UTF-8" starts with.
 fn read_text(path: &Path) -> Result<String, Error> {
     let text = std::fs::read_to_string(path).map_err(|source| Error::Read { path: path.to_path_buf(), source })?;

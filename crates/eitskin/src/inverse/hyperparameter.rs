@@ -48,8 +48,11 @@ pub const TARGET_CONTRAST: f64 = 0.5;
 /// frame-to-frame noise of open boards.
 pub const DEFAULT_RELATIVE_NOISE: f64 = 0.003;
 
+/// The largest λ a user may give (dimensionless): the top of the range `auto` searches.
+pub const LARGEST_HYPERPARAMETER: f64 = 1e3;
+
 /// The range λ is searched in (dimensionless).
-const SEARCH: (f64, f64) = (1e-6, 1e3);
+const SEARCH: (f64, f64) = (1e-6, LARGEST_HYPERPARAMETER);
 
 /// How λ is set: a given value, or chosen from the noise (see the module doc).
 #[derive(Debug, Clone, Copy, PartialEq)]

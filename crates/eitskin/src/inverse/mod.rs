@@ -26,7 +26,7 @@ pub(crate) use channels::floored;
 pub use channels::{mean_frame, mean_of_finite, noise_variance, Channels};
 pub use hyperparameter::{
     choose_hyperparameter, map_hyperparameter, noise_figure, noise_figure_hyperparameter, Hyperparameter,
-    DEFAULT_RELATIVE_NOISE, NOISE_FIGURE_TARGET, TARGET_CONTRAST,
+    DEFAULT_RELATIVE_NOISE, LARGEST_HYPERPARAMETER, NOISE_FIGURE_TARGET, TARGET_CONTRAST,
 };
 pub use linearisation::Linearisation;
 pub use prior::Prior;
