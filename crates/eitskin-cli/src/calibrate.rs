@@ -115,8 +115,10 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     // The chain images as `load::chain` does: the file records it, and `run` then images so.
     let params = ReconstructorParams::default();
     let imaging = Imaging { hyperparameter: params.hyperparameter, normalized: params.normalized };
-    std::fs::write(&args.out, eitskin_io::calibration_file_to_json(&spec, &array, &calibration, imaging)?)
+    let mut staged = crate::outputs::Staged::default();
+    std::fs::write(staged.path(&args.out), eitskin_io::calibration_file_to_json(&spec, &array, &calibration, imaging)?)
         .with_context(|| format!("writing {}", args.out.display()))?;
+    staged.commit()?;
     let unit = format!("[{}]", strength.unit());
     // One curve for every sample, to say how far each area's curve reads from it.
     let pooled: Vec<Sample> = samples.iter().map(|s| Sample { area: 0, ..*s }).collect();
@@ -267,7 +269,9 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
                 force.map_or(String::new(), |f| u8::from(f.saturated).to_string()),
             );
         }
-        std::fs::write(out, csv).with_context(|| format!("writing {}", out.display()))?;
+        let mut staged = crate::outputs::Staged::default();
+        std::fs::write(staged.path(out), csv).with_context(|| format!("writing {}", out.display()))?;
+        staged.commit()?;
         println!("wrote {}", out.display());
     }
     Ok(())

@@ -336,15 +336,16 @@ pub fn run(args: Args) -> Result<()> {
             })
             .collect(),
     };
+    let mut staged = outputs::Staged::default();
     match &args.out {
-        Some(path) if outputs::has_extension(path, "npy") => eitskin_io::write_raster_npy(path, &image)?,
-        Some(path) => eitskin_io::write_raster_csv(path, &image, spec.length_unit)?,
+        Some(path) if outputs::has_extension(path, "npy") => eitskin_io::write_raster_npy(&staged.path(path), &image)?,
+        Some(path) => eitskin_io::write_raster_csv(&staged.path(path), &image, spec.length_unit)?,
         None => {}
     }
     if let Some(path) = &args.elements {
         let values: Vec<f64> = recon.element_values(&v_ref, &v)?.into_iter().map(f64::from).collect();
         eitskin_io::write_elements_csv(
-            path,
+            &staged.path(path),
             recon.linearisation().mesh(),
             &values,
             spec.length_unit,
@@ -355,8 +356,9 @@ pub fn run(args: Args) -> Result<()> {
         let frame = &args.input.frame;
         let name = frame.file_name().unwrap_or(frame.as_os_str()).to_string_lossy();
         let title = format!("Conductivity change: {name}, frame {}", args.input.frame_index);
-        plot::image_png(&image, &touches, &spec, &title, png)?;
+        plot::image_png(&image, &touches, &spec, &title, &staged.path(png))?;
     }
+    staged.commit()?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {

@@ -281,7 +281,9 @@ pub fn run(args: Args) -> Result<()> {
     }
     if let Some(out) = &args.out {
         let text = eitskin_io::learned_model_to_json(&spec, method, &training)?;
-        std::fs::write(out, text).with_context(|| format!("cannot write {}", out.display()))?;
+        let mut staged = outputs::Staged::default();
+        std::fs::write(staged.path(out), text).with_context(|| format!("cannot write {}", out.display()))?;
+        staged.commit()?;
         println!("wrote {}", out.display());
     }
     Ok(())
@@ -397,15 +399,24 @@ pub fn presses_run(args: PressesArgs) -> Result<()> {
     let radius = disc_radius(&spec.outline, args.radius);
     let started = Instant::now();
     let mut skin = ImperfectSkin::new(&spec, &imperfections, args.seed)?;
+    let mut staged = outputs::Staged::default();
+    let mut written = Vec::new();
     for (path, count) in [(Some(&args.out), args.count), (args.held_out.as_ref(), args.held_out_count)] {
         let Some(path) = path.filter(|_| count > 0) else { continue };
         let pressed = skin.robot_presses(count, radius, 2.0..16.0)?;
         let comment =
             "eitskin robot-presses: x, y in the spec's units, force in N, then Δv (pressed less before) per channel";
-        std::fs::write(path, eitskin_io::labelled_presses_to_csv(&pressed, spec.length_unit.metres(), comment))
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        eprintln!("wrote {} presses to {} ({:.1} s)", pressed.len(), path.display(), started.elapsed().as_secs_f64());
+        let csv = eitskin_io::labelled_presses_to_csv(&pressed, spec.length_unit.metres(), comment);
+        std::fs::write(staged.path(path), csv).with_context(|| format!("cannot write {}", path.display()))?;
+        written.push(format!(
+            "wrote {} presses to {} ({:.1} s)",
+            pressed.len(),
+            path.display(),
+            started.elapsed().as_secs_f64()
+        ));
     }
+    staged.commit()?;
+    written.iter().for_each(|line| eprintln!("{line}"));
     Ok(())
 }
 
@@ -442,8 +453,10 @@ pub fn evaluate_model(
         );
     }
     if let Some(out) = out {
-        std::fs::write(out, answers_csv(&learned, &held, spec.length_unit))
+        let mut staged = outputs::Staged::default();
+        std::fs::write(staged.path(out), answers_csv(&learned, &held, spec.length_unit))
             .with_context(|| format!("writing {}", out.display()))?;
+        staged.commit()?;
         println!("wrote {}", out.display());
     }
     Ok(())

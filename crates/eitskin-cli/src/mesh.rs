@@ -34,9 +34,11 @@ pub fn run(args: Args) -> Result<()> {
     outputs::check(&[("--out", &args.out), ("--out's picture", &png)], &spec)?;
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Mesh)?;
     let mesh = spec.mesh()?;
-    std::fs::write(&args.out, eitskin_io::mesh_to_json(&mesh))
+    let mut staged = outputs::Staged::default();
+    std::fs::write(staged.path(&args.out), eitskin_io::mesh_to_json(&mesh))
         .with_context(|| format!("writing {}", args.out.display()))?;
-    plot::mesh_png(&mesh, &png)?;
+    plot::mesh_png(&mesh, &staged.path(&png))?;
+    staged.commit()?;
     println!(
         "{} nodes, {} triangles, smallest angle {:.1}°: wrote {} and {}",
         mesh.nodes().len(),

@@ -31,6 +31,46 @@ pub fn check(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> 
     Ok(())
 }
 
+/// A command's output files written all or nothing: each is written to a hidden file beside its
+/// target (its name ending in the target's, so that a writer choosing a format by extension
+/// still finds it), and all are renamed into place by [`Staged::commit`] once the command has
+/// succeeded. Dropped uncommitted (an error on the way), the hidden files are removed and every
+/// target is left as it was.
+#[derive(Debug, Default)]
+pub struct Staged {
+    /// (hidden file, target) of each output, in the order given.
+    files: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Staged {
+    /// The path to write `target` at until [`Staged::commit`].
+    pub fn path(&mut self, target: &Path) -> PathBuf {
+        let name = target.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let hidden = target.with_file_name(format!(".eitskin-partial-{}-{name}", std::process::id()));
+        self.files.push((hidden.clone(), target.to_path_buf()));
+        hidden
+    }
+
+    /// Renames every output into place (each rename replaces its target at once).
+    pub fn commit(mut self) -> Result<()> {
+        for (hidden, target) in std::mem::take(&mut self.files) {
+            if let Err(e) = std::fs::rename(&hidden, &target) {
+                let _ = std::fs::remove_file(&hidden);
+                bail!("cannot write {}: {e}", target.display());
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        for (hidden, _) in &self.files {
+            let _ = std::fs::remove_file(hidden);
+        }
+    }
+}
+
 /// Whether `path` names a file of that extension (`"npy"`), in any case: `X.NPY` is NPY too.
 pub fn has_extension(path: &Path, extension: &str) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case(extension))
@@ -55,6 +95,29 @@ fn resolved(path: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Committed, every output is in place; dropped on an error, none is touched and nothing
+    /// is left beside them.
+    #[test]
+    fn outputs_are_written_all_or_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let (first, second) = (dir.path().join("a.csv"), dir.path().join("b.png"));
+        std::fs::write(&first, "old").unwrap();
+        let mut staged = Staged::default();
+        let hidden = staged.path(&first);
+        assert!(hidden.to_string_lossy().ends_with("a.csv"), "{}", hidden.display());
+        std::fs::write(&hidden, "new").unwrap();
+        let _ = staged.path(&second);
+        drop(staged); // the second output failed
+        assert_eq!(std::fs::read_to_string(&first).unwrap(), "old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        let mut staged = Staged::default();
+        std::fs::write(staged.path(&first), "new").unwrap();
+        std::fs::write(staged.path(&second), "png").unwrap();
+        staged.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&first).unwrap(), "new");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
 
     #[test]
     fn extensions_are_read_in_any_case() {

@@ -39,11 +39,13 @@ pub fn run(args: Args) -> Result<()> {
     outputs::check(&[("--out", &args.out)], &args.input.files())?;
     let Reconstruction { spec, image, touch, report, .. } = reconstruct(&args.input)?;
     let labels = labels(&image, &touch);
+    let mut staged = outputs::Staged::default();
     if outputs::has_extension(&args.out, "npy") {
-        eitskin_io::write_labels_npy(&args.out, &labels, image.size)?;
+        eitskin_io::write_labels_npy(&staged.path(&args.out), &labels, image.size)?;
     } else {
-        eitskin_io::write_labels_csv(&args.out, &image, &labels, spec.length_unit)?;
+        eitskin_io::write_labels_csv(&staged.path(&args.out), &image, &labels, spec.length_unit)?;
     }
+    staged.commit()?;
     let inside = |label: u8| labels.iter().zip(&image.inside).filter(|&(l, i)| *i && *l == label).count();
     let out = Output {
         report: &report,
