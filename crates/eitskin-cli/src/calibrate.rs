@@ -234,10 +234,18 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
         results.len() - found,
         e.count
     );
-    println!(
-        "RMS error {:.3} N ({:.2} % of the largest force), correlation {:.3}, mean absolute error {:.3} N",
-        e.rms, e.rms_percent_of_max, e.correlation, e.mean_absolute
-    );
+    // Forces all 0 N (or all alike) have no percentage (no largest force) or no correlation.
+    let percent = if e.rms_percent_of_max.is_finite() {
+        format!("{:.2} % of the largest force", e.rms_percent_of_max)
+    } else {
+        "no percentage: every labelled force is 0 N".into()
+    };
+    let correlation = if e.correlation.is_finite() {
+        format!("correlation {:.3}", e.correlation)
+    } else {
+        "no correlation: the forces do not vary".into()
+    };
+    println!("RMS error {:.3} N ({percent}), {correlation}, mean absolute error {:.3} N", e.rms, e.mean_absolute);
     let with_std: Vec<(f64, f64)> =
         estimates.iter().filter_map(|(t, f)| f.std.map(|s| ((f.newtons - t).abs(), s))).collect();
     if !with_std.is_empty() {

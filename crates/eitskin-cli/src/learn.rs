@@ -447,10 +447,11 @@ pub fn evaluate_model(
     }
     if let Some(rms) = e.force_rms {
         let largest = held.iter().filter_map(|p| p.force).fold(0.0, f64::max);
-        println!(
-            "force RMS {rms:.2} N ({:.1} % of the largest force, {largest:.1} N)",
-            100.0 * rms / largest.max(f64::MIN_POSITIVE)
-        );
+        if largest > 0.0 {
+            println!("force RMS {rms:.2} N ({:.1} % of the largest force, {largest:.1} N)", 100.0 * rms / largest);
+        } else {
+            println!("force RMS {rms:.2} N (no percentage: every labelled force is 0 N)");
+        }
     }
     if let Some(out) = out {
         let mut staged = outputs::Staged::default();

@@ -35,7 +35,11 @@ fn study_on_the_default_sensor_meets_the_papers_bars() {
     // Gaussian processes at least 25 % closer than 5-nearest neighbours at N = 100 and 500, and
     // on the fitted press within 5 mm and 5 % of the largest force from 100 presses.
     let curves = json["learning"]["curves"].as_array().unwrap();
-    assert_eq!(curves.len(), 15, "knn-1/3/5/10 and gp, on raw, shape and press features");
+    assert_eq!(
+        curves.len(),
+        17,
+        "knn-1/3/5/10 and gp, on raw, shape and press features; the physical curve alone and with its residual"
+    );
     let at = |method: &str, n: u64, key: &str| {
         let curve = curves.iter().find(|c| c["method"] == method).unwrap();
         let point = curve["points"].as_array().unwrap().iter().find(|p| p["presses"] == n).unwrap().clone();

@@ -110,6 +110,15 @@ pub enum LearnError {
     /// The spec does not make a sensor.
     #[error("the sensor spec does not make a sensor")]
     Spec(#[from] crate::SpecError),
+    /// k-nearest neighbours with k larger than the presses it would learn from (every answer
+    /// would be their mean).
+    #[error("knn-{k} needs at least {k} presses to learn from, and has {presses}: give a smaller k")]
+    TooFewForNeighbours {
+        /// Neighbours asked for.
+        k: usize,
+        /// Presses it would learn from.
+        presses: usize,
+    },
     /// A method that reads the fitted press was given other features.
     #[error("{method} reads the press fitted on the sensor as specified: give it press features")]
     NotPressFeatures {
@@ -423,6 +432,9 @@ pub fn train(
     // label up to a linear map); on channels it over-fits (at N = 100: 9.7 → 10.7 mm).
     let linear: &[f64] = if press.is_some() { &LINEAR_WEIGHTS } else { &[0.0] };
     let regressor = match method.regressor {
+        RegressorKind::Knn { k } if k > points.len() => {
+            return Err(LearnError::TooFewForNeighbours { k, presses: points.len() });
+        }
         RegressorKind::Knn { k } => Regressor::Knn(Knn::new(k, &points, &targets)),
         RegressorKind::GaussianProcess => {
             Regressor::GaussianProcess(GaussianProcess::fit(&points, &targets, linear).ok_or(LearnError::NotFitted)?)
@@ -790,5 +802,10 @@ mod tests {
         );
         let flat = [press(vec![1.0], None), press(vec![1.0], None)];
         assert_eq!(train(&flat, Method::knn(1), None).unwrap_err(), LearnError::NoChannels);
+        // More neighbours than presses would answer their mean everywhere.
+        let few = [press(vec![1.0, 2.0], None), press(vec![2.0, 1.0], None), press(vec![3.0, 0.0], None)];
+        let refused = train(&few, Method::knn(5), None).unwrap_err();
+        assert_eq!(refused.to_string(), "knn-5 needs at least 5 presses to learn from, and has 3: give a smaller k");
+        assert!(train(&few, Method::knn(3), None).is_ok());
     }
 }
