@@ -90,6 +90,16 @@ pub enum LearnError {
         /// 1-based press.
         press: usize,
     },
+    /// A label is not a finite number.
+    #[error("press {press}'s {label} is {value}: every label must be a finite number")]
+    LabelNotFinite {
+        /// 1-based press.
+        press: usize,
+        /// Which label: "x", "y", "force" or "depth".
+        label: &'static str,
+        /// Its value.
+        value: f64,
+    },
     /// Every channel is dead.
     #[error("every channel is constant or not finite over the training presses: nothing to learn from")]
     NoChannels,
@@ -362,6 +372,12 @@ fn check(presses: &[LabelledPress], needed: usize) -> Result<(bool, bool), Learn
         }
         if p.depth.is_some() != depths {
             return Err(LearnError::MixedDepths { press: i + 1 });
+        }
+        let labels = [("x", Some(p.position[0])), ("y", Some(p.position[1])), ("force", p.force), ("depth", p.depth)];
+        if let Some((label, value)) =
+            labels.into_iter().find_map(|(l, v)| Some((l, v?)).filter(|(_, v)| !v.is_finite()))
+        {
+            return Err(LearnError::LabelNotFinite { press: i + 1, label, value });
         }
     }
     Ok((forces, depths))
@@ -802,6 +818,18 @@ mod tests {
         );
         let flat = [press(vec![1.0], None), press(vec![1.0], None)];
         assert_eq!(train(&flat, Method::knn(1), None).unwrap_err(), LearnError::NoChannels);
+        // A label that is not a number would poison every answer.
+        let mut unlabelled = [press(vec![1.0, 2.0], Some(1.0)), press(vec![2.0, 1.0], Some(f64::NAN))];
+        assert_eq!(
+            train(&unlabelled, Method::knn(1), None).unwrap_err().to_string(),
+            "press 2's force is NaN: every label must be a finite number"
+        );
+        unlabelled[1].force = Some(2.0);
+        unlabelled[0].position[1] = f64::INFINITY;
+        assert!(matches!(
+            train(&unlabelled, Method::knn(1), None),
+            Err(LearnError::LabelNotFinite { press: 1, label: "y", .. })
+        ));
         // More neighbours than presses would answer their mean everywhere.
         let few = [press(vec![1.0, 2.0], None), press(vec![2.0, 1.0], None), press(vec![3.0, 0.0], None)];
         let refused = train(&few, Method::knn(5), None).unwrap_err();
