@@ -110,6 +110,17 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("--curve needs --held-out"));
     let refused = dir.eitskin(&["learn", "--samples", t, "--method", "svm"]);
     assert!(String::from_utf8_lossy(&refused.stderr).contains("\"svm\" is not a method"));
+    // A label far off the sheet (metres written where millimetres are read, say) is refused.
+    let text = std::fs::read_to_string(&train).unwrap();
+    let (head, rows) = text.split_at(text.find("\n").unwrap() + 1);
+    let (header, rows) = rows.split_at(rows.find("\n").unwrap() + 1);
+    let first_row_x_far = format!("{head}{header}5000{}", &rows[rows.find(',').unwrap()..]);
+    let far = dir.join("far.csv");
+    std::fs::write(&far, first_row_x_far).unwrap();
+    let refused = dir.eitskin(&["learn", "--samples", far.to_str().unwrap()]);
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && message.contains("press 1 is labelled at (5000, "), "{message}");
+    assert!(message.contains("far off the sheet (its outline spans -100–100 by -100–100 mm)"), "{message}");
 
     // A press whose Δv carries nothing (a failed press on a real skin) is named and left out of
     // the methods that need a press; the command runs to the end.
