@@ -261,6 +261,10 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
         v = gains.apply(&v);
     }
     let v_ref = mean_frame(&references);
+    // Phases and quadrature parts may sit near 0, where a ratio means nothing.
+    if matches!(input.component, Component::Real | Component::Magnitude) {
+        check_scale(&v, &v_ref, input)?;
+    }
     let variance = noise_variance(&references);
     // A channel missing (NaN) in the reference or the frame is dropped, not refused; so is one
     // whose reference is exactly zero: a dead channel (a board prints 0 for a broken contact),
@@ -312,6 +316,41 @@ impl Report {
 
 /// Below this R² of the reference against the model, the values are suspect and a warning says so.
 const PATTERN_FIT_WARNING: f64 = 0.5;
+
+/// The frame's values over the reference's beyond which they are taken as another unit or
+/// gain, not a press (a press changes a channel by percents, not by a factor of ten): refused.
+const SCALE_REFUSED: f64 = 10.0;
+/// Beyond this factor a warning says so.
+const SCALE_WARNED: f64 = 2.0;
+
+/// Refuses a frame whose typical value (the median over channels of |v| / |v_ref|) is more than
+/// [`SCALE_REFUSED`] times the reference's or less than its tenth, and warns past
+/// [`SCALE_WARNED`]: a frame in other units than its reference, or from another gain setting.
+fn check_scale(v: &[f64], v_ref: &[f64], input: &Input) -> Result<()> {
+    let mut ratios: Vec<f64> = v
+        .iter()
+        .zip(v_ref)
+        .filter(|(a, r)| a.is_finite() && r.is_finite() && **r != 0.0)
+        .map(|(a, r)| (a / r).abs())
+        .collect();
+    if ratios.is_empty() {
+        return Ok(());
+    }
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios[ratios.len() / 2];
+    let said = format!(
+        "{}'s values are typically {median:.3} times those of {} (the median over channels)",
+        input.frame.display(),
+        input.reference.display()
+    );
+    if !(median > 1.0 / SCALE_REFUSED && median < SCALE_REFUSED) {
+        anyhow::bail!("{said}: a press changes them by percents; are the two in the same unit and gain?");
+    }
+    if !(median > 1.0 / SCALE_WARNED && median < SCALE_WARNED) {
+        eprintln!("warning: {said}; a press changes them by percents: are the two in the same unit and gain?");
+    }
+    Ok(())
+}
 
 /// Runs `eitskin image`.
 pub fn run(args: Args) -> Result<()> {

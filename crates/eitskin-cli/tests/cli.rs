@@ -400,6 +400,34 @@ fn a_frame_of_another_length_is_refused_not_a_panic() {
     assert_eq!(out.status.code(), Some(1));
 }
 
+/// A frame in other units than its reference (millivolts against volts) is refused with the
+/// ratio, not imaged as a whole-sheet change; one twice as large is imaged with a warning.
+#[test]
+fn a_frame_in_another_unit_than_its_reference_is_refused() {
+    let dir = scratch("frame-scale");
+    let reference = String::from_utf8(dir.eitskin(&["forward", "--format", "csv"]).stdout).unwrap();
+    let values: Vec<f64> = reference.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();
+    let write = |name: &str, scale: f64| {
+        let path = dir.join(name);
+        std::fs::write(&path, values.iter().map(|v| (v * scale).to_string()).collect::<Vec<_>>().join(",")).unwrap();
+        path
+    };
+    let (r, millivolts, doubled) = (write("ref.csv", 1.0), write("mv.csv", 1000.0), write("double.csv", 2.5));
+    let image = |frame: &std::path::Path| {
+        dir.eitskin(&["image", "--reference", r.to_str().unwrap(), "--frame", frame.to_str().unwrap(), "--no-cache"])
+    };
+    let out = image(&millivolts);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && message.contains("mv.csv's values are typically 1000.000 times those of"),
+        "{message}"
+    );
+    assert!(message.contains("are the two in the same unit and gain?"), "{message}");
+    let out = image(&doubled);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && message.contains("warning: ") && message.contains("2.500 times"), "{message}");
+}
+
 /// Labelled samples of real values against frames at rest that are complex: which part the
 /// samples hold is not the command's to guess, so it refuses and says what to give; a samples
 /// file of a header and no rows, made by a spreadsheet (byte-order mark first), is named so.
