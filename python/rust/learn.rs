@@ -83,8 +83,8 @@ impl LearnedModel {
     /// Raises
     /// ------
     /// EitskinError
-    ///     For arrays that disagree, a label < 0, an unknown method, a "-press" method without
-    ///     `spec`, or presses too few to train on.
+    ///     For arrays that disagree, a label < 0, a position far off `spec`'s sheet, an unknown
+    ///     method, a "-press" method without `spec`, or presses too few to train on.
     #[staticmethod]
     #[pyo3(signature = (dv, positions, forces = None, depths = None, method = None, spec = None, folds = 5))]
     #[allow(clippy::too_many_arguments, reason = "Python keyword arguments")]
@@ -118,11 +118,16 @@ impl LearnedModel {
         let forced = method
             .map(|m| {
                 Method::from_name(m).ok_or_else(|| {
-                    fail(format!("{m:?} is not a method: give knn-K or gp, either with -shape or -press"))
+                    fail(format!(
+                        "{m:?} is not a method: give knn-K or gp, either with -shape or -press, or curve-press or gp-curve-press"
+                    ))
                 })
             })
             .transpose()?;
         let spec = spec.map(|s| s.0.clone());
+        if let Some(spec) = &spec {
+            eitskin_io::check_labels_on_sheet(&presses, spec).map_err(|e| fail(format!("positions: {e}")))?;
+        }
         let channels = presses.first().map_or(0, |p| p.inputs.len());
         let (model, presses) = py
             .detach(|| -> Result<_, String> {

@@ -63,6 +63,8 @@ def test_bad_input_is_refused_with_the_reason(spec, presses):
         eitskin.LearnedModel.train(dv[:20], positions[:20], method="svm")
     with pytest.raises(eitskin.EitskinError, match="press features need the sensor's spec"):
         eitskin.LearnedModel.train(dv[:20], positions[:20], method="gp-press")
+    with pytest.raises(eitskin.EitskinError, match=r"positions: `x, y` of press 1 are \(500, 0\) mm, far off the sheet"):
+        eitskin.LearnedModel.train(dv[:20], np.vstack([[0.5, 0.0], positions[1:20]]), spec=spec)
     with pytest.raises(eitskin.EitskinError, match="knn-10 needs at least 10 presses to learn from, and has 5"):
         eitskin.LearnedModel.train(dv[:5], positions[:5], method="knn-10")
     model = eitskin.LearnedModel.train(dv[:20], positions[:20], method="knn-1")

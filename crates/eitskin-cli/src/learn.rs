@@ -91,34 +91,10 @@ pub struct PressesArgs {
     seed: u64,
 }
 
-/// How far outside the outline's bounding box a press's label may lie, as a fraction of the
-/// box's larger side: a robot's frame may be off by some millimetres, not by a sheet.
-const OFF_SHEET: f64 = 0.5;
-
 /// The labelled presses of a samples file (positions in m), each less `reference` when the file
 /// holds raw frames.
 fn presses(path: &Path, spec: &SensorSpec, reference: Option<&(PathBuf, Vec<f64>)>) -> Result<Vec<LabelledPress>> {
-    let mut presses = eitskin_io::read_labelled_presses(path, spec.length_unit.metres())?;
-    // A label far off the sheet is a unit or a frame of reference gone wrong, not a press.
-    let [[x0, y0], [x1, y1]] = spec.outline.bounds();
-    let margin = OFF_SHEET * (x1 - x0).max(y1 - y0);
-    let far = |p: &LabelledPress| {
-        let [x, y] = p.position;
-        x < x0 - margin || x > x1 + margin || y < y0 - margin || y > y1 + margin
-    };
-    if let Some((k, p)) = presses.iter().enumerate().find(|(_, p)| far(p)) {
-        let (k_unit, unit) = (1.0 / spec.length_unit.metres(), spec.length_unit.symbol());
-        let [x, y] = p.position.map(|v| v * k_unit);
-        bail!(
-            "{}: press {} is labelled at ({x}, {y}) {unit}, far off the sheet (its outline spans {}–{} by {}–{} {unit}): give x and y in the spec's unit ({unit}), from the outline's origin",
-            path.display(),
-            k + 1,
-            x0 * k_unit,
-            x1 * k_unit,
-            y0 * k_unit,
-            y1 * k_unit
-        );
-    }
+    let mut presses = eitskin_io::read_labelled_presses(path, spec)?;
     // A press is one frame of the protocol or several (complex pairs, the frames a board sends
     // per press): a whole number of the protocol's measurements.
     let channels = spec.protocol()?.len();

@@ -119,7 +119,7 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     std::fs::write(&far, first_row_x_far).unwrap();
     let refused = dir.eitskin(&["learn", "--samples", far.to_str().unwrap()]);
     let message = String::from_utf8_lossy(&refused.stderr);
-    assert!(!refused.status.success() && message.contains("press 1 is labelled at (5000, "), "{message}");
+    assert!(!refused.status.success() && message.contains("`x, y` of press 1 are (5000, "), "{message}");
     assert!(message.contains("far off the sheet (its outline spans -100–100 by -100–100 mm)"), "{message}");
 
     // A press whose Δv carries nothing (a failed press on a real skin) is named and left out of

@@ -72,7 +72,8 @@ pub use protocol_file::{parse_protocol, read_protocol};
 pub use raster_file::{write_elements_csv, write_labels_csv, write_labels_npy, write_raster_csv, write_raster_npy};
 pub use reconstructor_file::{cache_key, cache_path, decode_linearisation, encode_linearisation, load_or_build};
 pub use samples_file::{
-    labelled_presses_to_csv, parse_samples, read_labelled_presses, read_samples, Location, Measured, SampleRow,
+    check_labels_on_sheet, labelled_presses_to_csv, parse_samples, read_labelled_presses, read_samples, Location,
+    Measured, SampleRow,
 };
 pub use spec_file::{parse_spec, protocol_by_name, protocol_kind, read_spec, spec_to_toml};
 

@@ -10,6 +10,7 @@
 use std::path::Path;
 
 use eitskin::learn::LabelledPress;
+use eitskin::SensorSpec;
 
 use crate::Error;
 
@@ -141,11 +142,34 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
 /// The columns a samples file names, beside the channels.
 const LABELS: [&str; 6] = ["unit", "x", "y", "force", "depth", "peak"];
 
-/// Reads a samples file of labelled presses for a learned model (`x`, `y`, optional `force`,
-/// then the channels), positions converted to m by `metres`.
-pub fn read_labelled_presses(path: &Path, metres: f64) -> Result<Vec<LabelledPress>, Error> {
+/// How far outside the outline's bounding box a press's label may lie, as a fraction of the
+/// box's larger side: a robot's frame may be off by millimetres, not by a sheet.
+pub const OFF_SHEET: f64 = 0.5;
+
+/// Refuses presses labelled more than [`OFF_SHEET`] of the outline's size outside its box on
+/// `spec`'s sheet (a unit or an origin gone wrong, not a press), quoting the label and the
+/// outline's span in the spec's unit.
+pub fn check_labels_on_sheet(presses: &[LabelledPress], spec: &SensorSpec) -> Result<(), Error> {
+    let [[x0, y0], [x1, y1]] = spec.outline.bounds();
+    let margin = OFF_SHEET * (x1 - x0).max(y1 - y0);
+    let far = |[x, y]: [f64; 2]| x < x0 - margin || x > x1 + margin || y < y0 - margin || y > y1 + margin;
+    let Some(k) = presses.iter().position(|p| far(p.position)) else { return Ok(()) };
+    let (per_metre, unit) = (1.0 / spec.length_unit.metres(), spec.length_unit.symbol());
+    let [x, y] = presses[k].position.map(|v| v * per_metre);
+    let [x0, x1, y0, y1] = [x0, x1, y0, y1].map(|v| v * per_metre);
+    let reason = format!(
+        "of press {} are ({x}, {y}) {unit}, far off the sheet (its outline spans {x0}–{x1} by {y0}–{y1} {unit}): give them in the spec's unit ({unit}), from the outline's origin",
+        k + 1
+    );
+    Err(Error::Key { path: None, key: "x, y", reason })
+}
+
+/// Reads a samples file of labelled presses for a learned model on `spec`'s sheet (`x`, `y` in
+/// its unit, optional `force`, then the channels), positions in m; labels far off the sheet
+/// are refused ([`check_labels_on_sheet`]).
+pub fn read_labelled_presses(path: &Path, spec: &SensorSpec) -> Result<Vec<LabelledPress>, Error> {
     let fail = |reason: String| Error::Key { path: Some(path.to_path_buf()), key: "samples", reason };
-    read_samples(path, metres)?
+    let presses = read_samples(path, spec.length_unit.metres())?
         .into_iter()
         .enumerate()
         .map(|(k, row)| {
@@ -157,7 +181,9 @@ pub fn read_labelled_presses(path: &Path, metres: f64) -> Result<Vec<LabelledPre
             };
             Ok(LabelledPress { inputs, position, force: row.force, depth: row.depth })
         })
-        .collect()
+        .collect::<Result<Vec<_>, _>>()?;
+    check_labels_on_sheet(&presses, spec).map_err(|e| e.in_file(path))?;
+    Ok(presses)
 }
 
 /// Labelled presses as a samples file: a `#` comment line, then `x`, `y` (in units of `metres`
