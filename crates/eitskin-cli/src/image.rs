@@ -266,6 +266,14 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
         check_scale(&v, &v_ref, input)?;
     }
     let variance = noise_variance(&references);
+    if references.len() > 1 && variance.is_none() {
+        eprintln!(
+            "warning: the {} reference frames of {} are all equal: no noise can be measured from them, so {} % per value is assumed (several frames of a board at rest differ)",
+            references.len(),
+            input.reference.display(),
+            100.0 * eitskin::inverse::DEFAULT_RELATIVE_NOISE
+        );
+    }
     // A channel missing (NaN) in the reference or the frame is dropped, not refused; so is one
     // whose reference is exactly zero: a dead channel (a board prints 0 for a broken contact),
     // which would tell the image that nothing changed there.

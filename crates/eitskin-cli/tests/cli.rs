@@ -401,7 +401,8 @@ fn a_frame_of_another_length_is_refused_not_a_panic() {
 }
 
 /// A frame in other units than its reference (millivolts against volts) is refused with the
-/// ratio, not imaged as a whole-sheet change; one twice as large is imaged with a warning.
+/// ratio, not imaged as a whole-sheet change; one twice as large is imaged with a warning; a
+/// reference of equal frames is said to measure no noise.
 #[test]
 fn a_frame_in_another_unit_than_its_reference_is_refused() {
     let dir = scratch("frame-scale");
@@ -426,6 +427,21 @@ fn a_frame_in_another_unit_than_its_reference_is_refused() {
     let out = image(&doubled);
     let message = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success() && message.contains("warning: ") && message.contains("2.500 times"), "{message}");
+
+    // Reference frames that are all equal measure no noise (they dropped 101 channels whose
+    // mean rounded, silently): said, and the default noise assumed.
+    let row = values.iter().map(f64::to_string).collect::<Vec<_>>().join(",");
+    let equal = dir.join("equal.csv");
+    std::fs::write(&equal, format!("{row}\n{row}\n{row}\n")).unwrap();
+    let e = equal.to_str().unwrap();
+    let out = dir.eitskin(&["image", "--reference", e, "--frame", doubled.to_str().unwrap(), "--no-cache"]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        message.contains("reference frames of") && message.contains("are all equal: no noise can be measured"),
+        "{message}"
+    );
+    let report = String::from_utf8_lossy(&out.stdout);
+    assert!(!report.contains("dropped"), "{report}");
 }
 
 /// Labelled samples of real values against frames at rest that are complex: which part the

@@ -75,13 +75,18 @@ pub struct NoiseModel {
     reference_frames: usize,
 }
 
+/// The relative change of a value that is rounding, not noise: a few units in the last place.
+const ROUNDING: f64 = 8.0 * f64::EPSILON;
+
 impl NoiseModel {
     /// Frames after which the model forgets at the rate of one in this many.
     pub const WINDOW: f64 = 1000.0;
 
     /// The noise of the reference frames (a sensor left alone): per channel, the sample variance
     /// of v/v̄ (v̄ the channel's mean); NaN values are left out of their channel. `None` with
-    /// fewer than two frames, or when no channel varied at all.
+    /// fewer than two frames, or when no channel varied at all. A channel whose values differ by
+    /// no more than rounding (v/v̄ − 1 within a few units in the last place: the mean of equal
+    /// values need not be exactly their value) did not vary.
     pub fn from_frames(frames: &[Vec<f64>]) -> Option<NoiseModel> {
         let count = frames.first()?.len();
         let (mut sum, mut weight) = (vec![0.0; count], vec![0.0; count]);
@@ -92,7 +97,8 @@ impl NoiseModel {
             if n < 2 || mean == 0.0 {
                 continue;
             }
-            sum[m] = values().map(|v| (v / mean - 1.0).powi(2)).sum();
+            let deviations = values().map(|v| (v / mean - 1.0).powi(2)).sum::<f64>();
+            sum[m] = if deviations > n as f64 * ROUNDING * ROUNDING { deviations } else { 0.0 };
             weight[m] = n as f64;
         }
         let mean = vec![0.0; count];
@@ -353,6 +359,19 @@ pub(crate) fn tail_threshold(at: f64, fitted: f64, rate: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Equal frames (a reference copied, a board that repeats itself) measure no noise, however
+    /// their mean rounds: no channel is taken as measured with a variance of 1e-32.
+    #[test]
+    fn equal_frames_measure_no_noise() {
+        let frame: Vec<f64> = (0..120).map(|m| 0.1 + 0.37 * f64::from(m).sin().abs()).collect();
+        assert!(NoiseModel::from_frames(&[frame.clone(), frame.clone(), frame.clone()]).is_none());
+        let mut varied = vec![frame.clone(), frame.clone(), frame];
+        varied[1][3] *= 1.0 + 1e-6;
+        let model = NoiseModel::from_frames(&varied).unwrap();
+        let variance = model.relative_variance();
+        assert!(variance[3] > 0.0 && variance.iter().enumerate().all(|(m, v)| m == 3 || *v == 0.0), "{variance:?}");
+    }
     use crate::{ReconstructorParams, SensorSpec};
     use rand_distr::Normal;
 
