@@ -73,7 +73,7 @@ pub use raster_file::{write_elements_csv, write_labels_csv, write_labels_npy, wr
 pub use reconstructor_file::{cache_key, cache_path, decode_linearisation, encode_linearisation, load_or_build};
 pub use samples_file::{
     check_labels_on_sheet, labelled_presses_to_csv, parse_samples, read_labelled_presses, read_samples, Location,
-    Measured, SampleRow,
+    Measured, SampleRow, OFF_SHEET,
 };
 pub use spec_file::{parse_spec, protocol_by_name, protocol_kind, read_spec, spec_to_toml};
 
