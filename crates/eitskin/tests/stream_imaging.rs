@@ -51,11 +51,11 @@ fn with_both_polarities_the_press_is_a_decrease() {
     let (mut pipeline, mut skin) = setup(ReconstructorParams::default(), touch, false);
     let mut frames: Vec<Vec<f64>> = (0..10).map(|_| skin.frame().unwrap()).collect();
     skin.press(PRESS, 10.0);
-    let pressed = skin.frame().unwrap();
-    // Swap the roles: the pressed sheet as the reference, the rest as the frame.
+    // Swap the roles: frames of the pressed sheet as the reference (each with its noise, as a
+    // board sends them: one frame repeated measures no noise), the rest as the frame.
     let rest = frames.pop().unwrap();
     for _ in 0..10 {
-        pipeline.process(&pressed).unwrap();
+        pipeline.process(&skin.frame().unwrap()).unwrap();
     }
     pipeline.process(&rest).unwrap();
     let strongest = pipeline.touches().first().expect("a touch");
