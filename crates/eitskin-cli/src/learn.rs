@@ -134,15 +134,15 @@ fn reference(path: Option<&Path>) -> Result<Option<(PathBuf, Vec<f64>)>> {
             path.display()
         );
     }
-    let Some(first) = table.frames.first() else { bail!("--reference {}: holds no frame", path.display()) };
-    let mut mean = vec![0.0; first.len()];
+    if table.frames.is_empty() {
+        bail!("--reference {}: holds no frame", path.display());
+    }
     for (k, frame) in table.frames.iter().enumerate() {
         if let Some(c) = frame.iter().position(|v| !v.is_finite()) {
             bail!("--reference {}: frame {} channel {} is not a number", path.display(), k + 1, c + 1);
         }
-        mean.iter_mut().zip(frame).for_each(|(m, v)| *m += v / table.frames.len() as f64);
     }
-    Ok(Some((path.to_path_buf(), mean)))
+    Ok(Some((path.to_path_buf(), eitskin::inverse::mean_frame(&table.frames))))
 }
 
 /// Runs `eitskin learn`.

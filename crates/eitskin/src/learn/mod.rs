@@ -406,9 +406,13 @@ pub fn train(
         return Err(LearnError::FewLikePresses { like: presses.len(), given: presses.len() + left_out.len() });
     }
     let mut scratch = FeatureScratch::default();
-    // Every press kept has a fitted press: `unlike` tried the same.
+    // Every press kept has a fitted press (`unlike` tried the same), one per press, in order.
     let fits: Vec<PressFit> = match &press {
-        Some(press) => presses.iter().filter_map(|p| press.press_into(&p.inputs, &mut scratch)).collect(),
+        Some(press) => presses
+            .iter()
+            .map(|p| press.press_into(&p.inputs, &mut scratch))
+            .collect::<Option<_>>()
+            .ok_or(LearnError::NotFitted)?,
         None => Vec::new(),
     };
     let inputs: Vec<Vec<f64>> = presses
