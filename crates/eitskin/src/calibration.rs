@@ -55,6 +55,9 @@ use crate::pseudo_array::PseudoArray;
 use crate::strength::Reading;
 pub use crate::strength::Strength;
 
+mod spread;
+pub use spread::PLACE_FOLDS;
+
 /// Largest |b| a fit may reach, as a multiple of the force span (b → ∞ for linear data).
 const MAX_DECAY_PER_SPAN: f64 = 1e6;
 /// Most Levenberg–Marquardt iterations (Jacobian evaluations) per start.
@@ -394,7 +397,8 @@ impl Calibration {
 
     /// [`Calibration::fit`] with the samples' `peak` holding the given kind of strength. Each
     /// curve's [`spread`](Curve::spread) is its error less what the samples' own noise (their
-    /// `std`, where known) explains: the error on places it did not see where its samples name
+    /// `std`, where known) explains, each sample counted by its own noise (Paule and Mandel's
+    /// estimator; module `spread`): the error on places it did not see where its samples name
     /// three places or more (up to [`PLACE_FOLDS`]-fold cross-validation, each place's samples
     /// held out together), else its residual. A spread measured on n places is known to n − 1
     /// degrees of freedom ν: the error at a new place is Student's t, whose standard deviation
@@ -425,11 +429,15 @@ impl Calibration {
                 }
                 let mut curve = Curve::fit(area, &forces[area], &peaks[area])?;
                 let own: Vec<&Sample> = samples.iter().filter(|s| s.area == area).collect();
-                let (error, places) = held_out_variance(&own).unwrap_or((curve.spread.powi(2), usize::MAX));
-                let noise: Vec<f64> = own.iter().filter_map(|s| s.std).filter(|s| s.is_finite()).collect();
-                let variance = noise.iter().map(|s| s * s).sum::<f64>() / noise.len().max(1) as f64;
-                let freedom = places.saturating_sub(1).max(3) as f64;
-                curve.spread = ((error - variance).max(0.0) * freedom / (freedom - 2.0)).sqrt();
+                // Residuals on places the curve did not see, else its own (3 parameters fitted).
+                let Some((residuals, places)) = spread::held_out_residuals(&own) else {
+                    let residuals: Vec<(f64, f64)> =
+                        own.iter().map(|s| (s.peak - curve.peak(s.force), spread::noise_variance(s))).collect();
+                    let freedom = (residuals.len() as f64 - 3.0).max(1.0);
+                    curve.spread = spread::excess_variance(&residuals, freedom).sqrt();
+                    return Ok(curve);
+                };
+                curve.spread = spread::sheet_spread(&residuals, places);
                 Ok(curve)
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -505,43 +513,6 @@ pub struct ForceErrors {
     pub mean_absolute: f64,
     /// Number of force pairs.
     pub count: usize,
-}
-
-/// The most folds a curve's spread is cross-validated over, places taken in turn.
-pub const PLACE_FOLDS: usize = 10;
-
-/// The mean squared error, in the strength's unit squared, of curves fitted without each fold
-/// of places on the samples of that fold, and the number of places: every sample's place known
-/// and three places or more, else `None` (so too when no fold leaves a curve that fits).
-fn held_out_variance(samples: &[&Sample]) -> Option<(f64, usize)> {
-    let places: Vec<[f64; 2]> = samples.iter().map(|s| s.place).collect::<Option<_>>()?;
-    let mut distinct: Vec<[f64; 2]> = Vec::new();
-    let fold_of: Vec<usize> = places
-        .iter()
-        .map(|p| {
-            distinct.iter().position(|d| d == p).unwrap_or_else(|| {
-                distinct.push(*p);
-                distinct.len() - 1
-            })
-        })
-        .collect();
-    if distinct.len() < 3 {
-        return None;
-    }
-    let folds = distinct.len().min(PLACE_FOLDS);
-    let (mut squared, mut count) = (0.0, 0usize);
-    for fold in 0..folds {
-        let held = |k: &usize| fold_of[*k] % folds == fold;
-        let kept: Vec<&Sample> = (0..samples.len()).filter(|k| !held(k)).map(|k| samples[k]).collect();
-        let forces: Vec<f64> = kept.iter().map(|s| s.force).collect();
-        let peaks: Vec<f64> = kept.iter().map(|s| s.peak).collect();
-        let Ok(curve) = Curve::fit(0, &forces, &peaks) else { continue };
-        for s in (0..samples.len()).filter(|k| held(k)).map(|k| samples[k]) {
-            squared += (s.peak - curve.peak(s.force)).powi(2);
-            count += 1;
-        }
-    }
-    (count > 0).then(|| (squared / count as f64, distinct.len()))
 }
 
 /// RMS error (N), RMS as % of the largest true force, Pearson correlation, mean absolute error (N).
