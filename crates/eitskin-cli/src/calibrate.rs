@@ -25,7 +25,7 @@ pub struct CalibrateArgs {
     #[arg(long)]
     samples: PathBuf,
     /// Where to write the calibration (JSON).
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["json"]))]
     out: PathBuf,
     /// Units per side of the pseudo-array, 1–100 (the paper's 5; 1: one curve for the sheet).
     #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of units per side", 1, 100))]
@@ -81,7 +81,7 @@ pub struct EvaluateArgs {
     /// Write each sample's result here (CSV: the label, whether its press was found, where, the
     /// force read and its standard deviation; with --model, the model's position, force and
     /// depth with their standard deviations).
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["csv"]))]
     out: Option<PathBuf>,
 }
 

@@ -91,14 +91,14 @@ pub struct Args {
     input: Input,
     /// Write the raster as data: `.npy` (f32, ny × nx, row 0 at the top, NaN outside) or `.csv`
     /// (x, y in the spec's unit, Δσ in S/m per inside pixel).
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["npy", "csv"]))]
     out: Option<PathBuf>,
     /// Write the conductivity change of every triangle as CSV (triangle, centroid x, y, Δσ).
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["csv"]))]
     elements: Option<PathBuf>,
     /// Write the image as a PNG figure: Δσ in S/m on a colour bar, axes in the spec's unit, the
     /// electrodes numbered and each touch's centre ringed.
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["png"]))]
     png: Option<PathBuf>,
     /// Print JSON instead of text.
     #[arg(long)]

@@ -24,7 +24,7 @@ pub struct Args {
     #[arg(long)]
     samples: PathBuf,
     /// Write the chosen model here (JSON).
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["json"]))]
     out: Option<PathBuf>,
     /// Samples to report the trained model's error on (held out of training).
     #[arg(long)]
@@ -61,13 +61,13 @@ pub struct PressesArgs {
     #[arg(long, default_value_t = 1000, value_parser = ranges::whole("a number of presses", 1, 1_000_000))]
     count: usize,
     /// Write the samples here (CSV, the format `learn` reads).
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["csv"]))]
     out: PathBuf,
     /// Also write this many more presses of the same skin, 0–1,000,000, to --held-out.
     #[arg(long, default_value_t = 0, value_parser = ranges::whole("a number of presses", 0, 1_000_000))]
     held_out_count: usize,
     /// Where the held-out presses go (needed with --held-out-count).
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["csv"]))]
     held_out: Option<PathBuf>,
     /// Frames averaged for each state (before, pressed), 1–10,000: the robot holds still while
     /// the board streams.

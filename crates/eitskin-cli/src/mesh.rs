@@ -13,7 +13,7 @@ pub struct Args {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
     /// Where to write the mesh (JSON); the picture goes beside it with a .png extension.
-    #[arg(long, short, default_value = "mesh.json")]
+    #[arg(long, short, default_value = "mesh.json", value_parser = outputs::writes(&["json"]))]
     out: PathBuf,
     /// Mesh with about this many triangles instead of the spec's count, 1–100,000,000 (refused
     /// when the mesh and what is built on it would not fit in the memory available).

@@ -1,5 +1,5 @@
-//! Output paths checked before any work starts: each goes into a folder that exists, and none
-//! is an input or another output of the same command.
+//! Output paths checked before any work starts: each is named as the format its flag writes,
+//! goes into a folder that exists, and is neither an input nor another output of the same command.
 
 use std::path::{Path, PathBuf};
 
@@ -71,6 +71,33 @@ impl Drop for Staged {
     }
 }
 
+/// Extensions that name a format of data, tables or pictures: a file named with one of them must
+/// be in that format, so a flag that writes another refuses it (a name with another extension, or
+/// none, is taken as the user gives it).
+const FORMATS: &[&str] = &[
+    "bmp", "csv", "gif", "h5", "hdf5", "jpeg", "jpg", "json", "jsonl", "mat", "ndjson", "npy", "npz", "pdf", "png",
+    "svg", "tif", "tiff", "toml", "tsv", "txt", "webp", "xls", "xlsx",
+];
+
+/// A parser for an output flag that writes one of `formats` (extensions, the first the usual
+/// one): refuses a path whose extension names another format (`--png x.jpg`, `--out x.txt`
+/// where `.npy` or `.csv` is chosen by extension) before any work starts.
+pub fn writes(formats: &'static [&'static str]) -> impl Fn(&str) -> Result<PathBuf, String> + Clone + Send + Sync {
+    move |value: &str| {
+        let path = PathBuf::from(value);
+        match path.extension().and_then(|e| e.to_str()) {
+            Some(extension)
+                if FORMATS.iter().any(|f| f.eq_ignore_ascii_case(extension))
+                    && !formats.iter().any(|f| f.eq_ignore_ascii_case(extension)) =>
+            {
+                let names: Vec<String> = formats.iter().map(|f| format!(".{f}")).collect();
+                Err(format!("this flag writes {}, not .{extension}: name the file so", names.join(" or ")))
+            }
+            _ => Ok(path),
+        }
+    }
+}
+
 /// Whether `path` names a file of that extension (`"npy"`), in any case: `X.NPY` is NPY too.
 pub fn has_extension(path: &Path, extension: &str) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case(extension))
@@ -117,6 +144,17 @@ mod tests {
         staged.commit().unwrap();
         assert_eq!(std::fs::read_to_string(&first).unwrap(), "new");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    #[test]
+    fn an_output_named_as_another_format_is_refused_and_any_other_name_taken() {
+        let png = writes(&["png"]);
+        assert_eq!(png("figure.jpg").unwrap_err(), "this flag writes .png, not .jpg: name the file so");
+        assert_eq!(png("out/figure.PNG").unwrap(), PathBuf::from("out/figure.PNG"));
+        assert!(png("figure").is_ok() && png("figure.v2").is_ok());
+        let raster = writes(&["npy", "csv"]);
+        assert_eq!(raster("x.txt").unwrap_err(), "this flag writes .npy or .csv, not .txt: name the file so");
+        assert!(raster("X.NPY").is_ok() && raster("x.csv").is_ok());
     }
 
     #[test]

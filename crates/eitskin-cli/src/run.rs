@@ -130,7 +130,7 @@ pub struct Args {
     #[arg(long, default_value_t = Codec::Lines)]
     codec: Codec,
     /// Record every frame and its touches to this file (append-only JSON lines, crash-safe).
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["jsonl", "ndjson"]))]
     record: Option<PathBuf>,
     /// Serve a live web page (image, 3-D view, touches, forces, counters) at ADDR (`HOST:PORT` or
     /// `PORT`; port 0: any free one); 127.0.0.1:8765 without a value.

@@ -17,7 +17,7 @@ pub struct Args {
     input: Input,
     /// Where to write the labels: `.npy` (u8, ny × nx, row 0 at the top) or `.csv` (x, y in the
     /// spec's unit, label per inside pixel); 0 background, 1 less, 2 more conductive.
-    #[arg(long)]
+    #[arg(long, value_parser = outputs::writes(&["npy", "csv"]))]
     out: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]
