@@ -3,11 +3,11 @@
 use eitskin::inverse::{normalize_jacobian, reconstruction_matrix};
 use eitskin::touch::Polarity;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 use crate::model::{ForwardModel, Mesh};
-use crate::{as_array, fail, floats};
+use crate::{as_array, error, fail, floats};
 
 /// The prior from its name.
 fn prior(name: &str, exponent: f64) -> PyResult<eitskin::Prior> {
@@ -38,11 +38,11 @@ pub(crate) fn one_step_matrix<'py>(
     let values = array.as_slice()?;
     let mut j = eitskin::faer::Mat::from_fn(rows, columns, |m, t| values[m * columns + t]);
     if let Some(background) = background {
-        normalize_jacobian(&mut j, &floats(background)?).map_err(fail)?;
+        normalize_jacobian(&mut j, &floats(background)?).map_err(error)?;
     }
     let prior = self::prior(prior, exponent)?;
     let mesh = &mesh.0;
-    let rm = py.detach(|| reconstruction_matrix(j.as_ref(), &prior, hyperparameter, mesh)).map_err(fail)?;
+    let rm = py.detach(|| reconstruction_matrix(j.as_ref(), &prior, hyperparameter, mesh)).map_err(error)?;
     Ok(Array2::from_shape_fn((rm.nrows(), rm.ncols()), |(t, m)| rm[(t, m)]).into_pyarray(py))
 }
 
@@ -217,26 +217,28 @@ impl Reconstructor {
             ..eitskin::ReconstructorParams::default()
         };
         let model = &model.0;
-        py.detach(|| eitskin::Reconstructor::new(model, background, &params)).map(Reconstructor).map_err(fail)
+        py.detach(|| eitskin::Reconstructor::new(model, background, &params)).map(Reconstructor).map_err(error)
     }
 
     /// The image of frame `v` against the reference `v_ref` (V, protocol order).
-    fn image(&self, py: Python<'_>, v_ref: PyReadonlyArray1<'_, f64>, v: PyReadonlyArray1<'_, f64>) -> PyResult<Image> {
+    fn image(&self, py: Python<'_>, v_ref: &Bound<'_, PyAny>, v: &Bound<'_, PyAny>) -> PyResult<Image> {
+        let (v_ref, v) = (crate::vector(v_ref, "v_ref")?, crate::vector(v, "v")?);
         let (v_ref, v) = (v_ref.as_slice()?, v.as_slice()?);
         let recon = &self.0;
-        py.detach(|| recon.image(v_ref, v)).map(Image).map_err(fail)
+        py.detach(|| recon.image(v_ref, v)).map(Image).map_err(error)
     }
 
     /// The conductivity change per triangle, (triangles,), S/m.
     fn element_values<'py>(
         &self,
         py: Python<'py>,
-        v_ref: PyReadonlyArray1<'py, f64>,
-        v: PyReadonlyArray1<'py, f64>,
+        v_ref: &Bound<'py, PyAny>,
+        v: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let (v_ref, v) = (crate::vector(v_ref, "v_ref")?, crate::vector(v, "v")?);
         let (v_ref, v) = (v_ref.as_slice()?, v.as_slice()?);
         let recon = &self.0;
-        Ok(py.detach(|| recon.element_values(v_ref, v)).map_err(fail)?.into_pyarray(py))
+        Ok(py.detach(|| recon.element_values(v_ref, v)).map_err(error)?.into_pyarray(py))
     }
 
     /// Number of measurements a frame has.

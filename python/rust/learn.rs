@@ -4,7 +4,7 @@
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::fail;
+use crate::{error, fail};
 use crate::model::SensorSpec;
 
 /// A model learned from labelled presses: Δv → position (m), and force (N) and depth (m) when
@@ -132,8 +132,8 @@ impl LearnedModel {
         let (model, presses) = py
             .detach(|| -> Result<_, String> {
                 let sensor = match &spec {
-                    Some(spec) if spec.protocol().map_err(|e| e.to_string())?.len() == channels => {
-                        Some(NominalSensor::of_spec(spec, None).map_err(|e| e.to_string())?)
+                    Some(spec) if spec.protocol().map_err(|e| crate::message(&e))?.len() == channels => {
+                        Some(NominalSensor::of_spec(spec, None).map_err(|e| crate::message(&e))?)
                     }
                     _ => None,
                 };
@@ -141,11 +141,11 @@ impl LearnedModel {
                     Some(m) => m,
                     None => {
                         choose(&presses, &Method::candidates(sensor.is_some()), folds, sensor.as_ref())
-                            .map_err(|e| e.to_string())?
+                            .map_err(|e| crate::message(&e))?
                             .0
                     }
                 };
-                let model = train(&presses, method, sensor.as_ref()).map_err(|e| e.to_string())?;
+                let model = train(&presses, method, sensor.as_ref()).map_err(|e| crate::message(&e))?;
                 Ok((model, presses))
             })
             .map_err(fail)?;
@@ -171,11 +171,15 @@ impl LearnedModel {
     fn predict<'py>(
         &mut self,
         py: Python<'py>,
-        dv: numpy::PyReadonlyArray1<'_, f64>,
+        dv: &Bound<'py, PyAny>,
     ) -> PyResult<Option<Bound<'py, pyo3::types::PyDict>>> {
+        let dv = crate::vector(dv, "dv")?;
         let dv = dv.as_slice()?;
         if dv.len() != self.model.channels() {
             return Err(fail(format!("dv has {} values, the model {} channels", dv.len(), self.model.channels())));
+        }
+        if let Some(k) = dv.iter().position(|v| !v.is_finite()) {
+            return Err(fail(format!("dv value {} is {}: every value must be a finite number", k + 1, dv[k])));
         }
         let Some(answer) = self.model.predict(dv, &mut self.scratch) else { return Ok(None) };
         let dict = pyo3::types::PyDict::new(py);
@@ -201,7 +205,7 @@ impl LearnedModel {
     fn save(&self, path: std::path::PathBuf, spec: &SensorSpec) -> PyResult<()> {
         let text = match &self.saved {
             Saved::Presses(presses) => {
-                eitskin_io::learned_model_to_json(&spec.0, self.model.method, presses).map_err(fail)?
+                eitskin_io::learned_model_to_json(&spec.0, self.model.method, presses).map_err(error)?
             }
             Saved::File(text) => text.clone(),
         };
@@ -213,7 +217,7 @@ impl LearnedModel {
     fn load(py: Python<'_>, path: std::path::PathBuf, spec: &SensorSpec) -> PyResult<LearnedModel> {
         let spec = &spec.0;
         let text = std::fs::read_to_string(&path).map_err(|e| fail(format!("cannot read {}: {e}", path.display())))?;
-        let channels = spec.protocol().map_err(fail)?.len();
+        let channels = spec.protocol().map_err(error)?.len();
         let model = py
             .detach(|| eitskin_io::parse_learned_model(&text, spec, channels, None))
             .map_err(|e| fail(format!("{}: {e}", path.display())))?;
@@ -276,8 +280,8 @@ pub(crate) fn robot_presses<'py>(
     let imperfections = Imperfections { frames_per_press, noise_relative: noise, circle, ..Imperfections::default() };
     let presses = py
         .detach(|| -> Result<_, String> {
-            let mut skin = ImperfectSkin::new(spec, &imperfections, seed).map_err(|e| e.to_string())?;
-            skin.robot_presses(count, disc_radius(&spec.outline, 0.8), 2.0..16.0).map_err(|e| e.to_string())
+            let mut skin = ImperfectSkin::new(spec, &imperfections, seed).map_err(|e| crate::message(&e))?;
+            skin.robot_presses(count, disc_radius(&spec.outline, 0.8), 2.0..16.0).map_err(|e| crate::message(&e))
         })
         .map_err(fail)?;
     let channels = presses.first().map_or(0, |p| p.inputs.len());

@@ -17,15 +17,50 @@ use pyo3::prelude::*;
 
 create_exception!(eitskin, EitskinError, PyValueError, "A value eitskin refuses, with the library's message.");
 
-/// Any library error as an `EitskinError` carrying its message.
-pub(crate) fn fail(error: impl std::fmt::Display) -> PyErr {
-    EitskinError::new_err(error.to_string())
+/// A message as an `EitskinError`.
+pub(crate) fn fail(message: impl std::fmt::Display) -> PyErr {
+    EitskinError::new_err(message.to_string())
 }
 
-/// `obj` as a contiguous numpy array of `dtype` (any array-like numpy can convert).
+/// A library error as an `EitskinError` carrying its message and each of its causes ([`message`]).
+pub(crate) fn error(error: impl std::error::Error) -> PyErr {
+    EitskinError::new_err(message(&error))
+}
+
+/// An error's message and each of its causes, joined by ": " as the CLI prints them ("the spec
+/// does not make a sensor: `thickness` must be …"); a message that already ends in its cause's
+/// text (thiserror's `{0}`) does not repeat it.
+pub(crate) fn message(error: &dyn std::error::Error) -> String {
+    let mut message = error.to_string();
+    let mut cause = error.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !message.ends_with(&text) {
+            message = format!("{message}: {text}");
+        }
+        cause = c.source();
+    }
+    message
+}
+
+/// `obj` as a contiguous numpy array of `dtype` (any array-like numpy can convert, without a
+/// copy where it already is one); complex values are refused (numpy would drop their imaginary
+/// parts with a warning).
 pub(crate) fn as_array<'py>(obj: &Bound<'py, PyAny>, dtype: &str) -> PyResult<Bound<'py, PyAny>> {
     let numpy = obj.py().import("numpy")?;
-    numpy.call_method1("ascontiguousarray", (obj, dtype))
+    let array = numpy.call_method1("asarray", (obj,))?;
+    if array.getattr("dtype")?.getattr("kind")?.extract::<String>()? == "c" {
+        return Err(fail("complex values: give real ones (their magnitudes or real parts)"));
+    }
+    numpy.call_method1("ascontiguousarray", (array, dtype))
+}
+
+/// `obj` as a 1-D float64 array named `name` in messages: any array-like numpy converts (lists,
+/// integers, float32, views), without a copy where it already is one.
+pub(crate) fn vector<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<PyReadonlyArray1<'py, f64>> {
+    let array = as_array(obj, "float64").map_err(|e| fail(format!("{name}: {}", e.value(obj.py()))))?;
+    let dimensions = ndim(&array);
+    array.extract().map_err(|_| fail(format!("{name}: expected a 1-D array, got {dimensions} dimensions")))
 }
 
 /// A 1-D float64 array-like as a Vec.

@@ -4,7 +4,7 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::{as_array, fail, floats, indices, rows};
+use crate::{as_array, error, fail, floats, indices, rows};
 
 /// The sensor's description: outline, electrodes, protocol, mesh settings, gel.
 ///
@@ -43,13 +43,13 @@ impl SensorSpec {
     #[staticmethod]
     #[pyo3(signature = (text, base = "."))]
     fn from_toml(text: &str, base: &str) -> PyResult<SensorSpec> {
-        eitskin_io::parse_spec(text, std::path::Path::new(base)).map(SensorSpec).map_err(fail)
+        eitskin_io::parse_spec(text, std::path::Path::new(base)).map(SensorSpec).map_err(error)
     }
 
     /// A spec from a TOML file.
     #[staticmethod]
     fn from_file(path: std::path::PathBuf) -> PyResult<SensorSpec> {
-        eitskin_io::read_spec(&path).map(SensorSpec).map_err(fail)
+        eitskin_io::read_spec(&path).map(SensorSpec).map_err(error)
     }
 
     /// The spec as TOML text.
@@ -83,18 +83,18 @@ impl SensorSpec {
     /// The spec's mesh (m).
     fn mesh(&self, py: Python<'_>) -> PyResult<Mesh> {
         let spec = self.0.clone();
-        py.detach(move || spec.mesh()).map(Mesh).map_err(fail)
+        py.detach(move || spec.mesh()).map(Mesh).map_err(error)
     }
 
     /// The spec's protocol.
     fn protocol(&self) -> PyResult<Protocol> {
-        self.0.protocol().map(Protocol).map_err(fail)
+        self.0.protocol().map(Protocol).map_err(error)
     }
 
     /// The spec's forward model (its mesh, electrodes, thickness and protocol).
     fn forward_model(&self, py: Python<'_>) -> PyResult<ForwardModel> {
         let spec = self.0.clone();
-        py.detach(move || spec.forward_model()).map(ForwardModel).map_err(fail)
+        py.detach(move || spec.forward_model()).map(ForwardModel).map_err(error)
     }
 
     fn __repr__(&self) -> String {
@@ -133,7 +133,7 @@ impl Mesh {
                 indices(values, "electrodes")
             })
             .collect::<PyResult<Vec<_>>>()?;
-        eitskin::Mesh::new(nodes, triangles, electrodes).map(Mesh).map_err(fail)
+        eitskin::Mesh::new(nodes, triangles, electrodes).map(Mesh).map_err(error)
     }
 
     /// A mesh from EIDORS-shaped arrays: `nodes` (n, 2), `elems` (t, 3) and per electrode its
@@ -243,7 +243,7 @@ impl Protocol {
     /// for 16 electrodes).
     #[staticmethod]
     fn two_terminal(electrodes: i64) -> PyResult<Protocol> {
-        eitskin::Protocol::two_terminal(crate::count(electrodes, "electrodes")?).map(Protocol).map_err(fail)
+        eitskin::Protocol::two_terminal(crate::count(electrodes, "electrodes")?).map(Protocol).map_err(error)
     }
 
     /// Adjacent drive, adjacent measurement (pyEIT's `dist_exc=1, step_meas=1`); `skip_driven`
@@ -251,13 +251,13 @@ impl Protocol {
     #[staticmethod]
     #[pyo3(signature = (electrodes, skip_driven = true))]
     fn adjacent(electrodes: i64, skip_driven: bool) -> PyResult<Protocol> {
-        eitskin::Protocol::adjacent(crate::count(electrodes, "electrodes")?, skip_driven).map(Protocol).map_err(fail)
+        eitskin::Protocol::adjacent(crate::count(electrodes, "electrodes")?, skip_driven).map(Protocol).map_err(error)
     }
 
     /// Opposite drive, adjacent measurement.
     #[staticmethod]
     fn opposite(electrodes: i64) -> PyResult<Protocol> {
-        eitskin::Protocol::opposite(crate::count(electrodes, "electrodes")?).map(Protocol).map_err(fail)
+        eitskin::Protocol::opposite(crate::count(electrodes, "electrodes")?).map(Protocol).map_err(error)
     }
 
     /// A protocol from arrays: `stimulations` (s, L) currents per electrode (A per unit, each row
@@ -296,7 +296,7 @@ impl Protocol {
             .zip(index)
             .map(|(weights, stimulation)| eitskin::Measurement { stimulation, weights })
             .collect();
-        eitskin::Protocol::new(description, electrodes, stimulations, measurements).map(Protocol).map_err(fail)
+        eitskin::Protocol::new(description, electrodes, stimulations, measurements).map(Protocol).map_err(error)
     }
 
     /// Number of electrodes.
@@ -402,7 +402,7 @@ impl ForwardModel {
             }
             other => return Err(fail(format!("electrodes must be \"point\" or \"complete\", got {other:?}"))),
         };
-        eitskin::ForwardModel::new(mesh.0.clone(), model, thickness, protocol.0.clone()).map(ForwardModel).map_err(fail)
+        eitskin::ForwardModel::new(mesh.0.clone(), model, thickness, protocol.0.clone()).map(ForwardModel).map_err(error)
     }
 
     /// The model's mesh.
@@ -422,7 +422,7 @@ impl ForwardModel {
     fn measure<'py>(&self, py: Python<'py>, conductivity: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let sigma = self.conductivity(conductivity)?;
         let model = &self.0;
-        let v = py.detach(|| model.measure(&sigma)).map_err(fail)?;
+        let v = py.detach(|| model.measure(&sigma)).map_err(error)?;
         Ok(v.into_pyarray(py))
     }
 
@@ -431,7 +431,7 @@ impl ForwardModel {
     fn jacobian<'py>(&self, py: Python<'py>, conductivity: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let sigma = self.conductivity(conductivity)?;
         let model = &self.0;
-        let j = py.detach(|| model.solve(&sigma).map(|s| model.jacobian(&s))).map_err(fail)?;
+        let j = py.detach(|| model.solve(&sigma).map(|s| model.jacobian(&s))).map_err(error)?;
         Ok(Array2::from_shape_fn((j.nrows(), j.ncols()), |(m, t)| j[(m, t)]).into_pyarray(py))
     }
 

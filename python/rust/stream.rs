@@ -4,7 +4,7 @@
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
-use crate::fail;
+use crate::{error, fail};
 use crate::model::SensorSpec;
 
 /// The virtual sensor: the spec's sheet simulated on a finer mesh, pressed, with noise.
@@ -25,7 +25,7 @@ impl VirtualSensor {
     #[pyo3(signature = (spec, seed = 0))]
     fn new(py: Python<'_>, spec: &SensorSpec, seed: i64) -> PyResult<VirtualSensor> {
         let (spec, seed) = (&spec.0, crate::seed(seed, "seed")?);
-        py.detach(|| eitskin::sim::VirtualSensor::new(spec, seed)).map(VirtualSensor).map_err(fail)
+        py.detach(|| eitskin::sim::VirtualSensor::new(spec, seed)).map(VirtualSensor).map_err(error)
     }
 
     /// Adds a press at (x, y) m from the outline's centre with `force` N.
@@ -47,13 +47,13 @@ impl VirtualSensor {
     /// A frame now, with noise (V at 1 A, protocol order).
     fn frame<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let sensor = &mut self.0;
-        Ok(py.detach(|| sensor.frame()).map_err(fail)?.into_pyarray(py))
+        Ok(py.detach(|| sensor.frame()).map_err(error)?.into_pyarray(py))
     }
 
     /// The noise-free frame now (V at 1 A, protocol order).
     fn clean_frame<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let sensor = &self.0;
-        Ok(py.detach(|| sensor.clean_frame()).map_err(fail)?.into_pyarray(py))
+        Ok(py.detach(|| sensor.clean_frame()).map_err(error)?.into_pyarray(py))
     }
 }
 
@@ -153,7 +153,7 @@ impl Source {
         };
         let seed = crate::seed(seed, "seed")?;
         let values_per_measurement = crate::count(values_per_measurement, "values_per_measurement")?;
-        let which: SourceSpec = source.parse().map_err(fail)?;
+        let which: SourceSpec = source.parse().map_err(error)?;
         if !(rate >= 0.0 && rate.is_finite()) {
             return Err(fail(format!("rate must be ≥ 0 frames/s and finite, got {rate}")));
         }
@@ -168,7 +168,7 @@ impl Source {
         let spec = &spec.0;
         py.detach(|| eitskin_io::source::Source::open(&which, spec, &settings))
             .map(|s| Source(std::sync::Mutex::new(s)))
-            .map_err(fail)
+            .map_err(error)
     }
 
     fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
@@ -181,7 +181,7 @@ impl Source {
         let source = self.0.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
         let item = match py.detach(|| source.next()) {
             None => return Ok(None),
-            Some(item) => item.map_err(fail)?,
+            Some(item) => item.map_err(error)?,
         };
         let event = |kind: &str, message: String| Event { kind: kind.into(), message };
         Ok(Some(match item {
@@ -248,9 +248,9 @@ impl Calibration {
             )));
         }
         let spec = spec.0.clone();
-        let electrodes = spec.electrode_positions().map_err(fail)?;
+        let electrodes = spec.electrode_positions().map_err(error)?;
         let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.outline, &electrodes, [grid.0, grid.1])
-            .map_err(fail)?;
+            .map_err(error)?;
         let samples: Vec<eitskin::calibration::Sample> = (0..area.len())
             .map(|k| eitskin::calibration::Sample {
                 area: area[k],
@@ -260,7 +260,7 @@ impl Calibration {
                 place: None,
             })
             .collect();
-        let calibration = eitskin::calibration::Calibration::fit(&samples, array.area_count()).map_err(fail)?;
+        let calibration = eitskin::calibration::Calibration::fit(&samples, array.area_count()).map_err(error)?;
         let imaging = eitskin_io::Imaging::default();
         Ok(Calibration { spec, file: eitskin_io::CalibrationFile { array, calibration, imaging } })
     }
@@ -271,16 +271,16 @@ impl Calibration {
     #[pyo3(signature = (spec, x, y, grid = (5, 5)))]
     fn area_of(spec: &SensorSpec, x: f64, y: f64, grid: (i64, i64)) -> PyResult<Option<usize>> {
         let grid = (crate::count(grid.0, "grid")?, crate::count(grid.1, "grid")?);
-        let electrodes = spec.0.electrode_positions().map_err(fail)?;
+        let electrodes = spec.0.electrode_positions().map_err(error)?;
         let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.0.outline, &electrodes, [grid.0, grid.1])
-            .map_err(fail)?;
+            .map_err(error)?;
         Ok(array.unit_at([x, y]).map(|u| array.area_of(u)))
     }
 
     /// Reads a calibration file made for `spec` (by `eitskin calibrate` or `save`).
     #[staticmethod]
     fn load(path: std::path::PathBuf, spec: &SensorSpec) -> PyResult<Calibration> {
-        let file = eitskin_io::read_calibration_file(&path, &spec.0).map_err(fail)?;
+        let file = eitskin_io::read_calibration_file(&path, &spec.0).map_err(error)?;
         Ok(Calibration { spec: spec.0.clone(), file })
     }
 
@@ -288,7 +288,7 @@ impl Calibration {
     fn save(&self, path: std::path::PathBuf) -> PyResult<()> {
         let f = &self.file;
         let text =
-            eitskin_io::calibration_file_to_json(&self.spec, &f.array, &f.calibration, f.imaging).map_err(fail)?;
+            eitskin_io::calibration_file_to_json(&self.spec, &f.array, &f.calibration, f.imaging).map_err(error)?;
         std::fs::write(&path, text).map_err(|e| fail(format!("cannot write {}: {e}", path.display())))
     }
 
@@ -307,7 +307,7 @@ impl Calibration {
     /// range (saturated).
     fn force(&self, area: i64, strength: f64) -> PyResult<(f64, bool)> {
         let area = crate::count(area, "area")?;
-        let estimate = self.file.calibration.force(area, strength).map_err(fail)?;
+        let estimate = self.file.calibration.force(area, strength).map_err(error)?;
         Ok((estimate.newtons, estimate.saturated))
     }
 }
@@ -418,29 +418,37 @@ impl Pipeline {
             return Err(fail(format!("average must be 1 to 1000 frames, got {average}")));
         }
         let spec = &spec.0;
+        if let Some(c) = calibration {
+            let key = |s: &eitskin::SensorSpec| eitskin_io::spec_key(s).map_err(error);
+            if key(&c.spec)? != key(spec)? {
+                return Err(fail(
+                    "the calibration was made for another sensor spec than the pipeline's; calibrate this sensor",
+                ));
+            }
+        }
         let chain = py.detach(|| -> Result<eitskin::chain::Chain, String> {
             let params = eitskin::ReconstructorParams {
                 hyperparameter: calibration.map_or(hyperparameter, |c| c.file.imaging.hyperparameter),
                 normalized: calibration.is_some_and(|c| c.file.imaging.normalized),
                 ..eitskin::ReconstructorParams::default()
             };
-            let model = spec.forward_model().map_err(|e| e.to_string())?;
-            let recon = eitskin::Reconstructor::new(&model, spec.conductivity, &params).map_err(|e| e.to_string())?;
+            let model = spec.forward_model().map_err(|e| crate::message(&e))?;
+            let recon = eitskin::Reconstructor::new(&model, spec.conductivity, &params).map_err(|e| crate::message(&e))?;
             let mut chain = eitskin::chain::Chain::new(recon, eitskin::TouchParams::default());
             let strength = calibration.map_or(eitskin::strength::Strength::Peak, |c| c.file.calibration.strength);
             if fit || strength.needs_press_model() {
                 let press = eitskin_io::build_press_model(spec, &eitskin::press_fit::PressModelParams::default())
-                    .map_err(|e| e.to_string())?;
+                    .map_err(|e| crate::message(&e))?;
                 chain = chain.with_press_model(press);
             }
             if strength.needs_contrast_map() {
                 return Err(format!("a calibration of strength {} is not supported from Python yet", strength.name()));
             }
-            chain = chain.with_strength(strength).map_err(|e| e.to_string())?;
+            chain = chain.with_strength(strength).map_err(|e| crate::message(&e))?;
             if let Some(c) = calibration {
                 chain = chain
                     .with_calibration(c.file.array.clone(), c.file.calibration.clone())
-                    .map_err(|e| e.to_string())?;
+                    .map_err(|e| crate::message(&e))?;
             }
             Ok(chain)
         });
@@ -457,11 +465,12 @@ impl Pipeline {
 
     /// Feeds one frame (V, protocol order): "referencing" while the reference is taken, then
     /// "processed", "channels dropped" or "noise updated".
-    fn process(&mut self, py: Python<'_>, frame: numpy::PyReadonlyArray1<'_, f64>) -> PyResult<String> {
+    fn process(&mut self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<String> {
         use eitskin::pipeline::Status;
+        let frame = crate::vector(frame, "frame")?;
         let frame = frame.as_slice()?;
         let pipeline = &mut self.0;
-        let status = py.detach(|| pipeline.process(frame)).map_err(fail)?;
+        let status = py.detach(|| pipeline.process(frame)).map_err(error)?;
         Ok(match status {
             Status::Referencing { .. } => "referencing",
             Status::Processed => "processed",

@@ -28,7 +28,7 @@ pub struct CalibrateArgs {
     #[arg(long, value_parser = outputs::writes(&["json"]))]
     out: PathBuf,
     /// Units per side of the pseudo-array, 1–100 (the paper's 5; 1: one curve for the sheet).
-    #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of units per side", 1, 100))]
+    #[arg(long, default_value_t = 5, value_parser = ranges::whole("a number of units per side", 1, eitskin::pseudo_array::MAX_UNITS_PER_SIDE))]
     grid: usize,
     /// Frames without a press (a MAT, NPY or text file of one or many frames), for samples of
     /// raw frames: the reference is their mean (with the samples' rows of 0 N) and each
@@ -172,9 +172,6 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
 pub fn evaluate(args: EvaluateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
     if let Some(out) = &args.out {
-        if outputs::has_extension(out, "npy") {
-            bail!("--out {}: evaluate writes a CSV table (labels, answers, flags); give a .csv path", out.display());
-        }
         let mut read = vec![("--samples", args.samples.as_path())];
         read.extend(args.calibration.as_deref().map(|p| ("--calibration", p)));
         read.extend(args.model.as_deref().map(|p| ("--model", p)));

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use eitskin::memory::Stage;
 
 use crate::{load, outputs, plot, ranges};
@@ -23,13 +23,8 @@ pub struct Args {
 
 /// Runs `eitskin mesh`.
 pub fn run(args: Args) -> Result<()> {
+    // `--out` is never a .png (its parser), so the picture beside it is another file.
     let png = args.out.with_extension("png");
-    if png == args.out {
-        bail!(
-            "--out {}: the mesh's picture goes beside it with a .png extension and would overwrite it; give the mesh a .json name",
-            args.out.display()
-        );
-    }
     let spec: Vec<_> = args.spec.iter().map(|s| ("the spec", s.as_path())).collect();
     outputs::check(&[("--out", &args.out), ("--out's picture", &png)], &spec)?;
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Mesh)?;

@@ -183,11 +183,15 @@ fn outputs_and_names_are_refused_before_any_work() {
     std::fs::write(&recording, "{}\n").unwrap();
     let f = frame.to_str().unwrap();
     let r = recording.to_str().unwrap();
+    // Outputs are checked before any input is read: the content does not matter.
+    let table = dir.join("frame.csv");
+    std::fs::copy(&frame, &table).unwrap();
+    let c = table.to_str().unwrap();
     for (args, says) in [
         (vec!["study", "--out", "/dev/null/study"], "creating /dev/null/study: Not a directory (os error 20)".to_string()),
         (
-            vec!["image", "--reference", f, "--frame", f, "--png", f],
-            format!("--png {f}: would overwrite the input {f} (--reference); give another path"),
+            vec!["image", "--reference", c, "--frame", c, "--out", c],
+            format!("--out {c}: would overwrite the input {c} (--reference); give another path"),
         ),
         (
             vec!["image", "--reference", f, "--frame", f, "--png", "/nonexistent/image.png"],
@@ -207,26 +211,37 @@ fn outputs_and_names_are_refused_before_any_work() {
         assert_eq!(out.status.code(), Some(1), "{args:?}");
     }
     assert_eq!(std::fs::read_to_string(&recording).unwrap(), "{}\n");
+    // A picture named as another format: refused by the flag itself, the frame untouched.
+    let out = dir.eitskin(&["image", "--reference", f, "--frame", f, "--png", f]);
+    let says = format!(
+        "error: invalid value '{f}' for '--png <PNG>': this flag writes .png, not .json: name the file so\n\nFor more information, try '--help'.\n"
+    );
+    assert_eq!(String::from_utf8_lossy(&out.stderr), says);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(std::fs::read_to_string(&frame).unwrap().contains("measurements"));
 }
 
 /// `mesh --out m.png` wrote the mesh's JSON to m.png and then the picture over it ("wrote m.png
-/// and m.png"): refused before any work, as is an output over the spec.
+/// and m.png"): a name of another format is refused before any work, as is an output over the spec.
 #[test]
 fn mesh_outputs_never_overwrite_each_other_or_the_spec() {
     let dir = scratch("mesh-out");
-    let out = dir.eitskin(&["mesh", "--out", "m.png"]);
-    assert_eq!(
-        String::from_utf8_lossy(&out.stderr),
-        "error: --out m.png: the mesh's picture goes beside it with a .png extension and would overwrite it; give the mesh a .json name\n"
+    let png = dir.join("m.png");
+    let out = dir.eitskin(&["mesh", "--out", png.to_str().unwrap()]);
+    let says = format!(
+        "error: invalid value '{}' for '--out <OUT>': this flag writes .json, not .png: name the file so\n\nFor more information, try '--help'.\n",
+        png.display()
     );
-    let spec = dir.join("paper.toml");
+    assert_eq!(String::from_utf8_lossy(&out.stderr), says);
+    assert!(!png.exists());
+    // The spec under a name the mesh could take: never written over, nor its picture made.
+    let spec = dir.join("paper.json");
     std::fs::write(&spec, dir.eitskin(&["spec"]).stdout).unwrap();
-    let json = spec.with_extension("json");
     let out = dir.eitskin(&["mesh", spec.to_str().unwrap(), "--out", spec.to_str().unwrap()]);
     let says =
         format!("error: --out {0}: would overwrite the input {0} (the spec); give another path\n", spec.display());
     assert_eq!(String::from_utf8_lossy(&out.stderr), says);
-    assert!(!json.exists() && std::fs::read_to_string(&spec).unwrap().contains("[outline]"));
+    assert!(!dir.join("paper.png").exists() && std::fs::read_to_string(&spec).unwrap().contains("[outline]"));
 }
 
 #[test]

@@ -206,5 +206,5 @@ fn robot_presses_are_learned_and_the_curves_reported() {
         assert!((number(1) - number(6)).hypot(number(2) - number(7)) < 40.0, "{row:?}");
     }
     let refused = dir.eitskin(&["evaluate", "--model", m, "--samples", h, "--out", "answers.NPY"]);
-    assert!(String::from_utf8_lossy(&refused.stderr).contains("evaluate writes a CSV table"), "{refused:?}");
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("this flag writes .csv, not .NPY"), "{refused:?}");
 }

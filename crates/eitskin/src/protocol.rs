@@ -32,6 +32,14 @@ use thiserror::Error;
 /// What is wrong with a protocol; indices in messages are 1-based, as a user counts.
 #[derive(Debug, Error, PartialEq)]
 pub enum ProtocolError {
+    /// More electrodes than a sensor may have ([`crate::spec::MAX_ELECTRODES`]).
+    #[error("a protocol of {electrodes} electrodes: a sensor has at most {max}")]
+    TooManyElectrodes {
+        /// Electrode count asked for.
+        electrodes: usize,
+        /// The most a sensor has.
+        max: usize,
+    },
     /// A protocol needs at least two electrodes and one measurement.
     #[error("a protocol needs at least 2 electrodes and 1 measurement, got {electrodes} electrodes and {measurements} measurements")]
     Empty {
@@ -136,6 +144,7 @@ impl Protocol {
         stimulations: Vec<Vec<f64>>,
         measurements: Vec<Measurement>,
     ) -> Result<Protocol, ProtocolError> {
+        check_electrode_count(electrode_count)?;
         if electrode_count < 2 || measurements.is_empty() {
             return Err(ProtocolError::Empty { electrodes: electrode_count, measurements: measurements.len() });
         }
@@ -177,6 +186,7 @@ impl Protocol {
     /// The paper's protocol: each pair (a, b), a < b, driven with +1 A at a and −1 A at b and
     /// measured as U_a − U_b; order (1,2), (1,3) … (L−1,L); 120 measurements for L = 16.
     pub fn two_terminal(electrode_count: usize) -> Result<Protocol, ProtocolError> {
+        check_electrode_count(electrode_count)?;
         let mut quads = Vec::new();
         for a in 0..electrode_count {
             for b in a + 1..electrode_count {
@@ -198,6 +208,7 @@ impl Protocol {
     /// order); without (`'meas_current'`), all L² are kept and row L·k + m is pair m of
     /// stimulation k (256 for L = 16).
     pub fn adjacent(electrode_count: usize, skip_driven: bool) -> Result<Protocol, ProtocolError> {
+        check_electrode_count(electrode_count)?;
         let quads = drive_and_measure_quads(electrode_count, 1, 1, skip_driven);
         let variant = if skip_driven { "skipping driven electrodes" } else { "all pairs" };
         Protocol::from_quads0(
@@ -215,6 +226,7 @@ impl Protocol {
     /// touching a driven electrode left out: L(L−4) values for even L, 192 for L = 16 (the
     /// OpenEIT firmware's 16-electrode opposition table, row for row).
     pub fn opposite(electrode_count: usize) -> Result<Protocol, ProtocolError> {
+        check_electrode_count(electrode_count)?;
         let quads = drive_and_measure_quads(electrode_count, electrode_count / 2, 1, true);
         Protocol::from_quads0(
             format!(
@@ -347,6 +359,15 @@ fn drive_and_measure_quads(l: usize, drive_offset: usize, measure_offset: usize,
         }
     }
     quads
+}
+
+/// Refuses more electrodes than a sensor may have, before any pattern is made.
+fn check_electrode_count(electrodes: usize) -> Result<(), ProtocolError> {
+    let max = crate::spec::MAX_ELECTRODES;
+    if electrodes > max {
+        return Err(ProtocolError::TooManyElectrodes { electrodes, max });
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -512,6 +533,19 @@ mod tests {
         }
         for (row, want) in [(23, tail_16[0]), (24, tail_16[1]), (191, tail_16[2])] {
             assert_eq!(as_firmware(q[row]), want, "row {row}");
+        }
+    }
+
+    #[test]
+    fn more_electrodes_than_a_sensor_has_are_refused_before_any_pattern_is_made() {
+        let max = crate::spec::MAX_ELECTRODES;
+        for protocol in
+            [Protocol::two_terminal(100_000), Protocol::adjacent(100_000, true), Protocol::opposite(max + 1)]
+        {
+            assert!(
+                matches!(protocol, Err(ProtocolError::TooManyElectrodes { max: m, .. }) if m == max),
+                "{protocol:?}"
+            );
         }
     }
 

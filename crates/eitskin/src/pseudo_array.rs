@@ -64,12 +64,17 @@ pub struct PseudoArray {
     area_count: usize,
 }
 
+/// Most units a pseudo-array has along x or along y.
+pub const MAX_UNITS_PER_SIDE: usize = 100;
+
 /// What is wrong with a pseudo-array's grid, box or user-given area map (1-based numbers in
 /// messages and fields).
 #[derive(Debug, Error, PartialEq)]
 pub enum PseudoArrayError {
-    /// The grid has no unit along x or along y.
-    #[error("the pseudo-array grid is {nx} × {ny} units; it needs at least one unit each way (the paper's is 5 × 5)")]
+    /// The grid has no unit along x or along y, or more than [`MAX_UNITS_PER_SIDE`].
+    #[error(
+        "the pseudo-array grid is {nx} × {ny} units; it needs 1 to {MAX_UNITS_PER_SIDE} units each way (the paper's is 5 × 5)"
+    )]
     EmptyGrid {
         /// Units along x.
         nx: usize,
@@ -213,7 +218,7 @@ impl PseudoArray {
     /// A checked grid and box with no areas yet.
     fn blank(bounds: [[f64; 2]; 2], grid: [usize; 2]) -> Result<PseudoArray, PseudoArrayError> {
         let [nx, ny] = grid;
-        if nx == 0 || ny == 0 {
+        if nx == 0 || ny == 0 || nx > MAX_UNITS_PER_SIDE || ny > MAX_UNITS_PER_SIDE {
             return Err(PseudoArrayError::EmptyGrid { nx, ny });
         }
         let [min, max] = bounds;
@@ -643,6 +648,9 @@ mod tests {
 
         let err = PseudoArray::with_areas(bounds, [0, 5], Vec::new()).unwrap_err();
         assert_eq!(err, PseudoArrayError::EmptyGrid { nx: 0, ny: 5 });
+        // Too many units is refused before any is made.
+        let err = PseudoArray::one_area_per_unit(bounds, [MAX_UNITS_PER_SIDE + 1, 100_000]).unwrap_err();
+        assert_eq!(err, PseudoArrayError::EmptyGrid { nx: MAX_UNITS_PER_SIDE + 1, ny: 100_000 });
         let flat = [[-0.1, 0.1], [0.1, 0.1]];
         let err = PseudoArray::one_area_per_unit(flat, [5, 5]).unwrap_err();
         assert_eq!(err, PseudoArrayError::BadBounds { min: [-0.1, 0.1], max: [0.1, 0.1] });

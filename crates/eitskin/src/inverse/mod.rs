@@ -96,6 +96,22 @@ pub enum InverseError {
         /// 1-based measurement.
         measurement: usize,
     },
+    /// A Jacobian (or the background it is normalised by) whose shape does not fit.
+    #[error("the Jacobian is {rows} × {columns}, but {expected}")]
+    JacobianShape {
+        /// Its rows (measurements).
+        rows: usize,
+        /// Its columns (triangles).
+        columns: usize,
+        /// What it must match, in words.
+        expected: String,
+    },
+    /// A Jacobian entry, background value or prior exponent that is NaN or infinite.
+    #[error("{what} is not a finite number")]
+    NotFiniteInput {
+        /// Which value, in words ("Jacobian entry (3, 7)").
+        what: String,
+    },
 }
 
 /// The element-level reconstruction matrix (triangles × measurements, S/m per V) of
@@ -107,6 +123,7 @@ pub fn reconstruction_matrix(
     mesh: &Mesh,
 ) -> Result<Mat<f64>, InverseError> {
     check_hyperparameter(hyperparameter)?;
+    check_jacobian(jacobian, prior, mesh)?;
     linearisation::weighted(jacobian, prior, hyperparameter, &vec![1.0; jacobian.nrows()], mesh)
 }
 
@@ -119,16 +136,48 @@ pub fn element_sized(
     mesh: &Mesh,
 ) -> Result<Mat<f64>, InverseError> {
     check_hyperparameter(hyperparameter)?;
+    check_jacobian(jacobian, prior, mesh)?;
     linearisation::weighted_element_sized(jacobian, prior, hyperparameter, &vec![1.0; jacobian.nrows()], mesh)
+}
+
+/// Refuses a Jacobian that is not measurements × `mesh`'s triangles (at least one of each) or
+/// holds a value that is not finite, and a NOSER exponent that is not finite.
+fn check_jacobian(jacobian: MatRef<'_, f64>, prior: &Prior, mesh: &Mesh) -> Result<(), InverseError> {
+    let (rows, columns) = (jacobian.nrows(), jacobian.ncols());
+    if rows == 0 || columns != mesh.triangles().len() {
+        let expected =
+            format!("it must have a row per measurement and a column per triangle ({})", mesh.triangles().len());
+        return Err(InverseError::JacobianShape { rows, columns, expected });
+    }
+    if let Prior::Noser { exponent } = prior {
+        if !exponent.is_finite() {
+            return Err(InverseError::NotFiniteInput { what: format!("the NOSER exponent {exponent}") });
+        }
+    }
+    for t in 0..columns {
+        for m in 0..rows {
+            if !jacobian[(m, t)].is_finite() {
+                return Err(InverseError::NotFiniteInput { what: format!("Jacobian entry ({}, {})", m + 1, t + 1) });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Divides row m of the Jacobian by the background measurement v_m (V), for normalised
 /// differences Δv_m / v_m (EIDORS `normalize_measurements`, pyEIT `jac_normalized`).
 pub fn normalize_jacobian(jacobian: &mut Mat<f64>, background: &[f64]) -> Result<(), InverseError> {
-    assert_eq!(jacobian.nrows(), background.len(), "one background value per measurement");
+    if jacobian.nrows() != background.len() {
+        let (rows, columns) = (jacobian.nrows(), jacobian.ncols());
+        let expected = format!("the background has {} values: one per measurement is needed", background.len());
+        return Err(InverseError::JacobianShape { rows, columns, expected });
+    }
     for (m, &v) in background.iter().enumerate() {
         if v == 0.0 {
             return Err(InverseError::ZeroReference { measurement: m + 1 });
+        }
+        if !v.is_finite() {
+            return Err(InverseError::NotFiniteInput { what: format!("background measurement {} ({v})", m + 1) });
         }
         for k in 0..jacobian.ncols() {
             jacobian[(m, k)] /= v;
@@ -150,6 +199,42 @@ mod tests {
     use super::*;
     use crate::SensorSpec;
     use std::sync::Arc;
+
+    #[test]
+    fn a_jacobian_that_does_not_fit_the_mesh_or_holds_no_number_is_refused() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let model = spec.forward_model().unwrap();
+        let mesh = model.mesh();
+        let j = model.jacobian(&model.solve(&spec.homogeneous(mesh)).unwrap());
+        let (rows, columns) = (j.nrows(), j.ncols());
+        let short = j.subcols(0, columns - 1).to_owned();
+        for prior in [Prior::Laplace, Prior::Tikhonov, Prior::default()] {
+            for matrix in [short.as_ref(), j.transpose(), j.subrows(0, 0)] {
+                let err = reconstruction_matrix(matrix, &prior, 0.1, mesh).unwrap_err();
+                assert!(matches!(err, InverseError::JacobianShape { .. }), "{err}");
+                assert!(element_sized(matrix, &prior, 0.1, mesh).is_err());
+            }
+        }
+        let mut spiked = j.clone();
+        spiked[(2, 6)] = f64::NAN;
+        let err = reconstruction_matrix(spiked.as_ref(), &Prior::default(), 0.1, mesh).unwrap_err();
+        assert_eq!(err.to_string(), "Jacobian entry (3, 7) is not a finite number");
+        let err = reconstruction_matrix(j.as_ref(), &Prior::Noser { exponent: f64::INFINITY }, 0.1, mesh).unwrap_err();
+        assert_eq!(err.to_string(), "the NOSER exponent inf is not a finite number");
+        let mut normalised = j.clone();
+        let err = normalize_jacobian(&mut normalised, &[1.0; 3]).unwrap_err();
+        let says = format!(
+            "the Jacobian is {rows} × {columns}, but the background has 3 values: one per measurement is needed"
+        );
+        assert_eq!(err.to_string(), says);
+        let mut background = vec![1.0; rows];
+        background[4] = f64::INFINITY;
+        assert_eq!(
+            normalize_jacobian(&mut normalised, &background).unwrap_err().to_string(),
+            "background measurement 5 (inf) is not a finite number"
+        );
+    }
 
     #[test]
     fn measurement_sized_form_equals_element_sized_form() {
