@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use eitskin::image::Image;
-use eitskin::inverse::{mean_frame, noise_variance, Channels, Hyperparameter};
+use eitskin::inverse::{mean_frame, noise_variance, plausible_ratio, typical_ratio, Channels, Hyperparameter};
 use eitskin::memory::Stage;
 use eitskin::touch::{detect, Polarity, Touch};
 use eitskin::values::{signed_from_magnitudes, Component, Gains};
@@ -325,33 +325,21 @@ impl Report {
 /// Below this R² of the reference against the model, the values are suspect and a warning says so.
 const PATTERN_FIT_WARNING: f64 = 0.5;
 
-/// The frame's values over the reference's beyond which they are taken as another unit or
-/// gain, not a press (a press changes a channel by percents, not by a factor of ten): refused.
-const SCALE_REFUSED: f64 = 10.0;
-/// Beyond this factor a warning says so.
+/// Beyond this factor (either way) between a frame's and its reference's values, a warning says so.
 const SCALE_WARNED: f64 = 2.0;
 
-/// Refuses a frame whose typical value (the median over channels of |v| / |v_ref|) is more than
-/// [`SCALE_REFUSED`] times the reference's or less than its tenth, and warns past
-/// [`SCALE_WARNED`]: a frame in other units than its reference, or from another gain setting.
+/// Refuses a frame whose typical value against the reference's ([`typical_ratio`]: the median
+/// over channels of v / v_ref) is beyond [`eitskin::inverse::SCALE_LIMIT`] either way or of the other sign, and
+/// warns past [`SCALE_WARNED`]: a frame in other units than its reference, or from another gain
+/// setting.
 fn check_scale(v: &[f64], v_ref: &[f64], input: &Input) -> Result<()> {
-    let mut ratios: Vec<f64> = v
-        .iter()
-        .zip(v_ref)
-        .filter(|(a, r)| a.is_finite() && r.is_finite() && **r != 0.0)
-        .map(|(a, r)| (a / r).abs())
-        .collect();
-    if ratios.is_empty() {
-        return Ok(());
-    }
-    ratios.sort_by(f64::total_cmp);
-    let median = ratios[ratios.len() / 2];
+    let Some(median) = typical_ratio(v, v_ref) else { return Ok(()) };
     let said = format!(
         "{}'s values are typically {median:.3} times those of {} (the median over channels)",
         input.frame.display(),
         input.reference.display()
     );
-    if !(median > 1.0 / SCALE_REFUSED && median < SCALE_REFUSED) {
+    if !plausible_ratio(median) {
         anyhow::bail!("{said}: a press changes them by percents; are the two in the same unit and gain?");
     }
     if !(median > 1.0 / SCALE_WARNED && median < SCALE_WARNED) {

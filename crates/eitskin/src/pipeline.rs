@@ -35,7 +35,10 @@
 //! [`Pipeline::retake_reference`], even if its values come back. A frame that would leave more
 //! than a quarter of the channels dropped is refused ([`InverseError::TooManyBadChannels`]) and
 //! changes nothing; a reference that would is refused as a whole, and the next frames start a
-//! new one.
+//! new one. A frame whose values are typically ten times (or a tenth, or the negative) of the
+//! reference's ([`crate::inverse::typical_ratio`]) is from another unit, gain or board, not a
+//! press: refused ([`InverseError::FrameScale`]) and changes nothing; while the reference is
+//! taken, such a frame (against the first, or a first frame of zeros) starts it again.
 //!
 //! Plain data and no threads or I/O: the caller feeds frames (from a port, a file, the virtual
 //! sensor) and reads the results. After the reference is taken, [`Pipeline::process`]
@@ -44,7 +47,9 @@
 use crate::chain::Chain;
 pub use crate::chain::TouchForce;
 use crate::image::Image;
-use crate::inverse::{mean_of_finite, Channels, InverseError, Reconstructor, DEFAULT_RELATIVE_NOISE};
+use crate::inverse::{
+    mean_of_finite, plausible_ratio, typical_ratio, Channels, InverseError, Reconstructor, DEFAULT_RELATIVE_NOISE,
+};
 use crate::noise::{NoiseModel, Significance};
 use crate::press_fit::PressDetection;
 use crate::pseudo_array::PseudoArray;
@@ -343,6 +348,9 @@ impl Pipeline {
         if self.reference.is_empty() {
             return self.collect(frame);
         }
+        if let Some(ratio) = typical_ratio(frame, &self.reference).filter(|r| !plausible_ratio(*r)) {
+            return Err(InverseError::FrameScale { ratio, restart: "" });
+        }
         let channels = self.chain.reconstructor().channels();
         self.newly_dropped.extend((0..count).filter(|&m| channels.is_used(m) && !frame[m].is_finite()));
         if !self.newly_dropped.is_empty() {
@@ -478,6 +486,18 @@ impl Pipeline {
         let lost = |m: usize| self.configured[m] && !self.missing[m] && !frame[m].is_finite();
         let new = (0..frame.len()).filter(|&m| lost(m)).count();
         too_many_dropped(&used, &self.configured, new)?;
+        // A frame unlike the first of the reference (or a first frame of zeros) is refused, and
+        // the reference starts again: which of the two is wrong cannot be told, and neither may
+        // enter the mean.
+        let first = self.collected.first().map_or(frame, Vec::as_slice);
+        let ratio = if frame.iter().all(|v| *v == 0.0) { Some(0.0) } else { typical_ratio(frame, first) };
+        if let Some(ratio) = ratio.filter(|r| !plausible_ratio(*r)) {
+            self.retake_reference();
+            return Err(InverseError::FrameScale {
+                ratio,
+                restart: " The reference starts again from the next frame.",
+            });
+        }
         self.missing.iter_mut().zip(&used).for_each(|(missing, used)| *missing = !used);
         self.collected.push(frame.to_vec());
         if self.collected.len() < needed {
@@ -688,6 +708,36 @@ mod tests {
         assert_eq!(err, InverseError::TooManyBadChannels { bad: 31, new: 31, channels: 120, first });
         assert!(err.to_string().starts_with("31 of 120 channels are missing or not finite"), "{err}");
         assert_eq!(pipeline.process(&skin.frame().unwrap()).unwrap(), Status::Referencing { collected: 1, needed: 10 });
+    }
+
+    /// A frame of zeros, of the other sign or in another unit is no press: while the reference is
+    /// taken it starts the reference again, after it it is refused and changes nothing.
+    #[test]
+    fn a_frame_unlike_its_reference_is_refused_and_never_averaged_in() {
+        let (mut pipeline, mut skin) = setup();
+        let zeros = vec![0.0; 120];
+        let refused = |e: InverseError| matches!(e, InverseError::FrameScale { .. });
+        assert!(refused(pipeline.process(&zeros).unwrap_err()));
+        let good = skin.frame().unwrap();
+        assert_eq!(pipeline.process(&good).unwrap(), Status::Referencing { collected: 1, needed: 10 });
+        let negated: Vec<f64> = good.iter().map(|v| -v).collect();
+        let err = pipeline.process(&negated).unwrap_err();
+        assert!(err.to_string().contains("starts again"), "{err}");
+        assert!(refused(err));
+        for k in 1..=10 {
+            assert_eq!(
+                pipeline.process(&skin.frame().unwrap()).unwrap(),
+                Status::Referencing { collected: k, needed: 10 }
+            );
+        }
+        let reference = pipeline.reference().unwrap().to_vec();
+        for bad in [zeros, negated, good.iter().map(|v| v * 1e3).collect()] {
+            let err = pipeline.process(&bad).unwrap_err();
+            assert!(!err.to_string().contains("starts again"), "{err}");
+            assert!(refused(err));
+        }
+        assert_eq!(pipeline.reference().unwrap(), reference.as_slice());
+        assert_eq!(pipeline.process(&skin.frame().unwrap()).unwrap(), Status::Processed);
     }
 
     /// A channel missing from a reference frame is dropped; the reference is the mean of the rest.

@@ -115,6 +115,34 @@ pub fn mean_frame(frames: &[Vec<f64>]) -> Vec<f64> {
     (0..width).map(|m| frames.iter().map(|f| f.get(m).copied().unwrap_or(f64::NAN)).sum::<f64>() / n).collect()
 }
 
+/// How far a frame's values may typically lie from its reference's, as a factor either way,
+/// before the two are taken as from another unit, gain or board: a press changes a channel by
+/// percents, never by ten times.
+pub const SCALE_LIMIT: f64 = 10.0;
+
+/// A frame's values against its reference's, typically: the median over channels (both values
+/// finite, the reference's not zero) of v/v_ref, signed (a frame of the other sign gives about
+/// −1); `None` where no channel has both. About 1 for a frame of the same sensor.
+pub fn typical_ratio(frame: &[f64], reference: &[f64]) -> Option<f64> {
+    let mut ratios: Vec<f64> = frame
+        .iter()
+        .zip(reference)
+        .filter(|(v, r)| v.is_finite() && r.is_finite() && **r != 0.0)
+        .map(|(v, r)| v / r)
+        .collect();
+    if ratios.is_empty() {
+        return None;
+    }
+    ratios.sort_by(f64::total_cmp);
+    Some(ratios[ratios.len() / 2])
+}
+
+/// Whether a [`typical_ratio`] is one a frame of the same sensor can have: within
+/// [`SCALE_LIMIT`] either way of 1, and positive.
+pub fn plausible_ratio(ratio: f64) -> bool {
+    ratio > 1.0 / SCALE_LIMIT && ratio < SCALE_LIMIT
+}
+
 /// The mean of each channel's finite values over several frames (a stream's reference, whose
 /// channels missing from some frames are dropped by other means); NaN where none is finite.
 pub fn mean_of_finite(frames: &[Vec<f64>]) -> Vec<f64> {

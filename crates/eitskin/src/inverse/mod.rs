@@ -23,7 +23,7 @@ mod product;
 mod raster;
 
 pub(crate) use channels::floored;
-pub use channels::{mean_frame, mean_of_finite, noise_variance, Channels};
+pub use channels::{mean_frame, mean_of_finite, noise_variance, plausible_ratio, typical_ratio, Channels, SCALE_LIMIT};
 pub use hyperparameter::{
     choose_hyperparameter, map_hyperparameter, noise_figure, noise_figure_hyperparameter, Hyperparameter,
     DEFAULT_RELATIVE_NOISE, LARGEST_HYPERPARAMETER, NOISE_FIGURE_TARGET, TARGET_CONTRAST,
@@ -95,6 +95,17 @@ pub enum InverseError {
     ZeroReference {
         /// 1-based measurement.
         measurement: usize,
+    },
+    /// A frame whose values are typically far from, or of the other sign than, its reference's
+    /// ([`typical_ratio`]): another unit, gain or board, not a press.
+    #[error(
+        "the frame's values are typically {ratio:.3e} times the reference's (the median over channels); a press changes them by percents: is the board sending what it sent for the reference?{restart}"
+    )]
+    FrameScale {
+        /// The typical ratio.
+        ratio: f64,
+        /// What happens to the reference, if anything (empty, or a sentence starting with " ").
+        restart: &'static str,
     },
     /// A Jacobian (or the background it is normalised by) whose shape does not fit.
     #[error("the Jacobian is {rows} × {columns}, but {expected}")]
