@@ -48,7 +48,8 @@ use crate::chain::Chain;
 pub use crate::chain::TouchForce;
 use crate::image::Image;
 use crate::inverse::{
-    mean_of_finite, plausible_ratio, typical_ratio, Channels, InverseError, Reconstructor, DEFAULT_RELATIVE_NOISE,
+    mean_of_finite, plausible_ratio, typical_ratio, typical_ratio_in, Channels, InverseError, Reconstructor,
+    DEFAULT_RELATIVE_NOISE,
 };
 use crate::noise::{NoiseModel, Significance};
 use crate::press_fit::PressDetection;
@@ -209,6 +210,8 @@ pub struct Pipeline {
     noise_peak: f64,
     /// Channels the last frame dropped, 0-based (room for every channel, so no allocation).
     newly_dropped: Vec<usize>,
+    /// Scratch for each frame's ratios to the reference, a channel's worth of capacity.
+    ratios: Vec<f64>,
     /// The channels the chain came with (a spec's mask left the others out): only these are
     /// imaged, and only their losses count towards the limit.
     configured: Vec<bool>,
@@ -247,6 +250,7 @@ impl Pipeline {
             missing: vec![false; count],
             noise_peak: 0.0,
             newly_dropped: Vec::with_capacity(count),
+            ratios: Vec::with_capacity(count),
             configured,
             noise: None,
             noise_measured: false,
@@ -348,7 +352,8 @@ impl Pipeline {
         if self.reference.is_empty() {
             return self.collect(frame);
         }
-        if let Some(ratio) = typical_ratio(frame, &self.reference).filter(|r| !plausible_ratio(*r)) {
+        if let Some(ratio) = typical_ratio_in(frame, &self.reference, &mut self.ratios).filter(|r| !plausible_ratio(*r))
+        {
             return Err(InverseError::FrameScale { ratio, restart: "" });
         }
         let channels = self.chain.reconstructor().channels();

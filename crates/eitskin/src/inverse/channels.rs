@@ -124,17 +124,21 @@ pub const SCALE_LIMIT: f64 = 10.0;
 /// finite, the reference's not zero) of v/v_ref, signed (a frame of the other sign gives about
 /// −1); `None` where no channel has both. About 1 for a frame of the same sensor.
 pub fn typical_ratio(frame: &[f64], reference: &[f64]) -> Option<f64> {
-    let mut ratios: Vec<f64> = frame
-        .iter()
-        .zip(reference)
-        .filter(|(v, r)| v.is_finite() && r.is_finite() && **r != 0.0)
-        .map(|(v, r)| v / r)
-        .collect();
-    if ratios.is_empty() {
+    typical_ratio_in(frame, reference, &mut Vec::with_capacity(frame.len()))
+}
+
+/// [`typical_ratio`] with the ratios in `scratch` (cleared first): allocates nothing where its
+/// capacity holds a ratio per channel, as on the frame path.
+pub fn typical_ratio_in(frame: &[f64], reference: &[f64], scratch: &mut Vec<f64>) -> Option<f64> {
+    scratch.clear();
+    scratch.extend(
+        frame.iter().zip(reference).filter(|(v, r)| v.is_finite() && r.is_finite() && **r != 0.0).map(|(v, r)| v / r),
+    );
+    if scratch.is_empty() {
         return None;
     }
-    ratios.sort_by(f64::total_cmp);
-    Some(ratios[ratios.len() / 2])
+    let middle = scratch.len() / 2;
+    Some(*scratch.select_nth_unstable_by(middle, f64::total_cmp).1)
 }
 
 /// Whether a [`typical_ratio`] is one a frame of the same sensor can have: within

@@ -23,7 +23,9 @@ mod product;
 mod raster;
 
 pub(crate) use channels::floored;
-pub use channels::{mean_frame, mean_of_finite, noise_variance, plausible_ratio, typical_ratio, Channels, SCALE_LIMIT};
+pub use channels::{
+    mean_frame, mean_of_finite, noise_variance, plausible_ratio, typical_ratio, typical_ratio_in, Channels, SCALE_LIMIT,
+};
 pub use hyperparameter::{
     choose_hyperparameter, map_hyperparameter, noise_figure, noise_figure_hyperparameter, Hyperparameter,
     DEFAULT_RELATIVE_NOISE, LARGEST_HYPERPARAMETER, NOISE_FIGURE_TARGET, TARGET_CONTRAST,
