@@ -16,7 +16,7 @@ use crate::model::SensorSpec;
 /// seed : int, default 0
 ///     Seed of the measurement noise (0.01 % of each value, relative).
 #[pyclass(module = "eitskin")]
-pub(crate) struct VirtualSensor(pub(crate) eitskin::sim::VirtualSensor);
+pub(crate) struct VirtualSensor(pub(crate) eitskin::sim::VirtualSensor, eitskin::Outline);
 
 #[pymethods]
 impl VirtualSensor {
@@ -25,14 +25,21 @@ impl VirtualSensor {
     #[pyo3(signature = (spec, seed = 0))]
     fn new(py: Python<'_>, spec: &SensorSpec, seed: i64) -> PyResult<VirtualSensor> {
         let (spec, seed) = (&spec.0, crate::seed(seed, "seed")?);
-        py.detach(|| eitskin::sim::VirtualSensor::new(spec, seed)).map(VirtualSensor).map_err(error)
+        let sensor = py.detach(|| eitskin::sim::VirtualSensor::new(spec, seed)).map_err(error)?;
+        Ok(VirtualSensor(sensor, spec.outline.clone()))
     }
 
-    /// Adds a press at (x, y) m from the outline's centre with `force` N.
+    /// Adds a press at (x, y) m from the outline's centre with `force` N; a press off the sheet is refused.
     fn press(&mut self, x: f64, y: f64, force: f64) -> PyResult<()> {
         if !(x.is_finite() && y.is_finite() && force.is_finite() && force >= 0.0) {
             return Err(fail(format!(
                 "a press needs a finite position and a force ≥ 0 N, got ({x}, {y}) m, {force} N"
+            )));
+        }
+        if !self.1.contains([x, y]) {
+            let [[x0, y0], [x1, y1]] = self.1.bounds();
+            return Err(fail(format!(
+                "a press at ({x}, {y}) m is off the sheet (its outline spans {x0}–{x1} m by {y0}–{y1} m, from its centre): it would change nothing"
             )));
         }
         self.0.press([x, y], force);

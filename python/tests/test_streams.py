@@ -48,6 +48,13 @@ def test_the_pipeline_finds_a_press_from_the_virtual_sensors_frames(spec):
         eitskin.Pipeline(spec, false_alarm_rate=0.0)
     with pytest.raises(eitskin.EitskinError, match="reference_limit must be 1 to 1000000, got 0"):
         eitskin.Pipeline(spec, reference_limit=0)
+    # A frame of the other sign is no press: refused, and the next frame is imaged as before.
+    with pytest.raises(eitskin.EitskinError, match="typically -1.0"):
+        pipeline.process(-sensor.frame())
+    assert pipeline.process(sensor.frame()) in ("processed", "noise updated")
+    # A press off the sheet would change nothing: refused.
+    with pytest.raises(eitskin.EitskinError, match=r"off the sheet \(its outline spans -0.1–0.1 m"):
+        sensor.press(0.15, 0.0, 8.0)
 
 
 def test_a_calibration_is_fitted_saved_loaded_and_gives_forces(spec, tmp_path):
