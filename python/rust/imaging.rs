@@ -217,6 +217,8 @@ impl Reconstructor {
             ..eitskin::ReconstructorParams::default()
         };
         let model = &model.0;
+        let measurements = model.protocol().measurements().len();
+        eitskin::memory::check_raster(params.raster, measurements, eitskin_io::available_memory()).map_err(error)?;
         py.detach(|| eitskin::Reconstructor::new(model, background, &params)).map(Reconstructor).map_err(error)
     }
 

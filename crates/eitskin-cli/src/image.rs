@@ -190,6 +190,8 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
         anyhow::bail!("--threshold {}: must be in (0, 1], a fraction of the peak", input.threshold);
     }
     let spec = load::sized(load::spec(input.spec.as_deref())?, input.triangles, Stage::Reconstructor)?;
+    let measurements = spec.protocol()?.measurements().len();
+    eitskin::memory::check_raster(input.raster, measurements, eitskin_io::available_memory())?;
     let layout = match input.layout.as_str() {
         "rows" => FrameLayout::Rows,
         "columns" => FrameLayout::Columns,

@@ -24,6 +24,39 @@ const MODEL_PER_TRIANGLE: f64 = 820.0;
 const RECONSTRUCTOR_PER_ENTRY: f64 = 56.0;
 /// Bytes any job takes whatever its mesh: the program, rasters, buffers.
 const BASE: f64 = 64e6;
+/// Bytes per pixel and measurement of a reconstructor's image matrix (f32).
+const RASTER_PER_ENTRY: f64 = 4.0;
+
+/// An image raster too large for the memory available.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "a raster of {nx} × {ny} pixels at {measurements} measurements needs about {needed:.1} GB of memory, and {available:.1} GB is available: ask for fewer pixels"
+)]
+pub struct RasterTooLarge {
+    /// Pixels along x.
+    pub nx: usize,
+    /// Pixels along y.
+    pub ny: usize,
+    /// Measurements of a frame.
+    pub measurements: usize,
+    /// Memory the image matrix needs, in GB.
+    pub needed: f64,
+    /// Memory available, in GB.
+    pub available: f64,
+}
+
+/// Refuses a `raster` (nx, ny) whose image matrix at `measurements` measurements would not fit
+/// in `available` bytes (where known), before it is allocated.
+pub fn check_raster(raster: [usize; 2], measurements: usize, available: Option<f64>) -> Result<(), RasterTooLarge> {
+    let [nx, ny] = raster;
+    let needed = RASTER_PER_ENTRY * nx as f64 * ny as f64 * measurements as f64;
+    match available {
+        Some(available) if needed > available => {
+            Err(RasterTooLarge { nx, ny, measurements, needed: needed / 1e9, available: available / 1e9 })
+        }
+        _ => Ok(()),
+    }
+}
 
 /// A stage of the setup chain; each includes the ones before it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -70,6 +103,15 @@ pub fn most_triangles(stage: Stage, bytes: f64, measurements: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_raster_is_refused_where_its_image_matrix_would_not_fit() {
+        // 4096 × 4096 pixels at 120 measurements: 8.05 GB of f32.
+        let err = check_raster([4096, 4096], 120, Some(6e9)).unwrap_err();
+        assert!((err.needed - 8.053).abs() < 1e-3, "{err}");
+        assert!(err.to_string().starts_with("a raster of 4096 × 4096 pixels at 120 measurements needs about 8.1 GB"));
+        assert!(check_raster([4096, 4096], 120, Some(9e9)).is_ok() && check_raster([4096, 4096], 120, None).is_ok());
+    }
 
     #[test]
     fn most_triangles_inverts_the_estimate() {
