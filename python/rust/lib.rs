@@ -59,16 +59,17 @@ pub(crate) fn as_array<'py>(obj: &Bound<'py, PyAny>, dtype: &str) -> PyResult<Bo
 /// integers, float32, views), without a copy where it already is one.
 pub(crate) fn vector<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<PyReadonlyArray1<'py, f64>> {
     let array = as_array(obj, "float64").map_err(|e| fail(format!("{name}: {}", e.value(obj.py()))))?;
-    let dimensions = ndim(&array);
-    array.extract().map_err(|_| fail(format!("{name}: expected a 1-D array, got {dimensions} dimensions")))
+    one_dimensional(&array, &format!("{name}: "))
 }
 
 /// A 1-D float64 array-like as a Vec.
 pub(crate) fn floats(obj: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
-    let array = as_array(obj, "float64")?;
-    let array: PyReadonlyArray1<'_, f64> =
-        array.extract().map_err(|_| fail(format!("expected a 1-D array, got {} dimensions", ndim(&array))))?;
-    Ok(array.as_slice()?.to_vec())
+    Ok(one_dimensional(&as_array(obj, "float64")?, "")?.as_slice()?.to_vec())
+}
+
+/// `array` as 1-D float64, else an error starting with `named` ("frame: ", or nothing).
+fn one_dimensional<'py>(array: &Bound<'py, PyAny>, named: &str) -> PyResult<PyReadonlyArray1<'py, f64>> {
+    array.extract().map_err(|_| fail(format!("{named}expected a 1-D array, got {} dimensions", ndim(array))))
 }
 
 fn ndim(array: &Bound<'_, PyAny>) -> usize {

@@ -429,15 +429,7 @@ impl Calibration {
                 }
                 let mut curve = Curve::fit(area, &forces[area], &peaks[area])?;
                 let own: Vec<&Sample> = samples.iter().filter(|s| s.area == area).collect();
-                // Residuals on places the curve did not see, else its own (3 parameters fitted).
-                let Some((residuals, places)) = spread::held_out_residuals(&own) else {
-                    let residuals: Vec<(f64, f64)> =
-                        own.iter().map(|s| (s.peak - curve.peak(s.force), spread::noise_variance(s))).collect();
-                    let freedom = (residuals.len() as f64 - 3.0).max(1.0);
-                    curve.spread = spread::excess_variance(&residuals, freedom).sqrt();
-                    return Ok(curve);
-                };
-                curve.spread = spread::sheet_spread(&residuals, places);
+                curve.spread = spread::spread(&curve, &own);
                 Ok(curve)
             })
             .collect::<Result<Vec<_>, _>>()?;

@@ -48,8 +48,7 @@ use crate::chain::Chain;
 pub use crate::chain::TouchForce;
 use crate::image::Image;
 use crate::inverse::{
-    mean_of_finite, plausible_ratio, typical_ratio, typical_ratio_in, Channels, InverseError, Reconstructor,
-    DEFAULT_RELATIVE_NOISE,
+    mean_of_finite, plausible_ratio, typical_ratio_in, Channels, InverseError, Reconstructor, DEFAULT_RELATIVE_NOISE,
 };
 use crate::noise::{NoiseModel, Significance};
 use crate::press_fit::PressDetection;
@@ -354,7 +353,7 @@ impl Pipeline {
         }
         if let Some(ratio) = typical_ratio_in(frame, &self.reference, &mut self.ratios).filter(|r| !plausible_ratio(*r))
         {
-            return Err(InverseError::FrameScale { ratio, restart: "" });
+            return Err(InverseError::FrameScale { ratio, restarted: false });
         }
         let channels = self.chain.reconstructor().channels();
         self.newly_dropped.extend((0..count).filter(|&m| channels.is_used(m) && !frame[m].is_finite()));
@@ -495,13 +494,11 @@ impl Pipeline {
         // the reference starts again: which of the two is wrong cannot be told, and neither may
         // enter the mean.
         let first = self.collected.first().map_or(frame, Vec::as_slice);
-        let ratio = if frame.iter().all(|v| *v == 0.0) { Some(0.0) } else { typical_ratio(frame, first) };
+        let ratio =
+            if frame.iter().all(|v| *v == 0.0) { Some(0.0) } else { typical_ratio_in(frame, first, &mut self.ratios) };
         if let Some(ratio) = ratio.filter(|r| !plausible_ratio(*r)) {
             self.retake_reference();
-            return Err(InverseError::FrameScale {
-                ratio,
-                restart: " The reference starts again from the next frame.",
-            });
+            return Err(InverseError::FrameScale { ratio, restarted: true });
         }
         self.missing.iter_mut().zip(&used).for_each(|(missing, used)| *missing = !used);
         self.collected.push(frame.to_vec());

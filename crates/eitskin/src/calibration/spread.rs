@@ -24,7 +24,7 @@ const BISECTIONS: usize = 60;
 /// samples of that fold, each with its sample's noise variance ([`noise_variance`]), and the
 /// number of places: every sample's place known and three places or more, else `None` (so too
 /// when no fold leaves a curve that fits).
-pub(super) fn held_out_residuals(samples: &[&Sample]) -> Option<(Vec<(f64, f64)>, usize)> {
+fn held_out_residuals(samples: &[&Sample]) -> Option<(Vec<(f64, f64)>, usize)> {
     let places: Vec<[f64; 2]> = samples.iter().map(|s| s.place).collect::<Option<_>>()?;
     let mut distinct: Vec<[f64; 2]> = Vec::new();
     let place_of: Vec<usize> = places
@@ -55,14 +55,14 @@ pub(super) fn held_out_residuals(samples: &[&Sample]) -> Option<(Vec<(f64, f64)>
 }
 
 /// A sample's noise variance, in the strength's unit squared: its `std` squared, 0 where not known.
-pub(super) fn noise_variance(sample: &Sample) -> f64 {
+fn noise_variance(sample: &Sample) -> f64 {
     sample.std.filter(|s| s.is_finite()).map_or(0.0, |s| s * s)
 }
 
 /// The variance τ², in the strength's unit squared, that residuals rᵢ with noise variances vᵢ
 /// (`(r, v)`) share beyond their noise: the τ² ≥ 0 at which Σ rᵢ²/(τ² + vᵢ) = `freedom` (Paule
 /// and Mandel), 0 where the noise alone explains them.
-pub(super) fn excess_variance(residuals: &[(f64, f64)], freedom: f64) -> f64 {
+fn excess_variance(residuals: &[(f64, f64)], freedom: f64) -> f64 {
     let statistic =
         |tau2: f64| residuals.iter().filter(|(r, _)| *r != 0.0).map(|(r, v)| r * r / (tau2 + v)).sum::<f64>();
     // The statistic falls as τ² grows, from its value at 0 to at most `freedom` at Σ rᵢ²/freedom.
@@ -84,15 +84,25 @@ pub(super) fn excess_variance(residuals: &[(f64, f64)], freedom: f64) -> f64 {
 
 /// Student's factor for a variance measured on `places` places (ν = places − 1, held at 3 or
 /// more): the error at a new place has the variance's times ν/(ν − 2).
-pub(super) fn student(places: f64) -> f64 {
+fn student(places: f64) -> f64 {
     let freedom = (places - 1.0).max(3.0);
     freedom / (freedom - 2.0)
 }
 
-/// The spread, in the strength's unit: [`excess_variance`] of the held-out `residuals`
-/// (`(r, v)`) of `places` places, times [`student`].
-pub(super) fn sheet_spread(residuals: &[(f64, f64)], places: usize) -> f64 {
-    (excess_variance(residuals, residuals.len() as f64) * student(places as f64)).sqrt()
+/// The spread of `curve`, fitted to `samples`, in the strength's unit: [`excess_variance`] of
+/// the residuals on places it did not see ([`held_out_residuals`]) times [`student`], else of its
+/// own residuals (3 parameters fitted).
+pub(super) fn spread(curve: &Curve, samples: &[&Sample]) -> f64 {
+    match held_out_residuals(samples) {
+        Some((residuals, places)) => {
+            (excess_variance(&residuals, residuals.len() as f64) * student(places as f64)).sqrt()
+        }
+        None => {
+            let residuals: Vec<(f64, f64)> =
+                samples.iter().map(|s| (s.peak - curve.peak(s.force), noise_variance(s))).collect();
+            excess_variance(&residuals, (residuals.len() as f64 - 3.0).max(1.0)).sqrt()
+        }
+    }
 }
 
 #[cfg(test)]
@@ -115,8 +125,8 @@ mod tests {
     #[test]
     fn precise_samples_that_miss_are_not_averaged_away() {
         // Ten noisy samples fully explained by their noise (r² = v = 100) and ten precise ones
-        // (v = 0.01) that miss by 1: the pooled mean square less the mean noise says none
-        // (50.5 < 50.005 + …), the estimator a variance near 1 - 0.01.
+        // (v = 0.01) that miss by 1: the pooled mean square less the mean noise variance gives
+        // 50.5 − 50.005 ≈ 0.5, half what the precise ones miss by; the estimator about 1.
         let mut residuals = vec![(10.0, 100.0); 10];
         residuals.extend(vec![(1.0, 0.01); 10]);
         let tau2 = excess_variance(&residuals, 20.0);

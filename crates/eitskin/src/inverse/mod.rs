@@ -101,13 +101,14 @@ pub enum InverseError {
     /// A frame whose values are typically far from, or of the other sign than, its reference's
     /// ([`typical_ratio`]): another unit, gain or board, not a press.
     #[error(
-        "the frame's values are typically {ratio:.3e} times the reference's (the median over channels); a press changes them by percents: is the board sending what it sent for the reference?{restart}"
+        "the frame's values are typically {ratio:.3e} times the reference's (the median over channels); a press changes them by percents: is the board sending what it sent for the reference?{}",
+        if *restarted { " The reference starts again from the next frame." } else { "" }
     )]
     FrameScale {
         /// The typical ratio.
         ratio: f64,
-        /// What happens to the reference, if anything (empty, or a sentence starting with " ").
-        restart: &'static str,
+        /// Whether the frame came while the reference was taken, which then starts again.
+        restarted: bool,
     },
     /// A Jacobian (or the background it is normalised by) whose shape does not fit.
     #[error("the Jacobian is {rows} × {columns}, but {expected}")]
