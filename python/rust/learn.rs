@@ -4,8 +4,8 @@
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::{error, fail};
 use crate::model::SensorSpec;
+use crate::{error, fail};
 
 /// A model learned from labelled presses: Δv → position (m), and force (N) and depth (m) when
 /// the presses had them, each with its uncertainty (Gaussian processes).

@@ -402,7 +402,9 @@ impl ForwardModel {
             }
             other => return Err(fail(format!("electrodes must be \"point\" or \"complete\", got {other:?}"))),
         };
-        eitskin::ForwardModel::new(mesh.0.clone(), model, thickness, protocol.0.clone()).map(ForwardModel).map_err(error)
+        eitskin::ForwardModel::new(mesh.0.clone(), model, thickness, protocol.0.clone())
+            .map(ForwardModel)
+            .map_err(error)
     }
 
     /// The model's mesh.

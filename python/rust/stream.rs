@@ -4,8 +4,8 @@
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
-use crate::{error, fail};
 use crate::model::SensorSpec;
+use crate::{error, fail};
 
 /// The virtual sensor: the spec's sheet simulated on a finer mesh, pressed, with noise.
 ///
@@ -440,7 +440,8 @@ impl Pipeline {
                 ..eitskin::ReconstructorParams::default()
             };
             let model = spec.forward_model().map_err(|e| crate::message(&e))?;
-            let recon = eitskin::Reconstructor::new(&model, spec.conductivity, &params).map_err(|e| crate::message(&e))?;
+            let recon =
+                eitskin::Reconstructor::new(&model, spec.conductivity, &params).map_err(|e| crate::message(&e))?;
             let mut chain = eitskin::chain::Chain::new(recon, eitskin::TouchParams::default());
             let strength = calibration.map_or(eitskin::strength::Strength::Peak, |c| c.file.calibration.strength);
             if fit || strength.needs_press_model() {
