@@ -4,9 +4,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use eitskin::image::Image;
-use eitskin::inverse::{mean_frame, noise_variance, plausible_ratio, typical_ratio, Channels, Hyperparameter};
+use eitskin::inverse::{
+    mean_frame, noise_variance, plausible_ratio, typical_ratio, Channels, Hyperparameter, DEFAULT_RELATIVE_NOISE,
+};
 use eitskin::memory::Stage;
-use eitskin::touch::{detect, Polarity, Touch};
+use eitskin::noise::{NoiseModel, Significance};
+use eitskin::segmentation;
+use eitskin::touch::{detect_tested_into, labels, PeakOf, Polarity, Touch, TouchScratch};
 use eitskin::values::{signed_from_magnitudes, Component, Gains};
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::{FrameLayout, FrameSelect, FrameTable};
@@ -67,6 +71,17 @@ pub struct Input {
     /// Which changes are touches: `decrease` (a press on a hydrogel), `increase`, or `both`.
     #[arg(long, default_value = "decrease")]
     polarity: Polarity,
+    /// Whose peak the threshold is a fraction of: `sign` (each sign's own strongest change, so a
+    /// weaker object of the other sign is kept; with `--polarity both` the weaker sign is kept
+    /// only where it rises above the shadow the stronger one casts in the image), `frame` (the
+    /// strongest change of either sign, the paper's rule) or `touch` (each touch's own).
+    #[arg(long, default_value = "sign")]
+    peak_of: PeakOf,
+    /// With several reference frames, touches (and labelled regions) whose peak the noise they
+    /// measure explains are dropped: the false touches allowed per frame, in (0, 0.5]. With one
+    /// reference frame only the weaker sign of `--polarity both` is tested, against 0.3 % noise.
+    #[arg(long, default_value = "0.001", value_parser = ranges::number("a false-alarm rate", "(0, 0.5]", "0.001", |r| r > 0.0 && r <= 0.5))]
+    false_alarm_rate: f64,
     /// Keep pixels at or above this fraction of the peak, in (0, 1].
     #[arg(long, default_value_t = 0.6, value_parser = ranges::number("a fraction of the peak", "(0, 1]", "0.6", |f| f > 0.0 && f <= 1.0))]
     threshold: f64,
@@ -126,9 +141,9 @@ pub struct Reconstruction {
     pub v: Vec<f64>,
     /// The conductivity-change image (S/m).
     pub image: Image,
-    /// The touch rule.
-    pub touch: TouchParams,
-    /// The touches of the image.
+    /// A label per pixel ([`eitskin::segmentation`]'s rule): the touches' pixels.
+    pub labels: Vec<u8>,
+    /// The touches of the image (the weaker sign's after the stronger one's shadow is taken out).
     pub touches: Vec<Touch>,
     /// The settings chosen and the quantities estimated, as printed.
     pub report: Report,
@@ -289,8 +304,34 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
         Hyperparameter::Fixed(value) => recon.derive(value, channels)?,
     };
     let image = recon.image(&v_ref, &v).with_context(|| format!("imaging {}", input.frame.display()))?;
-    let touch = TouchParams { threshold: input.threshold, polarity: input.polarity, ..TouchParams::default() };
-    let touches = detect(&image, &touch);
+    // Touches are tested against the noise only when it is measured: an assumed level could
+    // hide a real touch. The weaker sign must stand above the noise, measured or assumed.
+    let measured = NoiseModel::from_frames(&references);
+    let test = |noise: &NoiseModel| Significance::new(&recon, &v_ref, noise, 1, input.polarity, input.false_alarm_rate);
+    let significance = measured.as_ref().map(test).transpose()?;
+    let significance = significance.as_ref();
+    let touch = TouchParams {
+        threshold: input.threshold,
+        polarity: input.polarity,
+        peak_of: input.peak_of,
+        ..TouchParams::default()
+    };
+    // Each sign at its own peak: the weaker sign only where it stands above the other's shadow.
+    let polarity = match input.peak_of {
+        PeakOf::Frame => input.polarity,
+        PeakOf::Sign | PeakOf::Touch if input.polarity == Polarity::Both => {
+            let assumed = match significance {
+                Some(_) => None,
+                None => Some(test(&NoiseModel::assumed(DEFAULT_RELATIVE_NOISE, v_ref.len(), references.len()))?),
+            };
+            segmentation::signs(&recon, &image, &touch, significance.or(assumed.as_ref()))?
+        }
+        PeakOf::Sign | PeakOf::Touch => input.polarity,
+    };
+    let touch = TouchParams { polarity, ..touch };
+    let mut touches = Vec::new();
+    detect_tested_into(&image, &touch, significance, &mut TouchScratch::new(image.size), &mut touches);
+    let labels = labels(&image, &touch, significance);
     let background_change = recon
         .background_change(&v_ref, &v)?
         .map(|delta| BackgroundOut { delta_s_per_m: delta, relative: delta / spec.conductivity });
@@ -302,7 +343,7 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
         gains: gains.map(|g| GainsOut { median: g.median, outliers: g.outliers.iter().map(|m| m + 1).collect() }),
         background_change,
     };
-    Ok(Reconstruction { spec, recon, v_ref, v, image, touch, touches, report })
+    Ok(Reconstruction { spec, recon, v_ref, v, image, labels, touches, report })
 }
 
 impl Report {

@@ -96,7 +96,8 @@ pub struct Args {
     /// Whose peak a touch's 60 % threshold is a fraction of: `frame` (the strongest touch's, the
     /// paper's rule) or `touch` (each touch's own, from each local maximum that passes the noise
     /// test: a weak press beside a strong one is found, but so is a strong press's side lobe).
-    #[arg(long, default_value = "frame")]
+    #[arg(long, default_value = "frame", value_parser = clap::builder::TypedValueParser::map(clap::builder::PossibleValuesParser::new(["frame", "touch"]),
+        |name: String| if name == "touch" { PeakOf::Touch } else { PeakOf::Frame }))]
     peak_of: PeakOf,
     /// Baseline update weight per frame without a touch, in [0, 1] (0 = off, 1 = the last
     /// untouched frame is the reference).

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use eitskin::touch::{labels, BACKGROUND, LESS_CONDUCTIVE, MORE_CONDUCTIVE};
+use eitskin::touch::{BACKGROUND, LESS_CONDUCTIVE, MORE_CONDUCTIVE};
 use serde::Serialize;
 
 use crate::image::{reconstruct, Input, Reconstruction};
@@ -37,8 +37,7 @@ struct Output<'a> {
 /// Runs `eitskin segment`.
 pub fn run(args: Args) -> Result<()> {
     outputs::check(&[("--out", &args.out)], &args.input.files())?;
-    let Reconstruction { spec, image, touch, report, .. } = reconstruct(&args.input)?;
-    let labels = labels(&image, &touch);
+    let Reconstruction { spec, image, labels, report, .. } = reconstruct(&args.input)?;
     let mut staged = outputs::Staged::default();
     if outputs::has_extension(&args.out, "npy") {
         eitskin_io::write_labels_npy(&staged.path(&args.out), &labels, image.size)?;

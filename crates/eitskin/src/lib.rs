@@ -55,6 +55,7 @@ pub mod pipeline;
 pub mod press_fit;
 pub mod protocol;
 pub mod pseudo_array;
+pub mod segmentation;
 pub mod sensitivity;
 pub mod sim;
 pub mod spec;

@@ -103,6 +103,11 @@ pub enum PeakOf {
     /// starts a touch, grown downhill from it to the threshold of its own peak, so a weak press
     /// is found next to a strong one and two presses with a dip between them stay apart.
     Touch,
+    /// Each sign's own peak: with [`Polarity::Both`], decreases are thresholded against the
+    /// strongest decrease and increases against the strongest increase, so a weaker object of
+    /// the other sign is kept (and so is the other sign's ringing: see
+    /// [`segmentation`](crate::segmentation)); with one sign, the same as [`PeakOf::Frame`].
+    Sign,
 }
 
 impl PeakOf {
@@ -111,6 +116,7 @@ impl PeakOf {
         match self {
             PeakOf::Frame => "frame",
             PeakOf::Touch => "touch",
+            PeakOf::Sign => "sign",
         }
     }
 }
@@ -118,12 +124,12 @@ impl PeakOf {
 impl std::str::FromStr for PeakOf {
     type Err = String;
 
-    /// `frame` or `touch`.
+    /// `frame`, `touch` or `sign`.
     fn from_str(text: &str) -> Result<PeakOf, String> {
-        [PeakOf::Frame, PeakOf::Touch]
+        [PeakOf::Frame, PeakOf::Touch, PeakOf::Sign]
             .into_iter()
             .find(|p| p.name() == text)
-            .ok_or_else(|| format!("\"{text}\" is not whose peak a threshold is of: use frame or touch"))
+            .ok_or_else(|| format!("\"{text}\" is not whose peak a threshold is of: use frame, touch or sign"))
     }
 }
 
@@ -280,6 +286,14 @@ pub fn detect_tested_into(
                 own_peak_regions(image, params, polarity, significance, scratch);
             }
         }
+        PeakOf::Sign => {
+            for polarity in params.polarity.signs().into_iter().flatten() {
+                let peak = peak_toward(image, polarity);
+                if peak > 0.0 && peak >= params.min_peak {
+                    frame_regions(image, params, polarity, peak, scratch);
+                }
+            }
+        }
     }
     let pixel_area = image.pixel_area();
     for region in scratch.regions.iter().filter(|r| r.merged_into.is_none()) {
@@ -310,27 +324,32 @@ pub const MORE_CONDUCTIVE: u8 = 2;
 /// A label per pixel, row-major from the top: [`LESS_CONDUCTIVE`] or [`MORE_CONDUCTIVE`] where
 /// the pixel belongs to a touch of that sign, else [`BACKGROUND`] (masked pixels included).
 ///
-/// The rule is the touches' own, untuned: exactly the pixels of the touches [`detect`] finds.
-pub fn labels(image: &Image, params: &TouchParams) -> Vec<u8> {
+/// The rule is the touches' own, untuned: exactly the pixels of the touches
+/// [`detect_tested_into`] finds (with `significance`, those whose peak passes the noise test).
+pub fn labels(image: &Image, params: &TouchParams, significance: Option<&Significance>) -> Vec<u8> {
     let mut scratch = TouchScratch::new(image.size);
-    detect_tested_into(image, params, None, &mut scratch, &mut Vec::new());
+    detect_tested_into(image, params, significance, &mut scratch, &mut Vec::new());
     let regions = &scratch.regions;
-    scratch
-        .claim
-        .iter()
-        .map(|&c| {
-            let Some(mut k) = (c as usize).checked_sub(1) else {
-                return BACKGROUND;
-            };
+    let label = |k: usize| {
+        let region = &regions[k];
+        if significance.is_some_and(|s| s.z(region.peak_index, region.peak) < s.threshold()) {
+            return BACKGROUND;
+        }
+        match region.polarity {
+            Polarity::Increase => MORE_CONDUCTIVE,
+            _ => LESS_CONDUCTIVE,
+        }
+    };
+    let mut labels = vec![BACKGROUND; image.values.len()];
+    for (pixel, &c) in labels.iter_mut().zip(&scratch.claim) {
+        if let Some(mut k) = (c as usize).checked_sub(1) {
             while let Some(root) = regions[k].merged_into {
                 k = root;
             }
-            match regions[k].polarity {
-                Polarity::Increase => MORE_CONDUCTIVE,
-                _ => LESS_CONDUCTIVE,
-            }
-        })
-        .collect()
+            *pixel = label(k);
+        }
+    }
+    labels
 }
 
 /// The largest change toward `polarity` over the inside pixels, at least 0, in S/m.
@@ -685,11 +704,19 @@ mod tests {
         assert_eq!(increase[0].polarity, Polarity::Increase);
         add_gaussian(&mut image, bump, 0.01, -0.5); // now only 0.3 S/m: under 60 % of the dip
         assert_eq!(detect(&image, &both).len(), 1);
-        let labelled = labels(&image, &both);
+        let labelled = labels(&image, &both, None);
         let count = |l| labelled.iter().filter(|&&x| x == l).count();
         let pixels: usize = detect(&image, &both).iter().map(|t| t.pixels).sum();
         assert_eq!(count(LESS_CONDUCTIVE), pixels, "the labels are the touches' pixels");
         assert_eq!(count(MORE_CONDUCTIVE), 0);
+        // Against each sign's own peak the weak bump is kept, with the pixels over 60 % of it.
+        let per_sign = TouchParams { peak_of: PeakOf::Sign, ..both };
+        let touches = detect(&image, &per_sign);
+        assert_eq!(touches.len(), 2, "{touches:?}");
+        assert!(distance(touches[1].centre, bump) < PIXEL && (touches[1].peak - 0.3).abs() < 0.02, "{touches:?}");
+        let labelled = labels(&image, &per_sign, None);
+        assert_eq!(labelled.iter().filter(|&&x| x == MORE_CONDUCTIVE).count(), touches[1].pixels);
+        assert_eq!("sign".parse(), Ok(PeakOf::Sign));
         assert_eq!("both".parse(), Ok(Polarity::Both));
         assert!("up".parse::<Polarity>().is_err());
     }
@@ -719,7 +746,7 @@ mod tests {
         assert_eq!(touches.len(), 2, "{touches:?}");
         let near = |t: &Touch, p| distance(t.peak_at, p) < PIXEL;
         assert!(touches.iter().any(|t| near(t, a)) && touches.iter().any(|t| near(t, b)), "{touches:?}");
-        let labelled = labels(&image, &own);
+        let labelled = labels(&image, &own, None);
         let pixels: usize = touches.iter().map(|t| t.pixels).sum();
         assert_eq!(labelled.iter().filter(|&&l| l == LESS_CONDUCTIVE).count(), pixels);
 
