@@ -73,7 +73,7 @@ pub struct Input {
     polarity: Polarity,
     /// Whose peak the threshold is a fraction of: `sign` (each sign's own strongest change, so a
     /// weaker object of the other sign is kept; with `--polarity both` the weaker sign is kept
-    /// only where it rises above the shadow the stronger one casts in the image), `frame` (the
+    /// only when it rises above the shadow the stronger one casts in the image), `frame` (the
     /// strongest change of either sign, the paper's rule) or `touch` (each touch's own).
     #[arg(long, default_value = "sign")]
     peak_of: PeakOf,
@@ -143,7 +143,7 @@ pub struct Reconstruction {
     pub image: Image,
     /// A label per pixel ([`eitskin::segmentation`]'s rule): the touches' pixels.
     pub labels: Vec<u8>,
-    /// The touches of the image (the weaker sign's after the stronger one's shadow is taken out).
+    /// The touches of the image (of the weaker sign only when it passes the shadow test).
     pub touches: Vec<Touch>,
     /// The settings chosen and the quantities estimated, as printed.
     pub report: Report,
@@ -317,16 +317,14 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
         ..TouchParams::default()
     };
     // Each sign at its own peak: the weaker sign only where it stands above the other's shadow.
-    let polarity = match input.peak_of {
-        PeakOf::Frame => input.polarity,
-        PeakOf::Sign | PeakOf::Touch if input.polarity == Polarity::Both => {
-            let assumed = match significance {
-                Some(_) => None,
-                None => Some(test(&NoiseModel::assumed(DEFAULT_RELATIVE_NOISE, v_ref.len(), references.len()))?),
-            };
-            segmentation::signs(&recon, &image, &touch, significance.or(assumed.as_ref()))?
-        }
-        PeakOf::Sign | PeakOf::Touch => input.polarity,
+    let polarity = if input.peak_of == PeakOf::Frame || input.polarity != Polarity::Both {
+        input.polarity
+    } else {
+        let assumed = match significance {
+            Some(_) => None,
+            None => Some(test(&NoiseModel::assumed(DEFAULT_RELATIVE_NOISE, v_ref.len(), references.len()))?),
+        };
+        segmentation::signs(&recon, &image, &touch, significance.or(assumed.as_ref()))?
     };
     let touch = TouchParams { polarity, ..touch };
     let mut touches = Vec::new();

@@ -87,10 +87,7 @@ pub fn signs(
     let mut stronger = Vec::new();
     touch::detect_tested_into(image, own, significance, &mut touch::TouchScratch::new(image.size), &mut stronger);
     stronger.retain(|t| t.peak >= weak_peak);
-    let cast = shadow(recon, &stronger)?.map_or(0.0, |shadow| {
-        let inside = shadow.values.iter().zip(&shadow.inside).filter(|(_, i)| **i);
-        inside.map(|(v, _)| weak.intensity(*v)).fold(0.0, f64::max)
-    });
+    let cast = shadow(recon, &stronger)?.map_or(0.0, |shadow| touch::peak_toward(&shadow, weak));
     Ok(if weak_peak > SHADOW_MARGIN * cast { Polarity::Both } else { strong })
 }
 
@@ -104,17 +101,9 @@ pub fn shadow(recon: &Reconstructor, touches: &[Touch]) -> Result<Option<Image>,
     let own = first.polarity;
     let lin = recon.linearisation();
     let (mesh, v0, jacobian) = (lin.mesh(), lin.background(), lin.jacobian());
-    let triangles = mesh.triangles().len();
     let mut images = Vec::with_capacity(touches.len());
     for touch in touches {
-        let radius = (touch.area / std::f64::consts::PI).sqrt();
-        let distance = |t: usize| {
-            let [x, y] = mesh.centroid(t);
-            (x - touch.centre[0]).hypot(y - touch.centre[1])
-        };
-        let inside: Vec<usize> = (0..triangles).filter(|&t| distance(t) <= radius).collect();
-        let nearest = (0..triangles).min_by(|&a, &b| distance(a).total_cmp(&distance(b)));
-        let disk = if inside.is_empty() { nearest.into_iter().collect() } else { inside };
+        let disk = mesh.triangles_near(touch.centre, (touch.area / std::f64::consts::PI).sqrt());
         let sign = own.intensity(1.0);
         let v: Vec<f64> =
             (0..v0.len()).map(|m| v0[m] + sign * disk.iter().map(|&t| jacobian[(m, t)]).sum::<f64>()).collect();

@@ -353,7 +353,7 @@ pub fn labels(image: &Image, params: &TouchParams, significance: Option<&Signifi
 }
 
 /// The largest change toward `polarity` over the inside pixels, at least 0, in S/m.
-fn peak_toward(image: &Image, polarity: Polarity) -> f64 {
+pub(crate) fn peak_toward(image: &Image, polarity: Polarity) -> f64 {
     // The press direction as a sign, so the pass stays in f32 and vectorises. Eight
     // independent running maxima, so the comparisons do not wait on each other; NaN never
     // wins a comparison.

@@ -164,16 +164,7 @@ fn target(mesh: &crate::mesh::Mesh) -> Vec<usize> {
         centre[0] += x * mesh.area(t) / total;
         centre[1] += y * mesh.area(t) / total;
     }
-    let radius = 0.1 * (total / std::f64::consts::PI).sqrt();
-    let distance = |t: usize| {
-        let [x, y] = mesh.centroid(t);
-        (x - centre[0]).hypot(y - centre[1])
-    };
-    let inside: Vec<usize> = (0..n).filter(|&t| distance(t) <= radius).collect();
-    if !inside.is_empty() {
-        return inside;
-    }
-    (0..n).min_by(|&a, &b| distance(a).total_cmp(&distance(b))).into_iter().collect()
+    mesh.triangles_near(centre, 0.1 * (total / std::f64::consts::PI).sqrt())
 }
 
 /// The noise figure of the reconstruction with this λ and these channels (see the module doc).

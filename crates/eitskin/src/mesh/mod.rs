@@ -183,6 +183,21 @@ impl Mesh {
         [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0]
     }
 
+    /// The triangles whose centroid lies within `radius` (m) of `centre` (m), or the one nearest
+    /// to it when none does: a small disk on the mesh, never empty for a mesh with triangles.
+    pub fn triangles_near(&self, centre: [f64; 2], radius: f64) -> Vec<usize> {
+        let n = self.triangles().len();
+        let distance = |t: usize| {
+            let [x, y] = self.centroid(t);
+            (x - centre[0]).hypot(y - centre[1])
+        };
+        let inside: Vec<usize> = (0..n).filter(|&t| distance(t) <= radius).collect();
+        if !inside.is_empty() {
+            return inside;
+        }
+        (0..n).min_by(|&a, &b| distance(a).total_cmp(&distance(b))).into_iter().collect()
+    }
+
     /// Bounding box of the nodes, `[[x_min, y_min], [x_max, y_max]]`, in m.
     pub fn bounds(&self) -> [[f64; 2]; 2] {
         self.nodes.iter().fold([[f64::INFINITY; 2], [f64::NEG_INFINITY; 2]], |[lo, hi], p| {
