@@ -215,12 +215,12 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
     let select = FrameSelect { variable: input.select.clone(), layout };
     let reference_select = FrameSelect { variable: input.reference_select.clone().or(input.select.clone()), layout };
     let pairs = input.values == "complex";
-    let references = frames(&eitskin_io::read_frames(&input.reference, &reference_select)?, input.component, pairs)
+    let mut references = frames(&eitskin_io::read_frames(&input.reference, &reference_select)?, input.component, pairs)
         .with_context(|| format!("reading {}", input.reference.display()))?;
     let table = frames(&eitskin_io::read_frames(&input.frame, &select)?, input.component, pairs)
         .with_context(|| format!("reading {}", input.frame.display()))?;
     let index = usize::try_from(input.frame_index - 1).unwrap_or(usize::MAX);
-    let Some(v) = table.get(index).cloned() else {
+    let Some(mut v) = table.get(index).cloned() else {
         anyhow::bail!("--frame-index {}: {} holds {} frame(s)", input.frame_index, input.frame.display(), table.len());
     };
     let fixed = match input.hyperparameter {
@@ -251,6 +251,14 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
     };
     references.iter().enumerate().try_for_each(|(k, r)| count(&input.reference, k, r))?;
     count(&input.frame, index, &v)?;
+    // A channel the spec drops, or a dead one (0 in every reference frame: a board prints 0 for
+    // a broken contact, which would tell the image that nothing changed there), is missing from
+    // here on: NaN, so it is dropped from the image and named by no check of the values.
+    let in_use = spec.used_channels()?;
+    let dead: Vec<bool> = mean_frame(&references).iter().map(|r| *r == 0.0).collect();
+    for frame in references.iter_mut().chain(std::iter::once(&mut v)) {
+        frame.iter_mut().enumerate().filter(|(m, _)| !in_use[*m] || dead[*m]).for_each(|(_, x)| *x = f64::NAN);
+    }
     let magnitudes = input.values == "magnitude" || input.component == Component::Magnitude;
     let (mut references, mut v) = if magnitudes {
         let (v, report) = signed_from_magnitudes(&v, model);
@@ -291,14 +299,8 @@ pub fn reconstruct(input: &Input) -> Result<Reconstruction> {
             100.0 * eitskin::inverse::DEFAULT_RELATIVE_NOISE
         );
     }
-    // A channel missing (NaN) in the reference or the frame is dropped, not refused; so is one
-    // whose reference is exactly zero: a dead channel (a board prints 0 for a broken contact),
-    // which would tell the image that nothing changed there.
-    let alive: Vec<bool> = v_ref.iter().map(|r| *r != 0.0).collect();
-    let channels = Channels::finite_in(&v_ref)
-        .masked(Channels::finite_in(&v).used_mask())
-        .masked(&alive)
-        .masked(&spec.used_channels()?);
+    // A channel missing (NaN) in the reference or the frame is dropped, not refused.
+    let channels = Channels::finite_in(&v_ref).masked(Channels::finite_in(&v).used_mask());
     let recon = match input.hyperparameter {
         Hyperparameter::Auto => recon.with_auto_hyperparameter(channels, variance)?.0,
         Hyperparameter::Fixed(value) => recon.derive(value, channels)?,
