@@ -8,6 +8,7 @@ mod convergence;
 mod flag_ranges;
 mod forward;
 mod image;
+mod imaging;
 mod learn;
 mod load;
 mod mesh;

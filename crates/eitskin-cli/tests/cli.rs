@@ -438,7 +438,7 @@ fn a_frame_in_another_unit_than_its_reference_is_refused() {
     let out = image(&millivolts);
     let message = String::from_utf8_lossy(&out.stderr);
     assert!(
-        !out.status.success() && message.contains("mv.csv's values are typically 1000.000 times those of"),
+        !out.status.success() && message.contains("mv.csv has values typically 1000.000 times those of"),
         "{message}"
     );
     assert!(message.contains("are the two in the same unit and gain?"), "{message}");

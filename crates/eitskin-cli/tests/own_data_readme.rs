@@ -35,9 +35,10 @@ fn a_tank_mat_file_gives_touches_and_labels_with_the_readmes_commands() {
     std::fs::write(&mat, eitskin_testdata::mat5(&[("vh", 208, 2, &vh), ("vi", 208, 3, &vi)])).unwrap();
     let mat = mat.to_str().unwrap();
     let input = ["--reference", mat, "--reference-select", "vh", "--frame", mat, "--select", "vi"];
-    let input = [&input[..], &["--frame-index", "3", "--polarity", "both"]].concat();
+    let input = [&input[..], &["--polarity", "both"]].concat();
     let image: serde_json::Value =
-        serde_json::from_str(&ok(dir.eitskin(&[&["image", spec], &input[..], &["--json"]].concat()))).unwrap();
+        serde_json::from_str(&ok(dir.eitskin(&[&["image", spec], &input[..], &["--frames", "3", "--json"]].concat())))
+            .unwrap();
     assert!(image["pattern_fit"].as_f64().unwrap() > 0.99, "{image}");
     let touches = image["touches"].as_array().unwrap();
     assert_eq!(touches.len(), 1, "{image}");
@@ -45,8 +46,13 @@ fn a_tank_mat_file_gives_touches_and_labels_with_the_readmes_commands() {
     let (x, y) = (touches[0]["x"].as_f64().unwrap(), touches[0]["y"].as_f64().unwrap());
     assert!((x - 60.0).hypot(y - 40.0) < 20.0, "touch at ({x}, {y}) mm, object at (60, 40)");
     let labels = dir.join("labels.npy");
-    let out = [&["segment", spec], &input[..], &["--json", "--out", labels.to_str().unwrap()]].concat();
+    let out =
+        [&["segment", spec], &input[..], &["--frames", "all", "--json", "--out", labels.to_str().unwrap()]].concat();
     let counts: serde_json::Value = serde_json::from_str(&ok(dir.eitskin(&out))).unwrap();
-    assert!(counts["more_conductive"].as_u64().unwrap() > 0 && counts["less_conductive"] == 0, "{counts}");
+    let frames = counts["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 3, "every frame of vi: {counts}");
+    for f in frames {
+        assert!(f["more_conductive"].as_u64().unwrap() > 0 && f["less_conductive"] == 0, "{counts}");
+    }
     assert_eq!(&std::fs::read(labels).unwrap()[..6], b"\x93NUMPY");
 }

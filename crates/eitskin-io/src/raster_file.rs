@@ -14,6 +14,10 @@
 //!   triangle's centroid; triangles are numbered from 0, as in the mesh file's `elems`.
 //! - [`write_labels_npy`]: `uint8` of shape `(ny, nx)`, a label per pixel.
 //!
+//! The frames of a recording, imaged with one raster, are written as a stack by the `_stack`
+//! writers: NPY arrays of shape `(frames, ny, nx)`, and CSV files with a first column `frame`
+//! (each frame's number in its file, from 1) before the one-frame columns.
+//!
 //! ```
 //! use eitskin::{Image, LengthUnit};
 //! let mut image = Image::new([2, 1], [[-0.01, -0.005], [0.01, 0.005]], vec![true, false]);
@@ -39,8 +43,23 @@ use crate::Error;
 /// Writes the image as an NPY `float32` array of shape `(ny, nx)`, row 0 at the top, Δσ in S/m,
 /// NaN outside the sensor.
 pub fn write_raster_npy(path: &Path, image: &Image) -> Result<(), Error> {
-    let values = image.values.iter().zip(&image.inside).map(|(&v, &inside)| if inside { v } else { f32::NAN });
-    write_npy(path, image.size, values)
+    let [nx, ny] = image.size;
+    write_npy(path, &[ny, nx], raster_values(image))
+}
+
+/// Writes images of one raster (a recording's frames) as an NPY `float32` array of shape
+/// `(frames, ny, nx)`, each as [`write_raster_npy`] writes one; panics if their sizes differ (a
+/// caller contract).
+#[track_caller]
+pub fn write_raster_stack_npy(path: &Path, images: &[&Image]) -> Result<(), Error> {
+    let [nx, ny] = images.first().map_or([0, 0], |image| image.size);
+    assert!(images.iter().all(|image| image.size == [nx, ny]), "a stack's images share one raster");
+    write_npy(path, &[images.len(), ny, nx], images.iter().flat_map(|image| raster_values(image)))
+}
+
+/// Δσ per pixel, NaN outside the sensor.
+fn raster_values(image: &Image) -> impl Iterator<Item = f32> + '_ {
+    image.values.iter().zip(&image.inside).map(|(&v, &inside)| if inside { v } else { f32::NAN })
 }
 
 /// Writes a label image (`labels` row-major from the top row, `size` = `[nx, ny]`) as an NPY
@@ -48,41 +67,87 @@ pub fn write_raster_npy(path: &Path, image: &Image) -> Result<(), Error> {
 /// contract).
 #[track_caller]
 pub fn write_labels_npy(path: &Path, labels: &[u8], size: [usize; 2]) -> Result<(), Error> {
-    assert_eq!(labels.len(), size[0] * size[1], "a {size:?} label image needs nx·ny labels");
-    write_npy(path, size, labels.iter().copied())
+    write_labels_stack(path, &[labels], size, false)
+}
+
+/// Writes label images of one raster (a recording's frames) as an NPY `uint8` array of shape
+/// `(frames, ny, nx)`; panics if one does not hold nx·ny labels (a caller contract).
+#[track_caller]
+pub fn write_labels_stack_npy(path: &Path, labels: &[&[u8]], size: [usize; 2]) -> Result<(), Error> {
+    write_labels_stack(path, labels, size, true)
+}
+
+#[track_caller]
+fn write_labels_stack(path: &Path, labels: &[&[u8]], [nx, ny]: [usize; 2], stacked: bool) -> Result<(), Error> {
+    assert!(labels.iter().all(|l| l.len() == nx * ny), "a {:?} label image needs nx·ny labels", [nx, ny]);
+    let shape = if stacked { vec![labels.len(), ny, nx] } else { vec![ny, nx] };
+    write_npy(path, &shape, labels.iter().flat_map(|l| l.iter().copied()))
 }
 
 /// Writes the inside pixels as CSV `x_<unit>,y_<unit>,delta_sigma_s_per_m`, one line per pixel
 /// centre, lengths in `unit`, Δσ in S/m.
 pub fn write_raster_csv(path: &Path, image: &Image, unit: LengthUnit) -> Result<(), Error> {
-    write_pixels_csv(path, image, unit, "delta_sigma_s_per_m", |i| image.values[i].to_string())
+    write_pixels_csv(path, image, None, unit, "delta_sigma_s_per_m", |_, i| image.values[i].to_string())
+}
+
+/// Writes the inside pixels of each frame's image as CSV
+/// `frame,x_<unit>,y_<unit>,delta_sigma_s_per_m` (`frames`: each image with its number in its
+/// file); panics if there are none or their rasters differ (a caller contract).
+#[track_caller]
+pub fn write_raster_stack_csv(path: &Path, frames: &[(usize, &Image)], unit: LengthUnit) -> Result<(), Error> {
+    let Some((_, grid)) = frames.first() else { panic!("a stack holds at least one image") };
+    assert!(frames.iter().all(|(_, image)| image.size == grid.size), "a stack's images share one raster");
+    let numbers: Vec<usize> = frames.iter().map(|(k, _)| *k).collect();
+    write_pixels_csv(path, grid, Some(&numbers), unit, "delta_sigma_s_per_m", |k, i| frames[k].1.values[i].to_string())
 }
 
 /// Writes the label of each inside pixel of `image` as CSV `x_<unit>,y_<unit>,label` (see
 /// [`write_labels_npy`] for the labels), lengths in `unit`.
 pub fn write_labels_csv(path: &Path, image: &Image, labels: &[u8], unit: LengthUnit) -> Result<(), Error> {
     assert_eq!(labels.len(), image.values.len(), "one label per pixel");
-    write_pixels_csv(path, image, unit, "label", |i| labels[i].to_string())
+    write_pixels_csv(path, image, None, unit, "label", |_, i| labels[i].to_string())
 }
 
-/// One CSV line per inside pixel centre of `image`: x, y in `unit`, then `value(pixel)`.
+/// Writes the labels of each frame as CSV `frame,x_<unit>,y_<unit>,label` at the inside pixels
+/// of `grid`, the frames' one raster (`frames`: each label image with its frame's number).
+#[track_caller]
+pub fn write_labels_stack_csv(
+    path: &Path,
+    grid: &Image,
+    frames: &[(usize, &[u8])],
+    unit: LengthUnit,
+) -> Result<(), Error> {
+    assert!(frames.iter().all(|(_, l)| l.len() == grid.values.len()), "one label per pixel");
+    let numbers: Vec<usize> = frames.iter().map(|(k, _)| *k).collect();
+    write_pixels_csv(path, grid, Some(&numbers), unit, "label", |k, i| frames[k].1[i].to_string())
+}
+
+/// One CSV line per inside pixel centre of `grid` (per frame when `frames` numbers them, the
+/// frame's number first): x, y in `unit`, then `value(k, pixel)` for the k-th frame.
 fn write_pixels_csv(
     path: &Path,
-    image: &Image,
+    grid: &Image,
+    frames: Option<&[usize]>,
     unit: LengthUnit,
     column: &str,
-    value: impl Fn(usize) -> String,
+    value: impl Fn(usize, usize) -> String,
 ) -> Result<(), Error> {
     let symbol = unit.symbol();
-    let mut text = format!("x_{symbol},y_{symbol},{column}\n");
-    let [nx, ny] = image.size;
-    for row in 0..ny {
-        for col in 0..nx {
-            let i = row * nx + col;
-            if image.inside[i] {
-                let [x, y] = image.pixel_centre(col, row);
-                // Writing to a String cannot fail.
-                let _ = writeln!(text, "{},{},{}", x / unit.metres(), y / unit.metres(), value(i));
+    let mut text = format!("{}x_{symbol},y_{symbol},{column}\n", if frames.is_some() { "frame," } else { "" });
+    let [nx, ny] = grid.size;
+    let numbers = frames.map_or(vec![None], |f| f.iter().copied().map(Some).collect());
+    for (k, number) in numbers.into_iter().enumerate() {
+        for row in 0..ny {
+            for col in 0..nx {
+                let i = row * nx + col;
+                if grid.inside[i] {
+                    let [x, y] = grid.pixel_centre(col, row);
+                    if let Some(number) = number {
+                        let _ = write!(text, "{number},");
+                    }
+                    // Writing to a String cannot fail.
+                    let _ = writeln!(text, "{},{},{}", x / unit.metres(), y / unit.metres(), value(k, i));
+                }
             }
         }
     }
@@ -100,32 +165,61 @@ pub fn write_elements_csv(
     unit: LengthUnit,
     value_column: &str,
 ) -> Result<(), Error> {
+    write_elements(path, mesh, &[(None, values)], unit, value_column)
+}
+
+/// Writes each frame's value per triangle as CSV `frame,triangle,x_<unit>,y_<unit>,<value_column>`
+/// (`frames`: each frame's values with its number in its file), as [`write_elements_csv`] writes
+/// one frame.
+#[track_caller]
+pub fn write_elements_stack_csv(
+    path: &Path,
+    mesh: &Mesh,
+    frames: &[(usize, &[f64])],
+    unit: LengthUnit,
+    value_column: &str,
+) -> Result<(), Error> {
+    let frames: Vec<(Option<usize>, &[f64])> = frames.iter().map(|(k, values)| (Some(*k), *values)).collect();
+    write_elements(path, mesh, &frames, unit, value_column)
+}
+
+#[track_caller]
+fn write_elements(
+    path: &Path,
+    mesh: &Mesh,
+    frames: &[(Option<usize>, &[f64])],
+    unit: LengthUnit,
+    value_column: &str,
+) -> Result<(), Error> {
     let triangles = mesh.triangles().len();
-    assert_eq!(values.len(), triangles, "the mesh has {triangles} triangles, one value each");
+    assert!(frames.iter().all(|(_, v)| v.len() == triangles), "the mesh has {triangles} triangles, one value each");
     let symbol = unit.symbol();
-    let mut text = format!("triangle,x_{symbol},y_{symbol},{value_column}\n");
-    for (t, value) in values.iter().enumerate() {
-        let [x, y] = mesh.centroid(t);
-        // Writing to a String cannot fail.
-        let _ = writeln!(text, "{t},{},{},{value}", x / unit.metres(), y / unit.metres());
+    let stacked = frames.iter().any(|(k, _)| k.is_some());
+    let mut text = format!("{}triangle,x_{symbol},y_{symbol},{value_column}\n", if stacked { "frame," } else { "" });
+    for (number, values) in frames {
+        for (t, value) in values.iter().enumerate() {
+            let [x, y] = mesh.centroid(t);
+            // Writing to a String cannot fail.
+            if let Some(number) = number {
+                let _ = write!(text, "{number},");
+            }
+            let _ = writeln!(text, "{t},{},{},{value}", x / unit.metres(), y / unit.metres());
+        }
     }
     std::fs::write(path, text).map_err(|source| Error::Write { path: path.to_path_buf(), source })
 }
 
-/// Writes `[nx, ny]` values, row-major from the top row, as an NPY array of shape `(ny, nx)`.
+/// Writes `values` in row-major order as an NPY array of `shape`.
 fn write_npy<T: npyz::AutoSerialize>(
     path: &Path,
-    [nx, ny]: [usize; 2],
+    shape: &[usize],
     values: impl IntoIterator<Item = T>,
 ) -> Result<(), Error> {
     let failed = |source| Error::Write { path: path.to_path_buf(), source };
+    let shape: Vec<u64> = shape.iter().map(|&n| n as u64).collect();
     let mut bytes = Vec::new();
-    let mut writer = npyz::WriteOptions::new()
-        .default_dtype()
-        .shape(&[ny as u64, nx as u64])
-        .writer(&mut bytes)
-        .begin_nd()
-        .map_err(failed)?;
+    let mut writer =
+        npyz::WriteOptions::new().default_dtype().shape(&shape).writer(&mut bytes).begin_nd().map_err(failed)?;
     writer.extend(values).map_err(failed)?;
     writer.finish().map_err(failed)?;
     std::fs::write(path, bytes).map_err(failed)
@@ -145,6 +239,34 @@ mod tests {
         write_raster_csv(&path, &image, LengthUnit::Millimetre).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(text, "x_mm,y_mm,delta_sigma_s_per_m\n1000,1500,1\n3000,1500,2\n3000,500,4\n");
+    }
+
+    #[test]
+    fn a_stack_numbers_each_frame_and_stacks_its_arrays() {
+        let mut a = Image::new([2, 1], [[0.0, 0.0], [2.0, 1.0]], vec![true, false]);
+        let mut b = a.clone();
+        (a.values[0], b.values[0]) = (1.5, -2.5);
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("stack.csv");
+        write_raster_stack_csv(&csv, &[(3, &a), (7, &b)], LengthUnit::Metre).unwrap();
+        let text = std::fs::read_to_string(&csv).unwrap();
+        assert_eq!(text, "frame,x_m,y_m,delta_sigma_s_per_m\n3,0.5,0.5,1.5\n7,0.5,0.5,-2.5\n");
+        write_labels_stack_csv(&csv, &a, &[(3, &[1, 0]), (7, &[2, 0])], LengthUnit::Metre).unwrap();
+        assert_eq!(std::fs::read_to_string(&csv).unwrap(), "frame,x_m,y_m,label\n3,0.5,0.5,1\n7,0.5,0.5,2\n");
+        let npy = dir.path().join("stack.npy");
+        write_raster_stack_npy(&npy, &[&a, &b]).unwrap();
+        let bytes = std::fs::read(&npy).unwrap();
+        let array = npyz::NpyFile::new(bytes.as_slice()).unwrap();
+        assert_eq!(array.shape(), &[2, 1, 2]);
+        let values: Vec<f32> = array.into_vec().unwrap();
+        assert_eq!(values[0], 1.5);
+        assert!(values[1].is_nan());
+        assert_eq!(values[2], -2.5);
+        write_labels_stack_npy(&npy, &[&[1, 0], &[2, 0]], [2, 1]).unwrap();
+        let bytes = std::fs::read(&npy).unwrap();
+        let array = npyz::NpyFile::new(bytes.as_slice()).unwrap();
+        assert_eq!(array.shape(), &[2, 1, 2]);
+        assert_eq!(array.into_vec::<u8>().unwrap(), [1, 0, 2, 0]);
     }
 
     #[test]
