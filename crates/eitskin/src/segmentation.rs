@@ -101,26 +101,35 @@ pub fn shadow(recon: &Reconstructor, touches: &[Touch]) -> Result<Option<Image>,
     let own = first.polarity;
     let lin = recon.linearisation();
     let (mesh, v0, jacobian) = (lin.mesh(), lin.background(), lin.jacobian());
-    let mut images = Vec::with_capacity(touches.len());
+    // Each disk's Δv; the image being linear in Δv, only the touches' peak pixels are imaged per
+    // disk, and the shadow once, of the disks' fitted sum.
+    let mut disks = Vec::with_capacity(touches.len());
     for touch in touches {
         let disk = mesh.triangles_near(touch.centre, (touch.area / std::f64::consts::PI).sqrt());
         let sign = own.intensity(1.0);
-        let v: Vec<f64> =
-            (0..v0.len()).map(|m| v0[m] + sign * disk.iter().map(|&t| jacobian[(m, t)]).sum::<f64>()).collect();
-        images.push(recon.image(v0, &v)?);
+        let dv: Vec<f64> = (0..v0.len()).map(|m| sign * disk.iter().map(|&t| jacobian[(m, t)]).sum::<f64>()).collect();
+        disks.push(dv);
     }
-    let at =
-        |image: &Image, touch: &Touch| image.pixel_at(touch.peak_at).map_or(0.0, |i| own.intensity(image.values[i]));
+    let template = recon.blank_image();
+    let plus = |dv: &[f64], a: f64| -> Vec<f64> { v0.iter().zip(dv).map(|(v, d)| v + a * d).collect() };
     let k = touches.len();
-    let gain = Mat::from_fn(k, k, |j, i| at(&images[i], &touches[j]));
-    let peaks = Mat::from_fn(k, 1, |j, _| touches[j].peak);
-    let contrast = gain.partial_piv_lu().solve(&peaks);
-    let mut shadow = recon.blank_image();
-    for (i, image) in images.iter().enumerate() {
-        let a = contrast[(i, 0)];
-        if a.is_finite() && a > 0.0 {
-            shadow.values.iter_mut().zip(&image.values).for_each(|(s, v)| *s += (a as f32) * v);
+    let mut gain = Mat::zeros(k, k);
+    for (i, dv) in disks.iter().enumerate() {
+        let v = plus(dv, 1.0);
+        for (j, touch) in touches.iter().enumerate() {
+            if let Some(pixel) = template.pixel_at(touch.peak_at) {
+                gain[(j, i)] = own.intensity(recon.pixel_value(v0, &v, pixel)?);
+            }
         }
     }
-    Ok(Some(shadow))
+    let peaks = Mat::from_fn(k, 1, |j, _| touches[j].peak);
+    let contrast = gain.partial_piv_lu().solve(&peaks);
+    let mut sum = vec![0.0; v0.len()];
+    for (i, dv) in disks.iter().enumerate() {
+        let a = contrast[(i, 0)];
+        if a.is_finite() && a > 0.0 {
+            sum.iter_mut().zip(dv).for_each(|(s, d)| *s += a * d);
+        }
+    }
+    recon.image(v0, &plus(&sum, 1.0)).map(Some)
 }

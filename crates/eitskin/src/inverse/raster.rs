@@ -219,6 +219,16 @@ impl Reconstructor {
         Ok(image)
     }
 
+    /// The conductivity change (S/m) at one pixel of the image of `v` against `v_ref`, without
+    /// the rest of the image: a row of the image matrix. Panics if `pixel` is not one of the
+    /// raster's (a caller contract).
+    #[track_caller]
+    pub fn pixel_value(&self, v_ref: &[f64], v: &[f64], pixel: usize) -> Result<f32, InverseError> {
+        assert!(pixel < self.template.values.len(), "pixel {pixel} is beyond the raster");
+        self.check(v_ref, v)?;
+        Ok((0..self.measurements).map(|m| self.matrix.get(pixel, m) * self.difference(v_ref, v, m)).sum())
+    }
+
     /// The conductivity change on each triangle of the mesh (S/m), in mesh order.
     pub fn element_values(&self, v_ref: &[f64], v: &[f64]) -> Result<Vec<f32>, InverseError> {
         self.check(v_ref, v)?;
