@@ -312,6 +312,22 @@ mod tests {
     /// Data that a uniform change explains exactly (Δv = δ·J·1) give δ back and an empty
     /// image; a local change still images where it is, with and without weights.
     #[test]
+    fn one_pixels_value_is_the_images_value_there() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let params = ReconstructorParams { raster: [24, 24], normalized: true, ..ReconstructorParams::default() };
+        let recon = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &params).unwrap();
+        let v_ref = recon.linearisation().background().to_vec();
+        let v: Vec<f64> = v_ref.iter().enumerate().map(|(m, x)| x * (1.0 + 0.01 * (m as f64).sin())).collect();
+        let image = recon.image(&v_ref, &v).unwrap();
+        for pixel in [0, 100, 300, 24 * 24 - 1] {
+            let value = recon.pixel_value(&v_ref, &v, pixel).unwrap();
+            assert!((value - image.values[pixel]).abs() <= 1e-5 * image.values[pixel].abs().max(1e-9), "{pixel}");
+        }
+        assert!(recon.pixel_value(&v_ref, &v[1..], 0).is_err(), "a frame of the wrong length");
+    }
+
+    #[test]
     fn a_uniform_change_is_estimated_and_left_out_of_the_image() {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 300;
