@@ -16,7 +16,8 @@
 //! mesh's area centroid (at least the triangle nearest to it), at unit contrast.
 //!
 //! In the eigenbasis of the whitened system Σ^-½ J R⁻¹Jᵀ Σ^-½ = U diag(e) Uᵀ, every NF(λ)
-//! costs one triangles × channels product, so λ is found on a fine grid in milliseconds.
+//! costs channels² (through the Gram matrix of the eigenvectors' images), so λ is found on a fine
+//! grid in milliseconds.
 //!
 //! **Noise level.** NF is a ratio of two SNRs, so the noise's level cancels from it, and λ_NF
 //! would stay the same however noisy the board. The one-step reconstruction is also the
@@ -91,10 +92,9 @@ impl FromStr for Hyperparameter {
 struct NoiseFigure {
     /// Eigenvalues e of the whitened system.
     eigenvalues: Vec<f64>,
-    /// A R⁻¹ J_Sᵀ Σ^-½ U: triangles × channels.
-    c: Mat<f64>,
-    /// Squared column norms of `c`.
-    column_norms: Vec<f64>,
+    /// CᵀC, channels × channels, for C = A R⁻¹ J_wᵀ U (triangles × channels): the image of each
+    /// eigenvector, area-weighted.
+    gram: Mat<f64>,
     /// Uᵀ Σ^-½ z₀.
     target: Vec<f64>,
     /// SNR_z.
@@ -123,33 +123,24 @@ impl NoiseFigure {
         let u = eigen.U();
         let eigenvalues: Vec<f64> = (0..m).map(|i| eigen.S()[i]).collect();
         let mesh = lin.mesh();
-        let areas: Vec<f64> = (0..k).map(|t| mesh.area(t)).collect();
-        // C = A R⁻¹ J_wᵀ U = A · scaledᵀ · U.
-        let mut c = scaled.transpose() * u;
-        for (t, a) in areas.iter().enumerate() {
-            for i in 0..m {
-                c[(t, i)] *= a;
-            }
-        }
-        let column_norms = (0..m).map(|i| c.col(i).iter().map(|x| x * x).sum()).collect();
+        // CᵀC = Uᵀ (scaled A)(scaled A)ᵀ U: channels² work per λ instead of triangles × channels.
+        let weighted = Mat::from_fn(m, k, |i, t| scaled[(i, t)] * mesh.area(t));
+        let gram = u.transpose() * (&weighted * weighted.transpose()) * u;
         let contrast = target(mesh);
         let z0: Vec<f64> = (0..m).map(|i| contrast.iter().map(|&t| jacobian[(i, t)]).sum()).collect();
         let zw: Vec<f64> = z0.iter().zip(&std).map(|(z, s)| z / s).collect();
         let target = (0..m).map(|i| (0..m).map(|j| u[(j, i)] * zw[j]).sum()).collect();
         let snr_z = z0.iter().map(|z| z * z).sum::<f64>() / variance.iter().sum::<f64>();
-        Ok(NoiseFigure { eigenvalues, c, column_norms, target, snr_z })
+        Ok(NoiseFigure { eigenvalues, gram, target, snr_z })
     }
 
     fn at(&self, hyperparameter: f64) -> f64 {
         let lambda2 = hyperparameter * hyperparameter;
         let filter: Vec<f64> = self.eigenvalues.iter().map(|e| 1.0 / (e.max(0.0) + lambda2)).collect();
-        let coefficients: Vec<f64> = filter.iter().zip(&self.target).map(|(f, t)| f * t).collect();
-        let mut signal = 0.0;
-        for t in 0..self.c.nrows() {
-            let x: f64 = (0..coefficients.len()).map(|i| self.c[(t, i)] * coefficients[i]).sum();
-            signal += x * x;
-        }
-        let noise: f64 = filter.iter().zip(&self.column_norms).map(|(f, q)| f * f * q).sum();
+        let y: Vec<f64> = filter.iter().zip(&self.target).map(|(f, t)| f * t).collect();
+        // The image's signal ‖C y‖² = yᵀ CᵀC y, column by column of the (column-major) Gram matrix.
+        let signal: f64 = (0..y.len()).map(|j| y[j] * self.gram.col(j).iter().zip(&y).map(|(g, y)| g * y).sum::<f64>()).sum();
+        let noise: f64 = filter.iter().enumerate().map(|(i, f)| f * f * self.gram[(i, i)]).sum();
         self.snr_z / (signal / noise)
     }
 }
