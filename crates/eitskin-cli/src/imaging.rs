@@ -5,6 +5,7 @@
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use eitskin::image::Image;
@@ -63,6 +64,12 @@ pub struct Input {
     /// several, else 0.3 % of each value.
     #[arg(long, default_value = "auto")]
     hyperparameter: Hyperparameter,
+    /// How the channels are weighted: `noise` (each by its noise variance, measured from several
+    /// reference frames, else 0.3 % of its value) or `none` (all alike, at their mean noise);
+    /// default: `noise` with `--hyperparameter auto`, `none` with a given λ. The λ printed and
+    /// this weighting given back reproduce the image.
+    #[arg(long)]
+    weighting: Option<Weighting>,
     /// Normalised differences Δv/v_ref (immune to per-channel gains) instead of absolute ones.
     #[arg(long)]
     normalised: bool,
@@ -112,6 +119,15 @@ impl Input {
         files.extend(self.spec.as_deref().map(|s| ("the spec", s)));
         files
     }
+}
+
+/// How the channels are weighted in the reconstruction (`--weighting`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Weighting {
+    /// Each channel by its noise variance (EIDORS' `meas_icov`).
+    Noise,
+    /// All channels alike.
+    None,
 }
 
 /// Which frames of the frame file `--frames` names, from 1.
@@ -232,6 +248,8 @@ pub struct Report {
     /// R² of the reference's ln|v| against the model's ([`Gains::pattern_fit`]).
     pattern_fit: f64,
     hyperparameter: f64,
+    /// How the channels were weighted: `noise-measured`, `noise-assumed` (0.3 % of each value) or `none`.
+    weighting: &'static str,
     normalised: bool,
     channels_dropped: Vec<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -287,19 +305,14 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let first = *indices.start();
     table.truncate(indices.end() + 1);
     let mut selected: Vec<Vec<f64>> = table.drain(first..).collect();
-    let fixed = match input.hyperparameter {
-        Hyperparameter::Fixed(value) => value,
-        Hyperparameter::Auto => ReconstructorParams::default().hyperparameter,
-    };
     let params = ReconstructorParams {
-        hyperparameter: fixed,
         normalized: input.normalised,
         background_change: input.background_change,
         raster: input.raster,
         ..ReconstructorParams::default()
     };
-    let recon = load::reconstructor(&spec, &params, !input.no_cache)?;
-    let model = recon.linearisation().background();
+    let lin = load::linearisation(&spec, !input.no_cache)?;
+    let model = lin.background();
     let count = |path: &Path, k: usize, frame: &[f64]| {
         match frame.len() == model.len() {
         true => Ok(()),
@@ -367,10 +380,23 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     for v in &selected {
         channels = channels.masked(Channels::finite_in(v).used_mask());
     }
-    let recon = match input.hyperparameter {
-        Hyperparameter::Auto => recon.with_auto_hyperparameter(channels, variance)?.0,
-        Hyperparameter::Fixed(value) => recon.derive(value, channels)?,
+    let weighting = input.weighting.unwrap_or(match input.hyperparameter {
+        Hyperparameter::Auto => Weighting::Noise,
+        Hyperparameter::Fixed(_) => Weighting::None,
+    });
+    let said_weighting = match (weighting, &variance) {
+        (Weighting::None, _) => "none",
+        (Weighting::Noise, Some(_)) => "noise-measured",
+        (Weighting::Noise, None) => "noise-assumed",
     };
+    let channels = lin.noise_weighted(input.normalised, channels, variance.clone());
+    let channels = if weighting == Weighting::None { channels.uniform_variance() } else { channels };
+    let hyperparameter = match input.hyperparameter {
+        Hyperparameter::Auto => load::auto_hyperparameter(&spec, &lin, &params, &channels, !input.no_cache)?,
+        Hyperparameter::Fixed(value) => value,
+    };
+    let params = ReconstructorParams { hyperparameter, ..params };
+    let recon = Reconstructor::from_linearisation(Arc::clone(&lin), &params, channels)?;
     // Touches are tested against the noise only when it is measured: an assumed level could
     // hide a real touch. The weaker sign must stand above the noise, measured or assumed.
     let measured = NoiseModel::from_frames(&references);
@@ -390,6 +416,7 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let report = Report {
         pattern_fit,
         hyperparameter: recon.params().hyperparameter,
+        weighting: said_weighting,
         normalised: input.normalised,
         channels_dropped: recon.channels().dropped().iter().map(|m| m + 1).collect(),
         gains: gains
@@ -450,8 +477,17 @@ impl Report {
     /// The report as text lines: λ, the channels dropped and the gains.
     pub fn text(&self) -> String {
         let dropped = &self.channels_dropped;
-        let mut text =
-            format!("λ = {:.4}, reference against the model R² = {:.3}", self.hyperparameter, self.pattern_fit);
+        let weighting = match self.weighting {
+            "noise-measured" => "channels weighted by their measured noise".to_string(),
+            "noise-assumed" => {
+                format!("channels weighted by an assumed noise of {} % of each value", 100.0 * DEFAULT_RELATIVE_NOISE)
+            }
+            _ => "channels weighted alike".to_string(),
+        };
+        let mut text = format!(
+            "λ = {:.4} ({weighting}), reference against the model R² = {:.3}",
+            self.hyperparameter, self.pattern_fit
+        );
         if !dropped.is_empty() {
             text += &format!(", channels {dropped:?} dropped");
         }

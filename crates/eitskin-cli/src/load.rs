@@ -1,12 +1,13 @@
 //! Loading what the subcommands share: the spec (file or built-in) and inclusion flags.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 use eitskin::chain::Chain;
 use eitskin::conductivity::Inclusion;
 use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
-use eitskin::inverse::Channels;
+use eitskin::inverse::{choose_hyperparameter, Channels, Linearisation};
 use eitskin::memory::{self, Stage};
 use eitskin::strength::Strength;
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
@@ -100,6 +101,31 @@ pub fn reconstructor(spec: &SensorSpec, params: &ReconstructorParams, use_cache:
         return Ok(recon.derive(params.hyperparameter, Channels::all(used.len()).masked(&used))?);
     }
     Ok(recon)
+}
+
+/// The linearisation of `spec`, from the cache when there is one (and `use_cache`).
+pub fn linearisation(spec: &SensorSpec, use_cache: bool) -> Result<Arc<Linearisation>> {
+    Ok(Arc::new(match cache_dir().filter(|_| use_cache) {
+        Some(dir) => eitskin_io::load_linearisation(&dir, spec)?.0,
+        None => Linearisation::new(&spec.forward_model()?, spec.conductivity)?,
+    }))
+}
+
+/// The automatic λ of `lin` (of `spec`) for `params` and the noise-weighted `channels`
+/// ([`eitskin::inverse::choose_hyperparameter`]), from the cache when chosen before for exactly
+/// these (and `use_cache`).
+pub fn auto_hyperparameter(
+    spec: &SensorSpec,
+    lin: &Linearisation,
+    params: &ReconstructorParams,
+    channels: &Channels,
+    use_cache: bool,
+) -> Result<f64> {
+    let choose = || choose_hyperparameter(lin, &params.prior, params.normalized, channels);
+    Ok(match cache_dir().filter(|_| use_cache) {
+        Some(dir) => eitskin_io::cached_hyperparameter(&dir, spec, params, channels, || Ok(choose()?))?.0,
+        None => choose()?,
+    })
 }
 
 /// The frame chain of `spec` reading each touch's strength as `strength`: the reconstructor

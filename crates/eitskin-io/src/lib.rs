@@ -73,7 +73,10 @@ pub use raster_file::{
     write_elements_csv, write_elements_stack_csv, write_labels_csv, write_labels_npy, write_labels_stack_csv,
     write_labels_stack_npy, write_raster_csv, write_raster_npy, write_raster_stack_csv, write_raster_stack_npy,
 };
-pub use reconstructor_file::{cache_key, cache_path, decode_linearisation, encode_linearisation, load_or_build};
+pub use reconstructor_file::{
+    cache_key, cache_path, cached_hyperparameter, decode_linearisation, encode_linearisation, load_linearisation,
+    load_or_build,
+};
 pub use samples_file::{
     check_labels_on_sheet, labelled_presses_to_csv, parse_samples, read_labelled_presses, read_samples, Location,
     Measured, SampleRow, OFF_SHEET,

@@ -2,7 +2,11 @@
 //! measurements, mesh) saved to a file named by a hash of everything it depends on (spec,
 //! protocol, mesh settings and this crate's version), so a second start loads it instead of
 //! solving the forward model again. The reconstructor itself (prior, λ, normalisation,
-//! channels, raster) is derived from it in milliseconds, so one file serves them all.
+//! channels, raster) is derived from it in milliseconds to seconds (thousands of channels), so
+//! one file serves them all. The automatic λ, an eigendecomposition of the channels' system
+//! away (seconds at thousands of channels), is kept beside it ([`cached_hyperparameter`]):
+//! `EITSKINL`, the 32-byte key (which also hashes the prior, normalisation, channel mask and
+//! every noise variance) and λ (f64).
 //!
 //! File layout (little-endian): `EITSKINR`, format version (u32), the 32-byte key, node,
 //! triangle, electrode and measurement counts (u32), the nodes (2 × f64 each), the triangles
@@ -54,13 +58,41 @@ pub fn load_or_build(
     spec: &SensorSpec,
     params: &ReconstructorParams,
 ) -> Result<(Reconstructor, bool), Error> {
-    let key = cache_key(spec)?;
-    let build = || Ok(Linearisation::new(&spec.forward_model()?, spec.conductivity)?);
-    let (linearisation, hit) =
-        cached(&cache_file(dir, "linearisation", &key), &key, decode_linearisation, build, encode_linearisation)?;
+    let (linearisation, hit) = load_linearisation(dir, spec)?;
     let channels = Channels::all(linearisation.measurements());
     Ok((Reconstructor::from_linearisation(Arc::new(linearisation), params, channels)?, hit))
 }
+
+/// The linearisation of `spec`, loaded from `dir` if there, else computed and saved (best
+/// effort); the flag says whether it came from the cache.
+pub fn load_linearisation(dir: &Path, spec: &SensorSpec) -> Result<(Linearisation, bool), Error> {
+    let key = cache_key(spec)?;
+    let build = || Ok(Linearisation::new(&spec.forward_model()?, spec.conductivity)?);
+    cached(&cache_file(dir, "linearisation", &key), &key, decode_linearisation, build, encode_linearisation)
+}
+
+/// The automatic λ of `spec` for a prior, normalisation and noise-weighted `channels`, loaded
+/// from `dir` if chosen before for exactly these (the channels' mask and every variance), else
+/// `choose`n and saved (best effort); the flag says whether it came from the cache.
+pub fn cached_hyperparameter(
+    dir: &Path,
+    spec: &SensorSpec,
+    params: &ReconstructorParams,
+    channels: &Channels,
+    choose: impl FnOnce() -> Result<f64, Error>,
+) -> Result<(f64, bool), Error> {
+    let said = format!("auto-hyperparameter {:?} {} {channels:?}", params.prior, params.normalized);
+    let key = key_of(spec, &said)?;
+    let decode = |bytes: &[u8], key: &[u8; 32]| {
+        let rest = bytes.strip_prefix(MAGIC_LAMBDA)?.strip_prefix(key.as_slice())?;
+        Some(f64::from_le_bytes(rest.try_into().ok()?)).filter(|l| l.is_finite() && *l > 0.0)
+    };
+    let encode = |lambda: &f64, key: &[u8; 32]| [MAGIC_LAMBDA, key.as_slice(), &lambda.to_le_bytes()].concat();
+    cached(&cache_file(dir, "hyperparameter", &key), &key, decode, choose, encode)
+}
+
+/// The first bytes of a cached λ's file.
+const MAGIC_LAMBDA: &[u8] = b"EITSKINL";
 
 /// The cache file `STEM-KEY.bin` under `dir` (the key's first 12 bytes in hex).
 pub(crate) fn cache_file(dir: &Path, stem: &str, key: &[u8; 32]) -> PathBuf {
@@ -175,6 +207,39 @@ impl<'a> Reader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_chosen_lambda_is_kept_for_exactly_its_channels_and_noise() {
+        let spec = SensorSpec::square_hydrogel();
+        let params = ReconstructorParams::default();
+        let folder = tempfile::Builder::new().prefix("eitskin-cache-").tempdir().unwrap();
+        let dir = folder.path().join("cache");
+        let channels = Channels::all(120).with_variance(vec![1e-6; 120]);
+        let calls = std::cell::Cell::new(0);
+        let chosen = &calls;
+        let choose = |lambda: f64| {
+            move || {
+                chosen.set(chosen.get() + 1);
+                Ok(lambda)
+            }
+        };
+        assert_eq!(cached_hyperparameter(&dir, &spec, &params, &channels, choose(0.25)).unwrap(), (0.25, false));
+        assert_eq!(cached_hyperparameter(&dir, &spec, &params, &channels, choose(9.0)).unwrap(), (0.25, true));
+        // Another noise, mask or normalisation is another λ.
+        let noisier = Channels::all(120).with_variance(vec![2e-6; 120]);
+        let masked = channels.clone().masked(&[false]);
+        let normalised = ReconstructorParams { normalized: true, ..params };
+        assert_eq!(cached_hyperparameter(&dir, &spec, &params, &noisier, choose(0.5)).unwrap(), (0.5, false));
+        assert_eq!(cached_hyperparameter(&dir, &spec, &params, &masked, choose(0.75)).unwrap(), (0.75, false));
+        assert_eq!(cached_hyperparameter(&dir, &spec, &normalised, &channels, choose(1.5)).unwrap(), (1.5, false));
+        // A torn file is chosen again.
+        let said = format!("auto-hyperparameter {:?} {} {channels:?}", params.prior, params.normalized);
+        let path = cache_file(&dir, "hyperparameter", &key_of(&spec, &said).unwrap());
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
+        assert_eq!(cached_hyperparameter(&dir, &spec, &params, &channels, choose(0.3)).unwrap(), (0.3, false));
+        assert_eq!(calls.get(), 5, "chosen each time but the second");
+    }
 
     #[test]
     fn a_saved_linearisation_loads_back_equal_and_keys_differ_by_input() {

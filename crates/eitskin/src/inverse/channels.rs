@@ -46,6 +46,16 @@ impl Channels {
         self
     }
 
+    /// These channels equally weighted at their mean noise: each used channel's variance
+    /// replaced by the mean over the used ones (the noise level kept, its shape across channels
+    /// dropped); unchanged without variances.
+    pub fn uniform_variance(mut self) -> Channels {
+        if let Some(mean) = self.mean_variance() {
+            self.variance = Some(vec![mean; self.used.len()]);
+        }
+        self
+    }
+
     /// Number of channels, used or not.
     pub fn len(&self) -> usize {
         self.used.len()

@@ -30,6 +30,22 @@ pub struct Linearisation {
 }
 
 impl Linearisation {
+    /// `channels` weighted by their noise, as the automatic λ weighs them: `relative` is the
+    /// noise measured per channel relative to its value (ratio², from
+    /// [`super::noise_variance`]), or else [`super::DEFAULT_RELATIVE_NOISE`] of each value; in
+    /// the model's units that is relative·v₀² for absolute differences (`normalized` false), so
+    /// neither a board's unit nor its gains move λ.
+    pub fn noise_weighted(&self, normalized: bool, channels: Channels, relative: Option<Vec<f64>>) -> Channels {
+        let default = super::DEFAULT_RELATIVE_NOISE * super::DEFAULT_RELATIVE_NOISE;
+        let relative = super::channels::floored(relative.unwrap_or_else(|| vec![default; self.measurements()]));
+        let variance = if normalized {
+            relative
+        } else {
+            relative.iter().zip(self.background()).map(|(r, v)| r * v * v).collect()
+        };
+        channels.with_variance(variance)
+    }
+
     /// Solves `model` at the homogeneous `background` conductivity (S/m) and takes its Jacobian.
     pub fn new(model: &ForwardModel, background: f64) -> Result<Linearisation, InverseError> {
         let sigma = vec![background; model.mesh().triangles().len()];

@@ -167,10 +167,7 @@ impl Reconstructor {
     }
 
     /// The same reconstructor with λ chosen from the noise (see [`choose_hyperparameter`](super::choose_hyperparameter))
-    /// and the channels weighted by it. `relative` is the noise measured per channel relative to
-    /// its value (ratio², from [`super::noise_variance`]), or else [`super::DEFAULT_RELATIVE_NOISE`]
-    /// of each value; in the model's units that is relative·v₀² for absolute differences, so
-    /// neither a board's unit nor its gains move λ. Returns it with λ.
+    /// and the channels weighted by it ([`Linearisation::noise_weighted`]). Returns it with λ.
     pub fn with_auto_hyperparameter(
         &self,
         channels: Channels,
@@ -178,11 +175,7 @@ impl Reconstructor {
     ) -> Result<(Reconstructor, f64), InverseError> {
         let lin = &self.linearisation;
         let normalized = self.params.normalized;
-        let default = super::DEFAULT_RELATIVE_NOISE * super::DEFAULT_RELATIVE_NOISE;
-        let relative = super::channels::floored(relative.unwrap_or_else(|| vec![default; lin.measurements()]));
-        let variance =
-            if normalized { relative } else { relative.iter().zip(lin.background()).map(|(r, v)| r * v * v).collect() };
-        let channels = channels.with_variance(variance);
+        let channels = lin.noise_weighted(normalized, channels, relative);
         let lambda = super::choose_hyperparameter(lin, &self.params.prior, normalized, &channels)?;
         Ok((self.derive(lambda, channels)?, lambda))
     }
