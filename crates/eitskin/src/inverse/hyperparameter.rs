@@ -32,7 +32,8 @@
 
 use std::str::FromStr;
 
-use faer::{Mat, Side};
+use faer::linalg::matmul::triangular::{self, BlockStructure};
+use faer::{Accum, Mat, MatRef, Side};
 
 use super::linearisation::{inverse_diagonal, uniform_response};
 use super::{Channels, InverseError, Linearisation, Prior};
@@ -118,14 +119,21 @@ impl NoiseFigure {
         let (m, k) = (jacobian.nrows(), jacobian.ncols());
         let whitened = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i]);
         let scaled = Mat::from_fn(m, k, |i, j| whitened[(i, j)] * r_inv[j]);
-        let system = &scaled * whitened.transpose();
+        // The system is symmetric and the eigensolver reads its lower half: only that is formed.
+        let system = lower_product(scaled.as_ref(), whitened.transpose());
         let eigen = system.self_adjoint_eigen(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
         let u = eigen.U();
         let eigenvalues: Vec<f64> = (0..m).map(|i| eigen.S()[i]).collect();
         let mesh = lin.mesh();
         // CᵀC = Uᵀ (scaled A)(scaled A)ᵀ U: channels² work per λ instead of triangles × channels.
         let weighted = Mat::from_fn(m, k, |i, t| scaled[(i, t)] * mesh.area(t));
-        let gram = u.transpose() * (&weighted * weighted.transpose()) * u;
+        let mut inner = lower_product(weighted.as_ref(), weighted.transpose());
+        for j in 0..m {
+            for i in 0..j {
+                inner[(i, j)] = inner[(j, i)];
+            }
+        }
+        let gram = u.transpose() * inner * u;
         let contrast = target(mesh);
         let z0: Vec<f64> = (0..m).map(|i| contrast.iter().map(|&t| jacobian[(i, t)]).sum()).collect();
         let zw: Vec<f64> = z0.iter().zip(&std).map(|(z, s)| z / s).collect();
@@ -144,6 +152,23 @@ impl NoiseFigure {
         let noise: f64 = filter.iter().enumerate().map(|(i, f)| f * f * self.gram[(i, i)]).sum();
         self.snr_z / (signal / noise)
     }
+}
+
+/// The lower half (diagonal included) of a × b, a product known to be symmetric; the upper half 0.
+fn lower_product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut product = Mat::zeros(a.nrows(), b.ncols());
+    triangular::matmul(
+        product.as_mut(),
+        BlockStructure::TriangularLower,
+        Accum::Replace,
+        a,
+        BlockStructure::Rectangular,
+        b,
+        BlockStructure::Rectangular,
+        1.0,
+        faer::get_global_parallelism(),
+    );
+    product
 }
 
 /// The triangles of the noise figure's target (see the module doc).
