@@ -10,7 +10,8 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use eitskin::image::Image;
 use eitskin::inverse::{
-    mean_frame, noise_variance, plausible_ratio, typical_ratio, Channels, Hyperparameter, DEFAULT_RELATIVE_NOISE,
+    data_hyperparameter, mean_frame, noise_variance, plausible_ratio, typical_ratio, Channels, DataCriterion,
+    Hyperparameter, DEFAULT_RELATIVE_NOISE,
 };
 use eitskin::memory::Stage;
 use eitskin::noise::{NoiseModel, Significance};
@@ -61,13 +62,14 @@ pub struct Input {
     /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in (0, 1000], or `auto`:
     /// the larger of the λ for a noise figure of 0.5 (EIDORS') and the MAP λ of the noise level,
     /// with the noise measured from the reference frames when the reference file holds
-    /// several, else 0.3 % of each value.
+    /// several, else 0.3 % of each value; or chosen from the frames themselves: `gcv`
+    /// (generalised cross-validation) or `discrepancy` (the fit no closer than that noise).
     #[arg(long, default_value = "auto")]
-    hyperparameter: Hyperparameter,
+    hyperparameter: LambdaFlag,
     /// How the channels are weighted: `noise` (each by its noise variance, measured from several
     /// reference frames, else 0.3 % of its value) or `none` (all alike, at their mean noise);
-    /// default: `noise` with `--hyperparameter auto`, `none` with a given λ. The λ printed and
-    /// this weighting given back reproduce the image.
+    /// default: `noise` with a chosen λ, `none` with a given one. The λ printed and this
+    /// weighting given back reproduce the image.
     #[arg(long)]
     weighting: Option<Weighting>,
     /// Normalised differences Δv/v_ref (immune to per-channel gains) instead of absolute ones.
@@ -118,6 +120,27 @@ impl Input {
         let mut files = vec![("--reference", self.reference.as_path()), ("--frame", self.frame.as_path())];
         files.extend(self.spec.as_deref().map(|s| ("the spec", s)));
         files
+    }
+}
+
+/// `--hyperparameter`: a λ or `auto` (from the model and the noise), or a criterion on the frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LambdaFlag {
+    /// A λ, or the noise figure's and the noise level's.
+    Model(Hyperparameter),
+    /// Chosen from the frames imaged.
+    Data(DataCriterion),
+}
+
+impl FromStr for LambdaFlag {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<LambdaFlag, String> {
+        match (text.parse::<DataCriterion>(), text.parse::<Hyperparameter>()) {
+            (Ok(criterion), _) => Ok(LambdaFlag::Data(criterion)),
+            (_, Ok(given)) => Ok(LambdaFlag::Model(given)),
+            _ => Err(format!("\"{text}\" is neither `auto`, `gcv`, `discrepancy` nor a number in (0, 1000]")),
+        }
     }
 }
 
@@ -248,6 +271,8 @@ pub struct Report {
     /// R² of the reference's ln|v| against the model's ([`Gains::pattern_fit`]).
     pattern_fit: f64,
     hyperparameter: f64,
+    /// What chose λ: `given`, `noise-figure-and-map` (`auto`), `gcv` or `discrepancy`.
+    chosen_by: &'static str,
     /// How the channels were weighted: `noise-measured`, `noise-assumed` (0.3 % of each value) or `none`.
     weighting: &'static str,
     normalised: bool,
@@ -381,8 +406,8 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
         channels = channels.masked(Channels::finite_in(v).used_mask());
     }
     let weighting = input.weighting.unwrap_or(match input.hyperparameter {
-        Hyperparameter::Auto => Weighting::Noise,
-        Hyperparameter::Fixed(_) => Weighting::None,
+        LambdaFlag::Model(Hyperparameter::Fixed(_)) => Weighting::None,
+        _ => Weighting::Noise,
     });
     let said_weighting = match (weighting, &variance) {
         (Weighting::None, _) => "none",
@@ -392,8 +417,17 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let channels = lin.noise_weighted(input.normalised, channels, variance.clone());
     let channels = if weighting == Weighting::None { channels.uniform_variance() } else { channels };
     let hyperparameter = match input.hyperparameter {
-        Hyperparameter::Auto => load::auto_hyperparameter(&spec, &lin, &params, &channels, !input.no_cache)?,
-        Hyperparameter::Fixed(value) => value,
+        LambdaFlag::Model(Hyperparameter::Auto) => {
+            load::auto_hyperparameter(&spec, &lin, &params, &channels, !input.no_cache)?
+        }
+        LambdaFlag::Model(Hyperparameter::Fixed(value)) => value,
+        LambdaFlag::Data(criterion) => {
+            // Frames the scale check will refuse are no evidence for λ.
+            let plausible = |v: &&Vec<f64>| typical_ratio(v, &v_ref).is_none_or(plausible_ratio);
+            let frames: Vec<(&[f64], &[f64])> =
+                selected.iter().filter(plausible).map(|v| (v_ref.as_slice(), v.as_slice())).collect();
+            data_hyperparameter(&lin, &params.prior, input.normalised, &channels, &frames, criterion)?
+        }
     };
     let params = ReconstructorParams { hyperparameter, ..params };
     let recon = Reconstructor::from_linearisation(Arc::clone(&lin), &params, channels)?;
@@ -416,6 +450,11 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let report = Report {
         pattern_fit,
         hyperparameter: recon.params().hyperparameter,
+        chosen_by: match input.hyperparameter {
+            LambdaFlag::Model(Hyperparameter::Auto) => "noise-figure-and-map",
+            LambdaFlag::Model(Hyperparameter::Fixed(_)) => "given",
+            LambdaFlag::Data(criterion) => criterion.name(),
+        },
         weighting: said_weighting,
         normalised: input.normalised,
         channels_dropped: recon.channels().dropped().iter().map(|m| m + 1).collect(),
@@ -485,8 +524,10 @@ impl Report {
             _ => "channels weighted alike".to_string(),
         };
         let mut text = format!(
-            "λ = {:.4} ({weighting}), reference against the model R² = {:.3}",
-            self.hyperparameter, self.pattern_fit
+            "λ = {:.4} ({}; {weighting}), reference against the model R² = {:.3}",
+            self.hyperparameter,
+            self.chosen_by.replace('-', " "),
+            self.pattern_fit
         );
         if !dropped.is_empty() {
             text += &format!(", channels {dropped:?} dropped");

@@ -1,5 +1,6 @@
 //! `image`'s automatic λ says how it weighted the channels, and that λ given back with that
-//! weighting gives the same image; the λ is kept in the cache for the same channels and noise.
+//! weighting gives the same image; the λ is kept in the cache for the same channels and noise;
+//! λ chosen from the frame by a named criterion.
 
 mod binary;
 
@@ -37,6 +38,20 @@ fn the_printed_lambda_and_weighting_given_back_reproduce_the_image() {
     let kept: Vec<String> = kept.map(|e| e.file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(kept.iter().filter(|n| n.starts_with("hyperparameter-")).count(), 1, "{kept:?}");
     assert_eq!(image(&[])["hyperparameter"], auto["hyperparameter"]);
+    assert_eq!(auto["chosen_by"], "noise-figure-and-map");
+    assert_eq!(given["chosen_by"], "given");
+
+    // λ from the frame itself: named, inside the searched range, and a misspelt rule refused.
+    for criterion in ["gcv", "discrepancy"] {
+        let chosen = image(&["--hyperparameter", criterion]);
+        assert_eq!(chosen["chosen_by"], criterion);
+        let lambda = chosen["hyperparameter"].as_f64().unwrap();
+        assert!((1e-6..=1e3).contains(&lambda), "{criterion}: {chosen}");
+    }
+    let out = dir.eitskin(&["image", "--reference", &reference, "--frame", &frame, "--hyperparameter", "gvc"]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && message.contains("\"gvc\" is neither `auto`, `gcv`, `discrepancy`"), "{message}");
+
     let alike = image(&["--weighting", "none"]);
     assert_eq!(alike["weighting"], "none");
     assert!(alike["hyperparameter"].as_f64().unwrap() > 0.0, "{alike}");

@@ -54,7 +54,7 @@ pub const DEFAULT_RELATIVE_NOISE: f64 = 0.003;
 pub const LARGEST_HYPERPARAMETER: f64 = 1e3;
 
 /// The range λ is searched in (dimensionless).
-const SEARCH: (f64, f64) = (1e-6, LARGEST_HYPERPARAMETER);
+pub(super) const SEARCH: (f64, f64) = (1e-6, LARGEST_HYPERPARAMETER);
 
 /// How λ is set: a given value, or chosen from the noise (see the module doc).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -102,6 +102,44 @@ struct NoiseFigure {
     snr_z: f64,
 }
 
+/// The whitened system Σ^-½ J R⁻¹ Jᵀ Σ^-½ = U diag(e) Uᵀ of the used channels, which the noise
+/// figure and the data's criteria ([`super::criterion`]) are computed in.
+pub(super) struct Eigensystem {
+    /// The Jacobian's rows of the used channels.
+    pub jacobian: Mat<f64>,
+    /// Each used channel's noise standard deviation relative to the mean variance's root.
+    pub std: Vec<f64>,
+    /// Σ^-½ J R⁻¹: used channels × triangles.
+    pub scaled: Mat<f64>,
+    /// The eigenvalues e, ascending.
+    pub eigenvalues: Vec<f64>,
+    /// The eigenvectors U, one per column.
+    pub u: Mat<f64>,
+}
+
+impl Eigensystem {
+    pub(super) fn new(
+        lin: &Linearisation,
+        prior: &Prior,
+        normalized: bool,
+        channels: &Channels,
+    ) -> Result<Eigensystem, InverseError> {
+        channels.check(lin.measurements())?;
+        let jacobian = lin.rows(&channels.used(), normalized)?;
+        let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
+        let r_inv = inverse_diagonal(&r);
+        let std: Vec<f64> = channels.relative_variance().iter().map(|v| v.sqrt()).collect();
+        let (m, k) = (jacobian.nrows(), jacobian.ncols());
+        let whitened = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i]);
+        let scaled = Mat::from_fn(m, k, |i, j| whitened[(i, j)] * r_inv[j]);
+        // The system is symmetric and the eigensolver reads its lower half: only that is formed.
+        let system = lower_product(scaled.as_ref(), whitened.transpose());
+        let eigen = system.self_adjoint_eigen(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
+        let eigenvalues: Vec<f64> = (0..m).map(|i| eigen.S()[i]).collect();
+        Ok(Eigensystem { jacobian, std, scaled, eigenvalues, u: eigen.U().to_owned() })
+    }
+}
+
 impl NoiseFigure {
     fn new(
         lin: &Linearisation,
@@ -109,21 +147,9 @@ impl NoiseFigure {
         normalized: bool,
         channels: &Channels,
     ) -> Result<NoiseFigure, InverseError> {
-        channels.check(lin.measurements())?;
-        let used = channels.used();
-        let jacobian = lin.rows(&used, normalized)?;
-        let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
-        let r_inv = inverse_diagonal(&r);
+        let Eigensystem { jacobian, std, scaled, eigenvalues, u } = Eigensystem::new(lin, prior, normalized, channels)?;
         let variance = channels.relative_variance();
-        let std: Vec<f64> = variance.iter().map(|v| v.sqrt()).collect();
         let (m, k) = (jacobian.nrows(), jacobian.ncols());
-        let whitened = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i]);
-        let scaled = Mat::from_fn(m, k, |i, j| whitened[(i, j)] * r_inv[j]);
-        // The system is symmetric and the eigensolver reads its lower half: only that is formed.
-        let system = lower_product(scaled.as_ref(), whitened.transpose());
-        let eigen = system.self_adjoint_eigen(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
-        let u = eigen.U();
-        let eigenvalues: Vec<f64> = (0..m).map(|i| eigen.S()[i]).collect();
         let mesh = lin.mesh();
         // CᵀC = Uᵀ (scaled A)(scaled A)ᵀ U: channels² work per λ instead of triangles × channels.
         let weighted = Mat::from_fn(m, k, |i, t| scaled[(i, t)] * mesh.area(t));
@@ -133,7 +159,7 @@ impl NoiseFigure {
                 inner[(i, j)] = inner[(j, i)];
             }
         }
-        let gram = u.transpose() * inner * u;
+        let gram = u.transpose() * inner * &u;
         let contrast = target(mesh);
         let z0: Vec<f64> = (0..m).map(|i| contrast.iter().map(|&t| jacobian[(i, t)]).sum()).collect();
         let zw: Vec<f64> = z0.iter().zip(&std).map(|(z, s)| z / s).collect();

@@ -15,6 +15,7 @@
 //! once onto a raster so that a frame costs one pixels × measurements product.
 
 mod channels;
+mod criterion;
 pub(crate) mod helper;
 mod hyperparameter;
 mod linearisation;
@@ -26,6 +27,7 @@ pub(crate) use channels::floored;
 pub use channels::{
     mean_frame, mean_of_finite, noise_variance, plausible_ratio, typical_ratio, typical_ratio_in, Channels, SCALE_LIMIT,
 };
+pub use criterion::{data_hyperparameter, DataCriterion};
 pub use hyperparameter::{
     choose_hyperparameter, map_hyperparameter, noise_figure, noise_figure_hyperparameter, Hyperparameter,
     DEFAULT_RELATIVE_NOISE, LARGEST_HYPERPARAMETER, NOISE_FIGURE_TARGET, TARGET_CONTRAST,
@@ -75,6 +77,9 @@ pub enum InverseError {
     /// The automatic hyperparameter needs a diagonal prior (NOSER or Tikhonov).
     #[error("the hyperparameter can be chosen from the noise only with a diagonal prior (NOSER or Tikhonov); give λ")]
     AutoNeedsDiagonalPrior,
+    /// The discrepancy principle needs the noise's level.
+    #[error("the discrepancy principle needs the noise's level: measured from reference frames, or assumed")]
+    DiscrepancyNeedsNoise,
     /// More than a quarter of a frame's channels are missing or not finite, counting those
     /// dropped before: the frame is refused.
     #[error(
