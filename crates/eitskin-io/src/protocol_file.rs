@@ -98,8 +98,14 @@ pub fn read_protocol_matrices(
 
 /// Parses protocol JSON; `name` describes it when the file has no `description`.
 pub fn parse_protocol(text: &str, name: &str) -> Result<Protocol, Error> {
-    let file: ProtocolJson =
-        serde_json::from_str(text).map_err(|e| Error::Json { path: None, message: e.to_string() })?;
+    // serde names the shapes it expected by their Rust names: say them in the file's words.
+    let file: ProtocolJson = serde_json::from_str(text).map_err(|e| {
+        let message = e
+            .to_string()
+            .replace("struct ProtocolJson", "a protocol object (`quads`, or `stimulations` and `measurements`)")
+            .replace("struct MeasurementJson", "a measurement (`stimulation` and `weights`)");
+        Error::Json { path: None, message }
+    })?;
     let description = file.description.unwrap_or_else(|| format!("custom protocol from {name}"));
     if file.index_base > 1 {
         return Err(Error::Key {
@@ -165,5 +171,10 @@ mod tests {
         );
         let err = parse_protocol(r#"{"electrodes": 16}"#, "x").unwrap_err();
         assert!(err.to_string().contains("give either `quads`"), "{err}");
+        // JSON of another shape is named in the file's words, not serde's names for its types.
+        for other in ["[1, 2, 3]", r#"{"measurements": [5]}"#] {
+            let err = crate::full_message(&parse_protocol(other, "x").unwrap_err());
+            assert!(err.contains("expected a ") && !err.contains("Json"), "{other}: {err}");
+        }
     }
 }

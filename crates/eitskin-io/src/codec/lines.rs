@@ -112,6 +112,18 @@ fn is_separator(byte: u8) -> bool {
     matches!(byte, b',' | b';' | b' ' | b'\t' | b'\r')
 }
 
+/// The longest a field that is not a number is quoted, in characters: a line of binary noise
+/// is one long field.
+const QUOTED: usize = 24;
+
+/// `field` as a message quotes it: its first [`QUOTED`] characters, and `…` where it is cut.
+fn quoted(field: &str) -> String {
+    match field.char_indices().nth(QUOTED) {
+        Some((cut, _)) => format!("{}…", &field[..cut]),
+        None => field.to_owned(),
+    }
+}
+
 /// Decodes one complete, non-empty line (without its `\n`) as frame `seq`.
 fn decode_line(line: &[u8], seq: u64, expected: usize) -> Event {
     let body = match line.iter().position(|&b| b == b':') {
@@ -123,7 +135,7 @@ fn decode_line(line: &[u8], seq: u64, expected: usize) -> Event {
         match std::str::from_utf8(field).ok().and_then(|text| text.parse::<f64>().ok()) {
             Some(x) => values.push(x),
             None => {
-                let text = String::from_utf8_lossy(field).into_owned();
+                let text = quoted(&String::from_utf8_lossy(field));
                 return Event::Bad(BadFrame::NotANumber { seq, field: i + 1, text });
             }
         }
@@ -176,6 +188,9 @@ mod tests {
     fn field_numbers_count_from_one_after_the_label() {
         let got = decode(&mut LinesDecoder::new(3), &[b"1 2 3\nv: 1, x2, 3\n1 inf 3\n"]);
         assert_eq!(got[1], Event::Bad(BadFrame::NotANumber { seq: 1, field: 2, text: "x2".into() }));
+        let noise = "é".repeat(100);
+        assert_eq!(quoted(&noise), format!("{}…", "é".repeat(QUOTED)), "cut at a character, not a byte");
+        assert_eq!(quoted("short"), "short");
         assert_eq!(got[2], frame(2, &[1.0, f64::INFINITY, 3.0]), "a lost channel is passed on");
     }
 

@@ -76,7 +76,7 @@ pub enum BadFrame {
         seq: u64,
         /// The field, counted from 1.
         field: usize,
-        /// The field as received.
+        /// The field as received (its first 24 characters and `…` when longer).
         text: String,
     },
     /// A line longer than the decoder's limit; it was dropped up to the next new line.
