@@ -153,6 +153,16 @@ pub enum Weighting {
     None,
 }
 
+/// How the channels were weighted, as reported: `noise-measured`, `noise-assumed` (the default
+/// relative noise of each value) or `none`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+enum WeightingUsed {
+    NoiseMeasured,
+    NoiseAssumed,
+    None,
+}
+
 /// Which frames of the frame file `--frames` names, from 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Frames {
@@ -273,8 +283,8 @@ pub struct Report {
     hyperparameter: f64,
     /// What chose λ: `given`, `noise-figure-and-map` (`auto`), `gcv` or `discrepancy`.
     chosen_by: &'static str,
-    /// How the channels were weighted: `noise-measured`, `noise-assumed` (0.3 % of each value) or `none`.
-    weighting: &'static str,
+    /// How the channels were weighted.
+    weighting: WeightingUsed,
     normalised: bool,
     channels_dropped: Vec<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -410,9 +420,9 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
         _ => Weighting::Noise,
     });
     let said_weighting = match (weighting, &variance) {
-        (Weighting::None, _) => "none",
-        (Weighting::Noise, Some(_)) => "noise-measured",
-        (Weighting::Noise, None) => "noise-assumed",
+        (Weighting::None, _) => WeightingUsed::None,
+        (Weighting::Noise, Some(_)) => WeightingUsed::NoiseMeasured,
+        (Weighting::Noise, None) => WeightingUsed::NoiseAssumed,
     };
     let channels = lin.noise_weighted(input.normalised, channels, variance.clone());
     let channels = if weighting == Weighting::None { channels.uniform_variance() } else { channels };
@@ -517,11 +527,11 @@ impl Report {
     pub fn text(&self) -> String {
         let dropped = &self.channels_dropped;
         let weighting = match self.weighting {
-            "noise-measured" => "channels weighted by their measured noise".to_string(),
-            "noise-assumed" => {
+            WeightingUsed::NoiseMeasured => "channels weighted by their measured noise".to_string(),
+            WeightingUsed::NoiseAssumed => {
                 format!("channels weighted by an assumed noise of {} % of each value", 100.0 * DEFAULT_RELATIVE_NOISE)
             }
-            _ => "channels weighted alike".to_string(),
+            WeightingUsed::None => "channels weighted alike".to_string(),
         };
         let mut text = format!(
             "λ = {:.4} ({}; {weighting}), reference against the model R² = {:.3}",
