@@ -32,10 +32,9 @@
 
 use std::str::FromStr;
 
-use faer::linalg::matmul::triangular::{self, BlockStructure};
-use faer::{Accum, Mat, MatRef, Side};
+use faer::{Mat, Side};
 
-use super::linearisation::{inverse_diagonal, uniform_response};
+use super::linearisation::{inverse_diagonal, lower_product, uniform_response};
 use super::{Channels, InverseError, Linearisation, Prior};
 
 /// The noise figure λ is chosen for (EIDORS' GREIT examples use 0.5).
@@ -178,23 +177,6 @@ impl NoiseFigure {
         let noise: f64 = filter.iter().enumerate().map(|(i, f)| f * f * self.gram[(i, i)]).sum();
         self.snr_z / (signal / noise)
     }
-}
-
-/// The lower half (diagonal included) of a × b, a product known to be symmetric; the upper half 0.
-fn lower_product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
-    let mut product = Mat::zeros(a.nrows(), b.ncols());
-    triangular::matmul(
-        product.as_mut(),
-        BlockStructure::TriangularLower,
-        Accum::Replace,
-        a,
-        BlockStructure::Rectangular,
-        b,
-        BlockStructure::Rectangular,
-        1.0,
-        faer::get_global_parallelism(),
-    );
-    product
 }
 
 /// The triangles of the noise figure's target (see the module doc).

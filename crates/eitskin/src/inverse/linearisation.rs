@@ -256,18 +256,7 @@ pub(crate) fn measurement_sized(
     // J R⁻¹
     let scaled = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] * r_inv[j]);
     // J R⁻¹ Jᵀ is symmetric and the Cholesky factorisation reads its lower half: only that is formed.
-    let mut system = Mat::zeros(m, m);
-    triangular::matmul(
-        system.as_mut(),
-        BlockStructure::TriangularLower,
-        Accum::Replace,
-        &scaled,
-        BlockStructure::Rectangular,
-        jacobian.transpose(),
-        BlockStructure::Rectangular,
-        1.0,
-        faer::get_global_parallelism(),
-    );
+    let mut system = lower_product(scaled.as_ref(), jacobian.transpose());
     let lambda2 = hyperparameter * hyperparameter;
     for i in 0..m {
         system[(i, i)] += lambda2 * variance[i];
@@ -291,4 +280,21 @@ pub(crate) fn weighted_element_sized(
     system += (hyperparameter * hyperparameter) * prior.matrix(jacobian, mesh);
     let llt = system.llt(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
     Ok(faer::linalg::solvers::Solve::solve(&llt, weighted.transpose()))
+}
+
+/// The lower half (diagonal included) of a × b, a product known to be symmetric; the upper half 0.
+pub(super) fn lower_product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut product = Mat::zeros(a.nrows(), b.ncols());
+    triangular::matmul(
+        product.as_mut(),
+        BlockStructure::TriangularLower,
+        Accum::Replace,
+        a,
+        BlockStructure::Rectangular,
+        b,
+        BlockStructure::Rectangular,
+        1.0,
+        faer::get_global_parallelism(),
+    );
+    product
 }
