@@ -20,6 +20,7 @@ True
 """
 
 from ._eitskin import (
+    COLOUR_STOPS,
     Calibration,
     EitskinError,
     Event,
@@ -40,10 +41,12 @@ from ._eitskin import (
     robot_presses,
     touches,
 )
-from .interop import from_pyeit, mesh_from_pyeit, plot_elements, plot_image, protocol_from_pyeit
+from .interop import colour_map, from_pyeit, mesh_from_pyeit, plot_elements, plot_image, protocol_from_pyeit
 
 __all__ = [
+    "COLOUR_STOPS",
     "Calibration",
+    "colour_map",
     "EitskinError",
     "Event",
     "ForwardModel",

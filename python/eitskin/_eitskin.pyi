@@ -24,6 +24,10 @@ class SensorSpec:
     def electrode_count(self) -> int: ...
     @property
     def conductivity(self) -> float: ...
+    @property
+    def outline(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def electrodes(self) -> npt.NDArray[np.float64]: ...
     def with_triangles(self, triangles: int) -> SensorSpec: ...
     def mesh(self) -> Mesh: ...
     def protocol(self) -> Protocol: ...
@@ -84,6 +88,8 @@ class ForwardModel:
     def measure(self, conductivity: Union[float, ArrayLike]) -> Floats: ...
     def jacobian(self, conductivity: Union[float, ArrayLike]) -> Floats: ...
 
+COLOUR_STOPS: list[tuple[int, int, int]]
+
 def one_step_matrix(
     jacobian: ArrayLike,
     mesh: Mesh,
@@ -110,23 +116,50 @@ class Touch:
     pixels: int
     polarity: str
 
-def touches(image: Image, threshold: float = 0.6, polarity: str = "decrease", per_touch: bool = False) -> list[Touch]: ...
+def touches(
+    image: Image, threshold: float = 0.6, polarity: str = "decrease", per_touch: bool = False, peak_of: str = "sign"
+) -> list[Touch]: ...
 
 class Reconstructor:
     def __init__(
         self,
         model: ForwardModel,
         background: float,
-        hyperparameter: float = 0.1,
+        hyperparameter: Union[float, str] = "auto",
         prior: str = "noser",
         exponent: float = 0.5,
         normalized: bool = False,
         raster: Tuple[int, int] = (64, 64),
+        weighting: Optional[str] = None,
     ) -> None: ...
+    @classmethod
+    def from_reference(
+        cls,
+        spec: SensorSpec,
+        reference: Union[Floats, npt.NDArray[np.float64]],
+        hyperparameter: Union[float, str] = "auto",
+        frames: Optional[npt.NDArray[np.float64]] = None,
+        prior: str = "noser",
+        exponent: float = 0.5,
+        normalized: bool = False,
+        raster: Tuple[int, int] = (64, 64),
+        weighting: Optional[str] = None,
+        cache: bool = True,
+    ) -> Reconstructor: ...
     def image(self, v_ref: Floats, v: Floats) -> Image: ...
     def element_values(self, v_ref: Floats, v: Floats) -> npt.NDArray[np.float32]: ...
     @property
     def measurements(self) -> int: ...
+    @property
+    def hyperparameter(self) -> float: ...
+    @property
+    def chosen_by(self) -> str: ...
+    @property
+    def weighting(self) -> str: ...
+    @property
+    def reference(self) -> Optional[Floats]: ...
+    @property
+    def channels_dropped(self) -> list[int]: ...
 
 class VirtualSensor:
     def __init__(self, spec: SensorSpec, seed: int = 0) -> None: ...
@@ -196,7 +229,7 @@ class Pipeline:
         reference_frames: int = 10,
         false_alarm_rate: float = 1e-3,
         average: int = 1,
-        hyperparameter: float = 0.1,
+        hyperparameter: Union[float, str] = "auto",
         reference_limit: int = 100,
     ) -> None: ...
     def process(self, frame: Floats) -> str: ...

@@ -6,7 +6,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ._eitskin import Image, Mesh, Protocol
+from ._eitskin import COLOUR_STOPS, Image, Mesh, Protocol, SensorSpec
 
 
 def mesh_from_pyeit(mesh: Any = None, *, node: Any = None, element: Any = None, el_pos: Sequence[int] | None = None) -> Mesh:
@@ -74,7 +74,23 @@ def from_pyeit(mesh: Any, protocol: Any) -> tuple[Mesh, Protocol]:
     return mesh_from_pyeit(mesh), protocol_from_pyeit(protocol)
 
 
-def plot_elements(mesh: Mesh, values: Any, ax: Any = None, cmap: str = "RdBu", symmetric: bool = True, **kwargs: Any) -> Any:
+def colour_map() -> Any:
+    """eitskin's one colour map as a matplotlib colormap: ColorBrewer's RdBu reversed
+    (``"RdBu_r"``), blue where the conductivity fell (a press), red where it rose, the stops
+    the CLI's figures and the live viewer draw with (``eitskin.COLOUR_STOPS``).
+
+    Returns
+    -------
+    matplotlib.colors.LinearSegmentedColormap
+    """
+    from matplotlib.colors import LinearSegmentedColormap
+
+    return LinearSegmentedColormap.from_list("eitskin", np.asarray(COLOUR_STOPS, dtype=float) / 255.0, N=1001)
+
+
+def plot_elements(
+    mesh: Mesh, values: Any, ax: Any = None, cmap: Any = None, symmetric: bool = True, **kwargs: Any
+) -> Any:
     """Draws one value per triangle on the mesh with matplotlib's ``tripcolor``, as pyEIT does.
 
     Parameters
@@ -85,8 +101,8 @@ def plot_elements(mesh: Mesh, values: Any, ax: Any = None, cmap: str = "RdBu", s
         One value per triangle, e.g. ``Reconstructor.element_values`` in S/m.
     ax : matplotlib.axes.Axes, optional
         Where to draw (default: the current axes).
-    cmap : str
-        Colour map; with ``symmetric`` the scale is centred on zero.
+    cmap : str or Colormap, optional
+        Colour map (default: :func:`colour_map`); with ``symmetric`` the scale is centred on zero.
     **kwargs
         Passed to ``tripcolor``.
 
@@ -97,11 +113,25 @@ def plot_elements(mesh: Mesh, values: Any, ax: Any = None, cmap: str = "RdBu", s
     values = np.asarray(values, dtype=float)
     ax = _axes(ax, values, symmetric, kwargs)
     nodes = mesh.nodes
-    return ax.tripcolor(nodes[:, 0], nodes[:, 1], mesh.triangles, facecolors=values, cmap=cmap, **kwargs)
+    return ax.tripcolor(
+        nodes[:, 0], nodes[:, 1], mesh.triangles, facecolors=values, cmap=cmap or colour_map(), **kwargs
+    )
 
 
-def plot_image(image: Image, ax: Any = None, cmap: str = "RdBu", symmetric: bool = True, **kwargs: Any) -> Any:
-    """Draws an image with matplotlib, in metres, as pyEIT's examples do.
+def plot_image(
+    image: Image,
+    ax: Any = None,
+    spec: SensorSpec | None = None,
+    touches: Sequence[Any] = (),
+    title: str | None = "Conductivity change",
+    cmap: Any = None,
+    symmetric: bool = True,
+    colorbar: bool = True,
+    **kwargs: Any,
+) -> Any:
+    """Draws an image as ``eitskin image --png`` does: the colour map of the CLI and the viewer
+    (blue for a decrease) on a scale symmetric about zero, a colour bar in S/m, and with
+    ``spec`` its outline and numbered electrodes; each touch ringed. Lengths in m.
 
     Parameters
     ----------
@@ -109,8 +139,18 @@ def plot_image(image: Image, ax: Any = None, cmap: str = "RdBu", symmetric: bool
         From ``Reconstructor.image``.
     ax : matplotlib.axes.Axes, optional
         Where to draw (default: the current axes).
-    cmap : str
-        Colour map; with ``symmetric`` the scale is centred on zero.
+    spec : SensorSpec, optional
+        The sensor, for its outline and electrodes.
+    touches : sequence of Touch or TouchForce
+        Touches to ring (anything with a ``centre`` in m), e.g. ``eitskin.touches(image)``.
+    title : str or None
+        The axes' title.
+    cmap : str or Colormap, optional
+        Colour map (default: :func:`colour_map`).
+    symmetric : bool
+        Centre the scale on zero (±the largest |change|).
+    colorbar : bool
+        Draw the colour bar, labelled "Δσ (S/m)".
     **kwargs
         Passed to ``imshow``.
 
@@ -120,13 +160,38 @@ def plot_image(image: Image, ax: Any = None, cmap: str = "RdBu", symmetric: bool
     """
     values = image.values
     ax = _axes(ax, values, symmetric, kwargs)
-    return ax.imshow(values, extent=image.extent, origin="upper", cmap=cmap, **kwargs)
+    kwargs.setdefault("interpolation", "nearest")
+    drawn = ax.imshow(values, extent=image.extent, origin="upper", cmap=cmap or colour_map(), **kwargs)
+    if colorbar:
+        ax.figure.colorbar(drawn, ax=ax, label="Δσ (S/m)", shrink=0.85)
+    if spec is not None:
+        outline = spec.outline
+        ax.plot(outline[:, 0], outline[:, 1], color="black", linewidth=1)
+        # Room around the outline for the electrodes' numbers, inside the axes.
+        low, high = outline.min(axis=0), outline.max(axis=0)
+        pad = 0.1 * float(np.max(high - low))
+        ax.set_xlim(low[0] - pad, high[0] + pad)
+        ax.set_ylim(low[1] - pad, high[1] + pad)
+        electrodes = spec.electrodes
+        ax.plot(electrodes[:, 0], electrodes[:, 1], "s", color="black", markersize=4)
+        for k, (x, y) in enumerate(electrodes):
+            direction = np.array([x, y]) / (np.hypot(x, y) or 1.0)
+            ax.annotate(
+                str(k + 1), (x, y), xytext=tuple(10 * direction), textcoords="offset points",
+                ha="center", va="center", fontsize=7,
+            )
+    for touch in touches:
+        ax.plot(*touch.centre, "o", markersize=14, markerfacecolor="none", markeredgecolor="black", markeredgewidth=2)
+    if title:
+        ax.set_title(title)
+    return drawn
 
 
 def _axes(ax: Any, values: np.ndarray, symmetric: bool, kwargs: dict) -> Any:
-    """The axes to draw on (labelled in m, equal aspect), and a colour scale centred on zero
-    in ``kwargs`` when ``symmetric``."""
+    """The axes to draw on (labelled in m, equal aspect, few enough ticks to stay apart), and a
+    colour scale centred on zero in ``kwargs`` when ``symmetric``."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     ax = ax if ax is not None else plt.gca()
     if symmetric:
@@ -137,4 +202,6 @@ def _axes(ax: Any, values: np.ndarray, symmetric: bool, kwargs: dict) -> Any:
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
+    ax.xaxis.set_major_locator(MaxNLocator(5))
+    ax.yaxis.set_major_locator(MaxNLocator(5))
     return ax

@@ -117,19 +117,28 @@ impl Touch {
 }
 
 /// The touches of `image`, strongest first: pixels at least `threshold` of the peak (the
-/// paper's 0.6), joined into connected regions; `per_touch` compares each touch with its own
-/// peak (several presses) instead of the frame's.
+/// paper's 0.6), joined into connected regions. `peak_of` says whose peak, as ``eitskin image
+/// --peak-of`` does: "sign" (each sign's own strongest change; the CLI's default), "frame" (the
+/// strongest change of either sign, the paper's rule) or "touch" (each touch's own; several
+/// presses); `per_touch` is the older spelling of "touch".
 #[pyfunction]
-#[pyo3(signature = (image, threshold = 0.6, polarity = "decrease", per_touch = false))]
-pub(crate) fn touches(image: &Image, threshold: f64, polarity: &str, per_touch: bool) -> PyResult<Vec<Touch>> {
+#[pyo3(signature = (image, threshold = 0.6, polarity = "decrease", per_touch = false, peak_of = "sign"))]
+pub(crate) fn touches(
+    image: &Image,
+    threshold: f64,
+    polarity: &str,
+    per_touch: bool,
+    peak_of: &str,
+) -> PyResult<Vec<Touch>> {
     if !(threshold > 0.0 && threshold <= 1.0) {
         return Err(fail(format!("threshold must be in (0, 1], got {threshold}")));
     }
     let polarity: Polarity = polarity.parse().map_err(fail)?;
+    let peak_of: eitskin::touch::PeakOf = peak_of.parse().map_err(|e: String| fail(format!("peak_of: {e}")))?;
     let params = eitskin::TouchParams {
         threshold,
         polarity,
-        peak_of: if per_touch { eitskin::touch::PeakOf::Touch } else { eitskin::touch::PeakOf::Frame },
+        peak_of: if per_touch { eitskin::touch::PeakOf::Touch } else { peak_of },
         ..eitskin::TouchParams::default()
     };
     Ok(eitskin::touch::detect(&image.0, &params)
@@ -152,7 +161,13 @@ pub(crate) fn touches(image: &Image, threshold: f64, polarity: &str, per_touch: 
 ///
 /// Linearised once at a homogeneous background: an image is one product of the reconstruction
 /// matrix (pixels × measurements) with the frame's differences,
-/// Δσ = (JᵀJ + λ²R)⁻¹JᵀΔv.
+/// Δσ = (JᵀWJ + λ²R)⁻¹JᵀWΔv.
+///
+/// λ is chosen as the CLI chooses it: ``"auto"`` takes the larger of the λ for a noise figure of
+/// 0.5 and the MAP λ of the noise level, with the channels weighted (W) by their noise. Built
+/// from a forward model, the noise is assumed (0.3 % of each value); built from frames at rest
+/// (:meth:`Reconstructor.from_reference`), it is measured from them, exactly as ``eitskin
+/// image --reference`` does, so the two give the same image of the same frames.
 ///
 /// Parameters
 /// ----------
@@ -160,73 +175,245 @@ pub(crate) fn touches(image: &Image, threshold: f64, polarity: &str, per_touch: 
 ///     The sensor's forward model (its mesh, electrodes and protocol).
 /// background : float
 ///     The homogeneous conductivity it is linearised at, in S/m.
-/// hyperparameter : float, default 0.1
-///     λ, dimensionless; λ² multiplies the prior (pyEIT's ``lamb`` is λ²).
+/// hyperparameter : float or str, default "auto"
+///     λ, dimensionless, in (0, 1000] (λ² multiplies the prior; pyEIT's ``lamb`` is λ²), or
+///     ``"auto"``.
 /// prior : {"noser", "tikhonov", "laplace"}, default "noser"
 ///     R: diag(JᵀJ)^exponent, the identity, or a Laplacian over neighbouring triangles.
 /// exponent : float, default 0.5
 ///     The NOSER exponent p (pyEIT's "lm" is p = 1).
 /// normalized : bool, default False
-///     Image Δv/v_ref instead of Δv.
+///     Image Δv/v_ref instead of Δv (the CLI's ``--normalised``).
 /// raster : (int, int), default (64, 64)
 ///     Pixels (nx, ny) over the mesh's bounding box, 1 to 4096 each.
+/// weighting : {"noise", "none"}, optional
+///     How channels are weighted: by their noise, or alike; default ``"noise"`` with ``"auto"``,
+///     ``"none"`` with a given λ (the CLI's ``--weighting``).
 ///
 /// Raises
 /// ------
 /// EitskinError
-///     A hyperparameter that is not positive and finite, an unknown prior, a raster out of range.
+///     A hyperparameter out of range, an unknown prior or weighting, a raster out of range.
 ///
 /// Examples
 /// --------
 /// >>> spec = SensorSpec.square_hydrogel()
 /// >>> recon = Reconstructor(spec.forward_model(), spec.conductivity)
-/// >>> recon.measurements
-/// 120
+/// >>> recon.measurements, recon.chosen_by, recon.weighting
+/// (120, 'noise-figure-and-map', 'noise-assumed')
 #[pyclass(module = "eitskin", frozen)]
-pub(crate) struct Reconstructor(pub(crate) eitskin::Reconstructor);
+pub(crate) struct Reconstructor {
+    pub(crate) recon: eitskin::Reconstructor,
+    chosen_by: &'static str,
+    weighting: eitskin::inverse::WeightingUsed,
+    reference: Option<Vec<f64>>,
+}
+
+/// `hyperparameter` from Python: a λ in (0, 1000], or a rule's name.
+pub(crate) fn rule(hyperparameter: &Bound<'_, PyAny>) -> PyResult<eitskin::inverse::HyperparameterRule> {
+    use eitskin::inverse::{Hyperparameter, HyperparameterRule, LARGEST_HYPERPARAMETER};
+    if let Ok(text) = hyperparameter.extract::<String>() {
+        return text.parse().map_err(|e: String| fail(format!("hyperparameter: {e}")));
+    }
+    let value: f64 = hyperparameter
+        .extract()
+        .map_err(|_| fail(format!("hyperparameter must be a number or \"auto\", got {hyperparameter}")))?;
+    if !(value > 0.0 && value <= LARGEST_HYPERPARAMETER) {
+        return Err(fail(format!("hyperparameter must be in (0, 1000] or \"auto\", got {value}")));
+    }
+    Ok(HyperparameterRule::Model(Hyperparameter::Fixed(value)))
+}
+
+/// `weighting` from Python: "noise", "none", or None for the rule's default.
+fn weighting(weighting: Option<&str>) -> PyResult<Option<eitskin::inverse::Weighting>> {
+    weighting.map(|w| w.parse().map_err(|e: String| fail(format!("weighting: {e}")))).transpose()
+}
+
+/// Reconstructor parameters from Python's keywords, λ left to the rule.
+fn params(
+    prior: &str,
+    exponent: f64,
+    normalized: bool,
+    raster: (usize, usize),
+) -> PyResult<eitskin::ReconstructorParams> {
+    if !(1..=4096).contains(&raster.0) || !(1..=4096).contains(&raster.1) {
+        return Err(fail(format!("raster must be 1 to 4096 pixels each way, got {raster:?}")));
+    }
+    Ok(eitskin::ReconstructorParams {
+        prior: self::prior(prior, exponent)?,
+        normalized,
+        raster: [raster.0, raster.1],
+        ..eitskin::ReconstructorParams::default()
+    })
+}
+
+/// Frames at rest from Python: one frame (1-D) or one per row (2-D).
+fn frame_rows(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Vec<f64>>> {
+    let array = as_array(obj, "float64").map_err(|e| fail(format!("{name}: {}", e.value(obj.py()))))?;
+    if let Ok(rows) = array.extract::<PyReadonlyArray2<'_, f64>>() {
+        let width = rows.shape()[1];
+        let values = rows.as_slice()?;
+        if values.is_empty() {
+            return Err(fail(format!("{name}: no frame")));
+        }
+        return Ok(values.chunks_exact(width).map(<[f64]>::to_vec).collect());
+    }
+    Ok(vec![crate::vector(obj, name)?.as_slice()?.to_vec()])
+}
 
 #[pymethods]
 impl Reconstructor {
     /// Linearises `model` at `background` (S/m): prior "noser" (exponent p), "tikhonov" or
-    /// "laplace"; hyperparameter λ (λ² multiplies the prior); `normalized` uses Δv/v_ref;
-    /// `raster` (nx, ny) pixels over the mesh's bounding box.
+    /// "laplace"; hyperparameter λ (λ² multiplies the prior) or "auto" (the noise assumed);
+    /// `normalized` uses Δv/v_ref; `raster` (nx, ny) pixels over the mesh's bounding box.
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
     #[pyo3(
-        signature = (model, background, hyperparameter = 0.1, prior = "noser", exponent = 0.5, normalized = false, raster = (64, 64)),
-        text_signature = "(model, background, hyperparameter=0.1, prior='noser', exponent=0.5, normalized=False, raster=(64, 64))"
+        signature = (model, background, hyperparameter = None, prior = "noser", exponent = 0.5, normalized = false, raster = (64, 64), weighting = None),
+        text_signature = "(model, background, hyperparameter='auto', prior='noser', exponent=0.5, normalized=False, raster=(64, 64), weighting=None)"
     )]
     fn new(
         py: Python<'_>,
         model: &ForwardModel,
         background: f64,
-        hyperparameter: f64,
+        hyperparameter: Option<&Bound<'_, PyAny>>,
         prior: &str,
         exponent: f64,
         normalized: bool,
         raster: (usize, usize),
+        weighting: Option<&str>,
     ) -> PyResult<Reconstructor> {
-        if !(1..=4096).contains(&raster.0) || !(1..=4096).contains(&raster.1) {
-            return Err(fail(format!("raster must be 1 to 4096 pixels each way, got {raster:?}")));
+        use eitskin::inverse::{Hyperparameter, HyperparameterRule, Linearisation, Reference};
+        let rule =
+            hyperparameter.map(self::rule).transpose()?.unwrap_or(HyperparameterRule::Model(Hyperparameter::Auto));
+        if let HyperparameterRule::Data(c) = rule {
+            return Err(fail(format!(
+                "hyperparameter: {} chooses λ from the frames imaged; give them with Reconstructor.from_reference(…, frames=…)",
+                c.name()
+            )));
         }
-        let params = eitskin::ReconstructorParams {
-            prior: self::prior(prior, exponent)?,
-            hyperparameter,
-            normalized,
-            raster: [raster.0, raster.1],
-            ..eitskin::ReconstructorParams::default()
-        };
+        let weighting = self::weighting(weighting)?.unwrap_or(rule.default_weighting());
+        let params = self::params(prior, exponent, normalized, raster)?;
         let model = &model.0;
         let measurements = model.protocol().measurements().len();
         eitskin::memory::check_raster(params.raster, measurements, eitskin_io::available_memory()).map_err(error)?;
-        py.detach(|| eitskin::Reconstructor::new(model, background, &params)).map(Reconstructor).map_err(error)
+        py.detach(|| -> Result<Reconstructor, eitskin::InverseError> {
+            let lin = std::sync::Arc::new(Linearisation::new(model, background)?);
+            // The model's own frame as the one reference: the noise assumed, every channel in use.
+            let reference = Reference { v_ref: lin.background().to_vec(), variance: None };
+            let (channels, used) = reference.channels(&lin, normalized, &[], weighting);
+            let auto = || eitskin::inverse::choose_hyperparameter(&lin, &params.prior, normalized, &channels);
+            let hyperparameter =
+                reference.hyperparameter(rule, &lin, (&params.prior, normalized), &channels, &[], auto)?;
+            let params = eitskin::ReconstructorParams { hyperparameter, ..params };
+            let recon = eitskin::Reconstructor::from_linearisation(lin, &params, channels)?;
+            Ok(Reconstructor { recon, chosen_by: rule.chosen_by(), weighting: used, reference: None })
+        })
+        .map_err(error)
+    }
+
+    /// The reconstructor that ``eitskin image`` makes of `spec` and the frames at rest
+    /// `reference` (one frame, or one per row): their mean is the reference, their spread the
+    /// measured noise; channels the spec drops, dead (0 at rest) or missing (NaN) are dropped;
+    /// λ by `hyperparameter` ("auto", "gcv" or "discrepancy" on `frames`, or a number).
+    #[classmethod]
+    #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
+    #[pyo3(signature = (spec, reference, hyperparameter = None, frames = None, prior = "noser", exponent = 0.5, normalized = false, raster = (64, 64), weighting = None, cache = true))]
+    fn from_reference(
+        _class: &Bound<'_, pyo3::types::PyType>,
+        py: Python<'_>,
+        spec: &crate::model::SensorSpec,
+        reference: &Bound<'_, PyAny>,
+        hyperparameter: Option<&Bound<'_, PyAny>>,
+        frames: Option<&Bound<'_, PyAny>>,
+        prior: &str,
+        exponent: f64,
+        normalized: bool,
+        raster: (usize, usize),
+        weighting: Option<&str>,
+        cache: bool,
+    ) -> PyResult<Reconstructor> {
+        use eitskin::inverse::{mark_missing, Hyperparameter, HyperparameterRule};
+        let rule =
+            hyperparameter.map(self::rule).transpose()?.unwrap_or(HyperparameterRule::Model(Hyperparameter::Auto));
+        let weighting = self::weighting(weighting)?;
+        let params = self::params(prior, exponent, normalized, raster)?;
+        let spec = &spec.0;
+        let mut references = frame_rows(reference, "reference")?;
+        let mut frames = frames.map(|f| frame_rows(f, "frames")).transpose()?.unwrap_or_default();
+        if matches!(rule, HyperparameterRule::Data(_)) && frames.is_empty() {
+            return Err(fail(
+                "hyperparameter: gcv and discrepancy choose λ from the frames imaged: give them as frames=…",
+            ));
+        }
+        let measurements = spec.protocol().map_err(error)?.measurements().len();
+        for (name, rows) in [("reference", &references), ("frames", &frames)] {
+            if let Some((k, row)) = rows.iter().enumerate().find(|(_, r)| r.len() != measurements) {
+                return Err(fail(format!(
+                    "{name}: frame {} holds {} values, but the protocol has {measurements}",
+                    k + 1,
+                    row.len()
+                )));
+            }
+        }
+        eitskin::memory::check_raster(params.raster, measurements, eitskin_io::available_memory()).map_err(error)?;
+        py.detach(|| -> Result<Reconstructor, eitskin_io::Error> {
+            mark_missing(&spec.used_channels()?, &mut references, &mut frames);
+            let lin = eitskin_io::build::linearisation(spec, cache)?;
+            let made = eitskin_io::build::ReferenceImaging::new(
+                spec,
+                &lin,
+                &params,
+                (&references, &frames),
+                (rule, weighting),
+                cache,
+            )?;
+            Ok(Reconstructor {
+                recon: made.recon,
+                chosen_by: made.chosen_by,
+                weighting: made.weighting,
+                reference: Some(made.reference.v_ref),
+            })
+        })
+        .map_err(error)
+    }
+
+    /// λ, dimensionless: given, or as chosen.
+    #[getter]
+    fn hyperparameter(&self) -> f64 {
+        self.recon.params().hyperparameter
+    }
+
+    /// What chose λ: "given", "noise-figure-and-map" ("auto"), "gcv" or "discrepancy".
+    #[getter]
+    fn chosen_by(&self) -> &'static str {
+        self.chosen_by
+    }
+
+    /// How the channels are weighted: "noise-measured", "noise-assumed" or "none".
+    #[getter]
+    fn weighting(&self) -> &'static str {
+        self.weighting.name()
+    }
+
+    /// The mean of the frames at rest (V, protocol order; NaN where a channel is dropped), when
+    /// made by :meth:`from_reference`, else None.
+    #[getter]
+    fn reference<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.reference.clone().map(|v| v.into_pyarray(py))
+    }
+
+    /// The channels dropped (1-based, as the CLI names them).
+    #[getter]
+    fn channels_dropped(&self) -> Vec<usize> {
+        self.recon.channels().dropped().iter().map(|m| m + 1).collect()
     }
 
     /// The image of frame `v` against the reference `v_ref` (V, protocol order).
     fn image(&self, py: Python<'_>, v_ref: &Bound<'_, PyAny>, v: &Bound<'_, PyAny>) -> PyResult<Image> {
         let (v_ref, v) = (crate::vector(v_ref, "v_ref")?, crate::vector(v, "v")?);
         let (v_ref, v) = (v_ref.as_slice()?, v.as_slice()?);
-        let recon = &self.0;
+        let recon = &self.recon;
         py.detach(|| recon.image(v_ref, v)).map(Image).map_err(error)
     }
 
@@ -239,17 +426,23 @@ impl Reconstructor {
     ) -> PyResult<Bound<'py, PyArray1<f32>>> {
         let (v_ref, v) = (crate::vector(v_ref, "v_ref")?, crate::vector(v, "v")?);
         let (v_ref, v) = (v_ref.as_slice()?, v.as_slice()?);
-        let recon = &self.0;
+        let recon = &self.recon;
         Ok(py.detach(|| recon.element_values(v_ref, v)).map_err(error)?.into_pyarray(py))
     }
 
     /// Number of measurements a frame has.
     #[getter]
     fn measurements(&self) -> usize {
-        self.0.measurements()
+        self.recon.measurements()
     }
 
     fn __repr__(&self) -> String {
-        format!("Reconstructor({} measurements)", self.0.measurements())
+        format!(
+            "Reconstructor({} measurements, λ = {:.4} ({}), weighting {})",
+            self.recon.measurements(),
+            self.recon.params().hyperparameter,
+            self.chosen_by,
+            self.weighting.name()
+        )
     }
 }

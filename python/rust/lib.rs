@@ -111,6 +111,9 @@ pub(crate) fn indices(values: &[i64], what: &str) -> PyResult<Vec<usize>> {
 #[pymodule]
 fn _eitskin(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("EitskinError", m.py().get_type::<EitskinError>())?;
+    // The one colour map's stops, sRGB from −1 (a decrease) to +1 (`eitskin::colour`).
+    let stops: Vec<(u8, u8, u8)> = eitskin::colour::COLOUR_STOPS.iter().map(|&[r, g, b]| (r, g, b)).collect();
+    m.add("COLOUR_STOPS", stops)?;
     m.add_class::<model::SensorSpec>()?;
     m.add_class::<model::Mesh>()?;
     m.add_class::<model::Protocol>()?;

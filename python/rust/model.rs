@@ -69,6 +69,22 @@ impl SensorSpec {
         self.0.conductivity
     }
 
+    /// The outline as a closed line to draw, (k, 2) in m (a circle as 256 segments).
+    #[getter]
+    fn outline<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray2<f64>> {
+        let ring: Vec<Vec<f64>> = self.0.outline.ring(256).iter().map(|p| p.to_vec()).collect();
+        numpy::PyArray2::from_vec2(py, &ring).unwrap_or_else(|_| numpy::PyArray2::zeros(py, [0, 2], false))
+    }
+
+    /// Each electrode's centre on the outline, (electrodes, 2) in m, electrode 1 first.
+    #[getter]
+    fn electrodes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        let spec = &self.0;
+        let positions = spec.electrode_positions().map_err(crate::error)?;
+        let centres: Vec<Vec<f64>> = positions.iter().map(|e| spec.outline.point_at(e.centre).to_vec()).collect();
+        numpy::PyArray2::from_vec2(py, &centres).map_err(|e| crate::fail(e.to_string()))
+    }
+
     /// The same spec meshed with about `triangles` triangles.
     fn with_triangles(&self, triangles: i64) -> PyResult<SensorSpec> {
         let triangles = crate::count(triangles, "triangles")?;

@@ -372,8 +372,9 @@ impl TouchForce {
 ///     False touches per no-touch frame that the noise test allows, in (0, 0.5].
 /// average : int, default 1
 ///     Frames averaged into each image, 1 to 1,000 (adds (average − 1)/2 frames of latency).
-/// hyperparameter : float, default 0.1
-///     λ, when no calibration sets it.
+/// hyperparameter : float or "auto", default "auto"
+///     λ in (0, 1000], or "auto": chosen from the reference frames' noise as ``eitskin run``
+///     chooses it; a calibration sets its own (another value is refused).
 ///
 /// Examples
 /// --------
@@ -393,10 +394,10 @@ impl Pipeline {
     /// each touch; `reference_frames` (1–10,000) are averaged into the reference, which grows
     /// to `reference_limit` (1–1,000,000) on frames without a touch;
     /// `false_alarm_rate` (false touches per no-touch frame, in (0, 0.5]); `average` frames
-    /// (1–1,000) per image; `hyperparameter` λ (the paper's 0.1).
+    /// (1–1,000) per image; `hyperparameter` λ or "auto" (from the reference frames' noise).
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
-    #[pyo3(signature = (spec, calibration = None, fit = false, reference_frames = 10, false_alarm_rate = 1e-3, average = 1, hyperparameter = 0.1, reference_limit = 100))]
+    #[pyo3(signature = (spec, calibration = None, fit = false, reference_frames = 10, false_alarm_rate = 1e-3, average = 1, hyperparameter = None, reference_limit = 100))]
     fn new(
         py: Python<'_>,
         spec: &SensorSpec,
@@ -405,9 +406,10 @@ impl Pipeline {
         reference_frames: i64,
         false_alarm_rate: f64,
         average: i64,
-        hyperparameter: f64,
+        hyperparameter: Option<&Bound<'_, PyAny>>,
         reference_limit: i64,
     ) -> PyResult<Pipeline> {
+        use eitskin::inverse::{Hyperparameter, HyperparameterRule};
         use eitskin::pipeline::{NoiseFloor, PipelineParams};
         let reference_frames = crate::count(reference_frames, "reference_frames")?;
         let average = crate::count(average, "average")?;
@@ -433,26 +435,41 @@ impl Pipeline {
                 ));
             }
         }
+        // λ as `eitskin run` sets it: the calibration's (a different one refused), else given,
+        // else chosen from the reference frames' noise once they are in.
+        let rule = hyperparameter.map(crate::imaging::rule).transpose()?;
+        let hyperparameter = match (rule, calibration) {
+            (None, None) => Hyperparameter::Auto,
+            (Some(HyperparameterRule::Model(h)), None) => h,
+            (Some(HyperparameterRule::Data(c)), _) => {
+                let name = c.name();
+                return Err(fail(format!("hyperparameter: a pipeline takes \"auto\" or a number, not {name}")));
+            }
+            (given, Some(c)) => {
+                let lambda = c.file.imaging.hyperparameter;
+                if given.is_some_and(|g| g != HyperparameterRule::Model(Hyperparameter::Fixed(lambda))) {
+                    return Err(fail(format!(
+                        "hyperparameter: the calibration was fitted on images made with λ = {lambda}, and its forces \
+                         hold only for those; leave hyperparameter out (or give {lambda}), or calibrate again"
+                    )));
+                }
+                Hyperparameter::Fixed(lambda)
+            }
+        };
         let chain = py.detach(|| -> Result<eitskin::chain::Chain, String> {
             let params = eitskin::ReconstructorParams {
-                hyperparameter: calibration.map_or(hyperparameter, |c| c.file.imaging.hyperparameter),
+                hyperparameter: match hyperparameter {
+                    Hyperparameter::Fixed(value) => value,
+                    // Chosen once the reference frames are in; until then, the paper's.
+                    Hyperparameter::Auto => eitskin::ReconstructorParams::default().hyperparameter,
+                },
                 normalized: calibration.is_some_and(|c| c.file.imaging.normalized),
                 ..eitskin::ReconstructorParams::default()
             };
-            let model = spec.forward_model().map_err(|e| crate::message(&e))?;
-            let recon =
-                eitskin::Reconstructor::new(&model, spec.conductivity, &params).map_err(|e| crate::message(&e))?;
-            let mut chain = eitskin::chain::Chain::new(recon, eitskin::TouchParams::default());
             let strength = calibration.map_or(eitskin::strength::Strength::Peak, |c| c.file.calibration.strength);
-            if fit || strength.needs_press_model() {
-                let press = eitskin_io::build_press_model(spec, &eitskin::press_fit::PressModelParams::default())
-                    .map_err(|e| crate::message(&e))?;
-                chain = chain.with_press_model(press);
-            }
-            if strength.needs_contrast_map() {
-                return Err(format!("a calibration of strength {} is not supported from Python yet", strength.name()));
-            }
-            chain = chain.with_strength(strength).map_err(|e| crate::message(&e))?;
+            let touch = eitskin::TouchParams::default();
+            let mut chain =
+                eitskin_io::build::chain(spec, &params, touch, strength, fit).map_err(|e| crate::message(&e))?;
             if let Some(c) = calibration {
                 chain = chain
                     .with_calibration(c.file.array.clone(), c.file.calibration.clone())
@@ -466,6 +483,7 @@ impl Pipeline {
             reference_limit,
             noise_floor: NoiseFloor::FalseAlarm { rate: false_alarm_rate },
             average,
+            auto_hyperparameter: hyperparameter == Hyperparameter::Auto,
             ..PipelineParams::default()
         };
         Ok(Pipeline(eitskin::pipeline::Pipeline::new(chain, params)))

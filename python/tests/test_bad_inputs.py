@@ -67,6 +67,7 @@ GOOD = [
     ("one_step_matrix", eitskin.one_step_matrix, {"jacobian": J, "mesh": F["mesh"], "hyperparameter": 0.1, "background": F["rest"]}),
     ("touches", eitskin.touches, {"image": F["image"]}),
     ("Reconstructor", eitskin.Reconstructor, {"model": F["model"], "background": SPEC.conductivity, "raster": (32, 32)}),
+    ("Reconstructor.from_reference", eitskin.Reconstructor.from_reference, {"spec": SPEC, "reference": np.array([F["rest"], F["rest"] * 1.001]), "frames": np.array([F["pressed"]]), "raster": (32, 32), "cache": False}),
     ("Reconstructor.image", F["recon"].image, {"v_ref": F["rest"], "v": F["pressed"]}),
     ("Reconstructor.element_values", F["recon"].element_values, {"v_ref": F["rest"], "v": F["pressed"]}),
     ("VirtualSensor", eitskin.VirtualSensor, {"spec": SPEC}),

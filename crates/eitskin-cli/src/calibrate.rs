@@ -105,14 +105,20 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
         }
         Labelled::Frames(frames) => {
             let (references, pressed) = references(args.reference.as_deref(), &args.samples, frames)?;
-            let chain = load::chain(&spec, strength, false)?;
+            let chain = eitskin_io::build::chain(
+                &spec,
+                &ReconstructorParams::default(),
+                TouchParams::default(),
+                strength,
+                false,
+            )?;
             let found = process_labelled(chain, PipelineParams::default(), &references, &pressed)?;
             report_missed(&args.samples, &pressed, &found);
             labelled::samples(&array, &pressed, &found)
         }
     };
     let calibration = Calibration::fit_strength(&samples, array.area_count(), strength)?;
-    // The chain images as `load::chain` does: the file records it, and `run` then images so.
+    // The chain images as `eitskin_io::build::chain` does: the file records it, and `run` then images so.
     let params = ReconstructorParams::default();
     let imaging = Imaging { hyperparameter: params.hyperparameter, normalized: params.normalized };
     let mut staged = crate::outputs::Staged::default();
@@ -208,7 +214,7 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
                 ..ReconstructorParams::default()
             };
             let strength = calibration.strength;
-            let chain = load::chain_with(&spec, &params, TouchParams::default(), strength, false)?
+            let chain = eitskin_io::build::chain(&spec, &params, TouchParams::default(), strength, false)?
                 .with_calibration(array, calibration)?;
             let found = process_labelled(chain, PipelineParams::default(), &references, &pressed)?;
             report_missed(&args.samples, &pressed, &found);

@@ -5,13 +5,12 @@
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
-use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use eitskin::image::Image;
 use eitskin::inverse::{
-    data_hyperparameter, mean_frame, noise_variance, plausible_ratio, typical_ratio, Channels, DataCriterion,
-    Hyperparameter, DEFAULT_RELATIVE_NOISE,
+    mark_missing, mean_frame, noise_variance, plausible_ratio, typical_ratio, HyperparameterRule, Weighting,
+    WeightingUsed, DEFAULT_RELATIVE_NOISE,
 };
 use eitskin::memory::Stage;
 use eitskin::noise::{NoiseModel, Significance};
@@ -19,6 +18,7 @@ use eitskin::segmentation;
 use eitskin::touch::{detect_tested_into, labels, PeakOf, Polarity, Touch, TouchScratch};
 use eitskin::values::{signed_from_magnitudes, Component, Gains};
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
+use eitskin_io::build::ReferenceImaging;
 use eitskin_io::{FrameLayout, FrameSelect, FrameTable};
 use serde::Serialize;
 
@@ -65,13 +65,13 @@ pub struct Input {
     /// several, else 0.3 % of each value; or chosen from the frames themselves: `gcv`
     /// (generalised cross-validation) or `discrepancy` (the fit no closer than that noise).
     #[arg(long, default_value = "auto")]
-    hyperparameter: LambdaFlag,
+    hyperparameter: HyperparameterRule,
     /// How the channels are weighted: `noise` (each by its noise variance, measured from several
     /// reference frames, else 0.3 % of its value) or `none` (all alike, at their mean noise);
     /// default: `noise` with a chosen λ, `none` with a given one. The λ printed and this
     /// weighting given back reproduce the image.
     #[arg(long)]
-    weighting: Option<Weighting>,
+    weighting: Option<WeightingFlag>,
     /// Normalised differences Δv/v_ref (immune to per-channel gains) instead of absolute ones.
     #[arg(long)]
     normalised: bool,
@@ -123,44 +123,27 @@ impl Input {
     }
 }
 
-/// `--hyperparameter`: a λ or `auto` (from the model and the noise), or a criterion on the frames.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum LambdaFlag {
-    /// A λ, or the noise figure's and the noise level's.
-    Model(Hyperparameter),
-    /// Chosen from the frames imaged.
-    Data(DataCriterion),
-}
-
-impl FromStr for LambdaFlag {
-    type Err = String;
-
-    fn from_str(text: &str) -> Result<LambdaFlag, String> {
-        match (text.parse::<DataCriterion>(), text.parse::<Hyperparameter>()) {
-            (Ok(criterion), _) => Ok(LambdaFlag::Data(criterion)),
-            (_, Ok(given)) => Ok(LambdaFlag::Model(given)),
-            _ => Err(format!("\"{text}\" is neither `auto`, `gcv`, `discrepancy` nor a number in (0, 1000]")),
-        }
-    }
-}
-
-/// How the channels are weighted in the reconstruction (`--weighting`).
+/// `--weighting`, as clap reads it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Weighting {
+pub enum WeightingFlag {
     /// Each channel by its noise variance (EIDORS' `meas_icov`).
     Noise,
     /// All channels alike.
     None,
 }
 
-/// How the channels were weighted, as reported: `noise-measured`, `noise-assumed` (the default
-/// relative noise of each value) or `none`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-enum WeightingUsed {
-    NoiseMeasured,
-    NoiseAssumed,
-    None,
+impl From<WeightingFlag> for Weighting {
+    fn from(flag: WeightingFlag) -> Weighting {
+        match flag {
+            WeightingFlag::Noise => Weighting::Noise,
+            WeightingFlag::None => Weighting::None,
+        }
+    }
+}
+
+/// Serialises a weighting by its name.
+fn weighting_name<S: serde::Serializer>(weighting: &WeightingUsed, serializer: S) -> Result<S::Ok, S::Error> {
+    serializer.serialize_str(weighting.name())
 }
 
 /// Which frames of the frame file `--frames` names, from 1.
@@ -284,6 +267,7 @@ pub struct Report {
     /// What chose λ: `given`, `noise-figure-and-map` (`auto`), `gcv` or `discrepancy`.
     chosen_by: &'static str,
     /// How the channels were weighted.
+    #[serde(serialize_with = "weighting_name")]
     weighting: WeightingUsed,
     normalised: bool,
     channels_dropped: Vec<usize>,
@@ -346,7 +330,7 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
         raster: input.raster,
         ..ReconstructorParams::default()
     };
-    let lin = load::linearisation(&spec, !input.no_cache)?;
+    let lin = eitskin_io::build::linearisation(&spec, !input.no_cache)?;
     let model = lin.background();
     let count = |path: &Path, k: usize, frame: &[f64]| {
         match frame.len() == model.len() {
@@ -363,14 +347,9 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     };
     references.iter().enumerate().try_for_each(|(k, r)| count(&input.reference, k, r))?;
     selected.iter().enumerate().try_for_each(|(k, v)| count(&input.frame, first + k, v))?;
-    // A channel the spec drops, or a dead one (0 in every reference frame: a board prints 0 for
-    // a broken contact, which would tell the image that nothing changed there), is missing from
-    // here on: NaN, so it is dropped from the image and named by no check of the values.
-    let in_use = spec.used_channels()?;
-    let dead: Vec<bool> = mean_frame(&references).iter().map(|r| *r == 0.0).collect();
-    for frame in references.iter_mut().chain(selected.iter_mut()) {
-        frame.iter_mut().enumerate().filter(|(m, _)| !in_use[*m] || dead[*m]).for_each(|(_, x)| *x = f64::NAN);
-    }
+    // A channel the spec drops, or a dead one, is missing (NaN) from here on: dropped from the
+    // image and named by no check of the values.
+    mark_missing(&spec.used_channels()?, &mut references, &mut selected);
     let magnitudes = input.values == "magnitude" || input.component == Component::Magnitude;
     if magnitudes {
         let mut unexplained = std::collections::BTreeSet::new();
@@ -400,9 +379,7 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
         references = references.iter().map(|r| gains.apply(r)).collect();
         selected = selected.iter().map(|v| gains.apply(v)).collect();
     }
-    let v_ref = mean_frame(&references);
-    let variance = noise_variance(&references);
-    if references.len() > 1 && variance.is_none() {
+    if references.len() > 1 && noise_variance(&references).is_none() {
         eprintln!(
             "warning: the {} reference frames of {} are all equal: no noise can be measured from them, so {} % per value is assumed (several frames of a board at rest differ)",
             references.len(),
@@ -410,37 +387,9 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
             100.0 * eitskin::inverse::DEFAULT_RELATIVE_NOISE
         );
     }
-    // A channel missing (NaN) in the reference or in any frame is dropped, not refused.
-    let mut channels = Channels::finite_in(&v_ref);
-    for v in &selected {
-        channels = channels.masked(Channels::finite_in(v).used_mask());
-    }
-    let weighting = input.weighting.unwrap_or(match input.hyperparameter {
-        LambdaFlag::Model(Hyperparameter::Fixed(_)) => Weighting::None,
-        _ => Weighting::Noise,
-    });
-    let said_weighting = match (weighting, &variance) {
-        (Weighting::None, _) => WeightingUsed::None,
-        (Weighting::Noise, Some(_)) => WeightingUsed::NoiseMeasured,
-        (Weighting::Noise, None) => WeightingUsed::NoiseAssumed,
-    };
-    let channels = lin.noise_weighted(input.normalised, channels, variance.clone());
-    let channels = if weighting == Weighting::None { channels.uniform_variance() } else { channels };
-    let hyperparameter = match input.hyperparameter {
-        LambdaFlag::Model(Hyperparameter::Auto) => {
-            load::auto_hyperparameter(&spec, &lin, &params, &channels, !input.no_cache)?
-        }
-        LambdaFlag::Model(Hyperparameter::Fixed(value)) => value,
-        LambdaFlag::Data(criterion) => {
-            // Frames the scale check will refuse are no evidence for λ.
-            let plausible = |v: &&Vec<f64>| typical_ratio(v, &v_ref).is_none_or(plausible_ratio);
-            let frames: Vec<(&[f64], &[f64])> =
-                selected.iter().filter(plausible).map(|v| (v_ref.as_slice(), v.as_slice())).collect();
-            data_hyperparameter(&lin, &params.prior, input.normalised, &channels, &frames, criterion)?
-        }
-    };
-    let params = ReconstructorParams { hyperparameter, ..params };
-    let recon = Reconstructor::from_linearisation(Arc::clone(&lin), &params, channels)?;
+    let rule = (input.hyperparameter, input.weighting.map(Weighting::from));
+    let imaging = ReferenceImaging::new(&spec, &lin, &params, (&references, &selected), rule, !input.no_cache)?;
+    let (recon, v_ref) = (imaging.recon, imaging.reference.v_ref);
     // Touches are tested against the noise only when it is measured: an assumed level could
     // hide a real touch. The weaker sign must stand above the noise, measured or assumed.
     let measured = NoiseModel::from_frames(&references);
@@ -460,12 +409,8 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let report = Report {
         pattern_fit,
         hyperparameter: recon.params().hyperparameter,
-        chosen_by: match input.hyperparameter {
-            LambdaFlag::Model(Hyperparameter::Auto) => "noise-figure-and-map",
-            LambdaFlag::Model(Hyperparameter::Fixed(_)) => "given",
-            LambdaFlag::Data(criterion) => criterion.name(),
-        },
-        weighting: said_weighting,
+        chosen_by: imaging.chosen_by,
+        weighting: imaging.weighting,
         normalised: input.normalised,
         channels_dropped: recon.channels().dropped().iter().map(|m| m + 1).collect(),
         gains: gains

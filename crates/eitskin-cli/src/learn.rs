@@ -184,7 +184,7 @@ pub fn run(args: Args) -> Result<()> {
     let channels = spec.protocol()?.len();
     // Press features read Δv on the sensor as specified: one value per measurement.
     let sensor = match training.first() {
-        Some(p) if p.inputs.len() == channels => Some(load::nominal_sensor(&spec)?),
+        Some(p) if p.inputs.len() == channels => Some(eitskin_io::build::nominal_sensor(&spec)?),
         _ => None,
     };
     if let (Some(m), None) = (forced, &sensor) {
@@ -432,7 +432,7 @@ pub fn evaluate_model(
     // The model's presses and these agree in their channels as `learn` read them.
     let held = presses(samples, spec, reference(reference_frame)?.as_ref())?;
     let channels = held.first().map_or(spec.protocol()?.len(), |p| p.inputs.len());
-    let learned = eitskin_io::read_learned_model(model, spec, channels, load::cache_dir().as_deref())?;
+    let learned = eitskin_io::read_learned_model(model, spec, channels, eitskin_io::build::cache_dir().as_deref())?;
     let e = evaluate(&learned, &held);
     println!(
         "{} on {} presses of {}: mean position error {:.1} mm{}",

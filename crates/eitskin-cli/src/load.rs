@@ -1,16 +1,11 @@
 //! Loading what the subcommands share: the spec (file or built-in) and inclusion flags.
 
 use std::path::Path;
-use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
-use eitskin::chain::Chain;
 use eitskin::conductivity::Inclusion;
-use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
-use eitskin::inverse::{choose_hyperparameter, Channels, Linearisation};
 use eitskin::memory::{self, Stage};
-use eitskin::strength::Strength;
-use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
+use eitskin::SensorSpec;
 
 /// The spec in `path`, or the built-in paper sensor.
 pub fn spec(path: Option<&Path>) -> Result<SensorSpec> {
@@ -87,106 +82,6 @@ pub fn inclusion(text: &str, spec: &SensorSpec) -> Result<Inclusion> {
     }
     let k = spec.length_unit.metres();
     Ok(Inclusion { centre: [x * k, y * k], radius: r * k, conductivity: sigma })
-}
-
-/// The reconstructor of `spec` with `params`, from the cache when there is one (and
-/// `use_cache`), without the channels the spec's mask drops.
-pub fn reconstructor(spec: &SensorSpec, params: &ReconstructorParams, use_cache: bool) -> Result<Reconstructor> {
-    let recon = match cache_dir().filter(|_| use_cache) {
-        Some(dir) => eitskin_io::load_or_build(&dir, spec, params)?.0,
-        None => Reconstructor::new(&spec.forward_model()?, spec.conductivity, params)?,
-    };
-    let used = spec.used_channels()?;
-    if used.contains(&false) {
-        return Ok(recon.derive(params.hyperparameter, Channels::all(used.len()).masked(&used))?);
-    }
-    Ok(recon)
-}
-
-/// The linearisation of `spec`, from the cache when there is one (and `use_cache`).
-pub fn linearisation(spec: &SensorSpec, use_cache: bool) -> Result<Arc<Linearisation>> {
-    Ok(Arc::new(match cache_dir().filter(|_| use_cache) {
-        Some(dir) => eitskin_io::load_linearisation(&dir, spec)?.0,
-        None => Linearisation::new(&spec.forward_model()?, spec.conductivity)?,
-    }))
-}
-
-/// The automatic λ of `lin` (of `spec`) for `params` and the noise-weighted `channels`
-/// ([`eitskin::inverse::choose_hyperparameter`]), from the cache when chosen before for exactly
-/// these (and `use_cache`).
-pub fn auto_hyperparameter(
-    spec: &SensorSpec,
-    lin: &Linearisation,
-    params: &ReconstructorParams,
-    channels: &Channels,
-    use_cache: bool,
-) -> Result<f64> {
-    let choose = || choose_hyperparameter(lin, &params.prior, params.normalized, channels);
-    Ok(match cache_dir().filter(|_| use_cache) {
-        Some(dir) => eitskin_io::cached_hyperparameter(&dir, spec, params, channels, || Ok(choose()?))?.0,
-        None => choose()?,
-    })
-}
-
-/// The frame chain of `spec` reading each touch's strength as `strength`: the reconstructor
-/// (from the cache), the paper's touch settings, the press model when the strength needs it or
-/// `fit` asks for it, the contrast map when the strength reads it.
-pub fn chain(spec: &SensorSpec, strength: Strength, fit: bool) -> Result<Chain> {
-    chain_with(spec, &ReconstructorParams::default(), TouchParams::default(), strength, fit)
-}
-
-/// [`chain`] with these reconstructor parameters (λ, normalisation) and touch settings.
-pub fn chain_with(
-    spec: &SensorSpec,
-    params: &ReconstructorParams,
-    touch: TouchParams,
-    strength: Strength,
-    fit: bool,
-) -> Result<Chain> {
-    let recon = reconstructor(spec, params, true)?;
-    let map = if strength.needs_contrast_map() {
-        let map_params = ContrastMapParams::default();
-        Some(match cache_dir() {
-            Some(dir) => eitskin_io::load_or_build_contrast_map(&dir, spec, &recon, &map_params)?.0,
-            None => {
-                ContrastMap::new(&spec.forward_model()?, spec.conductivity, &recon, spec.outline.bounds(), &map_params)?
-            }
-        })
-    } else {
-        None
-    };
-    let mut chain = Chain::new(recon, touch);
-    if fit || strength.needs_press_model() {
-        chain = chain.with_press_model(press_model(spec)?);
-    }
-    if let Some(map) = map {
-        chain = chain.with_contrast_map(map);
-    }
-    Ok(chain.with_strength(strength)?)
-}
-
-/// The press model of `spec` (default indenter), from the cache when there is one.
-pub fn press_model(spec: &SensorSpec) -> anyhow::Result<eitskin::press_fit::PressModel> {
-    let params = eitskin::press_fit::PressModelParams::default();
-    Ok(match cache_dir() {
-        Some(dir) => eitskin_io::load_or_build_press_model(&dir, spec, &params)?.0,
-        None => eitskin_io::build_press_model(spec, &params)?,
-    })
-}
-
-/// `spec` as specified, for a learned model's press features (its press model from the cache
-/// when there is one).
-pub fn nominal_sensor(spec: &SensorSpec) -> anyhow::Result<eitskin::learn::NominalSensor> {
-    Ok(eitskin_io::nominal_sensor(spec, cache_dir().as_deref())?)
-}
-
-/// Where precomputed reconstructors and press models are cached: `$EITSKIN_CACHE`, else `$XDG_CACHE_HOME/eitskin`,
-/// else `~/.cache/eitskin`; `None` when none of these is set.
-pub fn cache_dir() -> Option<std::path::PathBuf> {
-    let var = |name| std::env::var_os(name).filter(|v| !v.is_empty()).map(std::path::PathBuf::from);
-    var("EITSKIN_CACHE")
-        .or_else(|| var("XDG_CACHE_HOME").map(|d| d.join("eitskin")))
-        .or_else(|| var("HOME").map(|d| d.join(".cache/eitskin")))
 }
 
 #[cfg(test)]

@@ -199,7 +199,8 @@ fn virtual_calibration(spec: &SensorSpec, args: &Args) -> Result<(PathBuf, eitsk
     );
     let started = std::time::Instant::now();
     let strength = Strength::FittedDrop;
-    let chain = load::chain_with(spec, &ReconstructorParams::default(), TouchParams::default(), strength, false)?;
+    let chain =
+        eitskin_io::build::chain(spec, &ReconstructorParams::default(), TouchParams::default(), strength, false)?;
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [5, 5])?;
     let sim = eitskin::sim::SimParams::default();
     let seed = args.seed ^ 0x00ca_11b0;
@@ -229,7 +230,7 @@ pub fn run(args: Args) -> Result<()> {
     // protocol's or channel count's is refused before any work.
     let mut learned = match &args.model {
         Some(path) => {
-            let cache = load::cache_dir();
+            let cache = eitskin_io::build::cache_dir();
             let model = eitskin_io::read_learned_model(path, &spec, spec.protocol()?.len(), cache.as_deref())?;
             eprintln!("eitskin run: learned model {} ({})", path.display(), model.method.name());
             Some(learned::LearnedAnswers::new(model))
@@ -260,10 +261,10 @@ pub fn run(args: Args) -> Result<()> {
                 if file.imaging.normalized { "normalised" } else { "absolute" },
                 path.display()
             );
-            load::chain_with(&spec, &recon_params, touch, strength, args.fit)?
+            eitskin_io::build::chain(&spec, &recon_params, touch, strength, args.fit)?
                 .with_calibration(file.array, file.calibration)?
         }
-        None => load::chain_with(&spec, &recon_params, touch, Strength::Peak, args.fit)?,
+        None => eitskin_io::build::chain(&spec, &recon_params, touch, Strength::Peak, args.fit)?,
     };
     let params = PipelineParams {
         reference_frames: args.reference_frames,
@@ -635,5 +636,6 @@ fn viewer_setup(spec: &SensorSpec, pipeline: &Pipeline, metres: f64) -> Result<v
         grid_bounds: [scale(glo), scale(ghi)],
         areas: (0..array.unit_count()).map(|u| array.area_of(u) + 1).collect(),
         calibrated: pipeline.pseudo_array().is_some(),
+        colours: &eitskin::colour::COLOUR_STOPS,
     })
 }

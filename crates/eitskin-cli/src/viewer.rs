@@ -82,6 +82,9 @@ pub struct Setup {
     pub areas: Vec<usize>,
     /// Whether the grid is a calibration's (forces are shown) or the default 5 × 5 one.
     pub calibrated: bool,
+    /// The colour map's stops from −1 (a decrease) to +1, sRGB ([`eitskin::colour::COLOUR_STOPS`]):
+    /// the page draws with the map the CLI's figures and Python's plots use.
+    pub colours: &'static [[u8; 3]],
 }
 
 /// One frame for the page: the stdout line's fields plus the image.

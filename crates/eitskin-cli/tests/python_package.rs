@@ -23,6 +23,8 @@ fn step(what: &str, program: &Path, args: &[&str], bin: &Path) {
     let output = Command::new(program)
         .args(args)
         .env("PATH", path)
+        // The CLI the Python tests compare with (tests/test_same_as_cli.py).
+        .env("EITSKIN_BIN", env!("CARGO_BIN_EXE_eitskin"))
         .current_dir(root())
         .output()
         .unwrap_or_else(|e| panic!("{what}: cannot start {}: {e}", program.display()));

@@ -319,6 +319,7 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
              const p = s.raster.getContext('2d').getImageData(s.peakPixel[0], s.peakPixel[1], 1, 1).data;
              return {seq: s.seq, peak: s.peak, checksum: s.checksum, touches: s.touches, pixel: Array.from(p),
                      floor: s.floor, scale: s.scale, expected: colour(s.peak / s.scale),
+                     map: [-1, -0.6, 0, 0.4, 1].map(colour),
                      shown: Array.from(document.querySelectorAll('#touches tbody tr')).map(r => Array.from(r.cells).map(c => c.textContent)),
                      history: s.history};",
         );
@@ -344,6 +345,12 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
     let [r, g, b] = [0, 1, 2].map(|i| pressed["pixel"][i].as_i64().unwrap());
     let want = [0, 1, 2].map(|i| pressed["expected"][i].as_i64().unwrap());
     assert!(want[2] > want[0], "a decrease is drawn blue: {want:?}");
+    // The page's map is the library's, which the CLI's figures and Python's plots use.
+    for (k, u) in [-1.0, -0.6, 0.0, 0.4, 1.0].into_iter().enumerate() {
+        let drawn: Vec<i64> = (0..3).map(|i| pressed["map"][k][i].as_i64().unwrap()).collect();
+        let library = eitskin::colour::colour(u).map(i64::from);
+        assert_eq!(drawn, library, "the page colours {u} as {drawn:?}, the library as {library:?}");
+    }
     assert!(
         [r, g, b].iter().zip(want).all(|(got, want)| (got - want).abs() <= 1),
         "the heat map at its peak is {r},{g},{b}, not {want:?}, the colour of its value"

@@ -35,6 +35,7 @@
 #![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
 
 mod array_file;
+pub mod build;
 mod calibration_file;
 pub mod codec;
 mod contrast_map_file;
@@ -174,6 +175,9 @@ pub enum Error {
     /// A precomputed model (reconstructor, press model) could not be built.
     #[error("the inverse model could not be built")]
     Inverse(#[from] InverseError),
+    /// The frame chain could not be assembled.
+    #[error("the frame chain could not be assembled")]
+    Chain(#[from] eitskin::chain::ChainError),
 }
 
 fn at(path: &Option<PathBuf>) -> String {
@@ -188,6 +192,7 @@ impl Error {
             | Error::Array { .. }
             | Error::Write { .. }
             | Error::Inverse(_)
+            | Error::Chain(_)
             | Error::UnknownProtocol { .. } => {}
             Error::Toml { path, .. }
             | Error::Json { path, .. }

@@ -73,6 +73,17 @@ impl Outline {
         }
     }
 
+    /// The boundary as a closed line to draw, in m: the corners with the first again at the end,
+    /// or for a circle `circle_points` + 1 points evenly spaced.
+    pub fn ring(&self, circle_points: usize) -> Vec<[f64; 2]> {
+        let corners = self.corners();
+        if corners.is_empty() {
+            let step = self.perimeter() / circle_points.max(3) as f64;
+            return (0..=circle_points.max(3)).map(|k| self.point_at(k as f64 * step)).collect();
+        }
+        corners.iter().chain(corners.first()).copied().collect()
+    }
+
     /// Arc length of each corner, in m (empty for a circle).
     pub fn corner_positions(&self) -> Vec<f64> {
         let corners = self.corners();

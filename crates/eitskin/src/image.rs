@@ -12,7 +12,8 @@
 //! Δy = (y_max − y_min)/ny, the same grid as [`crate::mesh::RasterMap`].
 //!
 //! Not for: absolute conductivity (an image holds changes from a reference frame), nor for
-//! display (colour maps and file formats live in `eitskin-cli` and `eitskin-io`).
+//! display (the one colour map is [`crate::colour`]; figures and file formats live in
+//! `eitskin-cli` and `eitskin-io`).
 
 /// A raster image over the sensor's bounding box: one value per pixel, row-major from the top row.
 #[derive(Debug, Clone, PartialEq)]

@@ -39,6 +39,7 @@ pub use faer;
 pub mod analytic;
 pub mod calibration;
 pub mod chain;
+pub mod colour;
 pub mod conductivity;
 pub mod contrast_map;
 pub mod convergence;

@@ -1,4 +1,5 @@
-//! Colour: a blue–white–red map symmetric about zero, and the bar that reads it.
+//! Colour: the library's one map ([`eitskin::colour`], blue for a decrease, red for an
+//! increase) over a figure's values, and the bar that reads it.
 
 use anyhow::Result;
 use plotters::coord::Shift;
@@ -6,8 +7,8 @@ use plotters::prelude::*;
 
 use super::{number, Drawn, AXIS_TITLE, LABELS};
 
-/// Blue (decrease) through white (0) to red (increase), over the values from `low` to `high`:
-/// the same |value| is the same strength of colour on either side of 0.
+/// [`eitskin::colour`]'s map, blue (decrease) through near white (0) to red (increase), over the
+/// values from `low` to `high`: the same |value| is the same strength of colour on either side of 0.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ColourMap {
     /// The value at the bottom of the bar.
@@ -28,16 +29,11 @@ impl ColourMap {
         ColourMap { low: 0.0, high: positive_or_one(top) }
     }
 
-    /// The colour of `value`: white at 0, pure blue at −m and pure red at +m, where m is the
+    /// The colour of `value`: the map's middle at 0, its ends at −m and +m, where m is the
     /// larger |end| of the map; values beyond the ends take the end's colour.
     pub fn colour(&self, value: f64) -> RGBColor {
-        let t = (value / self.low.abs().max(self.high.abs())).clamp(-1.0, 1.0);
-        let fade = (255.0 * (1.0 - t.abs())).round() as u8;
-        if t < 0.0 {
-            RGBColor(fade, fade, 255)
-        } else {
-            RGBColor(255, fade, fade)
-        }
+        let [r, g, b] = eitskin::colour::colour(value / self.low.abs().max(self.high.abs()));
+        RGBColor(r, g, b)
     }
 }
 
@@ -113,8 +109,9 @@ mod tests {
         crate::plot::register_font().unwrap();
         let (w, h) = (140, 500);
         for (map, bottom, top) in [
-            (ColourMap::symmetric(0.3), RGBColor(0, 0, 255), RGBColor(255, 0, 0)),
-            (ColourMap::magnitude(2.0), RGBColor(255, 255, 255), RGBColor(255, 0, 0)),
+            // ColorBrewer's RdBu ends, dark blue and dark red, and its near-white middle.
+            (ColourMap::symmetric(0.3), RGBColor(5, 48, 97), RGBColor(103, 0, 31)),
+            (ColourMap::magnitude(2.0), RGBColor(247, 247, 247), RGBColor(103, 0, 31)),
         ] {
             let mut buffer = vec![0u8; (w * h * 3) as usize];
             let ends = {
@@ -136,8 +133,9 @@ mod tests {
     #[test]
     fn equal_changes_either_side_of_zero_are_equally_strong() {
         let map = ColourMap::symmetric(0.5);
-        assert_eq!((map.colour(-0.25), map.colour(0.25)), (RGBColor(128, 128, 255), RGBColor(255, 128, 128)));
-        assert_eq!((map.colour(0.0), map.colour(9.0)), (RGBColor(255, 255, 255), RGBColor(255, 0, 0)));
+        // ±0.2 of ±0.5 are RdBu's fourth stops from the middle, light blue and salmon.
+        assert_eq!((map.colour(-0.2), map.colour(0.2)), (RGBColor(146, 197, 222), RGBColor(244, 165, 130)));
+        assert_eq!((map.colour(0.0), map.colour(9.0)), (RGBColor(247, 247, 247), RGBColor(103, 0, 31)));
         assert_eq!(ColourMap::symmetric(f64::NAN), ColourMap { low: -1.0, high: 1.0 });
     }
 }

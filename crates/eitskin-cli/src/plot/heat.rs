@@ -143,8 +143,8 @@ mod tests {
             let p = (y as usize * w as usize + x as usize) * 3;
             RGBColor(buffer[p], buffer[p + 1], buffer[p + 2])
         };
-        // 0.2 of a peak of 0.5 is 40 % red; -0.5 is the peak, pure blue.
-        let expected = [RGBColor(255, 153, 153), RGBColor(0, 0, 255), NO_VALUE, RGBColor(255, 255, 255)];
+        // 0.2 of a peak of 0.5 is RdBu's salmon stop; -0.5 is the peak, its dark blue; 0 its middle.
+        let expected = [RGBColor(244, 165, 130), RGBColor(5, 48, 97), NO_VALUE, RGBColor(247, 247, 247)];
         for ((centre, pixel), expected) in centres.iter().zip(at).zip(expected) {
             assert_eq!(colour(pixel), expected, "at {centre:?} m, pixel {pixel:?}");
         }

@@ -80,14 +80,7 @@ fn equal_scale([lo, hi]: [[f64; 2]; 2], (w, h): (u32, u32)) -> (Range<f64>, Rang
 
 /// The outline as a closed path, in m.
 pub fn ring(outline: &Outline) -> Vec<(f64, f64)> {
-    let corners = outline.corners();
-    let points: Vec<[f64; 2]> = if corners.is_empty() {
-        let step = outline.perimeter() / RING_POINTS as f64;
-        (0..=RING_POINTS).map(|k| outline.point_at(k as f64 * step)).collect()
-    } else {
-        corners.iter().chain(corners.first()).copied().collect()
-    };
-    points.into_iter().map(|[x, y]| (x, y)).collect()
+    outline.ring(RING_POINTS).into_iter().map(|[x, y]| (x, y)).collect()
 }
 
 /// Draws the outline as a thin black line.

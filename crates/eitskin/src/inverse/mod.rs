@@ -22,6 +22,7 @@ mod linearisation;
 mod prior;
 mod product;
 mod raster;
+mod reference;
 
 pub(crate) use channels::floored;
 pub use channels::{
@@ -36,6 +37,7 @@ pub use linearisation::Linearisation;
 pub use prior::Prior;
 pub use product::BlockedMatrix;
 pub use raster::{Reconstructor, ReconstructorParams};
+pub use reference::{mark_missing, HyperparameterRule, Reference, Weighting, WeightingUsed};
 
 use faer::{Mat, MatRef};
 use thiserror::Error;

@@ -1,0 +1,160 @@
+//! The one builder of what a sensor's frames go through, for every front end (the CLI and
+//! Python alike): the linearisation and reconstructor without the channels the spec drops, λ,
+//! the press model, the contrast map and the frame chain, each from the on-disk cache when
+//! there is one ([`cache_dir`]), and the reconstructor of an image taken against frames at rest
+//! ([`ReferenceImaging`]).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use eitskin::chain::Chain;
+use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
+use eitskin::inverse::{
+    choose_hyperparameter, Channels, HyperparameterRule, Linearisation, Reference, Weighting, WeightingUsed,
+};
+use eitskin::press_fit::{PressModel, PressModelParams};
+use eitskin::strength::Strength;
+use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
+
+use crate::Error;
+
+/// Where precomputed models are cached: `$EITSKIN_CACHE`, else `$XDG_CACHE_HOME/eitskin`, else
+/// `~/.cache/eitskin`; `None` when none of these is set.
+pub fn cache_dir() -> Option<PathBuf> {
+    let var = |name| std::env::var_os(name).filter(|v| !v.is_empty()).map(PathBuf::from);
+    var("EITSKIN_CACHE")
+        .or_else(|| var("XDG_CACHE_HOME").map(|d| d.join("eitskin")))
+        .or_else(|| var("HOME").map(|d| d.join(".cache/eitskin")))
+}
+
+/// The cache to use: [`cache_dir`] when `use_cache`, else none.
+fn cache(use_cache: bool) -> Option<PathBuf> {
+    cache_dir().filter(|_| use_cache)
+}
+
+/// The linearisation of `spec`, from the cache when there is one (and `use_cache`).
+pub fn linearisation(spec: &SensorSpec, use_cache: bool) -> Result<Arc<Linearisation>, Error> {
+    Ok(Arc::new(match cache(use_cache) {
+        Some(dir) => crate::load_linearisation(&dir, spec)?.0,
+        None => Linearisation::new(&spec.forward_model()?, spec.conductivity)?,
+    }))
+}
+
+/// The reconstructor of `spec` with `params`, from the cache when there is one (and
+/// `use_cache`), without the channels the spec's mask drops.
+pub fn reconstructor(spec: &SensorSpec, params: &ReconstructorParams, use_cache: bool) -> Result<Reconstructor, Error> {
+    let recon = match cache(use_cache) {
+        Some(dir) => crate::load_or_build(&dir, spec, params)?.0,
+        None => Reconstructor::new(&spec.forward_model()?, spec.conductivity, params)?,
+    };
+    let used = spec.used_channels()?;
+    if used.contains(&false) {
+        return Ok(recon.derive(params.hyperparameter, Channels::all(used.len()).masked(&used))?);
+    }
+    Ok(recon)
+}
+
+/// The automatic λ of `lin` (of `spec`) for `params` and the noise-weighted `channels`
+/// ([`choose_hyperparameter`]), from the cache when chosen before for exactly these (and
+/// `use_cache`).
+pub fn auto_hyperparameter(
+    spec: &SensorSpec,
+    lin: &Linearisation,
+    params: &ReconstructorParams,
+    channels: &Channels,
+    use_cache: bool,
+) -> Result<f64, Error> {
+    let choose = || choose_hyperparameter(lin, &params.prior, params.normalized, channels);
+    Ok(match cache(use_cache) {
+        Some(dir) => crate::cached_hyperparameter(&dir, spec, params, channels, || Ok(choose()?))?.0,
+        None => choose()?,
+    })
+}
+
+/// The press model of `spec` (default indenter), from the cache when there is one.
+pub fn press_model(spec: &SensorSpec) -> Result<PressModel, Error> {
+    let params = PressModelParams::default();
+    match cache_dir() {
+        Some(dir) => Ok(crate::load_or_build_press_model(&dir, spec, &params)?.0),
+        None => crate::build_press_model(spec, &params),
+    }
+}
+
+/// The frame chain of `spec` with these reconstructor parameters (λ, normalisation) and touch
+/// settings, reading each touch's strength as `strength`: the reconstructor (from the cache,
+/// without the channels the spec drops), the press model when the strength needs it or `fit`
+/// asks for it, the contrast map when the strength reads it.
+pub fn chain(
+    spec: &SensorSpec,
+    params: &ReconstructorParams,
+    touch: TouchParams,
+    strength: Strength,
+    fit: bool,
+) -> Result<Chain, Error> {
+    let recon = reconstructor(spec, params, true)?;
+    let map = if strength.needs_contrast_map() {
+        let map_params = ContrastMapParams::default();
+        Some(match cache_dir() {
+            Some(dir) => crate::load_or_build_contrast_map(&dir, spec, &recon, &map_params)?.0,
+            None => {
+                ContrastMap::new(&spec.forward_model()?, spec.conductivity, &recon, spec.outline.bounds(), &map_params)?
+            }
+        })
+    } else {
+        None
+    };
+    let mut chain = Chain::new(recon, touch);
+    if fit || strength.needs_press_model() {
+        chain = chain.with_press_model(press_model(spec)?);
+    }
+    if let Some(map) = map {
+        chain = chain.with_contrast_map(map);
+    }
+    Ok(chain.with_strength(strength)?)
+}
+
+/// The reconstructor of images taken against frames at rest, as `image` makes it: λ by its rule,
+/// the channels weighted as asked, and what was chosen.
+#[derive(Debug)]
+pub struct ReferenceImaging {
+    /// The reconstructor, derived for the data's channels and λ.
+    pub recon: Reconstructor,
+    /// The reference (mean and measured noise) the frames are imaged against.
+    pub reference: Reference,
+    /// How the channels were weighted.
+    pub weighting: WeightingUsed,
+    /// What chose λ ([`HyperparameterRule::chosen_by`]).
+    pub chosen_by: &'static str,
+}
+
+impl ReferenceImaging {
+    /// The reconstructor of `spec`'s linearisation `lin` (from [`linearisation`]) with `params`
+    /// (λ there is ignored: `rule` sets it) for images of `frames` against `references` (both
+    /// signed, as long as the protocol, missing channels NaN: see
+    /// [`eitskin::inverse::mark_missing`]); the channels weighted by `weighting`, or by the
+    /// rule's default; the automatic λ from the cache when there is one (and `use_cache`).
+    pub fn new(
+        spec: &SensorSpec,
+        lin: &Arc<Linearisation>,
+        params: &ReconstructorParams,
+        (references, frames): (&[Vec<f64>], &[Vec<f64>]),
+        (rule, weighting): (HyperparameterRule, Option<Weighting>),
+        use_cache: bool,
+    ) -> Result<ReferenceImaging, Error> {
+        let reference = Reference::new(references);
+        let weighting = weighting.unwrap_or(rule.default_weighting());
+        let (channels, weighting) = reference.channels(lin, params.normalized, frames, weighting);
+        let auto = || auto_hyperparameter(spec, lin, params, &channels, use_cache);
+        let hyperparameter =
+            reference.hyperparameter(rule, lin, (&params.prior, params.normalized), &channels, frames, auto)?;
+        let params = ReconstructorParams { hyperparameter, ..*params };
+        let recon = Reconstructor::from_linearisation(Arc::clone(lin), &params, channels)?;
+        Ok(ReferenceImaging { recon, reference, weighting, chosen_by: rule.chosen_by() })
+    }
+}
+
+/// `spec` as specified, for a learned model's press features (its press model from the cache
+/// when there is one).
+pub fn nominal_sensor(spec: &SensorSpec) -> Result<eitskin::learn::NominalSensor, Error> {
+    crate::nominal_sensor(spec, cache_dir().as_deref())
+}
