@@ -98,7 +98,7 @@ impl LearnedModel {
         spec: Option<&SensorSpec>,
         folds: i64,
     ) -> PyResult<LearnedModel> {
-        use eitskin::learn::{choose, train, LabelledPress, Method, NominalSensor};
+        use eitskin::learn::{choose, train, LabelledPress, Method};
         let folds = crate::count(folds, "folds")?;
         if !(2..=20).contains(&folds) {
             return Err(fail(format!("folds must be 2 to 20, got {folds}")));
@@ -133,14 +133,16 @@ impl LearnedModel {
             .detach(|| -> Result<_, String> {
                 let sensor = match &spec {
                     Some(spec) if spec.protocol().map_err(|e| crate::message(&e))?.len() == channels => {
-                        Some(NominalSensor::of_spec(spec, None).map_err(|e| crate::message(&e))?)
+                        // The press model from the cache, as `eitskin learn` builds it.
+                        Some(eitskin_io::build::nominal_sensor(spec).map_err(|e| crate::message(&e))?)
                     }
                     _ => None,
                 };
                 let method = match forced {
                     Some(m) => m,
                     None => {
-                        choose(&presses, &Method::candidates(sensor.is_some()), folds, sensor.as_ref())
+                        let quiet = &mut |_: &str, _: usize, _: usize| {};
+                        choose(&presses, &Method::candidates(sensor.is_some()), folds, sensor.as_ref(), quiet)
                             .map_err(|e| crate::message(&e))?
                             .0
                     }

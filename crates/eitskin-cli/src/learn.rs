@@ -194,7 +194,11 @@ pub fn run(args: Args) -> Result<()> {
     }
     let mm = |m: f64| m * 1e3;
     let started = Instant::now();
-    let (method, scores) = choose(&training, &Method::candidates(sensor.is_some()), args.folds, sensor.as_ref())?;
+    let mut bars = crate::progress::Bars::default();
+    let mut shown = |stage: &str, done: usize, all: usize| bars.update(stage, done, all);
+    let candidates = Method::candidates(sensor.is_some());
+    let (method, scores) = choose(&training, &candidates, args.folds, sensor.as_ref(), &mut shown)?;
+    bars.finish();
     println!(
         "{}-fold cross-validation on {} presses ({:.2} s):",
         args.folds,
@@ -296,7 +300,9 @@ fn learning_curves(
     held: &[LabelledPress],
     sensor: Option<&NominalSensor>,
 ) -> Vec<LearningCurve> {
-    let curves = eitskin::learn::learning_curves(training, held, sensor);
+    let mut bars = crate::progress::Bars::default();
+    let curves = eitskin::learn::learning_curves(training, held, sensor, &mut |s, d, a| bars.update(s, d, a));
+    bars.finish();
     let header: String = curves
         .first()
         .map_or(String::new(), |c| c.points.iter().map(|(n, _)| format!("{:>9}", format!("N={n}"))).collect());
@@ -399,11 +405,19 @@ pub fn presses_run(args: PressesArgs) -> Result<()> {
     let radius = disc_radius(&spec.outline, args.radius);
     let started = Instant::now();
     let mut skin = ImperfectSkin::new(&spec, &imperfections, args.seed)?;
+    let mut bars = crate::progress::Bars::default();
     let mut staged = outputs::Staged::default();
     let mut written = Vec::new();
     for (path, count) in [(Some(&args.out), args.count), (args.held_out.as_ref(), args.held_out_count)] {
         let Some(path) = path.filter(|_| count > 0) else { continue };
-        let pressed = skin.robot_presses(count, radius, 2.0..16.0)?;
+        let mut pressed = Vec::with_capacity(count);
+        let stage = format!("robot presses for {}", path.display());
+        for k in 0..count {
+            // One at a time: the same presses as all at once (each draws from the skin in turn).
+            bars.update(&stage, k, count);
+            pressed.extend(skin.robot_presses(1, radius, 2.0..16.0)?);
+        }
+        bars.update(&stage, count, count);
         let comment =
             "eitskin robot-presses: x, y in the spec's units, force in N, then Δv (pressed less before) per channel";
         let csv = eitskin_io::labelled_presses_to_csv(&pressed, spec.length_unit.metres(), comment);
@@ -415,6 +429,7 @@ pub fn presses_run(args: PressesArgs) -> Result<()> {
             started.elapsed().as_secs_f64()
         ));
     }
+    bars.finish();
     staged.commit()?;
     written.iter().for_each(|line| eprintln!("{line}"));
     Ok(())

@@ -14,6 +14,7 @@ mod load;
 mod mesh;
 mod outputs;
 mod plot;
+mod progress;
 mod ranges;
 mod report;
 mod run;

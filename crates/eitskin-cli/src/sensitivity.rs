@@ -45,7 +45,8 @@ pub fn run(args: Args) -> Result<()> {
     let side = hi[0] - lo[0];
     let (radius, sigma) = (0.05 * side, 0.5 * spec.conductivity);
     let inclusions = along_x(side / 2.0, 0.05 * side, radius, sigma, 0.25 * radius);
-    let profile = peaks(&truth, spec.conductivity, &recon, &inclusions)?;
+    let mut bars = crate::progress::Bars::default();
+    let profile = peaks_shown(&mut bars, "peaks along x", (&truth, spec.conductivity, &recon), &inclusions)?;
     let k = 1.0 / spec.length_unit.metres();
     let mut csv = format!("x_{},peak_s_per_m\n", spec.length_unit.symbol());
     for (inc, p) in inclusions.iter().zip(&profile) {
@@ -77,7 +78,8 @@ pub fn run(args: Args) -> Result<()> {
         })
         .filter(|inc| spec.outline.contains(inc.centre))
         .collect();
-    let map = peaks(&truth, spec.conductivity, &recon, &grid)?;
+    let map = peaks_shown(&mut bars, "peaks over the sheet", (&truth, spec.conductivity, &recon), &grid)?;
+    bars.finish();
     let centres: Vec<[f64; 2]> = grid.iter().map(|g| g.centre).collect();
     let cell = [step(lo[0], hi[0]), step(lo[1], hi[1])];
     let title = format!("Peak |Δσ| of {inclusion} centred at each point");
@@ -91,4 +93,21 @@ pub fn run(args: Args) -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// [`peaks`] of `inclusions` a few at a time, each step shown on `bars` as stage `stage`.
+fn peaks_shown(
+    bars: &mut crate::progress::Bars,
+    stage: &str,
+    (truth, background, recon): (&eitskin::forward::ForwardModel, f64, &Reconstructor),
+    inclusions: &[Inclusion],
+) -> Result<Vec<f64>> {
+    // Each step solves the reference once more: steps of 16 keep that to a few percent.
+    let mut values = Vec::with_capacity(inclusions.len());
+    for chunk in inclusions.chunks(16) {
+        bars.update(stage, values.len(), inclusions.len());
+        values.extend(peaks(truth, background, recon, chunk)?);
+    }
+    bars.update(stage, values.len(), inclusions.len());
+    Ok(values)
 }

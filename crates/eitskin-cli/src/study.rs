@@ -74,7 +74,7 @@ pub fn run(args: Args) -> Result<()> {
         params.repeats = n;
     }
     let start = Instant::now();
-    let mut progress = Bars::default();
+    let mut progress = crate::progress::Bars::default();
     let mut report = |stage: &str, done: usize, all: usize| progress.update(stage, done, all);
     let study = run_study(&spec, &params, &mut report)?;
     let sweep = match args.sweep_presses {
@@ -91,10 +91,7 @@ pub fn run(args: Args) -> Result<()> {
     };
     let learning = match args.learning_presses {
         0 => None,
-        n => {
-            report("learned calibration: robot presses and learning curves", 0, 1);
-            Some(eitskin::study::learning::run(&spec, n, args.seed)?)
-        }
+        n => Some(eitskin::study::learning::run(&spec, n, args.seed, &mut report)?),
     };
     let users_params = UsersParams { seed: args.seed, ..UsersParams::default() };
     let users = if args.as_users { Some(users::run(&spec, &users_params, &mut report)?) } else { None };
@@ -236,48 +233,6 @@ fn write_sweep_figures(sweep: &SweepReport, args: &Args, unit: LengthUnit) -> Re
         ("noise (dB below each value)", "force RMS (% of the largest force)"),
         &force,
     )
-}
-
-/// The study's progress on stderr: a bar per stage, with the time spent and an estimate of the
-/// time left (hidden where stderr is not a terminal, where a line per stage is printed instead).
-#[derive(Default)]
-struct Bars {
-    stage: String,
-    bar: Option<indicatif::ProgressBar>,
-    start: Option<Instant>,
-}
-
-impl Bars {
-    /// Stage `stage` has done `done` of `all` steps.
-    fn update(&mut self, stage: &str, done: usize, all: usize) {
-        let start = *self.start.get_or_insert_with(Instant::now);
-        if stage != self.stage {
-            self.finish();
-            self.stage = stage.to_string();
-            let bar = indicatif::ProgressBar::new(all as u64);
-            let style = indicatif::ProgressStyle::with_template(
-                "{msg:50} {bar:30} {pos}/{len} [{elapsed} elapsed, {eta} left]",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
-            bar.set_style(style);
-            bar.set_message(stage.to_string());
-            if bar.is_hidden() {
-                eprintln!("[{:>6.1} s] {stage}", start.elapsed().as_secs_f64());
-            }
-            self.bar = Some(bar);
-        }
-        if let Some(bar) = &self.bar {
-            bar.set_length(all as u64);
-            bar.set_position(done as u64);
-        }
-    }
-
-    /// Ends the stage's bar, leaving it on the screen.
-    fn finish(&mut self) {
-        if let Some(bar) = self.bar.take() {
-            bar.finish();
-        }
-    }
 }
 
 /// The frames of the section calibrated as users do, per kind and level, in a folder

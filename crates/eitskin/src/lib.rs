@@ -68,6 +68,9 @@ pub mod values;
 pub use forward::{ElectrodeModel, ForwardError, ForwardModel, ForwardSolution};
 pub use geometry::{Electrode, Outline};
 pub use image::Image;
+/// Progress of long work, reported as it goes: a stage's name, the steps done, the steps in all.
+pub type Progress<'a> = &'a mut dyn FnMut(&str, usize, usize);
+
 pub use inverse::{InverseError, Prior, Reconstructor, ReconstructorParams};
 pub use mesh::{Mesh, MeshError, MeshParams, PointLocator, RasterMap};
 pub use protocol::{Measurement, Protocol, ProtocolError};

@@ -184,8 +184,7 @@ pub struct StudyReport {
     pub validation_frames: Vec<LabelledFrame>,
 }
 
-/// Progress: a stage name, work done, work in all.
-pub type Progress<'a> = &'a mut dyn FnMut(&str, usize, usize);
+pub use crate::Progress;
 
 /// The paper's force ranges by area (its numbering from 1): 15, 15, 12, 15, 11, 9 N; areas
 /// past the sixth (finer divisions) take the range of the 5×5 area their unit centre lies in.

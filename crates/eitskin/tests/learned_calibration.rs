@@ -48,7 +48,7 @@ fn a_learned_process_beats_nearest_neighbours_on_an_imperfect_skin() {
     assert_eq!(gp.channels(), 120);
 
     // Cross-validation on the training presses alone picks a learned method over the floor.
-    let (best, scores) = choose(&training, &Method::candidates(false), 5, None).unwrap();
+    let (best, scores) = choose(&training, &Method::candidates(false), 5, None, &mut |_, _, _| {}).unwrap();
     assert_eq!(scores.len(), Method::candidates(false).len());
     assert!(
         !matches!(best.regressor, eitskin::learn::RegressorKind::Knn { k: 5 })

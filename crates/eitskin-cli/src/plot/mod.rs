@@ -205,17 +205,23 @@ where
         .draw()
         .drawn()?;
     for (k, s) in series.iter().enumerate() {
-        // Hues spread evenly, dark enough to read on white.
-        let colour = HSLColor(k as f64 / series.len() as f64, 0.8, 0.4).to_rgba();
-        let points = s.points.iter().filter(&shown).copied();
-        let drawn = if s.line {
-            chart.draw_series(LineSeries::new(points, colour.stroke_width(2))).drawn()?
-        } else {
-            chart.draw_series(points.map(|p| Circle::new(p, 2, colour.filled()))).drawn()?
-        };
-        drawn
+        // Ten colours that stay apart (Tableau's, matplotlib's default cycle); past ten, the
+        // colours again, dashed, with hollow marks and hollow legend boxes.
+        let colour = SERIES_COLOURS[k % SERIES_COLOURS.len()];
+        let second = k >= SERIES_COLOURS.len();
+        let style = if second { colour.stroke_width(2) } else { colour.filled() };
+        let points: Vec<(f64, f64)> = s.points.iter().filter(&shown).copied().collect();
+        if s.line && second {
+            chart.draw_series(DashedLineSeries::new(points.iter().copied(), 6, 4, colour.stroke_width(2))).drawn()?;
+        } else if s.line {
+            chart.draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2))).drawn()?;
+        }
+        let radius = if s.line { 3 } else { 2 };
+        chart
+            .draw_series(points.iter().map(|&p| Circle::new(p, radius, style)))
+            .drawn()?
             .label(s.name.clone())
-            .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 16, y + 4)], colour.filled()));
+            .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 16, y + 4)], style));
     }
     if series.len() < 2 {
         return Ok(());
@@ -229,6 +235,20 @@ where
         .draw()
         .drawn()
 }
+
+/// The colours of a chart's series, in order: Tableau's ten (matplotlib's default cycle).
+const SERIES_COLOURS: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
 
 #[cfg(test)]
 mod tests {

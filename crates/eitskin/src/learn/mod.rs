@@ -667,14 +667,20 @@ pub type Score = (Method, Result<Errors, LearnError>);
 /// of the choice); press features need `sensor`. Least: the smallest sum, over what the presses
 /// label (position, force, depth), of the candidate's error over the best candidate's
 /// ([`relative_errors`]): on positions alone the smallest mean position error. An error only
-/// when no candidate could be: the first one's.
+/// when no candidate could be: the first one's. `progress` hears of each candidate as it starts.
 pub fn choose(
     presses: &[LabelledPress],
     candidates: &[Method],
     folds: usize,
     sensor: Option<&NominalSensor>,
+    progress: crate::Progress<'_>,
 ) -> Result<(Method, Vec<Score>), LearnError> {
-    let mut scores: Vec<Score> = candidates.iter().map(|&m| (m, cross_validate(presses, m, folds, sensor))).collect();
+    let mut scores: Vec<Score> = Vec::with_capacity(candidates.len());
+    for (k, &m) in candidates.iter().enumerate() {
+        progress(&format!("cross-validation · {}", m.name()), k, candidates.len());
+        scores.push((m, cross_validate(presses, m, folds, sensor)));
+    }
+    progress("cross-validation", candidates.len(), candidates.len());
     let best = relative_errors(&scores)
         .into_iter()
         .zip(&scores)
@@ -730,23 +736,27 @@ pub struct LearningCurve {
 }
 
 /// Every candidate's learning curve on `held_out`, trained on the first N of `training` for the
-/// sizes of [`CURVE_SIZES`] that `training` has; with press features when `sensor`.
+/// sizes of [`CURVE_SIZES`] that `training` has; with press features when `sensor`. `progress`
+/// hears of each method as it starts.
 pub fn learning_curves(
     training: &[LabelledPress],
     held_out: &[LabelledPress],
     sensor: Option<&NominalSensor>,
+    progress: crate::Progress<'_>,
 ) -> Vec<LearningCurve> {
     let sizes: Vec<usize> = CURVE_SIZES.into_iter().filter(|&n| n <= training.len()).collect();
-    Method::candidates(sensor.is_some())
-        .into_iter()
-        .map(|method| LearningCurve {
-            method,
-            points: sizes
-                .iter()
-                .map(|&n| (n, train(&training[..n], method, sensor).ok().map(|m| evaluate(&m, held_out))))
-                .collect(),
-        })
-        .collect()
+    let methods = Method::candidates(sensor.is_some());
+    let mut curves = Vec::with_capacity(methods.len());
+    for (k, &method) in methods.iter().enumerate() {
+        progress(&format!("learning curves · {}", method.name()), k, methods.len());
+        let points = sizes
+            .iter()
+            .map(|&n| (n, train(&training[..n], method, sensor).ok().map(|m| evaluate(&m, held_out))))
+            .collect();
+        curves.push(LearningCurve { method, points });
+    }
+    progress("learning curves", methods.len(), methods.len());
+    curves
 }
 
 #[cfg(test)]
@@ -803,11 +813,11 @@ mod tests {
             .collect();
         let press = Method::from_name("gp-press").unwrap();
         let candidates = [press, Method::knn(1), Method::from_name("gp").unwrap()];
-        let (best, scores) = choose(&presses, &candidates, 4, None).unwrap();
+        let (best, scores) = choose(&presses, &candidates, 4, None, &mut |_, _, _| {}).unwrap();
         assert_ne!(best, press);
         assert_eq!(scores[0].1, Err(LearnError::NoSensor));
         assert!(scores[1..].iter().all(|(_, e)| e.is_ok()), "{scores:?}");
-        assert_eq!(choose(&presses, &[press], 4, None).unwrap_err(), LearnError::NoSensor);
+        assert_eq!(choose(&presses, &[press], 4, None, &mut |_, _, _| {}).unwrap_err(), LearnError::NoSensor);
     }
 
     #[test]

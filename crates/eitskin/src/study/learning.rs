@@ -1,6 +1,7 @@
 //! The study's learned calibration: every [`crate::learn`] method's learning curve on robot
 //! presses of the imperfect virtual skin ([`crate::sim::imperfect`]).
 
+use super::Progress;
 use super::StudyError;
 use crate::learn::{learning_curves, LearningCurve, NominalSensor};
 use crate::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
@@ -29,14 +30,27 @@ pub struct LearningReport {
 
 /// `training` robot presses (and [`HELD_OUT`] more) of `spec`'s imperfect skin, in a disc over
 /// 80 % of the half-width, each state the mean of 32 frames at the default 0.3 % noise, and
-/// every method's learning curve on them, press features on the spec's own sensor included.
-pub fn run(spec: &SensorSpec, training: usize, seed: u64) -> Result<LearningReport, StudyError> {
+/// every method's learning curve on them, press features on the spec's own sensor included;
+/// `progress` hears of each stage.
+pub fn run(
+    spec: &SensorSpec,
+    training: usize,
+    seed: u64,
+    progress: Progress<'_>,
+) -> Result<LearningReport, StudyError> {
+    progress("learned calibration: the press model", 0, 1);
     let sensor = NominalSensor::of_spec(spec, None)?;
     let imperfections = Imperfections { frames_per_press: 32, ..Imperfections::default() };
     let mut skin = ImperfectSkin::new(spec, &imperfections, seed)?;
     let radius = disc_radius(&spec.outline, 0.8);
-    let presses = skin.robot_presses(training, radius, 2.0..MAX_FORCE)?;
-    let held = skin.robot_presses(HELD_OUT, radius, 2.0..MAX_FORCE)?;
-    let curves = learning_curves(&presses, &held, Some(&sensor));
+    let all = training + HELD_OUT;
+    let mut presses = Vec::with_capacity(all);
+    for k in 0..all {
+        // One at a time: the same presses as all at once (each draws from the skin's stream in turn).
+        progress("learned calibration: robot presses", k, all);
+        presses.extend(skin.robot_presses(1, radius, 2.0..MAX_FORCE)?);
+    }
+    let held = presses.split_off(training);
+    let curves = learning_curves(&presses, &held, Some(&sensor), progress);
     Ok(LearningReport { training, held_out: HELD_OUT, imperfections, curves, max_force: MAX_FORCE })
 }
