@@ -128,7 +128,7 @@ class Reconstructor:
         hyperparameter: Union[float, str] = "auto",
         prior: str = "noser",
         exponent: float = 0.5,
-        normalized: bool = False,
+        normalised: bool = False,
         raster: Tuple[int, int] = (64, 64),
         weighting: Optional[str] = None,
     ) -> None: ...
@@ -141,7 +141,7 @@ class Reconstructor:
         frames: Optional[npt.NDArray[np.float64]] = None,
         prior: str = "noser",
         exponent: float = 0.5,
-        normalized: bool = False,
+        normalised: bool = False,
         raster: Tuple[int, int] = (64, 64),
         weighting: Optional[str] = None,
         cache: bool = True,

@@ -182,7 +182,7 @@ pub(crate) fn touches(
 ///     R: diag(JᵀJ)^exponent, the identity, or a Laplacian over neighbouring triangles.
 /// exponent : float, default 0.5
 ///     The NOSER exponent p (pyEIT's "lm" is p = 1).
-/// normalized : bool, default False
+/// normalised : bool, default False
 ///     Image Δv/v_ref instead of Δv (the CLI's ``--normalised``).
 /// raster : (int, int), default (64, 64)
 ///     Pixels (nx, ny) over the mesh's bounding box, 1 to 4096 each.
@@ -233,7 +233,7 @@ fn weighting(weighting: Option<&str>) -> PyResult<Option<eitskin::inverse::Weigh
 fn params(
     prior: &str,
     exponent: f64,
-    normalized: bool,
+    normalised: bool,
     raster: (usize, usize),
 ) -> PyResult<eitskin::ReconstructorParams> {
     if !(1..=4096).contains(&raster.0) || !(1..=4096).contains(&raster.1) {
@@ -241,7 +241,7 @@ fn params(
     }
     Ok(eitskin::ReconstructorParams {
         prior: self::prior(prior, exponent)?,
-        normalized,
+        normalised,
         raster: [raster.0, raster.1],
         ..eitskin::ReconstructorParams::default()
     })
@@ -265,12 +265,12 @@ fn frame_rows(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Vec<f64>>> {
 impl Reconstructor {
     /// Linearises `model` at `background` (S/m): prior "noser" (exponent p), "tikhonov" or
     /// "laplace"; hyperparameter λ (λ² multiplies the prior) or "auto" (the noise assumed);
-    /// `normalized` uses Δv/v_ref; `raster` (nx, ny) pixels over the mesh's bounding box.
+    /// `normalised` uses Δv/v_ref; `raster` (nx, ny) pixels over the mesh's bounding box.
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
     #[pyo3(
-        signature = (model, background, hyperparameter = None, prior = "noser", exponent = 0.5, normalized = false, raster = (64, 64), weighting = None),
-        text_signature = "(model, background, hyperparameter='auto', prior='noser', exponent=0.5, normalized=False, raster=(64, 64), weighting=None)"
+        signature = (model, background, hyperparameter = None, prior = "noser", exponent = 0.5, normalised = false, raster = (64, 64), weighting = None),
+        text_signature = "(model, background, hyperparameter='auto', prior='noser', exponent=0.5, normalised=False, raster=(64, 64), weighting=None)"
     )]
     fn new(
         py: Python<'_>,
@@ -279,7 +279,7 @@ impl Reconstructor {
         hyperparameter: Option<&Bound<'_, PyAny>>,
         prior: &str,
         exponent: f64,
-        normalized: bool,
+        normalised: bool,
         raster: (usize, usize),
         weighting: Option<&str>,
     ) -> PyResult<Reconstructor> {
@@ -293,7 +293,7 @@ impl Reconstructor {
             )));
         }
         let weighting = self::weighting(weighting)?.unwrap_or(rule.default_weighting());
-        let params = self::params(prior, exponent, normalized, raster)?;
+        let params = self::params(prior, exponent, normalised, raster)?;
         let model = &model.0;
         let measurements = model.protocol().measurements().len();
         eitskin::memory::check_raster(params.raster, measurements, eitskin_io::available_memory()).map_err(error)?;
@@ -301,10 +301,10 @@ impl Reconstructor {
             let lin = std::sync::Arc::new(Linearisation::new(model, background)?);
             // The model's own frame as the one reference: the noise assumed, every channel in use.
             let reference = Reference { v_ref: lin.background().to_vec(), variance: None };
-            let (channels, used) = reference.channels(&lin, normalized, &[], weighting);
-            let auto = || eitskin::inverse::choose_hyperparameter(&lin, &params.prior, normalized, &channels);
+            let (channels, used) = reference.channels(&lin, normalised, &[], weighting);
+            let auto = || eitskin::inverse::choose_hyperparameter(&lin, &params.prior, normalised, &channels);
             let hyperparameter =
-                reference.hyperparameter(rule, &lin, (&params.prior, normalized), &channels, &[], auto)?;
+                reference.hyperparameter(rule, &lin, (&params.prior, normalised), &channels, &[], auto)?;
             let params = eitskin::ReconstructorParams { hyperparameter, ..params };
             let recon = eitskin::Reconstructor::from_linearisation(lin, &params, channels)?;
             Ok(Reconstructor { recon, chosen_by: rule.chosen_by(), weighting: used, reference: None })
@@ -318,7 +318,7 @@ impl Reconstructor {
     /// λ by `hyperparameter` ("auto", "gcv" or "discrepancy" on `frames`, or a number).
     #[classmethod]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
-    #[pyo3(signature = (spec, reference, hyperparameter = None, frames = None, prior = "noser", exponent = 0.5, normalized = false, raster = (64, 64), weighting = None, cache = true))]
+    #[pyo3(signature = (spec, reference, hyperparameter = None, frames = None, prior = "noser", exponent = 0.5, normalised = false, raster = (64, 64), weighting = None, cache = true))]
     fn from_reference(
         _class: &Bound<'_, pyo3::types::PyType>,
         py: Python<'_>,
@@ -328,7 +328,7 @@ impl Reconstructor {
         frames: Option<&Bound<'_, PyAny>>,
         prior: &str,
         exponent: f64,
-        normalized: bool,
+        normalised: bool,
         raster: (usize, usize),
         weighting: Option<&str>,
         cache: bool,
@@ -337,7 +337,7 @@ impl Reconstructor {
         let rule =
             hyperparameter.map(self::rule).transpose()?.unwrap_or(HyperparameterRule::Model(Hyperparameter::Auto));
         let weighting = self::weighting(weighting)?;
-        let params = self::params(prior, exponent, normalized, raster)?;
+        let params = self::params(prior, exponent, normalised, raster)?;
         let spec = &spec.0;
         let mut references = frame_rows(reference, "reference")?;
         let mut frames = frames.map(|f| frame_rows(f, "frames")).transpose()?.unwrap_or_default();

@@ -218,6 +218,17 @@ impl Source {
     }
 }
 
+/// Numbers counted from 1 (areas) as 0-based indices, each in 1..=`count`.
+fn from_one(values: &[i64], what: &str, count: usize) -> PyResult<Vec<usize>> {
+    values
+        .iter()
+        .map(|&v| match usize::try_from(v) {
+            Ok(k) if (1..=count).contains(&k) => Ok(k - 1),
+            _ => Err(fail(format!("{what} {v}: areas are counted from 1 to {count}"))),
+        })
+        .collect()
+}
+
 /// A force calibration: the pseudo-array's areas, one curve σ(F) = a·e^(−F/b) + c each.
 ///
 /// Made with `Calibration.fit(spec, area, force, strength)` from samples or read with
@@ -232,7 +243,7 @@ pub(crate) struct Calibration {
 #[pymethods]
 impl Calibration {
     /// Fits one curve per area of the spec's pseudo-array (`grid` units, grouped by symmetry)
-    /// from samples: `area` (0-based), `force` (N) and `strength` (the image's peak, S/m,
+    /// from samples: `area` (from 1, as the paper, the CLI and the files count), `force` (N) and `strength` (the image's peak, S/m,
     /// for strength "peak"), one entry per sample; every area needs ≥ 3 distinct forces.
     #[staticmethod]
     #[pyo3(signature = (spec, area, force, strength, grid = (5, 5)))]
@@ -243,7 +254,6 @@ impl Calibration {
         strength: &Bound<'_, PyAny>,
         grid: (i64, i64),
     ) -> PyResult<Calibration> {
-        let area = crate::indices(&area, "area")?;
         let grid = (crate::count(grid.0, "grid")?, crate::count(grid.1, "grid")?);
         let (force, strength) = (crate::floats(force)?, crate::floats(strength)?);
         if force.len() != area.len() || strength.len() != area.len() {
@@ -258,6 +268,7 @@ impl Calibration {
         let electrodes = spec.electrode_positions().map_err(error)?;
         let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.outline, &electrodes, [grid.0, grid.1])
             .map_err(error)?;
+        let area = from_one(&area, "area", array.area_count())?;
         let samples: Vec<eitskin::calibration::Sample> = (0..area.len())
             .map(|k| eitskin::calibration::Sample {
                 area: area[k],
@@ -272,7 +283,7 @@ impl Calibration {
         Ok(Calibration { spec, file: eitskin_io::CalibrationFile { array, calibration, imaging } })
     }
 
-    /// The area (0-based) of the pseudo-array unit under (x, y) m, for `spec`'s array of `grid`
+    /// The area (from 1) of the pseudo-array unit under (x, y) m, for `spec`'s array of `grid`
     /// units grouped by symmetry (the paper's 5 × 5 has 6 areas), or None off the array.
     #[staticmethod]
     #[pyo3(signature = (spec, x, y, grid = (5, 5)))]
@@ -281,7 +292,7 @@ impl Calibration {
         let electrodes = spec.0.electrode_positions().map_err(error)?;
         let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.0.outline, &electrodes, [grid.0, grid.1])
             .map_err(error)?;
-        Ok(array.unit_at([x, y]).map(|u| array.area_of(u)))
+        Ok(array.unit_at([x, y]).map(|u| array.area_of(u) + 1))
     }
 
     /// Reads a calibration file made for `spec` (by `eitskin calibrate` or `save`).
@@ -305,15 +316,17 @@ impl Calibration {
         self.file.array.area_count()
     }
 
-    /// The area (0-based) of the unit under (x, y) m, or None off the array.
+    /// The area (from 1) of the unit under (x, y) m, or None off the array.
     fn area_at(&self, x: f64, y: f64) -> Option<usize> {
-        self.file.array.unit_at([x, y]).map(|u| self.file.array.area_of(u))
+        self.file.array.unit_at([x, y]).map(|u| self.file.array.area_of(u) + 1)
     }
 
-    /// The force (N) for a touch of `strength` in `area`, and whether it is past the curve's
-    /// range (saturated).
+    /// The force (N) for a touch of `strength` in `area` (from 1), and whether it is past the
+    /// curve's range (saturated).
     fn force(&self, area: i64, strength: f64) -> PyResult<(f64, bool)> {
-        let area = crate::count(area, "area")?;
+        let [area] = from_one(&[area], "area", self.file.array.area_count())?[..] else {
+            return Err(fail("area: one area is needed"));
+        };
         let estimate = self.file.calibration.force(area, strength).map_err(error)?;
         Ok((estimate.newtons, estimate.saturated))
     }
@@ -331,9 +344,9 @@ pub(crate) struct TouchForce {
     area: f64,
     /// The z of its peak against the measured noise, when the noise is known.
     significance: Option<f64>,
-    /// The pseudo-array unit and area (0-based) it falls in, when calibrated.
+    /// The pseudo-array unit it falls in (from 1, row-major from the bottom-left), when calibrated.
     unit: Option<usize>,
-    /// The calibration area (0-based), when calibrated.
+    /// That unit's calibration area (from 1), when calibrated.
     calibration_area: Option<usize>,
     /// Its force in N, when calibrated.
     force: Option<f64>,
@@ -463,7 +476,7 @@ impl Pipeline {
                     // Chosen once the reference frames are in; until then, the paper's.
                     Hyperparameter::Auto => eitskin::ReconstructorParams::default().hyperparameter,
                 },
-                normalized: calibration.is_some_and(|c| c.file.imaging.normalized),
+                normalised: calibration.is_some_and(|c| c.file.imaging.normalised),
                 ..eitskin::ReconstructorParams::default()
             };
             let strength = calibration.map_or(eitskin::strength::Strength::Peak, |c| c.file.calibration.strength);
@@ -517,8 +530,8 @@ impl Pipeline {
                 peak: t.touch.peak,
                 area: t.touch.area,
                 significance: t.touch.significance,
-                unit: t.unit,
-                calibration_area: t.area,
+                unit: t.unit.map(|u| u + 1),
+                calibration_area: t.area.map(|a| a + 1),
                 force: t.force.map(|f| f.newtons),
                 force_std: t.force.and_then(|f| f.std),
                 press_centre: t.press.map(|p| (p.centre[0], p.centre[1])),

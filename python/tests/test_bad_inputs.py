@@ -31,7 +31,7 @@ def _fixtures():
     image = recon.image(rest, pressed)
     dv, positions, forces = eitskin.robot_presses(SPEC, 30, seed=2)
     learned = eitskin.LearnedModel.train(dv, positions, forces=forces, method="knn-3")
-    area = [0] * 8
+    area = [1] * 8
     force = np.arange(8, dtype=float)
     strength = 0.1 * (1.0 - np.exp(-force / 5.0))
     calibration = eitskin.Calibration.fit(SPEC, area, force, strength, grid=(1, 1))
@@ -76,7 +76,7 @@ GOOD = [
     ("Calibration.fit", eitskin.Calibration.fit, {"spec": SPEC, "area": F["area"], "force": F["force"], "strength": F["strength"], "grid": (1, 1)}),
     ("Calibration.area_of", eitskin.Calibration.area_of, {"spec": SPEC, "x": 0.01, "y": 0.01}),
     ("Calibration.area_at", F["calibration"].area_at, {"x": 0.01, "y": 0.01}),
-    ("Calibration.force", F["calibration"].force, {"area": 0, "strength": 0.05}),
+    ("Calibration.force", F["calibration"].force, {"area": 1, "strength": 0.05}),
     ("Pipeline", eitskin.Pipeline, {"spec": SPEC}),
     ("Pipeline.process", lambda frame: _pipeline().process(frame), {"frame": F["rest"]}),
     ("LearnedModel.train", eitskin.LearnedModel.train, {"dv": F["dv"], "positions": F["positions"], "forces": F["forces"], "method": "knn-3"}),

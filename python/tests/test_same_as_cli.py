@@ -50,7 +50,7 @@ def image_cli(tmp_path, *flags):
     ((), {}),
     (("--hyperparameter", "0.3"), {"hyperparameter": 0.3}),
     (("--weighting", "none"), {"weighting": "none"}),
-    (("--normalised",), {"normalized": True}),
+    (("--normalised",), {"normalised": True}),
 ])
 def test_python_images_a_recording_as_the_cli_does(tmp_path, flags, keywords):
     spec = eitskin.SensorSpec.square_hydrogel().with_triangles(1500)

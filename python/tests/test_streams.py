@@ -60,22 +60,26 @@ def test_the_pipeline_finds_a_press_from_the_virtual_sensors_frames(spec):
 def test_a_calibration_is_fitted_saved_loaded_and_gives_forces(spec, tmp_path):
     # Samples on the curve sigma(F) = a e^(-F/b) + c of every area, a = 0.5, b = 6 N, c = 0.05.
     forces = np.linspace(1.0, 15.0, 8)
-    probe = eitskin.Calibration.fit(spec, [0] * 3, [1.0, 2.0, 3.0], [3.0, 2.0, 1.0], grid=(1, 1))
+    # Areas are counted from 1, as the paper, the CLI and the files count them.
+    probe = eitskin.Calibration.fit(spec, [1] * 3, [1.0, 2.0, 3.0], [3.0, 2.0, 1.0], grid=(1, 1))
     assert probe.areas == 1
     calibration = eitskin.Calibration.fit(
-        spec, [0] * len(forces), forces, 0.5 * np.exp(-forces / 6.0) + 0.05, grid=(1, 1)
+        spec, [1] * len(forces), forces, 0.5 * np.exp(-forces / 6.0) + 0.05, grid=(1, 1)
     )
-    newtons, saturated = calibration.force(0, 0.5 * np.exp(-7.0 / 6.0) + 0.05)
+    newtons, saturated = calibration.force(1, 0.5 * np.exp(-7.0 / 6.0) + 0.05)
     assert newtons == pytest.approx(7.0, rel=1e-6) and not saturated
     path = tmp_path / "calibration.json"
     calibration.save(path)
     again = eitskin.Calibration.load(path, spec)
-    assert again.force(0, 0.2) == calibration.force(0, 0.2)
-    assert again.area_at(0.0, 0.0) == 0 and again.area_at(1.0, 1.0) is None
-    with pytest.raises(eitskin.EitskinError, match="area"):
-        calibration.force(3, 0.2)
+    assert again.force(1, 0.2) == calibration.force(1, 0.2)
+    assert again.area_at(0.0, 0.0) == 1 and again.area_at(1.0, 1.0) is None
+    for wrong in (0, 3):
+        with pytest.raises(eitskin.EitskinError, match=rf"area {wrong}: areas are counted from 1 to 1"):
+            calibration.force(wrong, 0.2)
+    with pytest.raises(eitskin.EitskinError, match="areas are counted from 1"):
+        eitskin.Calibration.fit(spec, [0] * 3, [1.0, 2.0, 3.0], [3.0, 2.0, 1.0], grid=(1, 1))
     with pytest.raises(eitskin.EitskinError, match="one entry per sample"):
-        eitskin.Calibration.fit(spec, [0, 0], [1.0], [1.0, 2.0])
+        eitskin.Calibration.fit(spec, [1, 1], [1.0], [1.0, 2.0])
 
 
 def test_meshes_and_protocols_in_eidors_and_pyeit_shapes(spec):

@@ -120,7 +120,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     let calibration = Calibration::fit_strength(&samples, array.area_count(), strength)?;
     // The chain images as `eitskin_io::build::chain` does: the file records it, and `run` then images so.
     let params = ReconstructorParams::default();
-    let imaging = Imaging { hyperparameter: params.hyperparameter, normalized: params.normalized };
+    let imaging = Imaging { hyperparameter: params.hyperparameter, normalised: params.normalised };
     let mut staged = crate::outputs::Staged::default();
     std::fs::write(staged.path(&args.out), eitskin_io::calibration_file_to_json(&spec, &array, &calibration, imaging)?)
         .with_context(|| format!("writing {}", args.out.display()))?;
@@ -210,7 +210,7 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
             let (references, pressed) = references(args.reference.as_deref(), &args.samples, frames)?;
             let params = ReconstructorParams {
                 hyperparameter: imaging.hyperparameter,
-                normalized: imaging.normalized,
+                normalised: imaging.normalised,
                 ..ReconstructorParams::default()
             };
             let strength = calibration.strength;

@@ -36,6 +36,7 @@ struct TouchOut {
     sign: &'static str,
     x: f64,
     y: f64,
+    #[serde(serialize_with = "eitskin_io::stream::single_precision")]
     peak: f64,
     area: f64,
     pixels: usize,

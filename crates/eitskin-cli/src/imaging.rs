@@ -325,7 +325,7 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     table.truncate(indices.end() + 1);
     let mut selected: Vec<Vec<f64>> = table.drain(first..).collect();
     let params = ReconstructorParams {
-        normalized: input.normalised,
+        normalised: input.normalised,
         background_change: input.background_change,
         raster: input.raster,
         ..ReconstructorParams::default()

@@ -248,7 +248,7 @@ pub fn run(args: Args) -> Result<()> {
             // Chosen once the reference frames are in; until then, the paper's.
             Hyperparameter::Auto => ReconstructorParams::default().hyperparameter,
         },
-        normalized: imaging.normalized,
+        normalised: imaging.normalised,
         ..ReconstructorParams::default()
     };
     let touch = TouchParams { polarity: args.polarity, peak_of: args.peak_of, ..TouchParams::default() };
@@ -258,7 +258,7 @@ pub fn run(args: Args) -> Result<()> {
             eprintln!(
                 "eitskin run: λ = {}, {} differences, as the calibration {} was fitted",
                 file.imaging.hyperparameter,
-                if file.imaging.normalized { "normalised" } else { "absolute" },
+                if file.imaging.normalised { "normalised" } else { "absolute" },
                 path.display()
             );
             eitskin_io::build::chain(&spec, &recon_params, touch, strength, args.fit)?
@@ -330,7 +330,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut start =
         Start::new(args.source.to_string(), spec.length_unit.symbol(), protocol.len(), params.frames_in_reference());
     start.reference_limit = Some(params.reference_limit_frames());
-    start.normalised = imaging.normalized;
+    start.normalised = imaging.normalised;
     start.polarity = args.polarity.name().to_owned();
     start.average = args.average;
     start.peak_of = args.peak_of.name().to_owned();
@@ -469,7 +469,7 @@ fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: 
         Status::Referencing { collected, needed } if collected == needed => {
             let lambda = pipeline.hyperparameter();
             let chosen = hyperparameter == Hyperparameter::Auto;
-            let normalised = pipeline.chain().reconstructor().params().normalized;
+            let normalised = pipeline.chain().reconstructor().params().normalised;
             let dropped = one_based(&pipeline.dropped_channels());
             let how =
                 if chosen { format!(" (chosen from the noise of {needed} reference frames)") } else { String::new() };

@@ -64,7 +64,7 @@ pub fn auto_hyperparameter(
     channels: &Channels,
     use_cache: bool,
 ) -> Result<f64, Error> {
-    let choose = || choose_hyperparameter(lin, &params.prior, params.normalized, channels);
+    let choose = || choose_hyperparameter(lin, &params.prior, params.normalised, channels);
     Ok(match cache(use_cache) {
         Some(dir) => crate::cached_hyperparameter(&dir, spec, params, channels, || Ok(choose()?))?.0,
         None => choose()?,
@@ -143,10 +143,10 @@ impl ReferenceImaging {
     ) -> Result<ReferenceImaging, Error> {
         let reference = Reference::new(references);
         let weighting = weighting.unwrap_or(rule.default_weighting());
-        let (channels, weighting) = reference.channels(lin, params.normalized, frames, weighting);
+        let (channels, weighting) = reference.channels(lin, params.normalised, frames, weighting);
         let auto = || auto_hyperparameter(spec, lin, params, &channels, use_cache);
         let hyperparameter =
-            reference.hyperparameter(rule, lin, (&params.prior, params.normalized), &channels, frames, auto)?;
+            reference.hyperparameter(rule, lin, (&params.prior, params.normalised), &channels, frames, auto)?;
         let params = ReconstructorParams { hyperparameter, ..*params };
         let recon = Reconstructor::from_linearisation(Arc::clone(lin), &params, channels)?;
         Ok(ReferenceImaging { recon, reference, weighting, chosen_by: rule.chosen_by() })

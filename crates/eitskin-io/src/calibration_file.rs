@@ -119,12 +119,12 @@ pub struct Imaging {
     /// The hyperparameter λ (dimensionless).
     pub hyperparameter: f64,
     /// Whether differences were normalised (Δv/v_ref).
-    pub normalized: bool,
+    pub normalised: bool,
 }
 
 impl Default for Imaging {
     fn default() -> Self {
-        Imaging { hyperparameter: 0.1, normalized: false }
+        Imaging { hyperparameter: 0.1, normalised: false }
     }
 }
 
@@ -235,7 +235,7 @@ pub fn calibration_file_to_json(
         spec_key: spec_key(spec)?,
         strength: Some(calibration.strength.name().into()),
         hyperparameter: Some(imaging.hyperparameter),
-        normalised: Some(imaging.normalized),
+        normalised: Some(imaging.normalised),
         grid: array.grid(),
         areas: (0..array.unit_count()).map(|u| array.area_of(u) + 1).collect(),
         curves: calibration.curves.iter().map(CurveJson::from).collect(),
@@ -277,10 +277,10 @@ pub fn parse_calibration_file(text: &str, spec: &SensorSpec) -> Result<Calibrati
     };
     let imaging = match (file.version, file.hyperparameter, file.normalised) {
         (..=3, _, _) => Imaging::default(),
-        (_, Some(hyperparameter), Some(normalized))
+        (_, Some(hyperparameter), Some(normalised))
             if hyperparameter > 0.0 && hyperparameter <= eitskin::inverse::LARGEST_HYPERPARAMETER =>
         {
-            Imaging { hyperparameter, normalized }
+            Imaging { hyperparameter, normalised }
         }
         (_, Some(hyperparameter), Some(_)) => {
             let largest = eitskin::inverse::LARGEST_HYPERPARAMETER;
@@ -453,7 +453,7 @@ mod tests {
     fn the_imaging_is_recorded_and_old_files_read_as_the_papers() {
         let spec = SensorSpec::square_hydrogel();
         let (array, calibration) = fitted(&spec);
-        let imaging = Imaging { hyperparameter: 0.0316, normalized: true };
+        let imaging = Imaging { hyperparameter: 0.0316, normalised: true };
         let v4 = calibration_file_to_json(&spec, &array, &calibration, imaging).unwrap();
         assert!(v4.contains("\"hyperparameter\": 0.0316") && v4.contains("\"normalised\": true"), "{v4}");
         let back = parse_calibration_file(&v4, &spec).unwrap();
@@ -461,7 +461,7 @@ mod tests {
         let v3 = version_3(&v4);
         assert!(!v3.contains("hyperparameter") && v3.contains("\"version\": 3"), "{v3}");
         let old = parse_calibration_file(&v3, &spec).unwrap();
-        assert_eq!(old.imaging, Imaging { hyperparameter: 0.1, normalized: false });
+        assert_eq!(old.imaging, Imaging { hyperparameter: 0.1, normalised: false });
         assert_eq!(old.calibration, before_version_5(&calibration));
         let err = parse_calibration_file(&v4.replace("0.0316", "-1.0"), &spec).unwrap_err().to_string();
         assert!(err.contains("`hyperparameter` is -1"), "{err}");

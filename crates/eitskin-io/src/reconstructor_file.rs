@@ -81,7 +81,7 @@ pub fn cached_hyperparameter(
     channels: &Channels,
     choose: impl FnOnce() -> Result<f64, Error>,
 ) -> Result<(f64, bool), Error> {
-    let said = format!("auto-hyperparameter {:?} {} {channels:?}", params.prior, params.normalized);
+    let said = format!("auto-hyperparameter {:?} {} {channels:?}", params.prior, params.normalised);
     let key = key_of(spec, &said)?;
     let decode = |bytes: &[u8], key: &[u8; 32]| {
         let rest = bytes.strip_prefix(MAGIC_LAMBDA)?.strip_prefix(key.as_slice())?;
@@ -228,12 +228,12 @@ mod tests {
         // Another noise, mask or normalisation is another λ.
         let noisier = Channels::all(120).with_variance(vec![2e-6; 120]);
         let masked = channels.clone().masked(&[false]);
-        let normalised = ReconstructorParams { normalized: true, ..params };
+        let normalised = ReconstructorParams { normalised: true, ..params };
         assert_eq!(cached_hyperparameter(&dir, &spec, &params, &noisier, choose(0.5)).unwrap(), (0.5, false));
         assert_eq!(cached_hyperparameter(&dir, &spec, &params, &masked, choose(0.75)).unwrap(), (0.75, false));
         assert_eq!(cached_hyperparameter(&dir, &spec, &normalised, &channels, choose(1.5)).unwrap(), (1.5, false));
         // A torn file is chosen again.
-        let said = format!("auto-hyperparameter {:?} {} {channels:?}", params.prior, params.normalized);
+        let said = format!("auto-hyperparameter {:?} {} {channels:?}", params.prior, params.normalised);
         let path = cache_file(&dir, "hyperparameter", &key_of(&spec, &said).unwrap());
         let bytes = std::fs::read(&path).unwrap();
         std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();

@@ -31,7 +31,7 @@
 //! ```text
 //! {"event":"start","format":"eitskin-run","version":6,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"reference_limit":100,"normalised":false,"polarity":"decrease","average":1,"peak_of":"frame","false_alarm_rate":0.001}
 //! {"event":"reference_taken","hyperparameter":0.031,"chosen":true,"normalised":false,"channels_dropped":[],"threshold":4.6,"noise":0.0005,"noise_measured":true,"detail":"…"}
-//! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"z":48.2,"unit":7,"area":2,"force":8.7,"force_std":0.3,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41,"radius":10.0}}],"counters":{"frames":11,"bad":0},"recorded":true}
+//! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"z":48.2,"unit":7,"calibration_area":2,"force":8.7,"force_std":0.3,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41,"radius":10.0}}],"counters":{"frames":11,"bad":0},"recorded":true}
 //! {"event":"bad","seq":11,"reason":"frame 11 has 3 values, expected 120; …"}
 //! ```
 //!
@@ -53,8 +53,9 @@
 //! of the start line), relative to the outline's centre; `peak`, the strongest conductivity
 //! change in the touch's own direction, in S/m (positive); `z`, that peak over the noise's
 //! standard deviation at its pixel (its detection confidence; `null` without the noise test);
-//! `unit` and `area`, the pseudo-array unit holding the
-//! centre and its area, counted from 1, or `null` without a calibration; `force`, in N,
+//! `unit` and `calibration_area`, the pseudo-array unit holding the centre and the area of
+//! symmetry it belongs to (the paper's six), each counted from 1, or `null` without a
+//! calibration (`area` before version 7; `area` elsewhere is a touch's size); `force`, in N,
 //! `force_std`, its standard deviation from the noise in N (with a press fitted to Δv whitened
 //! by the measured noise: the force is then the mean of its posterior over the calibrated
 //! range, see [`eitskin::calibration::Curve::force_given`]; else, and before version 6, `null`),
@@ -105,11 +106,18 @@ use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::source::Acquired;
 
+/// Writes a value an image holds in single precision (a pixel's Δσ, S/m) as the shortest decimal
+/// that reads back as that `f32`: widened to `f64` it would print 0.32798558473587036 where
+/// 0.32798558 says all it holds.
+pub fn single_precision<S: serde::Serializer>(value: &f64, serializer: S) -> Result<S::Ok, S::Error> {
+    serializer.serialize_f32(*value as f32)
+}
+
 /// The `format` of the start line.
 pub const FORMAT: &str = "eitskin-run";
 
 /// The version of the stream this crate writes and reads.
-pub const VERSION: u32 = 6;
+pub const VERSION: u32 = 7;
 
 /// Any line of the stream, for readers: an event if it has an `event` field, else a frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -282,15 +290,18 @@ pub struct Touch {
     pub x: f64,
     /// Centre of gravity, y.
     pub y: f64,
-    /// The strongest conductivity change in the touch's own direction, in S/m (positive).
-    pub peak: f64,
+    /// The strongest conductivity change in the touch's own direction, in S/m (positive), in
+    /// the image's single precision (written as the shortest decimal that reads back as it).
+    pub peak: f32,
     /// That peak over the noise's standard deviation at its pixel (dimensionless), with the noise test.
     #[serde(default)]
     pub z: Option<f64>,
     /// The pseudo-array unit holding the centre, from 1, with a calibration.
     pub unit: Option<usize>,
-    /// That unit's area, from 1, with a calibration.
-    pub area: Option<usize>,
+    /// That unit's calibration area (of the pseudo-array's symmetry), from 1, with a calibration
+    /// (`area` before version 7).
+    #[serde(alias = "area")]
+    pub calibration_area: Option<usize>,
     /// The force, in N, with a calibration.
     pub force: Option<f64>,
     /// The force's standard deviation from the noise, in N, where it is known (from version 6).
@@ -304,17 +315,17 @@ pub struct Touch {
 }
 
 impl Touch {
-    /// The touch of the pipeline `t` (positions in m, unit and area from 0), positions in units of
-    /// `metres` m, unit and area from 1.
+    /// The touch of the pipeline `t` (positions in m, unit and calibration area from 0), positions
+    /// in units of `metres` m, unit and calibration area from 1.
     pub fn new(t: &TouchForce, metres: f64) -> Touch {
         Touch {
             sign: Sign::of(t.touch.polarity),
             x: t.touch.centre[0] / metres,
             y: t.touch.centre[1] / metres,
-            peak: t.touch.peak,
+            peak: t.touch.peak as f32,
             z: t.touch.significance,
             unit: t.unit.map(|u| u + 1),
-            area: t.area.map(|a| a + 1),
+            calibration_area: t.area.map(|a| a + 1),
             force: t.force.map(|f| f.newtons),
             force_std: t.force.and_then(|f| f.std),
             saturated: t.force.map(|f| f.saturated),
@@ -594,7 +605,7 @@ mod tests {
             peak: 0.6,
             z: None,
             unit: Some(7),
-            area: Some(2),
+            calibration_area: Some(2),
             force: Some(8.5),
             force_std: Some(0.25),
             saturated: Some(false),
@@ -624,7 +635,7 @@ mod tests {
         assert_eq!(
             line,
             "{\"seq\":12,\"t\":0.6,\"status\":\"ok\",\"touches\":[{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"z\":null,\"unit\":7,\
-             \"area\":2,\"force\":8.5,\"force_std\":0.25,\"saturated\":false,\"press\":{\"x\":-50.0,\"y\":41.0,\"drop\":0.4,\"radius\":10.0}}],\
+             \"calibration_area\":2,\"force\":8.5,\"force_std\":0.25,\"saturated\":false,\"press\":{\"x\":-50.0,\"y\":41.0,\"drop\":0.4,\"radius\":10.0}}],\
              \"counters\":{\"frames\":13,\"bad\":1}}\n"
         );
         assert_eq!(Line::parse(line.trim_end()).unwrap(), Line::Frame(frame()));
@@ -639,7 +650,7 @@ mod tests {
     fn without_a_calibration_unit_area_force_and_press_are_null() {
         let touch = Touch {
             unit: None,
-            area: None,
+            calibration_area: None,
             force: None,
             force_std: None,
             saturated: None,
@@ -648,7 +659,7 @@ mod tests {
         };
         assert_eq!(
             text(&touch),
-            "{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"z\":null,\"unit\":null,\"area\":null,\"force\":null,\"force_std\":null,\"saturated\":null,\
+            "{\"sign\":\"decrease\",\"x\":-50.5,\"y\":40.0,\"peak\":0.6,\"z\":null,\"unit\":null,\"calibration_area\":null,\"force\":null,\"force_std\":null,\"saturated\":null,\
              \"press\":null}\n"
         );
     }

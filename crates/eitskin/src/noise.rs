@@ -167,12 +167,12 @@ impl NoiseModel {
     }
 
     /// Each channel's noise standard deviation in a difference v − v_ref (V, the unit of
-    /// `reference`) or, `normalized`, in v/v_ref − 1, when v is the mean of `averaged` frames:
+    /// `reference`) or, `normalised`, in v/v_ref − 1, when v is the mean of `averaged` frames:
     /// the reference's own noise included; NaN for a channel never measured.
-    pub fn difference_std(&self, reference: &[f64], normalized: bool, averaged: usize) -> Vec<f64> {
+    pub fn difference_std(&self, reference: &[f64], normalised: bool, averaged: usize) -> Vec<f64> {
         let share = 1.0 / averaged.max(1) as f64 + 1.0 / self.reference_frames.max(1) as f64;
         let relative = self.relative_variance();
-        relative.iter().zip(reference).map(|(r, v)| (r * share * if normalized { 1.0 } else { v * v }).sqrt()).collect()
+        relative.iter().zip(reference).map(|(r, v)| (r * share * if normalised { 1.0 } else { v * v }).sqrt()).collect()
     }
 
     /// Each channel's relative noise variance (ratio²; NaN for a channel never measured), each
@@ -292,7 +292,7 @@ impl Significance {
         sd: &[f64],
         polarity: Polarity,
     ) -> Result<Vec<f64>, InverseError> {
-        let normalized = recon.params().normalized;
+        let normalised = recon.params().normalised;
         let mut rng = StdRng::seed_from_u64(0x05ee_d0f2_015e);
         let mut image: Image = recon.blank_image();
         let mut frame = v_ref.to_vec();
@@ -301,7 +301,7 @@ impl Significance {
                 for (m, v) in frame.iter_mut().enumerate() {
                     let n: f64 = StandardNormal.sample(&mut rng);
                     let d = if sd[m] > 0.0 { sd[m] * n } else { 0.0 };
-                    *v = if normalized { v_ref[m] * (1.0 + d) } else { v_ref[m] + d };
+                    *v = if normalised { v_ref[m] * (1.0 + d) } else { v_ref[m] + d };
                 }
                 recon.image_into(v_ref, &frame, &mut image)?;
                 let z = image.values.iter().zip(&self.inverse_std).map(|(v, s)| polarity.intensity(*v * s));
@@ -315,7 +315,7 @@ impl Significance {
 /// normalised) for frames that are the mean of `averaged`, with the reference's share; 0 for a
 /// channel not used.
 fn difference_std(recon: &Reconstructor, v_ref: &[f64], noise: &NoiseModel, averaged: usize) -> Vec<f64> {
-    let std = noise.difference_std(v_ref, recon.params().normalized, averaged);
+    let std = noise.difference_std(v_ref, recon.params().normalised, averaged);
     std.iter().enumerate().map(|(m, s)| if recon.channels().is_used(m) && s.is_finite() { *s } else { 0.0 }).collect()
 }
 

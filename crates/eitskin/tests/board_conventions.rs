@@ -74,7 +74,7 @@ fn per_channel_gains_of_30_percent_are_estimated_and_divided_out() {
     let apart = (free.centre[0] - corrected[0].centre[0]).hypot(free.centre[1] - corrected[0].centre[1]);
     assert!(apart < 1e-3, "{apart} m from the gain-free touch");
     // Normalised differences are immune to the gains by construction: the same press.
-    let normalised = recon.rederive(&ReconstructorParams { normalized: true, ..*recon.params() }, Channels::all(120));
+    let normalised = recon.rederive(&ReconstructorParams { normalised: true, ..*recon.params() }, Channels::all(120));
     let normalised = touches(&normalised.unwrap(), &board_refs, &board_v);
     assert_eq!(normalised.len(), 1, "{normalised:?}");
     assert!(distance(&normalised[0]) < 0.015, "{:?}", normalised[0].centre);
@@ -136,7 +136,7 @@ fn complex_values_image_through_their_magnitude_and_real_part() {
     assert!(distance(&found[0]) < 0.015, "{:?}", found[0].centre);
     // The real part alone carries cos(phase) per channel: a gain, which normalised differences remove.
     let real = |frame: &Vec<f64>| complex(frame).0;
-    let normalised = recon.rederive(&ReconstructorParams { normalized: true, ..*recon.params() }, Channels::all(120));
+    let normalised = recon.rederive(&ReconstructorParams { normalised: true, ..*recon.params() }, Channels::all(120));
     let found = touches(&normalised.unwrap(), &references.iter().map(real).collect::<Vec<_>>(), &real(&v));
     assert_eq!(found.len(), 1, "{found:?}");
     assert!(distance(&found[0]) < 0.015, "{:?}", found[0].centre);

@@ -53,9 +53,9 @@ fn jacobian_and_images_match_pyeit() {
     eprintln!("pyEIT plain image: {err:.2e} of the peak");
     assert!(err < 1e-8, "plain image differs by {err:e}");
 
-    let mut normalized = jacobian.clone();
-    normalize_jacobian(&mut normalized, &solution.measurements(model.protocol())).unwrap();
-    let rm = reconstruction_matrix(normalized.as_ref(), &prior, lambda, model.mesh()).unwrap();
+    let mut normalised = jacobian.clone();
+    normalize_jacobian(&mut normalised, &solution.measurements(model.protocol())).unwrap();
+    let rm = reconstruction_matrix(normalised.as_ref(), &prior, lambda, model.mesh()).unwrap();
     let dv: Vec<f64> = v1.iter().zip(&v0).map(|(a, b)| a / b - 1.0).collect();
     let err = max_relative_error(&image(&rm, &dv), &floats(&recon["noser_lambda0.1_normalized"]["ds"]));
     eprintln!("pyEIT normalised image: {err:.2e} of the peak");

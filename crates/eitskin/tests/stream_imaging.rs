@@ -33,10 +33,10 @@ fn found_at(pipeline: &mut Pipeline, skin: &mut VirtualSensor) -> f64 {
 
 #[test]
 fn normalised_differences_find_the_press() {
-    let params = ReconstructorParams { normalized: true, ..ReconstructorParams::default() };
+    let params = ReconstructorParams { normalised: true, ..ReconstructorParams::default() };
     let (mut pipeline, mut skin) = setup(params, TouchParams::default(), false);
     assert!(found_at(&mut pipeline, &mut skin) < 0.015);
-    assert!(pipeline.chain().reconstructor().params().normalized);
+    assert!(pipeline.chain().reconstructor().params().normalised);
     assert!(pipeline.image().values.iter().all(|v| v.is_finite()));
 }
 

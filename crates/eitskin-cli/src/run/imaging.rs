@@ -31,7 +31,7 @@ pub struct Imaging {
     /// λ given, or chosen from the reference frames' noise.
     pub hyperparameter: Hyperparameter,
     /// Normalised differences Δv/v_ref.
-    pub normalized: bool,
+    pub normalised: bool,
 }
 
 /// The imaging of a run from its flags (`--hyperparameter`, default `auto`; `--normalised`) or,
@@ -44,7 +44,7 @@ pub fn resolve(
 ) -> Result<Imaging> {
     let Some((path, fitted)) = calibration else {
         let hyperparameter = flag.map_or(Hyperparameter::Auto, |f| f.value);
-        return Ok(Imaging { hyperparameter, normalized: normalised });
+        return Ok(Imaging { hyperparameter, normalised });
     };
     let lambda = fitted.hyperparameter;
     if let Some(flag) = flag.filter(|f| f.value != Hyperparameter::Fixed(lambda)) {
@@ -55,14 +55,14 @@ pub fn resolve(
             path.display()
         );
     }
-    if normalised && !fitted.normalized {
+    if normalised && !fitted.normalised {
         bail!(
             "--normalised: the calibration {} was fitted on absolute differences (\"normalised\": false); \
              leave --normalised out, or calibrate again with normalised differences",
             path.display()
         );
     }
-    Ok(Imaging { hyperparameter: Hyperparameter::Fixed(lambda), normalized: fitted.normalized })
+    Ok(Imaging { hyperparameter: Hyperparameter::Fixed(lambda), normalised: fitted.normalised })
 }
 
 #[cfg(test)]
@@ -79,10 +79,10 @@ mod tests {
         let paper = eitskin_io::Imaging::default();
         assert_eq!(
             resolve(None, false, None).unwrap(),
-            Imaging { hyperparameter: Hyperparameter::Auto, normalized: false }
+            Imaging { hyperparameter: Hyperparameter::Auto, normalised: false }
         );
         assert_eq!(resolve(Some(&flag("0.05")), true, None).unwrap().hyperparameter, Hyperparameter::Fixed(0.05));
-        let fixed = Imaging { hyperparameter: Hyperparameter::Fixed(0.1), normalized: false };
+        let fixed = Imaging { hyperparameter: Hyperparameter::Fixed(0.1), normalised: false };
         assert_eq!(resolve(None, false, Some((path, paper))).unwrap(), fixed);
         assert_eq!(resolve(Some(&flag("0.10")), false, Some((path, paper))).unwrap(), fixed);
         let err = resolve(Some(&flag("0.050")), false, Some((path, paper))).unwrap_err().to_string();
@@ -93,8 +93,8 @@ mod tests {
         assert!(resolve(Some(&flag("auto")), false, Some((path, paper))).unwrap_err().to_string().contains("auto"));
         let err = resolve(None, true, Some((path, paper))).unwrap_err().to_string();
         assert!(err.contains("--normalised") && err.contains("absolute differences"), "{err}");
-        let normalised = eitskin_io::Imaging { hyperparameter: 0.02, normalized: true };
+        let normalised = eitskin_io::Imaging { hyperparameter: 0.02, normalised: true };
         let got = resolve(None, false, Some((path, normalised))).unwrap();
-        assert_eq!(got, Imaging { hyperparameter: Hyperparameter::Fixed(0.02), normalized: true });
+        assert_eq!(got, Imaging { hyperparameter: Hyperparameter::Fixed(0.02), normalised: true });
     }
 }

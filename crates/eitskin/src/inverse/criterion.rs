@@ -64,18 +64,18 @@ const STEPS_PER_DECADE: f64 = 100.0;
 
 /// The λ that `criterion` chooses for `frames` (each a frame `v` with its reference `v_ref`,
 /// full-length, of which the used `channels` count), with the reconstruction's prior and
-/// differences (`normalized`: v/v_ref − 1, else v − v_ref) and `channels`' noise variances
+/// differences (`normalised`: v/v_ref − 1, else v − v_ref) and `channels`' noise variances
 /// (their shape weighs the channels; their level is the discrepancy's target, which refuses
 /// channels without variances). Searched on 100 steps a decade over [1e-6, 1e3].
 pub fn data_hyperparameter(
     lin: &Linearisation,
     prior: &Prior,
-    normalized: bool,
+    normalised: bool,
     channels: &Channels,
     frames: &[(&[f64], &[f64])],
     criterion: DataCriterion,
 ) -> Result<f64, InverseError> {
-    let system = Eigensystem::new(lin, prior, normalized, channels)?;
+    let system = Eigensystem::new(lin, prior, normalised, channels)?;
     let used = channels.used();
     let expected = lin.measurements();
     let mut coefficients = Vec::with_capacity(frames.len());
@@ -87,7 +87,7 @@ pub fn data_hyperparameter(
         let d: Vec<f64> = used
             .iter()
             .zip(&system.std)
-            .map(|(&m, s)| if normalized { v[m] / v_ref[m] - 1.0 } else { v[m] - v_ref[m] } / s)
+            .map(|(&m, s)| if normalised { v[m] / v_ref[m] - 1.0 } else { v[m] - v_ref[m] } / s)
             .collect();
         if let Some(i) = d.iter().position(|x| !x.is_finite()) {
             return Err(InverseError::NotFinite { measurement: used[i] + 1 });

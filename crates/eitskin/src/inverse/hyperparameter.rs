@@ -120,11 +120,11 @@ impl Eigensystem {
     pub(super) fn new(
         lin: &Linearisation,
         prior: &Prior,
-        normalized: bool,
+        normalised: bool,
         channels: &Channels,
     ) -> Result<Eigensystem, InverseError> {
         channels.check(lin.measurements())?;
-        let jacobian = lin.rows(&channels.used(), normalized)?;
+        let jacobian = lin.rows(&channels.used(), normalised)?;
         let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
         let r_inv = inverse_diagonal(&r);
         let std: Vec<f64> = channels.relative_variance().iter().map(|v| v.sqrt()).collect();
@@ -143,10 +143,10 @@ impl NoiseFigure {
     fn new(
         lin: &Linearisation,
         prior: &Prior,
-        normalized: bool,
+        normalised: bool,
         channels: &Channels,
     ) -> Result<NoiseFigure, InverseError> {
-        let Eigensystem { jacobian, std, scaled, eigenvalues, u } = Eigensystem::new(lin, prior, normalized, channels)?;
+        let Eigensystem { jacobian, std, scaled, eigenvalues, u } = Eigensystem::new(lin, prior, normalised, channels)?;
         let variance = channels.relative_variance();
         let (m, k) = (jacobian.nrows(), jacobian.ncols());
         let mesh = lin.mesh();
@@ -196,12 +196,12 @@ fn target(mesh: &crate::mesh::Mesh) -> Vec<usize> {
 pub fn noise_figure(
     lin: &Linearisation,
     prior: &Prior,
-    normalized: bool,
+    normalised: bool,
     channels: &Channels,
     hyperparameter: f64,
 ) -> Result<f64, InverseError> {
     super::check_hyperparameter(hyperparameter)?;
-    Ok(NoiseFigure::new(lin, prior, normalized, channels)?.at(hyperparameter))
+    Ok(NoiseFigure::new(lin, prior, normalised, channels)?.at(hyperparameter))
 }
 
 /// The automatic λ: the larger of the noise figure's ([`noise_figure_hyperparameter`]) and,
@@ -210,11 +210,11 @@ pub fn noise_figure(
 pub fn choose_hyperparameter(
     lin: &Linearisation,
     prior: &Prior,
-    normalized: bool,
+    normalised: bool,
     channels: &Channels,
 ) -> Result<f64, InverseError> {
-    let from_figure = noise_figure_hyperparameter(lin, prior, normalized, channels)?;
-    let from_level = map_hyperparameter(lin, prior, normalized, channels)?;
+    let from_figure = noise_figure_hyperparameter(lin, prior, normalised, channels)?;
+    let from_level = map_hyperparameter(lin, prior, normalised, channels)?;
     Ok(from_level.map_or(from_figure, |l| from_figure.max(l.min(SEARCH.1))))
 }
 
@@ -223,13 +223,13 @@ pub fn choose_hyperparameter(
 pub fn map_hyperparameter(
     lin: &Linearisation,
     prior: &Prior,
-    normalized: bool,
+    normalised: bool,
     channels: &Channels,
 ) -> Result<Option<f64>, InverseError> {
     let Some(mean_variance) = channels.mean_variance() else {
         return Ok(None);
     };
-    let jacobian = lin.rows(&channels.used(), normalized)?;
+    let jacobian = lin.rows(&channels.used(), normalised)?;
     let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
     let r_inv = inverse_diagonal(&r);
     let mesh = lin.mesh();
@@ -251,10 +251,10 @@ pub fn map_hyperparameter(
 pub fn noise_figure_hyperparameter(
     lin: &Linearisation,
     prior: &Prior,
-    normalized: bool,
+    normalised: bool,
     channels: &Channels,
 ) -> Result<f64, InverseError> {
-    let nf = NoiseFigure::new(lin, prior, normalized, channels)?;
+    let nf = NoiseFigure::new(lin, prior, normalised, channels)?;
     let (lo, hi) = (SEARCH.0.log10(), SEARCH.1.log10());
     let steps = ((hi - lo) * 20.0).round() as usize;
     let at = |x: f64| nf.at(10f64.powf(x)) - NOISE_FIGURE_TARGET;

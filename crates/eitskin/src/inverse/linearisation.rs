@@ -33,12 +33,12 @@ impl Linearisation {
     /// `channels` weighted by their noise, as the automatic λ weighs them: `relative` is the
     /// noise measured per channel relative to its value (ratio², from
     /// [`super::noise_variance`]), or else [`super::DEFAULT_RELATIVE_NOISE`] of each value; in
-    /// the model's units that is relative·v₀² for absolute differences (`normalized` false), so
+    /// the model's units that is relative·v₀² for absolute differences (`normalised` false), so
     /// neither a board's unit nor its gains move λ.
-    pub fn noise_weighted(&self, normalized: bool, channels: Channels, relative: Option<Vec<f64>>) -> Channels {
+    pub fn noise_weighted(&self, normalised: bool, channels: Channels, relative: Option<Vec<f64>>) -> Channels {
         let default = super::DEFAULT_RELATIVE_NOISE * super::DEFAULT_RELATIVE_NOISE;
         let relative = super::channels::floored(relative.unwrap_or_else(|| vec![default; self.measurements()]));
-        let variance = if normalized {
+        let variance = if normalised {
             relative
         } else {
             relative.iter().zip(self.background()).map(|(r, v)| r * v * v).collect()
@@ -90,10 +90,10 @@ impl Linearisation {
         self.background.len()
     }
 
-    /// The rows of J for the used channels, divided by v₀ when `normalized`.
-    pub(crate) fn rows(&self, used: &[usize], normalized: bool) -> Result<Mat<f64>, InverseError> {
+    /// The rows of J for the used channels, divided by v₀ when `normalised`.
+    pub(crate) fn rows(&self, used: &[usize], normalised: bool) -> Result<Mat<f64>, InverseError> {
         let mut scale = vec![1.0; used.len()];
-        if normalized {
+        if normalised {
             for (s, &m) in scale.iter_mut().zip(used) {
                 let v = self.background[m];
                 if v == 0.0 {
@@ -128,7 +128,7 @@ impl Linearisation {
         check_hyperparameter(params.hyperparameter)?;
         channels.check(self.measurements())?;
         let used = channels.used();
-        let mut jacobian = self.rows(&used, params.normalized)?;
+        let mut jacobian = self.rows(&used, params.normalised)?;
         let variance = channels.relative_variance();
         let global = params.background_change.then(|| Global::new(jacobian.as_ref(), &variance));
         if let Some(global) = &global {
@@ -148,12 +148,12 @@ impl Linearisation {
     pub fn background_change_row(
         &self,
         element: MatRef<'_, f64>,
-        normalized: bool,
+        normalised: bool,
         channels: &Channels,
     ) -> Result<Vec<f64>, InverseError> {
         let used = channels.used();
         let compact = Mat::from_fn(element.nrows(), used.len(), |k, i| element[(k, used[i])]);
-        let compact_row = self.compact_background_change_row(compact.as_ref(), normalized, channels)?;
+        let compact_row = self.compact_background_change_row(compact.as_ref(), normalised, channels)?;
         let mut row = vec![0.0; self.measurements()];
         for (r, m) in compact_row.into_iter().zip(used) {
             row[m] = r;
@@ -166,10 +166,10 @@ impl Linearisation {
     pub(crate) fn compact_background_change_row(
         &self,
         compact: MatRef<'_, f64>,
-        normalized: bool,
+        normalised: bool,
         channels: &Channels,
     ) -> Result<Vec<f64>, InverseError> {
-        let jacobian = self.rows(&channels.used(), normalized)?;
+        let jacobian = self.rows(&channels.used(), normalised)?;
         let global = Global::new(jacobian.as_ref(), &channels.relative_variance());
         let uh = faer::Row::from_fn(compact.nrows(), |k| global.u[k]) * compact; // uᵀH
         Ok((0..compact.ncols()).map(|i| global.c * global.wd[i] - uh[i]).collect())

@@ -295,8 +295,8 @@ mod tests {
         let direct = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &params).unwrap();
         let mut mask = vec![true; 120];
         mask[drop] = false;
-        for normalized in [false, true] {
-            let params = ReconstructorParams { normalized, ..params };
+        for normalised in [false, true] {
+            let params = ReconstructorParams { normalised, ..params };
             let derived = full.rederive(&params, Channels::all(120).masked(&mask)).unwrap();
             let direct = direct.rederive(&params, Channels::all(119)).unwrap();
             let column = |r: &Reconstructor, m: usize| r.matrix().column(m).collect::<Vec<_>>();
@@ -305,7 +305,7 @@ mod tests {
             for m in 0..119 {
                 let d = column(&derived, if m < drop { m } else { m + 1 });
                 let worst = d.iter().zip(column(&direct, m)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
-                assert!(worst < 1e-5 * scale, "normalised {normalized}, channel {m}: {worst}");
+                assert!(worst < 1e-5 * scale, "normalised {normalised}, channel {m}: {worst}");
             }
             // A frame with the dropped channel missing images as the smaller protocol's.
             let mut frame = vec![1.0; 120];
@@ -322,7 +322,7 @@ mod tests {
     fn one_pixels_value_is_the_images_value_there() {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 300;
-        let params = ReconstructorParams { raster: [24, 24], normalized: true, ..ReconstructorParams::default() };
+        let params = ReconstructorParams { raster: [24, 24], normalised: true, ..ReconstructorParams::default() };
         let recon = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &params).unwrap();
         let v_ref = recon.linearisation().background().to_vec();
         let v: Vec<f64> = v_ref.iter().enumerate().map(|(m, x)| x * (1.0 + 0.01 * (m as f64).sin())).collect();
@@ -346,22 +346,22 @@ mod tests {
         let v0 = lin.background().to_vec();
         let d: Vec<f64> = (0..j.nrows()).map(|m| (0..j.ncols()).map(|k| j[(m, k)]).sum()).collect();
         let variance: Vec<f64> = (0..120).map(|m| 1.0 + (m % 5) as f64).collect();
-        for normalized in [false, true] {
+        for normalised in [false, true] {
             for channels in [Channels::all(120), Channels::all(120).with_variance(variance.clone())] {
-                let recon = recon.rederive(&ReconstructorParams { normalized, ..params }, channels).unwrap();
+                let recon = recon.rederive(&ReconstructorParams { normalised, ..params }, channels).unwrap();
                 let delta = -0.03;
                 let v: Vec<f64> = v0.iter().zip(&d).map(|(v, d)| v + delta * d).collect();
                 let estimated = recon.background_change(&v0, &v).unwrap().unwrap();
                 // Normalised data are Δv/v_ref, so a uniform change is linear in them only to first order.
-                let tolerance = if normalized { 1e-3 } else { 1e-6 };
-                assert!((estimated - delta).abs() < tolerance * delta.abs(), "{normalized}: {estimated}");
+                let tolerance = if normalised { 1e-3 } else { 1e-6 };
+                assert!((estimated - delta).abs() < tolerance * delta.abs(), "{normalised}: {estimated}");
                 let image = recon.image(&v0, &v).unwrap();
                 let peak = image.values.iter().fold(0.0f32, |a, x| a.max(x.abs()));
                 // One triangle's change, for scale: what the image of a local change looks like.
                 let local: Vec<f64> = v0.iter().enumerate().map(|(m, v)| v - 0.05 * j[(m, 150)]).collect();
                 let local_image = recon.image(&v0, &local).unwrap();
                 let local_peak = local_image.values.iter().fold(0.0f32, |a, x| a.max(x.abs()));
-                assert!(peak < 1e-3 * local_peak, "{normalized}: {peak} vs {local_peak}");
+                assert!(peak < 1e-3 * local_peak, "{normalised}: {peak} vs {local_peak}");
             }
         }
         let plain = recon.rederive(&ReconstructorParams { background_change: false, ..params }, Channels::all(120));

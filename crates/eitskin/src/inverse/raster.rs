@@ -27,7 +27,7 @@ pub struct ReconstructorParams {
     /// The hyperparameter λ (dimensionless; λ² multiplies R).
     pub hyperparameter: f64,
     /// Normalised differences Δv/v_ref instead of absolute ones.
-    pub normalized: bool,
+    pub normalised: bool,
     /// Raster columns and rows `[nx, ny]` over the mesh's bounding box.
     pub raster: [usize; 2],
     /// Estimate a uniform change of the background conductivity (warming water, a drying gel)
@@ -40,7 +40,7 @@ impl Default for ReconstructorParams {
         ReconstructorParams {
             prior: Prior::default(),
             hyperparameter: 0.1,
-            normalized: false,
+            normalised: false,
             raster: [64, 64],
             background_change: false,
         }
@@ -102,7 +102,7 @@ impl Reconstructor {
     ) -> Result<Reconstructor, InverseError> {
         let compact = linearisation.compact_matrix(params, &channels)?;
         let background = if params.background_change {
-            let row = linearisation.compact_background_change_row(compact.as_ref(), params.normalized, &channels)?;
+            let row = linearisation.compact_background_change_row(compact.as_ref(), params.normalised, &channels)?;
             let mut full = vec![0.0; channels.len()];
             for (r, m) in row.into_iter().zip(channels.used()) {
                 full[m] = r;
@@ -174,9 +174,9 @@ impl Reconstructor {
         relative: Option<Vec<f64>>,
     ) -> Result<(Reconstructor, f64), InverseError> {
         let lin = &self.linearisation;
-        let normalized = self.params.normalized;
-        let channels = lin.noise_weighted(normalized, channels, relative);
-        let lambda = super::choose_hyperparameter(lin, &self.params.prior, normalized, &channels)?;
+        let normalised = self.params.normalised;
+        let channels = lin.noise_weighted(normalised, channels, relative);
+        let lambda = super::choose_hyperparameter(lin, &self.params.prior, normalised, &channels)?;
         Ok((self.derive(lambda, channels)?, lambda))
     }
 
@@ -257,7 +257,7 @@ impl Reconstructor {
     fn difference(&self, v_ref: &[f64], v: &[f64], m: usize) -> f32 {
         if !self.channels.is_used(m) {
             0.0
-        } else if self.params.normalized {
+        } else if self.params.normalised {
             (v[m] / v_ref[m] - 1.0) as f32
         } else {
             (v[m] - v_ref[m]) as f32
@@ -276,7 +276,7 @@ impl Reconstructor {
                 return Err(InverseError::NotFinite { measurement: m + 1 });
             }
         }
-        if self.params.normalized {
+        if self.params.normalised {
             let zero = |(m, x): (usize, &f64)| self.channels.is_used(m) && *x == 0.0;
             if let Some((m, _)) = v_ref.iter().enumerate().find(|&p| zero(p)) {
                 return Err(InverseError::ZeroReference { measurement: m + 1 });

@@ -125,12 +125,12 @@ impl Reference {
     }
 
     /// The channels to image `frames` with: finite in the reference and in every frame, weighted
-    /// by `weighting` (the measured noise, else the assumed one) for differences `normalized`
+    /// by `weighting` (the measured noise, else the assumed one) for differences `normalised`
     /// or not; with how they were weighted.
     pub fn channels(
         &self,
         lin: &Linearisation,
-        normalized: bool,
+        normalised: bool,
         frames: &[Vec<f64>],
         weighting: Weighting,
     ) -> (Channels, WeightingUsed) {
@@ -138,7 +138,7 @@ impl Reference {
         for v in frames {
             channels = channels.masked(Channels::finite_in(v).used_mask());
         }
-        let channels = lin.noise_weighted(normalized, channels, self.variance.clone());
+        let channels = lin.noise_weighted(normalised, channels, self.variance.clone());
         match (weighting, &self.variance) {
             (Weighting::None, _) => (channels.uniform_variance(), WeightingUsed::None),
             (Weighting::Noise, Some(_)) => (channels, WeightingUsed::NoiseMeasured),
@@ -147,14 +147,14 @@ impl Reference {
     }
 
     /// λ by `rule` for `channels` (from [`Reference::channels`]), the `prior` and differences
-    /// `normalized` or not: given, `auto` (computed by `auto`, which a caller may take from a
+    /// `normalised` or not: given, `auto` (computed by `auto`, which a caller may take from a
     /// cache; [`super::choose_hyperparameter`] otherwise), or a criterion on `frames`, of which
     /// those whose scale is unlike the reference's are no evidence.
     pub fn hyperparameter<E: From<InverseError>>(
         &self,
         rule: HyperparameterRule,
         lin: &Linearisation,
-        (prior, normalized): (&Prior, bool),
+        (prior, normalised): (&Prior, bool),
         channels: &Channels,
         frames: &[Vec<f64>],
         auto: impl FnOnce() -> Result<f64, E>,
@@ -166,7 +166,7 @@ impl Reference {
                 let plausible = |v: &&Vec<f64>| typical_ratio(v, &self.v_ref).is_none_or(plausible_ratio);
                 let pairs: Vec<(&[f64], &[f64])> =
                     frames.iter().filter(plausible).map(|v| (self.v_ref.as_slice(), v.as_slice())).collect();
-                Ok(data_hyperparameter(lin, prior, normalized, channels, &pairs, criterion)?)
+                Ok(data_hyperparameter(lin, prior, normalised, channels, &pairs, criterion)?)
             }
         }
     }
