@@ -30,7 +30,7 @@
 //!     })
 //!     .collect();
 //! // Every candidate's cross-validated error; here the Gaussian process on raw channels.
-//! let (_best, scores) = choose(&presses, &Method::candidates(false), 5, None)?;
+//! let (_best, scores) = choose(&presses, &Method::candidates(false), 5, None, &mut |_, _, _| {})?;
 //! assert_eq!(scores.len(), Method::candidates(false).len());
 //! let model = train(&presses, Method::from_name("gp").unwrap(), None)?;
 //! let answer = model.predict(&frame(0.1, -0.2), &mut PredictScratch::default()).unwrap();
