@@ -105,7 +105,8 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
         }
         Labelled::Frames(frames) => {
             let (references, pressed) = references(args.reference.as_deref(), &args.samples, frames)?;
-            let chain = eitskin_io::build::chain(
+            let chain = load::chain(
+                "calibrate",
                 &spec,
                 &ReconstructorParams::default(),
                 TouchParams::default(),
@@ -214,7 +215,7 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
                 ..ReconstructorParams::default()
             };
             let strength = calibration.strength;
-            let chain = eitskin_io::build::chain(&spec, &params, TouchParams::default(), strength, false)?
+            let chain = load::chain("evaluate", &spec, &params, TouchParams::default(), strength, false)?
                 .with_calibration(array, calibration)?;
             let found = process_labelled(chain, PipelineParams::default(), &references, &pressed)?;
             report_missed(&args.samples, &pressed, &found);

@@ -184,7 +184,7 @@ pub fn run(args: Args) -> Result<()> {
     let channels = spec.protocol()?.len();
     // Press features read Δv on the sensor as specified: one value per measurement.
     let sensor = match training.first() {
-        Some(p) if p.inputs.len() == channels => Some(eitskin_io::build::nominal_sensor(&spec)?),
+        Some(p) if p.inputs.len() == channels => Some(load::nominal_sensor("learn", &spec)?),
         _ => None,
     };
     if let (Some(m), None) = (forced, &sensor) {

@@ -1,11 +1,47 @@
-//! Loading what the subcommands share: the spec (file or built-in) and inclusion flags.
+//! Loading what the subcommands share: the spec (file or built-in), inclusion flags, and the
+//! frame chain and nominal sensor, saying so on stderr when their press model must be built.
 
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
+use eitskin::chain::Chain;
 use eitskin::conductivity::Inclusion;
 use eitskin::memory::{self, Stage};
-use eitskin::SensorSpec;
+use eitskin::strength::Strength;
+use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
+
+/// The frame chain of [`eitskin_io::build::chain`], `command` saying on stderr when the press
+/// model it needs is not in the cache and is built first.
+pub fn chain(
+    command: &str,
+    spec: &SensorSpec,
+    params: &ReconstructorParams,
+    touch: TouchParams,
+    strength: Strength,
+    fit: bool,
+) -> Result<Chain> {
+    if fit || strength.needs_press_model() {
+        announce_press_model(command, spec);
+    }
+    Ok(eitskin_io::build::chain(spec, params, touch, strength, fit)?)
+}
+
+/// The nominal sensor of [`eitskin_io::build::nominal_sensor`], announced as [`chain`] does.
+pub fn nominal_sensor(command: &str, spec: &SensorSpec) -> Result<eitskin::learn::NominalSensor> {
+    announce_press_model(command, spec);
+    Ok(eitskin_io::build::nominal_sensor(spec)?)
+}
+
+/// Says on stderr that `spec`'s press model is about to be built, where it is not in the cache.
+fn announce_press_model(command: &str, spec: &SensorSpec) {
+    if !eitskin_io::build::press_model_cached(spec) {
+        let cached = match eitskin_io::build::cache_dir() {
+            Some(dir) => format!("kept in {} for later runs", dir.display()),
+            None => "not kept: set EITSKIN_CACHE to keep it".to_string(),
+        };
+        eprintln!("eitskin {command}: building the press model of this sheet first ({cached})…");
+    }
+}
 
 /// The spec in `path`, or the built-in paper sensor.
 pub fn spec(path: Option<&Path>) -> Result<SensorSpec> {

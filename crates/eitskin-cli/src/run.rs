@@ -199,8 +199,7 @@ fn virtual_calibration(spec: &SensorSpec, args: &Args) -> Result<(PathBuf, eitsk
     );
     let started = std::time::Instant::now();
     let strength = Strength::FittedDrop;
-    let chain =
-        eitskin_io::build::chain(spec, &ReconstructorParams::default(), TouchParams::default(), strength, false)?;
+    let chain = load::chain("run", spec, &ReconstructorParams::default(), TouchParams::default(), strength, false)?;
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [5, 5])?;
     let sim = eitskin::sim::SimParams::default();
     let seed = args.seed ^ 0x00ca_11b0;
@@ -261,10 +260,10 @@ pub fn run(args: Args) -> Result<()> {
                 if file.imaging.normalised { "normalised" } else { "absolute" },
                 path.display()
             );
-            eitskin_io::build::chain(&spec, &recon_params, touch, strength, args.fit)?
+            load::chain("run", &spec, &recon_params, touch, strength, args.fit)?
                 .with_calibration(file.array, file.calibration)?
         }
-        None => eitskin_io::build::chain(&spec, &recon_params, touch, Strength::Peak, args.fit)?,
+        None => load::chain("run", &spec, &recon_params, touch, Strength::Peak, args.fit)?,
     };
     let params = PipelineParams {
         reference_frames: args.reference_frames,

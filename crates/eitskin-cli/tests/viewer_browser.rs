@@ -374,6 +374,19 @@ fn the_page_shows_the_press_the_stdout_force_and_retakes_the_reference() {
     assert!(printed_force > 2.0, "a hard press gives {printed_force} N");
     let row = &pressed["shown"][0];
     assert_eq!(row[3], printed["unit"].to_string(), "unit shown: {row}");
+    // Without a calibration the page still names the unit a touch sits in, numbered as the
+    // library numbers them (from 1 here), the far edges in the last unit, nothing outside.
+    let setup = browser.js("return window.eitskin.setup;");
+    let grid = [0, 1].map(|i| setup["grid"][i].as_u64().unwrap() as usize);
+    let bounds = [0, 1].map(|c| [0, 1].map(|i| setup["grid_bounds"][c][i].as_f64().unwrap()));
+    let array = eitskin::pseudo_array::PseudoArray::one_area_per_unit(bounds, grid).unwrap();
+    let [[x0, y0], [x1, y1]] = bounds;
+    let places =
+        [[x0, y0], [x1, y1], [x1, y0], [(x0 + x1) / 2.0, (y0 + y1) / 3.0], [x1 + 1.0, y0], [x0, y0 - 1.0], [tx, ty]];
+    for [px, py] in places {
+        let page = browser.js(&format!("return unitAt({px}, {py});")).as_u64().map(|u| u as usize);
+        assert_eq!(page, array.unit_at([px, py]).map(|u| u + 1), "the page's unit at ({px}, {py})");
+    }
     let printed_drop = printed["press"]["drop"].as_f64().expect("a fitted press, with --fit");
     assert_eq!(row[8], format!("{printed_drop:.3}"), "drop shown: {row}");
     let printed_z = printed["z"].as_f64().expect("the touch's detection confidence");

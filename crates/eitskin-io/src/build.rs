@@ -80,6 +80,13 @@ pub fn press_model(spec: &SensorSpec) -> Result<PressModel, Error> {
     }
 }
 
+/// Whether the press model of `spec` (default indenter) is in the cache; where it is not,
+/// [`press_model`] builds it (seconds on the paper's sheet, longer on finer meshes).
+pub fn press_model_cached(spec: &SensorSpec) -> bool {
+    let path = cache_dir().and_then(|dir| crate::press_model_path(&dir, spec, &PressModelParams::default()).ok());
+    path.is_some_and(|path| path.is_file())
+}
+
 /// The frame chain of `spec` with these reconstructor parameters (λ, normalisation) and touch
 /// settings, reading each touch's strength as `strength`: the reconstructor (from the cache,
 /// without the channels the spec drops), the press model when the strength needs it or `fit`
