@@ -76,56 +76,51 @@ pub fn run(args: Args) -> Result<()> {
     let start = Instant::now();
     let mut progress = crate::progress::Bars::default();
     let mut report = |stage: &str, done: usize, all: usize| progress.update(stage, done, all);
+    let unit = spec.length_unit;
+    // Each part's figures, frames and its section of study.json and report.md are written as it
+    // ends, so that a run stopped later keeps what was done.
     let study = run_study(&spec, &params, &mut report)?;
-    let sweep = match args.sweep_presses {
-        0 => None,
-        n => {
-            let sweep_params = SweepParams {
-                scenes: [n; 3],
-                untouched: args.sweep_untouched,
-                seed: args.seed,
-                ..SweepParams::default()
-            };
-            Some(sweep::run(&spec, &sweep_params, &mut report)?)
+    write_figures(&study, &args, unit)?;
+    write_frames(&study, &args, unit.metres())?;
+    let mut json = report::json(&study, &params, start.elapsed().as_secs_f64());
+    let mut markdown = report::markdown(&study, &params, unit, start.elapsed().as_secs_f64());
+    write_report(&args, &json, &markdown)?;
+    let mut add = |key: &str, value: serde_json::Value, section: String| {
+        if let Some(object) = json.as_object_mut() {
+            object.insert(key.into(), value);
         }
+        markdown += &section;
+        write_report(&args, &json, &markdown)
     };
-    let learning = match args.learning_presses {
-        0 => None,
-        n => Some(eitskin::study::learning::run(&spec, n, args.seed, &mut report)?),
-    };
-    let users_params = UsersParams { seed: args.seed, ..UsersParams::default() };
-    let users = if args.as_users { Some(users::run(&spec, &users_params, &mut report)?) } else { None };
-    progress.finish();
-    let seconds = start.elapsed().as_secs_f64();
-    write_figures(&study, &args, spec.length_unit)?;
-    let mut json = report::json(&study, &params, seconds);
-    if let (Some(sweep), Some(object)) = (&sweep, json.as_object_mut()) {
-        object.insert("sweep".into(), report::sweep_json(sweep));
-        write_sweep_figures(sweep, &args, spec.length_unit)?;
+    if args.sweep_presses > 0 {
+        let n = args.sweep_presses;
+        let sweep_params =
+            SweepParams { scenes: [n; 3], untouched: args.sweep_untouched, seed: args.seed, ..SweepParams::default() };
+        let sweep = sweep::run(&spec, &sweep_params, &mut report)?;
+        write_sweep_figures(&sweep, &args, unit)?;
+        add("sweep", report::sweep_json(&sweep), report::sweep_markdown(&sweep, unit))?;
     }
-    if let (Some(learning), Some(object)) = (&learning, json.as_object_mut()) {
-        object.insert("learning".into(), report::learning_json(learning));
+    if args.learning_presses > 0 {
+        let learning = eitskin::study::learning::run(&spec, args.learning_presses, args.seed, &mut report)?;
         crate::learn::write_learning_figures(&learning.curves, Some(learning.max_force), &args.out)?;
+        add("learning", report::learning_json(&learning), report::learning_markdown(&learning))?;
     }
-    if let (Some(users), Some(object)) = (&users, json.as_object_mut()) {
-        object.insert("as_users".into(), report::users_json(users));
-        write_users_frames(users, &args, spec.length_unit.metres())?;
+    if args.as_users {
+        let users_params = UsersParams { seed: args.seed, ..UsersParams::default() };
+        let users = users::run(&spec, &users_params, &mut report)?;
+        write_users_frames(&users, &args, unit.metres())?;
+        add("as_users", report::users_json(&users), report::users_markdown(&users, &users_params))?;
     }
-    std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(&json)?)?;
-    write_frames(&study, &args, spec.length_unit.metres())?;
-    let mut markdown = report::markdown(&study, &params, spec.length_unit, seconds);
-    if let Some(sweep) = &sweep {
-        markdown += &report::sweep_markdown(sweep, spec.length_unit);
-    }
-    if let Some(learning) = &learning {
-        markdown += &report::learning_markdown(learning);
-    }
-    if let Some(users) = &users {
-        markdown += &report::users_markdown(users, &users_params);
-    }
-    std::fs::write(args.out.join("report.md"), &markdown)?;
+    progress.finish();
     println!("{markdown}");
-    eprintln!("wrote {} in {seconds:.1} s", args.out.display());
+    eprintln!("wrote {} in {:.1} s", args.out.display(), start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// Writes `study.json` and `report.md` with the parts done so far.
+fn write_report(args: &Args, json: &serde_json::Value, markdown: &str) -> Result<()> {
+    std::fs::write(args.out.join("study.json"), serde_json::to_string_pretty(json)?)?;
+    std::fs::write(args.out.join("report.md"), markdown)?;
     Ok(())
 }
 
