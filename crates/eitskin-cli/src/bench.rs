@@ -206,7 +206,7 @@ pub fn run(args: Args) -> Result<()> {
         time(201, || Ok(detection.detect_into(&dv3, &mut whitened, &mut press_scratch, &mut found)?))?;
     // The same presses held over a stream of 201 frames, each with its own draw of the noise:
     // found afresh in each, and carried from frame to frame.
-    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let mut rng = eitskin::SeededRng::seed_from_u64(7);
     let mut held_under = |std: &[f64]| -> Vec<Vec<f64>> {
         let mut draw = || Distribution::<f64>::sample(&StandardNormal, &mut rng);
         (0..201).map(|_| dv3.iter().zip(std).map(|(d, s)| d + s * draw()).collect()).collect()

@@ -60,7 +60,7 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
     let frames = skin.clean_frames(&calibration.iter().map(|p| vec![*p]).collect::<Vec<_>>()).unwrap();
     write_samples(&dir.join("calibration.csv"), &calibration, &noisy(&mut skin, frames), per_metre);
     // Validation: random positions in the right half (units never calibrated), random 0–12 N.
-    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let mut rng = eitskin::SeededRng::seed_from_u64(5);
     let validation: Vec<Press> = (0..60)
         .map(|_| Press {
             position: [rng.random_range(0.0..0.1), rng.random_range(-0.1..0.1)],

@@ -30,8 +30,8 @@ use std::time::Instant;
 use eitskin::inverse::{mean_frame, noise_variance, Channels};
 use eitskin::sim::{SimParams, VirtualSensor};
 use eitskin::touch::detect;
+use eitskin::SeededRng;
 use eitskin::{Outline, Placement, ProtocolSpec, Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
-use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 
 /// The fixed λ values compared with auto (dimensionless).
@@ -86,7 +86,7 @@ fn disk(count: usize, protocol: &str) -> Result<Case, Box<dyn Error>> {
 /// `count` press centres, uniform inside `outline` and at least [`EDGE_MARGIN`] from its edge, in m.
 fn press_positions(outline: &Outline, count: usize) -> Vec<[f64; 2]> {
     let [lo, hi] = outline.bounds();
-    let mut rng = StdRng::seed_from_u64(PRESS_SEED);
+    let mut rng = SeededRng::seed_from_u64(PRESS_SEED);
     let mut positions = Vec::with_capacity(count);
     while positions.len() < count {
         let p = [rng.random_range(lo[0]..hi[0]), rng.random_range(lo[1]..hi[1])];

@@ -25,7 +25,7 @@
 
 pub mod imperfect;
 
-use rand::rngs::StdRng;
+use crate::SeededRng;
 use rand::Rng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -191,7 +191,7 @@ pub struct VirtualSensor {
     params: SimParams,
     presses: Vec<Press>,
     hours: f64,
-    rng: StdRng,
+    rng: SeededRng,
 }
 
 impl VirtualSensor {
@@ -215,7 +215,7 @@ impl VirtualSensor {
             params,
             presses: Vec::new(),
             hours: 0.0,
-            rng: StdRng::seed_from_u64(seed),
+            rng: SeededRng::seed_from_u64(seed),
         })
     }
 
@@ -436,7 +436,7 @@ impl Script {
         use rand::RngExt;
         let [lo, hi] = outline.bounds();
         let margin = 0.1 * (hi[0] - lo[0]);
-        let mut rng = StdRng::seed_from_u64(seed);
+        let mut rng = SeededRng::seed_from_u64(seed);
         let presses = (0..count)
             .map(|k| {
                 let position = [

@@ -26,7 +26,7 @@ pub mod learning;
 pub mod sweep;
 pub mod users;
 
-use rand::rngs::StdRng;
+use crate::SeededRng;
 use rand::{RngExt, SeedableRng};
 use thiserror::Error;
 
@@ -248,7 +248,7 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     let fine_frames = calibration_frames(&mut skin, &fine, &array, params.repeats, progress)?;
 
     progress("validation presses", 0, 1);
-    let mut rng = StdRng::seed_from_u64(params.seed ^ 0x5eed);
+    let mut rng = SeededRng::seed_from_u64(params.seed ^ 0x5eed);
     let blocks = [units_block(&array, 2, 0), units_block(&array, 2, params.grid.saturating_sub(3))];
     let validation: Vec<Press> = (0..params.validation)
         .map(|_| {

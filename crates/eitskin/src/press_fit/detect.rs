@@ -25,9 +25,9 @@
 //! Not for: presses closer together than about two indenter radii (their responses are then
 //! nearly the same vector), or a press much larger than the indenter.
 
+use crate::SeededRng;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, ColMut, ColRef, Mat, Par};
-use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
@@ -126,7 +126,7 @@ impl PressDetection {
         let std: Vec<f64> = std.iter().map(|s| if *s > 0.0 && s.is_finite() { *s } else { f64::INFINITY }).collect();
         let model = model.whitened(&std);
         let scan = Scan::new(&model);
-        let mut rng = StdRng::seed_from_u64(0x0d37_ec75);
+        let mut rng = SeededRng::seed_from_u64(0x0d37_ec75);
         let (mut noise, mut correlations) = (vec![0.0; model.measurements()], Vec::new());
         let misestimate = ChiSquared::new(dof).ok().filter(|_| dof.is_finite() && dof > 0.0);
         let maxima: Vec<f64> = (0..CALIBRATION_SAMPLES)

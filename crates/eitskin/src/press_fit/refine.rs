@@ -426,7 +426,8 @@ mod tests {
     /// wide side, by 16 %.
     #[test]
     fn the_equivalent_drops_variance_is_the_spread_of_its_fits() {
-        use rand::{rngs::StdRng, SeedableRng};
+        use crate::SeededRng;
+        use rand::SeedableRng;
         use rand_distr::{Distribution, StandardNormal};
         let truth = [Disk { centre: [0.03, -0.04], radius: 0.012, drop: 0.5 }];
         let (_, exact, v0, dv) = setup(1500, &truth);
@@ -439,7 +440,7 @@ mod tests {
             bounds: [[-0.1, -0.1], [0.1, 0.1]],
             converged_below: 0.0,
         };
-        let (mut rng, mut scratch, mut variances) = (StdRng::seed_from_u64(3), RefineScratch::default(), Vec::new());
+        let (mut rng, mut scratch, mut variances) = (SeededRng::seed_from_u64(3), RefineScratch::default(), Vec::new());
         let (mut equivalent, mut drops, mut predicted) = (Vec::new(), Vec::new(), 0.0);
         for _ in 0..300 {
             let noisy: Vec<f64> = dv

@@ -6,7 +6,7 @@
 //! What it yields is what a robot-pressed data set holds: per press, the frame pressed less
 //! the frame just before it (no shared reference), and the press's position and force.
 
-use rand::rngs::StdRng;
+use crate::SeededRng;
 use rand::{RngExt, SeedableRng};
 
 use super::{SimParams, VirtualSensor};
@@ -75,11 +75,15 @@ pub struct ImperfectSkin {
     frames_per_press: usize,
     /// The common gain the drift has reached.
     drift: f64,
-    rng: StdRng,
+    rng: SeededRng,
 }
 
 /// The spec as built: another outline and electrodes moved along it.
-pub fn built_spec(spec: &SensorSpec, imperfections: &Imperfections, rng: &mut StdRng) -> Result<SensorSpec, SpecError> {
+pub fn built_spec(
+    spec: &SensorSpec,
+    imperfections: &Imperfections,
+    rng: &mut SeededRng,
+) -> Result<SensorSpec, SpecError> {
     let mut built = spec.clone();
     let s = imperfections.scale;
     built.outline = match &spec.outline {
@@ -117,7 +121,7 @@ pub fn built_spec(spec: &SensorSpec, imperfections: &Imperfections, rng: &mut St
 impl ImperfectSkin {
     /// The skin of `spec` as built with `imperfections`, drawn from `seed`.
     pub fn new(spec: &SensorSpec, imperfections: &Imperfections, seed: u64) -> Result<ImperfectSkin, SpecError> {
-        let mut rng = StdRng::seed_from_u64(seed);
+        let mut rng = SeededRng::seed_from_u64(seed);
         let built = built_spec(spec, imperfections, &mut rng)?;
         let protocol = built.protocol()?;
         let spread = imperfections.gain_spread;
@@ -215,7 +219,7 @@ mod tests {
         let nominal = points(&spec);
         for circle in [false, true] {
             let imperfections = Imperfections { circle, electrode_shift: 0.0, ..Imperfections::default() };
-            let built = built_spec(&spec, &imperfections, &mut StdRng::seed_from_u64(1)).unwrap();
+            let built = built_spec(&spec, &imperfections, &mut SeededRng::seed_from_u64(1)).unwrap();
             for (a, b) in nominal.iter().zip(points(&built)) {
                 let turn = a[1].atan2(a[0]) - b[1].atan2(b[0]);
                 assert!(turn.sin().abs() < 1e-9 && turn.cos() > 0.0, "{a:?} → {b:?}");

@@ -32,7 +32,7 @@
 //!
 //! Not for: the paper's design (that is [`super::run`]).
 
-use rand::rngs::StdRng;
+use crate::SeededRng;
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 
@@ -193,7 +193,7 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
     let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?;
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [1, 1])?;
-    let mut rng = StdRng::seed_from_u64(params.seed);
+    let mut rng = SeededRng::seed_from_u64(params.seed);
 
     // Clean frames, once: the untouched sheet, calibration presses of the model's kind, scenes.
     let kinds = press_kinds();
@@ -344,7 +344,7 @@ fn level_rows(
     let Setup { params, recon, press_model, array, kinds } = *setup;
     let mut rows = Vec::new();
     // The virtual sensor's noise: independent, Gaussian, relative to each value.
-    let mut noise_rng = StdRng::seed_from_u64(params.seed ^ (l as u64 + 1).wrapping_mul(0x9e37_79b9));
+    let mut noise_rng = SeededRng::seed_from_u64(params.seed ^ (l as u64 + 1).wrapping_mul(0x9e37_79b9));
     let relative = level.relative();
     let mut noisy = |clean: &[f64]| -> Vec<f64> {
         let mut frame = clean.to_vec();
@@ -463,7 +463,7 @@ const DRAWS: usize = 10_000;
 /// `count` presses at random places inside `spec`'s outline, kept 20 mm from its edges and
 /// [`APART`] from each other, with random forces from 2 to 16 N; `None` if [`DRAWS`] places
 /// were not enough (the sheet is too small for them).
-fn scene(spec: &SensorSpec, rng: &mut StdRng, count: usize) -> Option<Vec<Press>> {
+fn scene(spec: &SensorSpec, rng: &mut SeededRng, count: usize) -> Option<Vec<Press>> {
     let [lo, hi] = spec.outline.bounds();
     let margin = 0.02;
     let inside = |p: [f64; 2]| {
@@ -644,7 +644,7 @@ mod tests {
     #[test]
     fn force_rms_intervals_hold_the_true_rms_about_95_percent_of_the_time() {
         use rand_distr::{Distribution, StandardNormal};
-        let mut rng = StdRng::seed_from_u64(5);
+        let mut rng = SeededRng::seed_from_u64(5);
         let mut normal = || -> f64 { StandardNormal.sample(&mut rng) };
         let mut held = |spread: f64| {
             let truth = (2.0 * spread * spread).exp().sqrt();
@@ -703,7 +703,7 @@ mod tests {
         let weights: Vec<f64> = frame.iter().map(|v| 1.0 / (relative * v.abs())).collect();
         let params = RefineParams { free_radii: 0, radius_range: [0.01, 0.01], bounds, converged_below: 0.0 };
         let exact = press_model.exact().unwrap();
-        let (mut rng, mut scratch) = (StdRng::seed_from_u64(4), RefineScratch::default());
+        let (mut rng, mut scratch) = (SeededRng::seed_from_u64(4), RefineScratch::default());
         let drops: Vec<f64> = (0..300)
             .map(|_| {
                 let mut noisy = frame.clone();
@@ -723,7 +723,7 @@ mod tests {
     /// Presses are placed apart and inside; a sheet too small for them gives up, never hangs.
     #[test]
     fn scenes_fit_the_sheet_or_are_given_up() {
-        let mut rng = StdRng::seed_from_u64(1);
+        let mut rng = SeededRng::seed_from_u64(1);
         let square = SensorSpec::square_hydrogel();
         let three = scene(&square, &mut rng, 3).unwrap();
         for (i, a) in three.iter().enumerate() {

@@ -24,7 +24,7 @@
 //!
 //! Not for: the noise sweep over every press kind (that is [`super::sweep`]).
 
-use rand::rngs::StdRng;
+use crate::SeededRng;
 use rand::{RngExt, SeedableRng};
 
 use super::{Progress, StudyError};
@@ -203,7 +203,7 @@ pub fn run(spec: &SensorSpec, params: &UsersParams, progress: Progress<'_>) -> R
     let electrodes = spec.electrode_positions()?;
     let paper_array = PseudoArray::by_symmetry(&spec.outline, &electrodes, [5, 5])?;
     let one = PseudoArray::by_symmetry(&spec.outline, &electrodes, [1, 1])?;
-    let mut rng = StdRng::seed_from_u64(params.seed ^ 0x05e7_5ca1);
+    let mut rng = SeededRng::seed_from_u64(params.seed ^ 0x05e7_5ca1);
     let places = Places::new(spec, &paper_array);
     let paper = paper_protocol(&paper_array);
     let robot: Vec<Press> =
@@ -229,7 +229,7 @@ pub fn run(spec: &SensorSpec, params: &UsersParams, progress: Progress<'_>) -> R
         let clean_pairs = skin.clean_frames(&pairs)?;
         for (l, &noise) in params.levels.iter().enumerate() {
             let mut noise_rng =
-                StdRng::seed_from_u64(params.seed ^ ((k * 16 + l) as u64 + 1).wrapping_mul(0x9e37_79b9));
+                SeededRng::seed_from_u64(params.seed ^ ((k * 16 + l) as u64 + 1).wrapping_mul(0x9e37_79b9));
             let mut noisy = |clean: &[f64]| {
                 let mut frame = clean.to_vec();
                 add_relative_noise(&mut frame, noise, &mut noise_rng);
@@ -347,7 +347,7 @@ fn force_figures(truth: &[f64], found: &[Option<TouchForce>]) -> (f64, f64) {
 }
 
 /// A force drawn uniformly from `low` to [`MAX_FORCE`], N.
-fn force(rng: &mut StdRng, low: f64) -> f64 {
+fn force(rng: &mut SeededRng, low: f64) -> f64 {
     rng.random_range(low..MAX_FORCE)
 }
 
@@ -368,7 +368,7 @@ impl<'a> Places<'a> {
     }
 
     /// A point on the sheet, at least [`EDGE_MARGIN`] inside its box.
-    fn anywhere(&self, rng: &mut StdRng) -> [f64; 2] {
+    fn anywhere(&self, rng: &mut SeededRng) -> [f64; 2] {
         let [lo, hi] = self.box_;
         loop {
             let p = [rng.random_range(lo[0]..hi[0]), rng.random_range(lo[1]..hi[1])];
@@ -379,7 +379,7 @@ impl<'a> Places<'a> {
     }
 
     /// A point outside the calibrated units.
-    fn elsewhere(&self, rng: &mut StdRng) -> [f64; 2] {
+    fn elsewhere(&self, rng: &mut SeededRng) -> [f64; 2] {
         loop {
             let p = self.anywhere(rng);
             if self.array.unit_at(p).is_some_and(|u| !self.calibrated.contains(&u)) {
@@ -389,7 +389,7 @@ impl<'a> Places<'a> {
     }
 
     /// Two presses of 2–16 N at least [`PAIR_APART`] apart.
-    fn pair(&self, rng: &mut StdRng) -> Vec<Press> {
+    fn pair(&self, rng: &mut SeededRng) -> Vec<Press> {
         let first = self.anywhere(rng);
         loop {
             let second = self.anywhere(rng);
