@@ -16,7 +16,7 @@ use eitskin::memory::Stage;
 use eitskin::noise::{NoiseModel, Significance};
 use eitskin::segmentation;
 use eitskin::touch::{detect_tested_into, labels, PeakOf, Polarity, Touch, TouchScratch};
-use eitskin::values::{signed_from_magnitudes, Component, Gains};
+use eitskin::values::{signed_from_magnitudes, Component, Gains, ValueKind};
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::build::ReferenceImaging;
 use eitskin_io::{FrameLayout, FrameSelect, FrameTable};
@@ -49,13 +49,13 @@ pub struct Input {
     #[arg(long)]
     reference_select: Option<String>,
     /// Frames as `rows` or `columns` of the array; `auto`: columns in MAT files, rows otherwise.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "rows", "columns"])]
-    layout: String,
+    #[arg(long, value_enum, default_value_t = LayoutFlag::Auto)]
+    layout: LayoutFlag,
     /// What the numbers are: `signed` voltages, `magnitude`s signed by the model, or `complex`
     /// (re, im) pairs, two numbers per measurement (complex MAT and NPY arrays are read as such
     /// whatever this says), imaged through --component.
-    #[arg(long, default_value = "signed", value_parser = ["signed", "magnitude", "complex"])]
-    values: String,
+    #[arg(long, value_enum, default_value_t = ValuesFlag::Signed)]
+    values: ValuesFlag,
     /// For complex data, the part imaged: real, imaginary, magnitude (signed by the model) or phase.
     #[arg(long, default_value = "real")]
     component: Component,
@@ -120,6 +120,49 @@ impl Input {
         let mut files = vec![("--reference", self.reference.as_path()), ("--frame", self.frame.as_path())];
         files.extend(self.spec.as_deref().map(|s| ("the spec", s)));
         files
+    }
+}
+
+/// `--values`, as clap reads it: what a board's or a file's numbers are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ValuesFlag {
+    /// Signed values, as the forward model gives them.
+    Signed,
+    /// Magnitudes |v|, signed by the model.
+    Magnitude,
+    /// (re, im) pairs, two numbers per measurement.
+    Complex,
+}
+
+impl ValuesFlag {
+    /// The library's value kind, complex pairs imaged through `component`.
+    pub fn kind(self, component: Component) -> ValueKind {
+        match self {
+            ValuesFlag::Signed => ValueKind::Signed,
+            ValuesFlag::Magnitude => ValueKind::Magnitude,
+            ValuesFlag::Complex => ValueKind::Complex(component),
+        }
+    }
+}
+
+/// `--layout`, as clap reads it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LayoutFlag {
+    /// Columns in MAT files, rows otherwise.
+    Auto,
+    /// One frame per row.
+    Rows,
+    /// One frame per column.
+    Columns,
+}
+
+impl From<LayoutFlag> for FrameLayout {
+    fn from(flag: LayoutFlag) -> FrameLayout {
+        match flag {
+            LayoutFlag::Auto => FrameLayout::Auto,
+            LayoutFlag::Rows => FrameLayout::Rows,
+            LayoutFlag::Columns => FrameLayout::Columns,
+        }
     }
 }
 
@@ -308,14 +351,10 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let spec = load::sized(load::spec(input.spec.as_deref())?, input.triangles, Stage::Reconstructor)?;
     let measurements = spec.protocol()?.measurements().len();
     eitskin::memory::check_raster(input.raster, measurements, eitskin_io::available_memory())?;
-    let layout = match input.layout.as_str() {
-        "rows" => FrameLayout::Rows,
-        "columns" => FrameLayout::Columns,
-        _ => FrameLayout::Auto,
-    };
+    let layout = FrameLayout::from(input.layout);
     let select = FrameSelect { variable: input.select.clone(), layout };
     let reference_select = FrameSelect { variable: input.reference_select.clone().or(input.select.clone()), layout };
-    let pairs = input.values == "complex";
+    let pairs = input.values == ValuesFlag::Complex;
     let mut references = frames(&eitskin_io::read_frames(&input.reference, &reference_select)?, input.component, pairs)
         .with_context(|| format!("reading {}", input.reference.display()))?;
     let mut table = frames(&eitskin_io::read_frames(&input.frame, &select)?, input.component, pairs)
@@ -350,7 +389,7 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     // A channel the spec drops, or a dead one, is missing (NaN) from here on: dropped from the
     // image and named by no check of the values.
     mark_missing(&spec.used_channels()?, &mut references, &mut selected);
-    let magnitudes = input.values == "magnitude" || input.component == Component::Magnitude;
+    let magnitudes = input.values == ValuesFlag::Magnitude || input.component == Component::Magnitude;
     if magnitudes {
         let mut unexplained = std::collections::BTreeSet::new();
         for v in &mut selected {

@@ -160,8 +160,8 @@ pub struct Args {
     stream_image: bool,
     /// What a board's numbers are: `signed` values, `magnitude`s (signed by the model), or
     /// `complex` (re, im) pairs, two numbers per measurement, imaged through --component.
-    #[arg(long, default_value = "signed", value_parser = ["signed", "magnitude", "complex"])]
-    values: String,
+    #[arg(long, value_enum, default_value_t = crate::imaging::ValuesFlag::Signed)]
+    values: crate::imaging::ValuesFlag,
     /// For complex values, the part imaged: real, imaginary, magnitude (signed by the model) or phase.
     #[arg(long, default_value = "real")]
     component: Component,
@@ -288,11 +288,7 @@ pub fn run(args: Args) -> Result<()> {
             params.frames_in_reference()
         );
     }
-    let kind = match args.values.as_str() {
-        "magnitude" => ValueKind::Magnitude,
-        "complex" => ValueKind::Complex(args.component),
-        _ => ValueKind::Signed,
-    };
+    let kind = args.values.kind(args.component);
     // The signed frame the pipeline takes, from what the board sends (allocated once).
     let model = pipeline.chain().reconstructor().linearisation().background().to_vec();
     let mut signed = vec![0.0; model.len()];
