@@ -47,6 +47,7 @@ mod press_model_file;
 mod protocol_file;
 mod raster_file;
 mod reconstructor_file;
+mod record_format;
 pub mod recorder;
 pub mod replay;
 mod samples_file;

@@ -29,7 +29,7 @@ use std::time::Duration;
 use serde::Deserialize;
 
 use crate::codec::{Decoder, Event, LinesDecoder};
-use crate::recorder::{parse_header, record_crc, Header, CRC_FIELD, CRC_TAIL};
+use crate::record_format::{parse_header, record_crc, Header, CRC_FIELD, CRC_TAIL};
 use crate::Error;
 
 /// A recording read back.

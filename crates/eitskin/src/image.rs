@@ -91,6 +91,59 @@ pub(crate) fn pixel_centre([lo, hi]: [[f64; 2]; 2], [nx, ny]: [usize; 2], col: u
     [lo[0] + (col as f64 + 0.5) * dx, hi[1] - (row as f64 + 0.5) * dy]
 }
 
+/// Which sign of conductivity change a press makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Polarity {
+    /// A press lowers the conductivity (the default, as in a hydrogel skin).
+    #[default]
+    Decrease,
+    /// A press raises the conductivity.
+    Increase,
+    /// Either: decreases and increases are both touches, each tagged with its sign.
+    Both,
+}
+
+impl Polarity {
+    /// The change `change` (Δσ, in S/m) in the press direction, in S/m: positive where pressed.
+    /// For [`Polarity::Both`], the magnitude |Δσ|.
+    pub fn intensity(self, change: f32) -> f64 {
+        match self {
+            Polarity::Decrease => -f64::from(change),
+            Polarity::Increase => f64::from(change),
+            Polarity::Both => f64::from(change.abs()),
+        }
+    }
+
+    /// The one-sign directions this stands for: itself, or decrease then increase for `Both`.
+    pub fn signs(self) -> [Option<Polarity>; 2] {
+        match self {
+            Polarity::Both => [Some(Polarity::Decrease), Some(Polarity::Increase)],
+            one => [Some(one), None],
+        }
+    }
+
+    /// The name in files and flags: `decrease`, `increase` or `both`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Polarity::Decrease => "decrease",
+            Polarity::Increase => "increase",
+            Polarity::Both => "both",
+        }
+    }
+}
+
+impl std::str::FromStr for Polarity {
+    type Err = String;
+
+    /// `decrease`, `increase` or `both`.
+    fn from_str(text: &str) -> Result<Polarity, String> {
+        [Polarity::Decrease, Polarity::Increase, Polarity::Both]
+            .into_iter()
+            .find(|p| p.name() == text)
+            .ok_or_else(|| format!("\"{text}\" is not a polarity: use decrease, increase or both"))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

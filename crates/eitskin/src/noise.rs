@@ -24,7 +24,7 @@
 //!
 //! ```
 //! use eitskin::noise::{NoiseModel, Significance};
-//! use eitskin::touch::Polarity;
+//! use eitskin::image::Polarity;
 //! use eitskin::{Reconstructor, ReconstructorParams, SensorSpec};
 //! let mut spec = SensorSpec::square_hydrogel();
 //! spec.mesh.triangles = 600;
@@ -49,9 +49,8 @@ use crate::SeededRng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::image::Image;
+use crate::image::{Image, Polarity};
 use crate::inverse::{InverseError, Reconstructor};
-use crate::touch::Polarity;
 
 /// Noise images drawn to find a false-alarm threshold.
 pub const CALIBRATION_SAMPLES: usize = 400;
@@ -255,9 +254,9 @@ impl Significance {
 
     /// The largest z of an image's `values` (row-major, as the map) toward `polarity`: the
     /// strongest any touch of it can be.
-    pub fn strongest(&self, values: &[f32], polarity: crate::touch::Polarity) -> f64 {
+    pub fn strongest(&self, values: &[f32], polarity: Polarity) -> f64 {
         let sign = polarity.intensity(1.0) as f32;
-        let both = matches!(polarity, crate::touch::Polarity::Both);
+        let both = matches!(polarity, Polarity::Both);
         // Sixteen running maxima, so that the pass vectorises; outside the outline 1/s is 0.
         let mut lanes = [0.0_f32; 16];
         for (v, w) in values.chunks(16).zip(self.inverse_std.chunks(16)) {
