@@ -29,10 +29,13 @@
 
 use thiserror::Error;
 
+/// The most electrodes a protocol (and a spec's `electrodes.count`) takes.
+pub const MAX_ELECTRODES: usize = 256;
+
 /// What is wrong with a protocol; indices in messages are 1-based, as a user counts.
 #[derive(Debug, Error, PartialEq)]
 pub enum ProtocolError {
-    /// More electrodes than a sensor may have ([`crate::spec::MAX_ELECTRODES`]).
+    /// More electrodes than a sensor may have ([`MAX_ELECTRODES`]).
     #[error("a protocol of {electrodes} electrodes: a sensor has at most {max}")]
     TooManyElectrodes {
         /// Electrode count asked for.
@@ -363,7 +366,7 @@ fn drive_and_measure_quads(l: usize, drive_offset: usize, measure_offset: usize,
 
 /// Refuses more electrodes than a sensor may have, before any pattern is made.
 fn check_electrode_count(electrodes: usize) -> Result<(), ProtocolError> {
-    let max = crate::spec::MAX_ELECTRODES;
+    let max = MAX_ELECTRODES;
     if electrodes > max {
         return Err(ProtocolError::TooManyElectrodes { electrodes, max });
     }
@@ -538,7 +541,7 @@ mod tests {
 
     #[test]
     fn more_electrodes_than_a_sensor_has_are_refused_before_any_pattern_is_made() {
-        let max = crate::spec::MAX_ELECTRODES;
+        let max = MAX_ELECTRODES;
         for protocol in
             [Protocol::two_terminal(100_000), Protocol::adjacent(100_000, true), Protocol::opposite(max + 1)]
         {

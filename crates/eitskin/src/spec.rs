@@ -167,8 +167,8 @@ pub const MAX_LENGTH: f64 = 1e3;
 /// The most triangles `mesh.triangles` takes.
 pub const MAX_TRIANGLES: usize = 100_000_000;
 
-/// The most electrodes `electrodes.count` takes.
-pub const MAX_ELECTRODES: usize = 256;
+/// The most electrodes `electrodes.count` takes (a protocol's limit).
+pub use crate::protocol::MAX_ELECTRODES;
 
 /// A number in a message, in the unit the user gave it in: a value as written shows to 15
 /// significant figures (so that 15.7 mm converted to metres and back reads 15.7 mm, not

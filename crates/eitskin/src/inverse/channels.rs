@@ -183,7 +183,7 @@ pub fn mean_of_finite(frames: &[Vec<f64>]) -> Vec<f64> {
 /// each variance is floored at a tenth of the median channel's, so that no channel is
 /// trusted without limit.
 pub fn noise_variance(frames: &[Vec<f64>]) -> Option<Vec<f64>> {
-    crate::noise::NoiseModel::from_frames(frames).map(|model| model.relative_variance())
+    super::NoiseModel::from_frames(frames).map(|model| model.relative_variance())
 }
 
 /// Each finite variance raised to at least a tenth of the median finite one.

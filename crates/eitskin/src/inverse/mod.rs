@@ -19,6 +19,7 @@ mod criterion;
 pub(crate) mod helper;
 mod hyperparameter;
 mod linearisation;
+mod noise_model;
 mod prior;
 mod product;
 mod raster;
@@ -34,6 +35,7 @@ pub use hyperparameter::{
     DEFAULT_RELATIVE_NOISE, LARGEST_HYPERPARAMETER, NOISE_FIGURE_TARGET, TARGET_CONTRAST,
 };
 pub use linearisation::Linearisation;
+pub use noise_model::NoiseModel;
 pub use prior::Prior;
 pub use product::BlockedMatrix;
 pub use raster::{Reconstructor, ReconstructorParams};
