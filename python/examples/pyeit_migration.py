@@ -1,4 +1,4 @@
-"""From pyEIT to eitskin, side by side, on pyEIT's own mesh (../shared/reference/pyeit).
+"""From pyEIT to eitskin, side by side, on pyEIT's own mesh (testdata/reference/pyeit).
 
 pyEIT (1.2.4):                                   eitskin:
     mesh_obj = mesh.create(16, h0=0.048, ...)        mesh = eitskin.mesh_from_pyeit(mesh_obj)
@@ -12,7 +12,6 @@ pyEIT (1.2.4):                                   eitskin:
     python pyeit_migration.py [path/to/square16_4k.json]
 """
 import json
-import os
 import pathlib
 import sys
 
@@ -20,10 +19,8 @@ import numpy as np
 
 import eitskin
 
-# The file given, else under $EITSKIN_SHARED, else ../shared beside the checkout.
-here = pathlib.Path(__file__).resolve()
-root = pathlib.Path(os.environ.get("EITSKIN_SHARED") or here.parents[2] / ".." / "shared")
-default = root / "reference" / "pyeit" / "square16_4k.json"
+# The file given, else the repository's copy of pyEIT's results.
+default = pathlib.Path(__file__).resolve().parents[2] / "testdata" / "reference" / "pyeit" / "square16_4k.json"
 data = json.loads(pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else default).read_text())
 m = data["mesh"]
 mesh = eitskin.mesh_from_pyeit(node=m["nodes"], element=m["triangles"], el_pos=m["electrode_nodes"])

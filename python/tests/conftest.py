@@ -1,25 +1,14 @@
-"""What the tests share: where the reference data are.
+"""What the tests share: where the reference results are.
 
-`$EITSKIN_SHARED`, else `../shared` beside the checkout, as the Rust tests find it
-(crates/eitskin-testdata). A test whose data are missing fails and says where it looked: a
-comparison not made is never a pass.
+The EIDORS and pyEIT results live in the repository (`testdata/reference/`, with READMEs that
+state their conventions and provenance), as the Rust tests find them (crates/eitskin-testdata).
 """
 
-import os
 import pathlib
-
-import pytest
 
 CHECKOUT = pathlib.Path(__file__).resolve().parents[2]
 
 
-def shared(*parts):
-    """The path `parts` under the shared folder; fails the test when it is not there."""
-    root = pathlib.Path(os.environ.get("EITSKIN_SHARED") or CHECKOUT / ".." / "shared")
-    path = root.joinpath(*parts)
-    if not path.exists():
-        pytest.fail(
-            f"{path} is missing: the reference data live in ../shared beside the checkout, or set EITSKIN_SHARED",
-            pytrace=False,
-        )
-    return path
+def reference(*parts):
+    """The path `parts` under the repository's `testdata/reference`."""
+    return CHECKOUT.joinpath("testdata", "reference", *parts)

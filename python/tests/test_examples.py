@@ -5,7 +5,7 @@ import re
 import subprocess
 import sys
 
-from conftest import shared
+from conftest import reference
 
 EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples"
 
@@ -27,7 +27,7 @@ def test_the_papers_chain_finds_the_press_and_gives_a_force():
 
 
 def test_the_pyeit_migration_reproduces_pyeit():
-    out = run("pyeit_migration.py", str(shared("reference", "pyeit", "square16_4k.json")))
+    out = run("pyeit_migration.py", str(reference("pyeit", "square16_4k.json")))
     assert float(re.search(r"voltages vs pyEIT: (\S+)", out).group(1)) < 1e-10
     assert "image peak -0.227 S/m at [0.428 0.012]" in out
 

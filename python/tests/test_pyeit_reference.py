@@ -1,4 +1,4 @@
-"""pyEIT 1.2.4's numbers on its own mesh (../shared/reference/pyeit), reproduced from Python:
+"""pyEIT 1.2.4's numbers on its own mesh (testdata/reference/pyeit), reproduced from Python:
 voltages to 1e-10, Jacobian and one-step NOSER images (plain and normalised) to 1e-8 of the peak."""
 
 import json
@@ -8,11 +8,11 @@ import pytest
 
 import eitskin
 
-from conftest import shared
+from conftest import reference
 
 
 def load(name):
-    return json.loads(shared("reference", "pyeit", name).read_text())
+    return json.loads(reference("pyeit", name).read_text())
 
 
 def relative(ours, theirs):

@@ -38,14 +38,14 @@ fn forward_on_eidors_mesh_matches_eidors() {
     let dir = scratch("eidors");
     let spec = dir.join("square.toml");
     std::fs::write(&spec, EIDORS_SQUARE).unwrap();
-    let mesh = eitskin_testdata::shared().join("reference/eidors/mesh.json");
+    let mesh = eitskin_testdata::reference("eidors/mesh.json");
     for (protocol, file) in [("two-terminal", "two_terminal"), ("adjacent", "adjacent")] {
         let out =
             dir.eitskin(&["forward", spec.to_str().unwrap(), "--mesh", mesh.to_str().unwrap(), "--protocol", protocol]);
         let json = stdout_json(&out);
         let ours = floats(&json["measurements"]);
         let reference: serde_json::Value =
-            serde_json::from_str(&eitskin_testdata::read(&format!("reference/eidors/protocol_{file}.json"))).unwrap();
+            serde_json::from_str(&eitskin_testdata::read_reference(&format!("eidors/protocol_{file}.json"))).unwrap();
         let err = max_relative_error(&ours, &floats(&reference["v_homog"]));
         assert!(err < 1e-6, "{protocol}: {err:e}");
         assert_eq!(json["triangles"], 3200);

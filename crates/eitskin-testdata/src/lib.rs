@@ -1,12 +1,16 @@
-//! Where the shared reference data live, for the tests of every eitskin crate that compare
-//! against them (EIDORS and pyEIT results, recorded OpenEIT captures).
+//! Where the test data live, for the tests of every eitskin crate that compare against them.
 //!
-//! The data are not in the repository: they sit in a `shared/` folder beside the checkout, or
-//! wherever `$EITSKIN_SHARED` points. When they are missing, [`shared`] fails the test that asked
-//! for them, saying that it did not run: a reference comparison that did not run must never look
-//! like one that passed.
+//! - [`reference()`]: the EIDORS and pyEIT results on the paper's square, with the READMEs that
+//!   state their conventions and provenance. They are in the repository
+//!   (`testdata/reference/`), so a fresh clone tests alone.
+//! - [`shared()`]: other groups' recorded captures (OpenEIT boards, tanks, skins), whose licences
+//!   keep them out of the repository. They sit in a `shared/` folder beside the checkout, or
+//!   wherever `$EITSKIN_SHARED` points; when they are missing, [`shared()`] fails the test that
+//!   asked for them, saying that it did not run: a comparison that did not run must never look
+//!   like one that passed.
 //!
-//! It also writes test input in the field's file formats ([`mat5`]), so tests need no MATLAB.
+//! It also writes test input in the field's file formats ([`npy`], [`mat5`]), so tests need
+//! no numpy or MATLAB.
 //!
 //! A dev-dependency only (`publish = false`), with nothing beyond `std`; parsing what it reads is
 //! the caller's business. Not for library or binary code.
@@ -14,7 +18,21 @@
 
 use std::path::{Path, PathBuf};
 
-/// `../shared` beside the checkout (or `$EITSKIN_SHARED`). Its absence fails the test loudly.
+/// The repository's `testdata/reference` folder (EIDORS and pyEIT results), or the file at
+/// `relative` under it.
+pub fn reference(relative: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/reference").join(relative)
+}
+
+/// The text of the file at `relative` under [`reference()`]; a failure naming the path if unreadable.
+#[track_caller]
+pub fn read_reference(relative: &str) -> String {
+    let path = reference(relative);
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// `../shared` beside the checkout (or `$EITSKIN_SHARED`), which holds third-party captures
+/// under `data/`. Its absence fails the test loudly.
 #[track_caller]
 pub fn shared() -> PathBuf {
     let dir = std::env::var_os("EITSKIN_SHARED")
@@ -23,23 +41,16 @@ pub fn shared() -> PathBuf {
     checked(dir)
 }
 
-/// `dir` itself when it holds the reference data, else a failure that says the test did not run.
+/// `dir` itself when it holds the captures, else a failure that says the test did not run.
 #[track_caller]
 fn checked(dir: PathBuf) -> PathBuf {
     assert!(
-        dir.join("reference").is_dir(),
-        "THIS TEST DID NOT RUN: the shared reference data are not at {} (put the shared/ folder beside \
-         the checkout, or set EITSKIN_SHARED)",
-        dir.display()
+        dir.join("data").is_dir(),
+        "THIS TEST DID NOT RUN: the third-party captures are not at {} (their licences keep them \
+         out of the repository: put the shared/ folder beside the checkout, or set EITSKIN_SHARED)",
+        dir.join("data").display()
     );
     dir
-}
-
-/// The text of the file at `relative` under the shared folder; a failure naming the path if unreadable.
-#[track_caller]
-pub fn read(relative: &str) -> String {
-    let path = shared().join(relative);
-    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 /// The largest |a − b| over the largest |b| (dimensionless).
@@ -100,6 +111,13 @@ mod tests {
     #[should_panic(expected = "THIS TEST DID NOT RUN")]
     fn a_missing_folder_fails_and_says_the_test_did_not_run() {
         checked(PathBuf::from("/nonexistent/eitskin-shared"));
+    }
+
+    #[test]
+    fn the_reference_results_are_in_the_repository() {
+        for file in ["eidors/README.md", "eidors/mesh.json", "pyeit/README.md", "pyeit/square16_4k.json"] {
+            assert!(reference(file).is_file(), "{} is missing", reference(file).display());
+        }
     }
 
     #[test]

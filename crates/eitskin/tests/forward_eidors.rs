@@ -1,15 +1,15 @@
 //! On EIDORS' own 40×40 mesh of the 2×2 square, eitskin's complete electrode model
 //! gives EIDORS' voltages (both protocols, homogeneous and all 20 inclusions) to 1e-6 relative.
-//! Conventions are in `shared/reference/eidors/README.md`.
+//! Conventions are in `testdata/reference/eidors/README.md`.
 
 mod common;
 
 use common::{floats, json};
 use eitskin::{ElectrodeModel, ForwardModel, Protocol};
-use eitskin_testdata::{max_relative_error, shared};
+use eitskin_testdata::{max_relative_error, reference};
 
 fn model(protocol: Protocol) -> ForwardModel {
-    let mesh = eitskin_io::read_mesh(&shared().join("reference/eidors/mesh.json")).unwrap();
+    let mesh = eitskin_io::read_mesh(&reference("eidors/mesh.json")).unwrap();
     assert_eq!((mesh.nodes().len(), mesh.triangles().len()), (1681, 3200));
     let electrodes = ElectrodeModel::Complete { contact_impedance: vec![0.01; 16] };
     ForwardModel::new(mesh, electrodes, 1.0, protocol).unwrap()
@@ -17,7 +17,7 @@ fn model(protocol: Protocol) -> ForwardModel {
 
 /// EIDORS' quads (0-based in its file) as a protocol.
 fn protocol(name: &str) -> Protocol {
-    let file = json(&format!("reference/eidors/protocol_{name}.json"));
+    let file = json(&format!("eidors/protocol_{name}.json"));
     let quads: Vec<[usize; 4]> = file["quads"]
         .as_array()
         .unwrap()
@@ -35,7 +35,7 @@ fn check(name: &str, builtin: Protocol) {
     let file = protocol(name);
     assert_eq!(file.measurements(), builtin.measurements(), "our {name} protocol is EIDORS' order");
     let model = model(builtin);
-    let reference = json(&format!("reference/eidors/protocol_{name}.json"));
+    let reference = json(&format!("eidors/protocol_{name}.json"));
     let homogeneous = vec![1.0; 3200];
     let v = model.measure(&homogeneous).unwrap();
     let v_ref = floats(&reference["v_homog"]);
@@ -43,7 +43,7 @@ fn check(name: &str, builtin: Protocol) {
     eprintln!("{name}: homogeneous, worst relative error {err:.2e}");
     assert!(err < 1e-6, "{name}: homogeneous voltages differ by {err:e}");
 
-    let cases = json(&format!("reference/eidors/cases_{name}.json"));
+    let cases = json(&format!("eidors/cases_{name}.json"));
     let mut worst = (0.0f64, 0.0f64);
     for case in cases["cases"].as_array().unwrap() {
         let mut sigma = homogeneous.clone();

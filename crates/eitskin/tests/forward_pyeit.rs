@@ -1,6 +1,6 @@
 //! With point electrodes on pyEIT's own distmesh of the 2×2 square, eitskin gives
 //! pyEIT's adjacent (and pair) voltages to 1e-8 relative, homogeneous and with an inclusion.
-//! Conventions are in `shared/reference/pyeit/README.md`.
+//! Conventions are in `testdata/reference/pyeit/README.md`.
 
 mod common;
 
@@ -9,7 +9,7 @@ use eitskin::{ElectrodeModel, ForwardModel, Mesh, Protocol};
 use eitskin_testdata::max_relative_error;
 
 fn pyeit_model(protocol: Protocol) -> (ForwardModel, serde_json::Value) {
-    let data = json("reference/pyeit/square16_4k.json");
+    let data = json("pyeit/square16_4k.json");
     let m = &data["mesh"];
     let nodes: Vec<[f64; 2]> =
         m["nodes"].as_array().unwrap().iter().map(|p| [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()]).collect();

@@ -6,14 +6,14 @@ mod common;
 use common::{floats, json};
 use eitskin::inverse::{reconstruction_matrix, Prior};
 use eitskin::{ElectrodeModel, ForwardModel, Protocol};
-use eitskin_testdata::{max_relative_error, shared};
+use eitskin_testdata::{max_relative_error, reference};
 
 fn check(name: &str, protocol: Protocol) {
-    let mesh = eitskin_io::read_mesh(&shared().join("reference/eidors/mesh.json")).unwrap();
+    let mesh = eitskin_io::read_mesh(&reference("eidors/mesh.json")).unwrap();
     let electrodes = ElectrodeModel::Complete { contact_impedance: vec![0.01; 16] };
     let model = ForwardModel::new(mesh, electrodes, 1.0, protocol).unwrap();
     let jacobian = model.jacobian(&model.solve(&vec![1.0; 3200]).unwrap());
-    let reference = json(&format!("reference/eidors/protocol_{name}.json"));
+    let reference = json(&format!("eidors/protocol_{name}.json"));
 
     let rows = reference["jacobian_rows_index"].as_array().unwrap();
     for (row, values) in rows.iter().zip(reference["jacobian_rows"].as_array().unwrap()) {
@@ -29,7 +29,7 @@ fn check(name: &str, protocol: Protocol) {
 
     let rm = reconstruction_matrix(jacobian.as_ref(), &Prior::Noser { exponent: 0.5 }, 0.1, model.mesh()).unwrap();
     let mut worst = 0.0f64;
-    let cases = json(&format!("reference/eidors/cases_{name}.json"));
+    let cases = json(&format!("eidors/cases_{name}.json"));
     for case in cases["cases"].as_array().unwrap() {
         let dv = floats(&case["dv"]);
         let image: Vec<f64> = (0..3200).map(|k| (0..dv.len()).map(|m| rm[(k, m)] * dv[m]).sum()).collect();

@@ -10,7 +10,7 @@ use eitskin::{ElectrodeModel, ForwardModel, Mesh, Prior, Protocol};
 use eitskin_testdata::max_relative_error;
 
 fn model() -> (ForwardModel, serde_json::Value) {
-    let data = json("reference/pyeit/square16_4k.json");
+    let data = json("pyeit/square16_4k.json");
     let m = &data["mesh"];
     let point = |p: &serde_json::Value| [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()];
     let nodes: Vec<[f64; 2]> = m["nodes"].as_array().unwrap().iter().map(point).collect();
@@ -25,7 +25,7 @@ fn model() -> (ForwardModel, serde_json::Value) {
 #[test]
 fn jacobian_and_images_match_pyeit() {
     let (model, data) = model();
-    let recon = json("reference/pyeit/square16_4k_jacobian_recon.json");
+    let recon = json("pyeit/square16_4k_jacobian_recon.json");
     let n = model.mesh().triangles().len();
     let solution = model.solve(&vec![1.0; n]).unwrap();
     let jacobian = model.jacobian(&solution);

@@ -6,7 +6,7 @@ use eitskin::{LengthUnit, Reconstructor, ReconstructorParams, SensorSpec};
 
 #[test]
 fn peak_profile_has_the_shape_of_eidors() {
-    let csv = eitskin_testdata::read("reference/eidors/peaks_two_terminal.csv");
+    let csv = eitskin_testdata::read_reference("eidors/peaks_two_terminal.csv");
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').map(str::trim).collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name} in {header:?}"));

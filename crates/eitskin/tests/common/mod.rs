@@ -1,10 +1,10 @@
-//! The shared reference data as JSON, for the tests that compare against them.
+//! The reference results (EIDORS, pyEIT) as JSON, for the tests that compare against them.
 // Each test binary uses a subset of these helpers.
 #![allow(dead_code)]
 
-/// Reads a JSON file under the shared folder (see [`eitskin_testdata::shared`]).
+/// Reads a JSON file under the repository's reference folder (see [`eitskin_testdata::reference`]).
 pub fn json(relative: &str) -> serde_json::Value {
-    serde_json::from_str(&eitskin_testdata::read(relative)).unwrap_or_else(|e| panic!("{relative}: {e}"))
+    serde_json::from_str(&eitskin_testdata::read_reference(relative)).unwrap_or_else(|e| panic!("{relative}: {e}"))
 }
 
 /// A JSON array of numbers as a vector.
