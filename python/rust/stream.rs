@@ -424,21 +424,10 @@ impl Pipeline {
     ) -> PyResult<Pipeline> {
         use eitskin::inverse::{Hyperparameter, HyperparameterRule};
         use eitskin::pipeline::{NoiseFloor, PipelineParams};
+        use eitskin_io::build::ChainSetup;
         let reference_frames = crate::count(reference_frames, "reference_frames")?;
         let average = crate::count(average, "average")?;
         let reference_limit = crate::count(reference_limit, "reference_limit")?;
-        if !(1..=10_000).contains(&reference_frames) {
-            return Err(fail(format!("reference_frames must be 1 to 10000, got {reference_frames}")));
-        }
-        if !(1..=1_000_000).contains(&reference_limit) {
-            return Err(fail(format!("reference_limit must be 1 to 1000000, got {reference_limit}")));
-        }
-        if !(false_alarm_rate > 0.0 && false_alarm_rate <= 0.5) {
-            return Err(fail(format!("false_alarm_rate must be in (0, 0.5], got {false_alarm_rate}")));
-        }
-        if !(1..=1000).contains(&average) {
-            return Err(fail(format!("average must be 1 to 1000 frames, got {average}")));
-        }
         let spec = &spec.0;
         if let Some(c) = calibration {
             let key = |s: &eitskin::SensorSpec| eitskin_io::spec_key(s).map_err(error);
@@ -469,28 +458,6 @@ impl Pipeline {
                 Hyperparameter::Fixed(lambda)
             }
         };
-        let chain = py.detach(|| -> Result<eitskin::chain::Chain, String> {
-            let params = eitskin::ReconstructorParams {
-                hyperparameter: match hyperparameter {
-                    Hyperparameter::Fixed(value) => value,
-                    // Chosen once the reference frames are in; until then, the paper's.
-                    Hyperparameter::Auto => eitskin::ReconstructorParams::default().hyperparameter,
-                },
-                normalised: calibration.is_some_and(|c| c.file.imaging.normalised),
-                ..eitskin::ReconstructorParams::default()
-            };
-            let strength = calibration.map_or(eitskin::strength::Strength::Peak, |c| c.file.calibration.strength);
-            let touch = eitskin::TouchParams::default();
-            let mut chain =
-                eitskin_io::build::chain(spec, &params, touch, strength, fit).map_err(|e| crate::message(&e))?;
-            if let Some(c) = calibration {
-                chain = chain
-                    .with_calibration(c.file.array.clone(), c.file.calibration.clone())
-                    .map_err(|e| crate::message(&e))?;
-            }
-            Ok(chain)
-        });
-        let chain = chain.map_err(fail)?;
         let params = PipelineParams {
             reference_frames,
             reference_limit,
@@ -499,7 +466,20 @@ impl Pipeline {
             auto_hyperparameter: hyperparameter == Hyperparameter::Auto,
             ..PipelineParams::default()
         };
-        Ok(Pipeline(eitskin::pipeline::Pipeline::new(chain, params)))
+        let recon = eitskin::ReconstructorParams {
+            hyperparameter: match hyperparameter {
+                Hyperparameter::Fixed(value) => value,
+                // Chosen once the reference frames are in; until then, the paper's.
+                Hyperparameter::Auto => eitskin::ReconstructorParams::default().hyperparameter,
+            },
+            normalised: calibration.is_some_and(|c| c.file.imaging.normalised),
+            ..eitskin::ReconstructorParams::default()
+        };
+        let calibration = calibration.map(|c| (c.file.array.clone(), c.file.calibration.clone()));
+        let setup = ChainSetup { fit, calibration, ..ChainSetup::new(recon) };
+        // The settings are checked before the chain is built (seconds, on a first run).
+        let pipeline = py.detach(|| eitskin_io::build::pipeline(spec, setup, params));
+        Ok(Pipeline(pipeline.map_err(|e| fail(crate::message(&e)))?))
     }
 
     /// Feeds one frame (V, protocol order): "referencing" while the reference is taken, then

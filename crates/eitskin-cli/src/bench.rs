@@ -141,10 +141,44 @@ fn learned(spec: &eitskin::SensorSpec) -> Result<(Timing, Timing, Timing, Timing
     Ok((t_train, t_frame, t_train_press, t_frame_press))
 }
 
+/// The timings of the named stages: the setup's (the forward chain's first, [`FORWARD`] of
+/// them), and each frame's.
+#[derive(Default)]
+struct Stages {
+    setup: Vec<(&'static str, Timing)>,
+    per_frame: Vec<(&'static str, Timing)>,
+}
+
+/// The stages of the forward setup chain, the first of [`Stages::setup`].
+const FORWARD: usize = 6;
+
+/// Frames each per-frame stage is timed over.
+const FRAMES: usize = 2001;
+
 /// Runs `eitskin bench`.
 pub fn run(args: Args) -> Result<()> {
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
     let n = args.repeat;
+    let mut stages = Stages::default();
+    let (model, values) = forward(&spec, n, &mut stages)?;
+    let recon = inverse(&spec, &model, n, &mut stages)?;
+    let (frame, pixels, touches) = frames(&spec, &model, &recon, &values, n, &mut stages)?;
+    let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
+    stages.per_frame.push(("replay_latency", replay_latency));
+    simulated(&spec, n, &mut stages)?;
+    let (t_learn, t_learned_frame, t_learn_press, t_learned_press_frame) = learned(&spec)?;
+    stages.setup.extend([("learn_1000_presses", t_learn), ("learn_1000_presses_press", t_learn_press)]);
+    stages.per_frame.extend([("learned_frame", t_learned_frame), ("learned_press_frame", t_learned_press_frame)]);
+    let sizes = [model.mesh().triangles().len(), model.mesh().nodes().len(), values.len(), pixels, touches];
+    match args.json {
+        true => print_json(&stages, sizes, n, replay_fps),
+        false => print_text(&stages, sizes, n, replay_fps),
+    }
+    Ok(())
+}
+
+/// The forward setup chain, stage by stage: the model and its frame at the background.
+fn forward(spec: &eitskin::SensorSpec, n: usize, stages: &mut Stages) -> Result<(eitskin::ForwardModel, Vec<f64>)> {
     let (t_mesh, mesh) = time(n, || Ok(spec.mesh()?))?;
     let (t_model, model) = time(n, || Ok(spec.forward_model_on(mesh.clone())?))?;
     let sigma = spec.homogeneous(model.mesh());
@@ -157,26 +191,57 @@ pub fn run(args: Args) -> Result<()> {
         Ok(())
     })?;
     let (t_jacobian, _) = time(n, || Ok(model.jacobian(&solution)))?;
+    stages.setup.extend([
+        ("mesh", t_mesh),
+        ("model", t_model),
+        ("assembly", t_assembly),
+        ("factorisation", t_factor),
+        ("solves", t_solves),
+        ("measurements", t_measure),
+        ("jacobian", t_jacobian),
+    ]);
+    Ok((model, values))
+}
+
+/// The reconstructor, derived again without a channel gone bad, and its automatic λ.
+fn inverse(
+    spec: &eitskin::SensorSpec,
+    model: &eitskin::ForwardModel,
+    n: usize,
+    stages: &mut Stages,
+) -> Result<Reconstructor> {
     let params = ReconstructorParams::default();
-    let background = spec.conductivity;
-    let (t_recon, recon) = time(n, || Ok(Reconstructor::new(&model, background, &params)?))?;
-    // A channel gone bad: the reconstructor derived again without it, from the linearisation.
+    let (t_recon, recon) = time(n, || Ok(Reconstructor::new(model, spec.conductivity, &params)?))?;
     let mut mask = vec![true; recon.measurements()];
     mask[0] = false;
     let channels = Channels::all(mask.len()).masked(&mask);
     let (t_drop, _) = time(n, || Ok(recon.derive(params.hyperparameter, channels.clone())?))?;
     let (t_auto, _) = time(n.min(3), || Ok(recon.with_auto_hyperparameter(Channels::all(mask.len()), None)?))?;
-    // A frame with a press at (30 %, −20 %) of the half-width, so the touch stage finds one.
+    stages.setup.extend([("reconstructor", t_recon), ("drop_channel", t_drop), ("auto_hyperparameter", t_auto)]);
+    Ok(recon)
+}
+
+/// Each frame's stages on a press at (30 %, −20 %) of the half-width: image, touches, the press
+/// fitted; then three presses found against 0.05 % noise, afresh and carried, and at 0.01 %.
+/// The pressed frame, the image's pixels and the touches found.
+fn frames(
+    spec: &eitskin::SensorSpec,
+    model: &eitskin::ForwardModel,
+    recon: &Reconstructor,
+    values: &[f64],
+    n: usize,
+    stages: &mut Stages,
+) -> Result<(Vec<f64>, usize, usize)> {
+    let background = spec.conductivity;
     let [lo, hi] = model.mesh().bounds();
     let half = (hi[0] - lo[0]) / 2.0;
     let press = Inclusion { centre: [0.3 * half, -0.2 * half], radius: 0.1 * half, conductivity: 0.5 * background };
     let frame = model.measure(&with_inclusions(model.mesh(), background, &[press]))?;
     let mut image = recon.blank_image();
-    let frames = 2001;
-    let (t_image, ()) = time(frames, || Ok(recon.image_into(&values, &frame, &mut image)?))?;
+    let (t_image, ()) = time(FRAMES, || Ok(recon.image_into(values, &frame, &mut image)?))?;
     let (mut scratch, mut touches) = (TouchScratch::new(image.size), Vec::with_capacity(16));
     let touch_params = TouchParams::default();
-    let (t_touches, ()) = time(frames, || {
+    let (t_touches, ()) = time(FRAMES, || {
         detect_into(&image, &touch_params, &mut scratch, &mut touches);
         Ok(())
     })?;
@@ -184,28 +249,34 @@ pub fn run(args: Args) -> Result<()> {
     // The press model with its exact responses, on a coarser mesh of the sensor when this one is
     // too fine to keep its inverse whole (that mesh's build is counted).
     let (t_press_model, press_model) = time(n.min(3), || {
-        let exact = exact_model_for(&spec, &model)?;
-        Ok(PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), background, &press_params)?)
+        let exact = exact_model_for(spec, model)?;
+        Ok(PressModel::with_exact_model(model, exact.as_ref().unwrap_or(model), background, &press_params)?)
     })?;
-    let dv: Vec<f64> = frame.iter().zip(&values).map(|(v, r)| v - r).collect();
+    let dv: Vec<f64> = frame.iter().zip(values).map(|(v, r)| v - r).collect();
     let starts: Vec<[f64; 2]> = touches.iter().map(|t| t.centre).collect();
     let (mut press_scratch, mut fits) = (PressScratch::default(), Vec::with_capacity(16));
-    let (t_fit, ()) = time(frames, || Ok(press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits)?))?;
-    // Three presses at once, found in Δv against 0.05 % noise per value (the reference of 10 frames).
-    let std: Vec<f64> = values.iter().map(|v| 5e-4 * v.abs() * 1.1_f64.sqrt()).collect();
-    let (t_detection, detection) = time(n.min(3), || Ok(PressDetection::new(&press_model, &std, 9.0, 1e-3)?))?;
+    let (t_fit, ()) = time(FRAMES, || Ok(press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits)?))?;
+    stages.setup.push(("press_model", t_press_model));
+    stages.per_frame.extend([("frame_image", t_image), ("frame_touches", t_touches), ("frame_press_fit", t_fit)]);
     let three = [([-0.3, 0.4], 0.25), ([0.4, -0.2], 0.5), ([0.6, 0.7], 0.6)].map(|(at, drop)| Inclusion {
         centre: [at[0] * half, at[1] * half],
         radius: press_params.radius,
         conductivity: (1.0 - drop) * background,
     });
     let pressed = model.measure(&with_inclusions(model.mesh(), background, &three))?;
-    let dv3: Vec<f64> = pressed.iter().zip(&values).map(|(v, r)| v - r).collect();
-    let (mut whitened, mut found) = (Vec::new(), Vec::with_capacity(16));
-    let (t_detect, ()) =
-        time(201, || Ok(detection.detect_into(&dv3, &mut whitened, &mut press_scratch, &mut found)?))?;
-    // The same presses held over a stream of 201 frames, each with its own draw of the noise:
-    // found afresh in each, and carried from frame to frame.
+    let dv3: Vec<f64> = pressed.iter().zip(values).map(|(v, r)| v - r).collect();
+    three_presses(&press_model, values, &dv3, n, stages)?;
+    Ok((frame, image.values.len(), touches.len()))
+}
+
+/// Three presses (Δv `dv3`) found against 0.05 % noise per value (the reference of 10 frames):
+/// on the noiseless frame, on 201 frames each with its own noise, found afresh and carried from
+/// frame to frame; and carried at 0.01 % (the virtual sensor's noise, a reference of 100 frames).
+fn three_presses(press_model: &PressModel, values: &[f64], dv3: &[f64], n: usize, stages: &mut Stages) -> Result<()> {
+    let std: Vec<f64> = values.iter().map(|v| 5e-4 * v.abs() * 1.1_f64.sqrt()).collect();
+    let (t_detection, detection) = time(n.min(3), || Ok(PressDetection::new(press_model, &std, 9.0, 1e-3)?))?;
+    let (mut whitened, mut found, mut scratch) = (Vec::new(), Vec::with_capacity(16), PressScratch::default());
+    let (t_detect, ()) = time(201, || Ok(detection.detect_into(dv3, &mut whitened, &mut scratch, &mut found)?))?;
     let mut rng = eitskin::SeededRng::seed_from_u64(7);
     let mut held_under = |std: &[f64]| -> Vec<Vec<f64>> {
         let mut draw = || Distribution::<f64>::sample(&StandardNormal, &mut rng);
@@ -215,103 +286,90 @@ pub fn run(args: Args) -> Result<()> {
     let mut next = 0;
     let (t_noisy, ()) = time(held.len(), || {
         next += 1;
-        Ok(detection.detect_into(&held[next - 1], &mut whitened, &mut press_scratch, &mut found)?)
+        Ok(detection.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
     })?;
     let (mut track, mut next) = (PressTrack::default(), 0);
     let (t_carried, _) = time(held.len(), || {
         next += 1;
-        Ok(detection.track_into(&held[next - 1], &mut whitened, &mut press_scratch, &mut track, &mut found)?)
+        Ok(detection.track_into(&held[next - 1], &mut whitened, &mut scratch, &mut track, &mut found)?)
     })?;
-    // The same stream at 80 dB (0.01 %, the virtual sensor's noise), against a detection for it.
     let std80: Vec<f64> = values.iter().map(|v| 1e-4 * v.abs() * 1.01_f64.sqrt()).collect();
-    let detection80 = PressDetection::new(&press_model, &std80, 99.0, 1e-3)?;
+    let detection80 = PressDetection::new(press_model, &std80, 99.0, 1e-3)?;
     let held80 = held_under(&std80);
     let (mut track, mut next) = (PressTrack::default(), 0);
     let (t_carried80, _) = time(held80.len(), || {
         next += 1;
-        Ok(detection80.track_into(&held80[next - 1], &mut whitened, &mut press_scratch, &mut track, &mut found)?)
+        Ok(detection80.track_into(&held80[next - 1], &mut whitened, &mut scratch, &mut track, &mut found)?)
     })?;
-    let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
-    // The virtual sensor's frame on its finer truth mesh: one press, then three presses apart
-    // (corners of a triangle half the sheet wide, unequal forces).
-    let mut sensor = VirtualSensor::new(&spec, 1)?;
+    stages.setup.push(("press_detection", t_detection));
+    stages.per_frame.extend([
+        ("frame_three_presses", t_detect),
+        ("frame_three_presses_noisy", t_noisy),
+        ("frame_three_presses_carried", t_carried),
+        ("frame_three_presses_carried_80db", t_carried80),
+    ]);
+    Ok(())
+}
+
+/// The virtual sensor's frame on its finer truth mesh: one press, then three presses apart
+/// (corners of a triangle half the sheet wide, unequal forces).
+fn simulated(spec: &eitskin::SensorSpec, n: usize, stages: &mut Stages) -> Result<()> {
+    let [lo, hi] = spec.outline.bounds();
+    let half = (hi[0] - lo[0]) / 2.0;
+    let mut sensor = VirtualSensor::new(spec, 1)?;
     sensor.press([0.3 * half, -0.2 * half], 5.0);
     let (t_simulated, _) = time(n.min(15), || Ok(sensor.frame()?))?;
     sensor.press([-0.5 * half, 0.5 * half], 9.0);
     sensor.press([0.5 * half, 0.5 * half], 3.0);
     let (t_simulated_three, _) = time(n.min(15), || Ok(sensor.frame()?))?;
-    let (t_learn, t_learned_frame, t_learn_press, t_learned_press_frame) = learned(&spec)?;
-    let stages = [
-        ("mesh", t_mesh),
-        ("model", t_model),
-        ("assembly", t_assembly),
-        ("factorisation", t_factor),
-        ("solves", t_solves),
-        ("measurements", t_measure),
-        ("jacobian", t_jacobian),
-        ("reconstructor", t_recon),
-        ("drop_channel", t_drop),
-        ("auto_hyperparameter", t_auto),
-        ("press_model", t_press_model),
-        ("press_detection", t_detection),
-        ("learn_1000_presses", t_learn),
-        ("learn_1000_presses_press", t_learn_press),
-        ("frame_image", t_image),
-        ("frame_touches", t_touches),
-        ("frame_press_fit", t_fit),
-        ("frame_three_presses", t_detect),
-        ("frame_three_presses_noisy", t_noisy),
-        ("frame_three_presses_carried", t_carried),
-        ("frame_three_presses_carried_80db", t_carried80),
-        ("replay_latency", replay_latency),
-        ("simulated_frame", t_simulated),
-        ("simulated_three_presses", t_simulated_three),
-        ("learned_frame", t_learned_frame),
-        ("learned_press_frame", t_learned_press_frame),
-    ];
-    let total: f64 = stages[..6].iter().map(|s| s.1.median).sum();
-    let peak_memory = eitskin_io::peak_memory();
-    if args.json {
-        let mut out = serde_json::Map::new();
-        out.insert("triangles".into(), model.mesh().triangles().len().into());
-        out.insert("nodes".into(), model.mesh().nodes().len().into());
-        out.insert("repeat".into(), n.into());
-        let mut fastest = serde_json::Map::new();
-        for (name, t) in stages {
-            out.insert(name.into(), t.median.into());
-            fastest.insert(name.into(), t.min.into());
-        }
-        out.insert("min".into(), fastest.into());
-        out.insert("total".into(), total.into());
-        out.insert("frame".into(), (t_image.median + t_touches.median).into());
-        out.insert("replay_frames_per_second".into(), replay_fps.into());
-        out.insert("peak_memory_bytes".into(), peak_memory.into());
-        println!("{}", serde_json::Value::Object(out));
-    } else {
-        println!(
-            "{} triangles, {} nodes, {} measurements; median (fastest) of {n} runs:",
-            model.mesh().triangles().len(),
-            model.mesh().nodes().len(),
-            values.len()
-        );
-        for (name, t) in &stages[..6] {
-            println!("  {name:<24} {:>10.3} ms  ({:.3})", t.median * 1e3, t.min * 1e3);
-        }
-        println!("  {:<24} {:>10.3} ms  (forward setup chain)", "total", total * 1e3);
-        // The inverse setup: Jacobian, reconstructor, its re-derivations, the press model.
-        let per_frame = stages.iter().position(|s| s.0 == "frame_image").unwrap_or(stages.len());
-        for (name, t) in &stages[6..per_frame] {
-            println!("  {name:<24} {:>10.3} ms  ({:.3})", t.median * 1e3, t.min * 1e3);
-        }
-        println!("per frame, median (fastest) of {frames} ({} pixels, {} touch):", image.values.len(), touches.len());
-        for (name, t) in &stages[per_frame..] {
-            println!("  {name:<24} {:>10.3} µs  ({:.3})", t.median * 1e6, t.min * 1e6);
-        }
-        println!("file replay through decoder, pipeline and JSON line: {replay_fps:.0} frames/s on one thread");
-        match peak_memory {
-            Some(bytes) => println!("peak memory (resident): {:.1} MB", bytes / 1e6),
-            None => println!("peak memory: not known on this system"),
+    stages.per_frame.extend([("simulated_frame", t_simulated), ("simulated_three_presses", t_simulated_three)]);
+    Ok(())
+}
+
+/// One JSON object: each stage's median (and under `min` its fastest), in s, and the sizes.
+fn print_json(stages: &Stages, [triangles, nodes, ..]: [usize; 5], n: usize, replay_fps: f64) {
+    let total: f64 = stages.setup[..FORWARD].iter().map(|s| s.1.median).sum();
+    let mut out = serde_json::Map::new();
+    out.insert("triangles".into(), triangles.into());
+    out.insert("nodes".into(), nodes.into());
+    out.insert("repeat".into(), n.into());
+    let mut fastest = serde_json::Map::new();
+    let mut frame = 0.0;
+    for &(name, t) in stages.setup.iter().chain(&stages.per_frame) {
+        out.insert(name.into(), t.median.into());
+        fastest.insert(name.into(), t.min.into());
+        if name == "frame_image" || name == "frame_touches" {
+            frame += t.median;
         }
     }
-    Ok(())
+    out.insert("min".into(), fastest.into());
+    out.insert("total".into(), total.into());
+    out.insert("frame".into(), frame.into());
+    out.insert("replay_frames_per_second".into(), replay_fps.into());
+    out.insert("peak_memory_bytes".into(), eitskin_io::peak_memory().into());
+    println!("{}", serde_json::Value::Object(out));
+}
+
+/// The stages as a table: the forward chain and its total, the inverse setup, each frame's.
+fn print_text(stages: &Stages, [triangles, nodes, measurements, pixels, touches]: [usize; 5], n: usize, fps: f64) {
+    println!("{triangles} triangles, {nodes} nodes, {measurements} measurements; median (fastest) of {n} runs:");
+    let (forward, inverse) = stages.setup.split_at(FORWARD);
+    for (name, t) in forward {
+        println!("  {name:<24} {:>10.3} ms  ({:.3})", t.median * 1e3, t.min * 1e3);
+    }
+    let total: f64 = forward.iter().map(|s| s.1.median).sum();
+    println!("  {:<24} {:>10.3} ms  (forward setup chain)", "total", total * 1e3);
+    // The inverse setup: Jacobian, reconstructor, its re-derivations, the press model.
+    for (name, t) in inverse {
+        println!("  {name:<24} {:>10.3} ms  ({:.3})", t.median * 1e3, t.min * 1e3);
+    }
+    println!("per frame, median (fastest) of {FRAMES} ({pixels} pixels, {touches} touch):");
+    for (name, t) in &stages.per_frame {
+        println!("  {name:<24} {:>10.3} µs  ({:.3})", t.median * 1e6, t.min * 1e6);
+    }
+    println!("file replay through decoder, pipeline and JSON line: {fps:.0} frames/s on one thread");
+    match eitskin_io::peak_memory() {
+        Some(bytes) => println!("peak memory (resident): {:.1} MB", bytes / 1e6),
+        None => println!("peak memory: not known on this system"),
+    }
 }

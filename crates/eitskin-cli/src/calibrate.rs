@@ -11,7 +11,8 @@ use eitskin::pipeline::PipelineParams;
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::spec::Quantity;
 use eitskin::strength::Strength;
-use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
+use eitskin::{ReconstructorParams, SensorSpec};
+use eitskin_io::build::ChainSetup;
 use eitskin_io::{CalibrationFile, FrameSelect, Imaging, Location, Measured, SampleRow};
 
 use crate::{load, outputs, ranges};
@@ -105,14 +106,8 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
         }
         Labelled::Frames(frames) => {
             let (references, pressed) = references(args.reference.as_deref(), &args.samples, frames)?;
-            let chain = load::chain(
-                "calibrate",
-                &spec,
-                &ReconstructorParams::default(),
-                TouchParams::default(),
-                strength,
-                false,
-            )?;
+            let setup = ChainSetup { strength, ..ChainSetup::new(ReconstructorParams::default()) };
+            let chain = load::chain("calibrate", &spec, setup)?;
             let found = process_labelled(chain, PipelineParams::default(), &references, &pressed)?;
             report_missed(&args.samples, &pressed, &found);
             labelled::samples(&array, &pressed, &found)
@@ -126,6 +121,13 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     std::fs::write(staged.path(&args.out), eitskin_io::calibration_file_to_json(&spec, &array, &calibration, imaging)?)
         .with_context(|| format!("writing {}", args.out.display()))?;
     staged.commit()?;
+    print_curves(&calibration, &samples, strength);
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// The fitted curves, one line per area, with how far each reads from one curve for every sample.
+fn print_curves(calibration: &Calibration, samples: &[Sample], strength: Strength) {
     let unit = format!("[{}]", strength.unit());
     // One curve for every sample, to say how far each area's curve reads from it.
     let pooled: Vec<Sample> = samples.iter().map(|s| Sample { area: 0, ..*s }).collect();
@@ -133,7 +135,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
         Ok(one) if calibration.curves.len() > 1 => calibration.offsets_from(&one.curves[0]),
         _ => vec![f64::NAN; calibration.curves.len()],
     };
-    println!("{} samples, {} areas; {strength}(F) = a·e^(−F/b) + c:", samples.len(), array.area_count());
+    println!("{} samples, {} areas; {strength}(F) = a·e^(−F/b) + c:", samples.len(), calibration.curves.len());
     println!(
         "{:>5} {:>12} {:>10} {:>12} {:>7} {:>12} {:>10} {:>8} {:>13}",
         "area",
@@ -169,8 +171,6 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
              areas within the noise of each other read better as one curve (--grid 1)"
         );
     }
-    println!("wrote {}", args.out.display());
-    Ok(())
 }
 
 /// Runs `eitskin evaluate`: with raw frames, each through the same chain as `eitskin run`
@@ -191,46 +191,78 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
         let (samples, reference, out) = (&args.samples, args.reference.as_deref(), args.out.as_deref());
         return crate::learn::evaluate_model(&spec, model, samples, reference, out);
     };
-    let CalibrationFile { array, calibration, imaging } = eitskin_io::read_calibration_file(path, &spec)?;
-    let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
-    // Per sample: where it was pressed, its force (N), and what the chain read there.
-    let mut results: Vec<([f64; 2], f64, Option<Found>)> = Vec::new();
-    match Labelled::of(&spec, &array, &args.samples, rows)? {
+    let file = eitskin_io::read_calibration_file(path, &spec)?;
+    let results = evaluated(&spec, file, &args.samples, args.reference.as_deref())?;
+    print_force_errors(&results);
+    if let Some(out) = &args.out {
+        write_evaluated(out, &spec, &results)?;
+    }
+    Ok(())
+}
+
+/// A labelled sample and what the chain read of it.
+struct Evaluated {
+    /// Where it was pressed, m (NaN for a peak's sample).
+    at: [f64; 2],
+    /// Its force, N.
+    force: f64,
+    /// What the chain found, if anything.
+    found: Option<Found>,
+}
+
+/// Each sample of `samples` read with the calibration `file`: raw frames through the same
+/// pipeline as `run`, peaks at the sample's own unit.
+fn evaluated(
+    spec: &SensorSpec,
+    file: CalibrationFile,
+    samples: &Path,
+    reference: Option<&Path>,
+) -> Result<Vec<Evaluated>> {
+    let CalibrationFile { array, calibration, imaging } = file;
+    let rows = eitskin_io::read_samples(samples, spec.length_unit.metres())?;
+    let mut results = Vec::new();
+    match Labelled::of(spec, &array, samples, rows)? {
         Labelled::Peaks(peaks) if calibration.strength == Strength::Peak => {
             for s in &peaks {
                 let force = calibration.force(s.area, s.peak)?;
-                results.push(([f64::NAN; 2], s.force, Some(Found { centre: [f64::NAN; 2], force: Some(force) })));
+                let found = Some(Found { centre: [f64::NAN; 2], force: Some(force) });
+                results.push(Evaluated { at: [f64::NAN; 2], force: s.force, found });
             }
         }
         Labelled::Peaks(_) => bail!(
             "{}: the calibration reads the \"{}\", which needs each sample's raw frame, not its peak",
-            args.samples.display(),
+            samples.display(),
             calibration.strength
         ),
         Labelled::Frames(frames) => {
-            let (references, pressed) = references(args.reference.as_deref(), &args.samples, frames)?;
+            let (references, pressed) = references(reference, samples, frames)?;
             let params = ReconstructorParams {
                 hyperparameter: imaging.hyperparameter,
                 normalised: imaging.normalised,
                 ..ReconstructorParams::default()
             };
-            let strength = calibration.strength;
-            let chain = load::chain("evaluate", &spec, &params, TouchParams::default(), strength, false)?
-                .with_calibration(array, calibration)?;
+            let setup = ChainSetup { calibration: Some((array, calibration)), ..ChainSetup::new(params) };
+            let chain = load::chain("evaluate", spec, setup)?;
             let found = process_labelled(chain, PipelineParams::default(), &references, &pressed)?;
-            report_missed(&args.samples, &pressed, &found);
+            report_missed(samples, &pressed, &found);
             for (labelled, touch) in pressed.iter().zip(&found) {
                 let found =
                     touch.map(|t| Found { centre: t.press.map_or(t.touch.centre, |p| p.centre), force: t.force });
-                results.push((labelled.position, labelled.force, found));
+                results.push(Evaluated { at: labelled.position, force: labelled.force, found });
             }
         }
     }
+    Ok(results)
+}
+
+/// The force errors over the samples read with a force, and how often the truth lies within
+/// twice the force's standard deviation.
+fn print_force_errors(results: &[Evaluated]) {
     let estimates: Vec<(f64, ForceEstimate)> =
-        results.iter().filter_map(|(_, truth, found)| Some((*truth, found.as_ref()?.force?))).collect();
+        results.iter().filter_map(|r| Some((r.force, r.found.as_ref()?.force?))).collect();
     let (truth, predicted): (Vec<f64>, Vec<f64>) = estimates.iter().map(|(t, f)| (*t, f.newtons)).unzip();
     let saturated = estimates.iter().filter(|(_, f)| f.saturated).count();
-    let found = results.iter().filter(|r| r.2.is_some()).count();
+    let found = results.iter().filter(|r| r.found.is_some()).count();
     let e = force_errors(&truth, &predicted);
     println!(
         "{} samples: {found} found, {} missed, {} with a force ({saturated} saturated); errors over those with a force",
@@ -260,32 +292,34 @@ pub fn evaluate(args: EvaluateArgs) -> Result<()> {
             with_std.len()
         );
     }
-    if let Some(out) = &args.out {
-        let per_unit = 1.0 / spec.length_unit.metres();
-        let u = spec.length_unit.symbol();
-        let mut csv = format!("sample,x_{u},y_{u},force_n,found,found_x_{u},found_y_{u},predicted_n,std_n,saturated\n");
-        for (k, (at, truth, found)) in results.iter().enumerate() {
-            let blank = |v: f64| if v.is_finite() { format!("{v}") } else { String::new() };
-            let centre = found.as_ref().map_or([f64::NAN; 2], |f| f.centre);
-            let force = found.as_ref().and_then(|f| f.force);
-            csv += &format!(
-                "{},{},{},{truth},{},{},{},{},{},{}\n",
-                k + 1,
-                blank(at[0] * per_unit),
-                blank(at[1] * per_unit),
-                u8::from(found.is_some()),
-                blank(centre[0] * per_unit),
-                blank(centre[1] * per_unit),
-                force.map_or(String::new(), |f| blank(f.newtons)),
-                force.and_then(|f| f.std).map_or(String::new(), blank),
-                force.map_or(String::new(), |f| u8::from(f.saturated).to_string()),
-            );
-        }
-        let mut staged = crate::outputs::Staged::default();
-        std::fs::write(staged.path(out), csv).with_context(|| format!("writing {}", out.display()))?;
-        staged.commit()?;
-        println!("wrote {}", out.display());
+}
+
+/// Each sample's row (where, force, what was found) as CSV at `out`, in the spec's unit.
+fn write_evaluated(out: &Path, spec: &SensorSpec, results: &[Evaluated]) -> Result<()> {
+    let per_unit = 1.0 / spec.length_unit.metres();
+    let u = spec.length_unit.symbol();
+    let mut csv = format!("sample,x_{u},y_{u},force_n,found,found_x_{u},found_y_{u},predicted_n,std_n,saturated\n");
+    for (k, Evaluated { at, force: truth, found }) in results.iter().enumerate() {
+        let blank = |v: f64| if v.is_finite() { format!("{v}") } else { String::new() };
+        let centre = found.as_ref().map_or([f64::NAN; 2], |f| f.centre);
+        let force = found.as_ref().and_then(|f| f.force);
+        csv += &format!(
+            "{},{},{},{truth},{},{},{},{},{},{}\n",
+            k + 1,
+            blank(at[0] * per_unit),
+            blank(at[1] * per_unit),
+            u8::from(found.is_some()),
+            blank(centre[0] * per_unit),
+            blank(centre[1] * per_unit),
+            force.map_or(String::new(), |f| blank(f.newtons)),
+            force.and_then(|f| f.std).map_or(String::new(), blank),
+            force.map_or(String::new(), |f| u8::from(f.saturated).to_string()),
+        );
     }
+    let mut staged = crate::outputs::Staged::default();
+    std::fs::write(staged.path(out), csv).with_context(|| format!("writing {}", out.display()))?;
+    staged.commit()?;
+    println!("wrote {}", out.display());
     Ok(())
 }
 

@@ -351,6 +351,17 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let spec = load::sized(load::spec(input.spec.as_deref())?, input.triangles, Stage::Reconstructor)?;
     let measurements = spec.protocol()?.measurements().len();
     eitskin::memory::check_raster(input.raster, measurements, eitskin_io::available_memory())?;
+    let Read { mut references, mut selected, first } = read_input(input, &spec)?;
+    let lin = eitskin_io::build::linearisation(&spec, !input.no_cache)?;
+    let (pattern_fit, gains) = signed_and_gained(input, lin.background(), &mut references, &mut selected);
+    let setup = setup(input, spec, &lin, (&references, &selected), pattern_fit, gains)?;
+    image_all(input, setup, selected, first)
+}
+
+/// The reference frames and the selected frames of `input`, each as long as the protocol, the
+/// channels the spec drops (and dead ones) missing (NaN); and the index of the first frame
+/// selected.
+fn read_input(input: &Input, spec: &SensorSpec) -> Result<Read> {
     let layout = FrameLayout::from(input.layout);
     let select = FrameSelect { variable: input.select.clone(), layout };
     let reference_select = FrameSelect { variable: input.reference_select.clone().or(input.select.clone()), layout };
@@ -363,24 +374,17 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let first = *indices.start();
     table.truncate(indices.end() + 1);
     let mut selected: Vec<Vec<f64>> = table.drain(first..).collect();
-    let params = ReconstructorParams {
-        normalised: input.normalised,
-        background_change: input.background_change,
-        raster: input.raster,
-        ..ReconstructorParams::default()
-    };
-    let lin = eitskin_io::build::linearisation(&spec, !input.no_cache)?;
-    let model = lin.background();
+    let protocol = spec.protocol()?;
     let count = |path: &Path, k: usize, frame: &[f64]| {
-        match frame.len() == model.len() {
+        match frame.len() == protocol.len() {
         true => Ok(()),
         false => Err(anyhow::anyhow!(
             "{}: frame {} holds {} values, but the protocol ({}) has {}: is it another protocol, or another board's order?",
             path.display(),
             k + 1,
             frame.len(),
-            spec.protocol()?.description(),
-            model.len()
+            protocol.description(),
+            protocol.len()
         )),
     }
     };
@@ -389,10 +393,31 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     // A channel the spec drops, or a dead one, is missing (NaN) from here on: dropped from the
     // image and named by no check of the values.
     mark_missing(&spec.used_channels()?, &mut references, &mut selected);
+    Ok(Read { references, selected, first })
+}
+
+/// The frames of an `image` or `segment` call, as long as the protocol.
+struct Read {
+    /// The frames at rest.
+    references: Vec<Vec<f64>>,
+    /// The frames selected, to be imaged.
+    selected: Vec<Vec<f64>>,
+    /// The index of the first frame selected in its file.
+    first: usize,
+}
+
+/// Magnitudes signed by the model, and the gains applied with `--gains`; the reference's fit
+/// to the model's pattern (R²) and the gains estimated, each warned of when off.
+fn signed_and_gained(
+    input: &Input,
+    model: &[f64],
+    references: &mut Vec<Vec<f64>>,
+    selected: &mut Vec<Vec<f64>>,
+) -> (f64, Option<Gains>) {
     let magnitudes = input.values == ValuesFlag::Magnitude || input.component == Component::Magnitude;
     if magnitudes {
         let mut unexplained = std::collections::BTreeSet::new();
-        for v in &mut selected {
+        for v in selected.iter_mut() {
             let (signed, report) = signed_from_magnitudes(v, model);
             unexplained.extend(report.unexplained.iter().map(|m| m + 1));
             *v = signed;
@@ -401,9 +426,9 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
             let channels: Vec<usize> = unexplained.into_iter().collect();
             eprintln!("warning: the model does not explain the magnitudes of channels {channels:?}");
         }
-        references = references.iter().map(|r| signed_from_magnitudes(r, model).0).collect();
+        *references = references.iter().map(|r| signed_from_magnitudes(r, model).0).collect();
     }
-    let estimate = Gains::estimate(&mean_frame(&references), model);
+    let estimate = Gains::estimate(&mean_frame(references), model);
     if estimate.pattern_fit < PATTERN_FIT_WARNING {
         eprintln!(
             "warning: the reference follows the model's pattern poorly (R² = {:.2} of ln|v| against the model's): \
@@ -415,10 +440,10 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let pattern_fit = estimate.pattern_fit;
     let gains = input.gains.then_some(estimate);
     if let Some(gains) = &gains {
-        references = references.iter().map(|r| gains.apply(r)).collect();
-        selected = selected.iter().map(|v| gains.apply(v)).collect();
+        *references = references.iter().map(|r| gains.apply(r)).collect();
+        *selected = selected.iter().map(|v| gains.apply(v)).collect();
     }
-    if references.len() > 1 && noise_variance(&references).is_none() {
+    if references.len() > 1 && noise_variance(references).is_none() {
         eprintln!(
             "warning: the {} reference frames of {} are all equal: no noise can be measured from them, so {} % per value is assumed (several frames of a board at rest differ)",
             references.len(),
@@ -426,12 +451,31 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
             100.0 * eitskin::inverse::DEFAULT_RELATIVE_NOISE
         );
     }
+    (pattern_fit, gains)
+}
+
+/// The one setup of every frame: λ and the weighting from the reference, the noise test, the
+/// touch settings and the report.
+fn setup(
+    input: &Input,
+    spec: SensorSpec,
+    lin: &std::sync::Arc<eitskin::inverse::Linearisation>,
+    (references, selected): (&[Vec<f64>], &[Vec<f64>]),
+    pattern_fit: f64,
+    gains: Option<Gains>,
+) -> Result<Setup> {
+    let params = ReconstructorParams {
+        normalised: input.normalised,
+        background_change: input.background_change,
+        raster: input.raster,
+        ..ReconstructorParams::default()
+    };
     let rule = (input.hyperparameter, input.weighting.map(Weighting::from));
-    let imaging = ReferenceImaging::new(&spec, &lin, &params, (&references, &selected), rule, !input.no_cache)?;
+    let imaging = ReferenceImaging::new(&spec, lin, &params, (references, selected), rule, !input.no_cache)?;
     let (recon, v_ref) = (imaging.recon, imaging.reference.v_ref);
     // Touches are tested against the noise only when it is measured: an assumed level could
     // hide a real touch. The weaker sign must stand above the noise, measured or assumed.
-    let measured = NoiseModel::from_frames(&references);
+    let measured = NoiseModel::from_frames(references);
     let test = |noise: &NoiseModel| Significance::new(&recon, &v_ref, noise, 1, input.polarity, input.false_alarm_rate);
     let significance = measured.as_ref().map(test).transpose()?;
     let both_signs = input.peak_of != PeakOf::Frame && input.polarity == Polarity::Both;
@@ -456,7 +500,12 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
             .as_ref()
             .map(|g| GainsOut { median: g.median, outliers: g.outliers.iter().map(|m| m + 1).collect() }),
     };
-    let setup = Setup { spec, recon, v_ref, report, significance, assumed, touch };
+    Ok(Setup { spec, recon, v_ref, report, significance, assumed, touch })
+}
+
+/// Each selected frame imaged and segmented; with a stacked selection a frame refused is named
+/// and skipped, else it is the error.
+fn image_all(input: &Input, setup: Setup, selected: Vec<Vec<f64>>, first: usize) -> Result<Recording> {
     let mut recording = Recording { setup, imaged: Vec::new(), refused: Vec::new() };
     let mut scratch = TouchScratch::new(input.raster);
     for (k, v) in selected.into_iter().enumerate() {

@@ -145,7 +145,8 @@ fn reference(path: Option<&Path>) -> Result<Option<(PathBuf, Vec<f64>)>> {
     Ok(Some((path.to_path_buf(), eitskin::inverse::mean_frame(&table.frames))))
 }
 
-/// Runs `eitskin learn`.
+/// Runs `eitskin learn`: the presses read, every method scored by cross-validation beside a
+/// plain kernel ridge, the best (or the one asked for) trained, then scored on held-out presses.
 pub fn run(args: Args) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
     if let Some(out) = &args.out {
@@ -166,85 +167,19 @@ pub fn run(args: Args) -> Result<()> {
     if args.curve && args.held_out.is_none() {
         bail!("--curve needs --held-out: the curves are errors on presses kept out of training");
     }
-    let reference = reference(args.reference.as_deref())?;
-    let training = presses(&args.samples, &spec, reference.as_ref())?;
-    let held_out = args.held_out.as_deref().map(|p| presses(p, &spec, reference.as_ref())).transpose()?;
-    if let (Some(held), Some(path), Some(first)) = (&held_out, args.held_out.as_deref(), training.first()) {
-        if let Some((k, p)) = held.iter().enumerate().find(|(_, p)| p.inputs.len() != first.inputs.len()) {
-            bail!(
-                "{}: press {} has {} channels, and the training presses of {} have {}",
-                path.display(),
-                k + 1,
-                p.inputs.len(),
-                args.samples.display(),
-                first.inputs.len()
-            );
-        }
-    }
-    let channels = spec.protocol()?.len();
-    // Press features read Δv on the sensor as specified: one value per measurement.
-    let sensor = match training.first() {
-        Some(p) if p.inputs.len() == channels => Some(load::nominal_sensor("learn", &spec)?),
-        _ => None,
-    };
-    if let (Some(m), None) = (forced, &sensor) {
-        if m.features == Features::Press {
-            bail!("--method {}: press features need Δv of the protocol's {channels} values a press", m.name());
-        }
-    }
-    let mm = |m: f64| m * 1e3;
+    let (training, held_out) = read_presses(&args, &spec)?;
+    let sensor = nominal_sensor(&spec, &training, forced)?;
     let started = Instant::now();
     let mut bars = crate::progress::Bars::default();
     let mut shown = |stage: &str, done: usize, all: usize| bars.update(stage, done, all);
     let candidates = Method::candidates(sensor.is_some());
     let (method, scores) = choose(&training, &candidates, args.folds, sensor.as_ref(), &mut shown)?;
     bars.finish();
-    println!(
-        "{}-fold cross-validation on {} presses ({:.2} s):",
-        args.folds,
-        training.len(),
-        started.elapsed().as_secs_f64()
-    );
-    let depths = training.first().is_some_and(|p| p.depth.is_some());
-    let depth_header = if depths { format!(" {:>14}", "depth RMS (mm)") } else { String::new() };
-    println!("  {:14} {:>14} {:>14}{depth_header}", "method", "position (mm)", "force RMS (N)");
-    for (m, e) in &scores {
-        let e = match e {
-            Ok(e) => e,
-            // A method that cannot use these presses drops out of the choice; the others go on.
-            Err(why) => {
-                println!("  {:14} left out: {why}", m.name());
-                continue;
-            }
-        };
-        let force = e.force_rms.map_or("—".into(), |f| format!("{f:.2}"));
-        let depth = e.depth_rms.map_or(String::new(), |d| format!(" {:>14.3}", mm(d)));
-        let unanswered = if e.unanswered > 0 { format!("  ({} unanswered)", e.unanswered) } else { String::new() };
-        println!("  {:14} {:>14.1} {:>14}{depth}{unanswered}", m.name(), mm(e.mean_position), force);
-    }
-    // The plain baseline, scored on the same folds: what the choice above has to beat.
+    print_scores(&args, &training, &scores, started.elapsed().as_secs_f64());
     let baseline = eitskin::learn::baseline(&training, args.folds);
-    match &baseline {
-        Ok(b) => println!(
-            "  plain kernel ridge (RBF on the z-scored channels, ℓ {} and λ {} by the same folds): {:.1} mm{}",
-            b.model.length_scale,
-            b.model.lambda,
-            mm(b.errors.mean_position),
-            b.errors.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"))
-        ),
-        Err(why) => println!("  plain kernel ridge: not fitted: {why}"),
-    }
+    print_baseline(&baseline);
     if let Some(sensor) = &sensor {
-        let unlike = PressFeatures::fit(sensor, &training)?.unlike(&training);
-        if !unlike.is_empty() {
-            let list: Vec<String> = unlike.iter().map(|i| (i + 1).to_string()).collect();
-            println!(
-                "{} of {} presses' Δv look like no press on the sensor as specified, left out of the -press methods: {}",
-                unlike.len(),
-                training.len(),
-                list.join(", ")
-            );
-        }
+        print_unlike(sensor, &training)?;
     }
     let method = forced.unwrap_or(method);
     let started = Instant::now();
@@ -256,20 +191,7 @@ pub fn run(args: Args) -> Result<()> {
         println!("channels that carry nothing (left out): {}", list.join(", "));
     }
     if let Some(held) = &held_out {
-        let e = evaluate(&model, held);
-        let force = e.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"));
-        let depth = e.depth_rms.map_or(String::new(), |d| format!(", depth RMS {:.3} mm", mm(d)));
-        println!(
-            "on {} held-out presses: mean position error {:.1} mm{force}{depth}{}",
-            e.presses,
-            mm(e.mean_position),
-            unanswered(&e)
-        );
-        if let Ok(b) = &baseline {
-            let e = eitskin::learn::evaluate_baseline(&b.model, held);
-            let force = e.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"));
-            println!("  the plain kernel ridge on them: {:.1} mm{force}", mm(e.mean_position));
-        }
+        print_held_out(&model, held, &baseline);
     }
     if args.curve {
         if let Some(held) = &held_out {
@@ -291,6 +213,130 @@ pub fn run(args: Args) -> Result<()> {
         println!("wrote {}", out.display());
     }
     Ok(())
+}
+
+/// The training presses and the held-out ones, each against the reference when one is given;
+/// held-out presses of another channel count are refused.
+fn read_presses(args: &Args, spec: &SensorSpec) -> Result<(Vec<LabelledPress>, Option<Vec<LabelledPress>>)> {
+    let reference = reference(args.reference.as_deref())?;
+    let training = presses(&args.samples, spec, reference.as_ref())?;
+    let held_out = args.held_out.as_deref().map(|p| presses(p, spec, reference.as_ref())).transpose()?;
+    if let (Some(held), Some(path), Some(first)) = (&held_out, args.held_out.as_deref(), training.first()) {
+        if let Some((k, p)) = held.iter().enumerate().find(|(_, p)| p.inputs.len() != first.inputs.len()) {
+            bail!(
+                "{}: press {} has {} channels, and the training presses of {} have {}",
+                path.display(),
+                k + 1,
+                p.inputs.len(),
+                args.samples.display(),
+                first.inputs.len()
+            );
+        }
+    }
+    Ok((training, held_out))
+}
+
+/// The sensor as specified, for press features, when the presses are Δv of the protocol's
+/// values; a press method asked for without it is refused.
+fn nominal_sensor(
+    spec: &SensorSpec,
+    training: &[LabelledPress],
+    forced: Option<Method>,
+) -> Result<Option<eitskin::learn::NominalSensor>> {
+    let channels = spec.protocol()?.len();
+    // Press features read Δv on the sensor as specified: one value per measurement.
+    let sensor = match training.first() {
+        Some(p) if p.inputs.len() == channels => Some(load::nominal_sensor("learn", spec)?),
+        _ => None,
+    };
+    if let (Some(m), None) = (forced, &sensor) {
+        if m.features == Features::Press {
+            bail!("--method {}: press features need Δv of the protocol's {channels} values a press", m.name());
+        }
+    }
+    Ok(sensor)
+}
+
+/// The cross-validation's table: each method's mean position error and force (and depth) RMS,
+/// or why it was left out.
+fn print_scores(
+    args: &Args,
+    training: &[LabelledPress],
+    scores: &[(Method, Result<Errors, eitskin::learn::LearnError>)],
+    seconds: f64,
+) {
+    let mm = |m: f64| m * 1e3;
+    println!("{}-fold cross-validation on {} presses ({seconds:.2} s):", args.folds, training.len());
+    let depths = training.first().is_some_and(|p| p.depth.is_some());
+    let depth_header = if depths { format!(" {:>14}", "depth RMS (mm)") } else { String::new() };
+    println!("  {:14} {:>14} {:>14}{depth_header}", "method", "position (mm)", "force RMS (N)");
+    for (m, e) in scores {
+        let e = match e {
+            Ok(e) => e,
+            // A method that cannot use these presses drops out of the choice; the others go on.
+            Err(why) => {
+                println!("  {:14} left out: {why}", m.name());
+                continue;
+            }
+        };
+        let force = e.force_rms.map_or("—".into(), |f| format!("{f:.2}"));
+        let depth = e.depth_rms.map_or(String::new(), |d| format!(" {:>14.3}", mm(d)));
+        let unanswered = if e.unanswered > 0 { format!("  ({} unanswered)", e.unanswered) } else { String::new() };
+        println!("  {:14} {:>14.1} {:>14}{depth}{unanswered}", m.name(), mm(e.mean_position), force);
+    }
+}
+
+/// The plain baseline, scored on the same folds: what the choice has to beat.
+fn print_baseline(baseline: &Result<eitskin::learn::Baseline, eitskin::learn::LearnError>) {
+    let mm = |m: f64| m * 1e3;
+    match baseline {
+        Ok(b) => println!(
+            "  plain kernel ridge (RBF on the z-scored channels, ℓ {} and λ {} by the same folds): {:.1} mm{}",
+            b.model.length_scale,
+            b.model.lambda,
+            mm(b.errors.mean_position),
+            b.errors.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"))
+        ),
+        Err(why) => println!("  plain kernel ridge: not fitted: {why}"),
+    }
+}
+
+/// The presses whose Δv look like no press on the sensor as specified.
+fn print_unlike(sensor: &eitskin::learn::NominalSensor, training: &[LabelledPress]) -> Result<()> {
+    let unlike = PressFeatures::fit(sensor, training)?.unlike(training);
+    if !unlike.is_empty() {
+        let list: Vec<String> = unlike.iter().map(|i| (i + 1).to_string()).collect();
+        println!(
+            "{} of {} presses' Δv look like no press on the sensor as specified, left out of the -press methods: {}",
+            unlike.len(),
+            training.len(),
+            list.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// The model's errors on the held-out presses, and the plain kernel ridge's.
+fn print_held_out(
+    model: &eitskin::learn::LearnedModel,
+    held: &[LabelledPress],
+    baseline: &Result<eitskin::learn::Baseline, eitskin::learn::LearnError>,
+) {
+    let mm = |m: f64| m * 1e3;
+    let e = evaluate(model, held);
+    let force = e.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"));
+    let depth = e.depth_rms.map_or(String::new(), |d| format!(", depth RMS {:.3} mm", mm(d)));
+    println!(
+        "on {} held-out presses: mean position error {:.1} mm{force}{depth}{}",
+        e.presses,
+        mm(e.mean_position),
+        unanswered(&e)
+    );
+    if let Ok(b) = baseline {
+        let e = eitskin::learn::evaluate_baseline(&b.model, held);
+        let force = e.force_rms.map_or(String::new(), |f| format!(", force RMS {f:.2} N"));
+        println!("  the plain kernel ridge on them: {:.1} mm{force}", mm(e.mean_position));
+    }
 }
 
 /// Every method trained on the first N presses, its errors on `held`, as tables: mean position

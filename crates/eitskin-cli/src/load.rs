@@ -7,23 +7,25 @@ use anyhow::{bail, Context, Result};
 use eitskin::chain::Chain;
 use eitskin::conductivity::Inclusion;
 use eitskin::memory::{self, Stage};
-use eitskin::strength::Strength;
-use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
+use eitskin::pipeline::{Pipeline, PipelineParams};
+use eitskin::SensorSpec;
+use eitskin_io::build::ChainSetup;
 
 /// The frame chain of [`eitskin_io::build::chain`], `command` saying on stderr when the press
 /// model it needs is not in the cache and is built first.
-pub fn chain(
-    command: &str,
-    spec: &SensorSpec,
-    params: &ReconstructorParams,
-    touch: TouchParams,
-    strength: Strength,
-    fit: bool,
-) -> Result<Chain> {
-    if fit || strength.needs_press_model() {
+pub fn chain(command: &str, spec: &SensorSpec, setup: ChainSetup) -> Result<Chain> {
+    if setup.needs_press_model() {
         announce_press_model(command, spec);
     }
-    Ok(eitskin_io::build::chain(spec, params, touch, strength, fit)?)
+    Ok(eitskin_io::build::chain(spec, setup)?)
+}
+
+/// The live pipeline of [`eitskin_io::build::pipeline`], announced as [`chain`] is.
+pub fn pipeline(command: &str, spec: &SensorSpec, setup: ChainSetup, params: PipelineParams) -> Result<Pipeline> {
+    if setup.needs_press_model() {
+        announce_press_model(command, spec);
+    }
+    Ok(eitskin_io::build::pipeline(spec, setup, params)?)
 }
 
 /// The nominal sensor of [`eitskin_io::build::nominal_sensor`], announced as [`chain`] does.

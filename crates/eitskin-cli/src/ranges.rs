@@ -16,6 +16,14 @@ pub fn number(
     }
 }
 
+/// [`whole`] over a range the library states.
+pub fn within(
+    what: &'static str,
+    range: std::ops::RangeInclusive<usize>,
+) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
+    whole(what, *range.start(), *range.end())
+}
+
 /// A parser of a whole number from `lo` to `hi`, described as `what` (e.g. "a number of
 /// reference frames").
 pub fn whole(

@@ -50,8 +50,6 @@ pub fn json(study: &StudyReport, params: &StudyParams, seconds: f64) -> Value {
 
 /// The Markdown report: each result beside the paper's.
 pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, seconds: f64) -> String {
-    let k = 1.0 / unit.metres();
-    let u = unit.symbol();
     let mut s = String::new();
     s += "# The paper's study, rerun on the virtual sensor\n\n";
     s += &format!(
@@ -73,11 +71,18 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
     let mean_r2 =
         study.simulated_fits.iter().map(|c| c.r_squared).sum::<f64>() / study.simulated_fits.len().max(1) as f64;
     s += &format!("\nMean R² {mean_r2:.3} (paper: 0.99).\n\n");
+    s += &calibration_table(study, params);
+    s += &validation(study, params, unit);
+    s
+}
+
+/// Table 2: the per-area curves of the peak (and R² of the fitted press's drop) beside the paper's.
+fn calibration_table(study: &StudyReport, params: &StudyParams) -> String {
+    let mut s = String::new();
     s += "## Calibration (Table 2)\n\nOurs: peak(F) = a·e^(−F/b) + c with the peak a positive magnitude, so our b > 0 where the paper's (signed conductivity) b < 0.\n\n";
     s += "The column R² (fitted press) is the same per-area fit on the drop of the press fitted to Δv (`eitskin::press_fit`) instead of the image's peak.\n\n";
     s += "| area | a | b [N] | c | R² | R² (fitted press) | forces [N] | samples | paper a | paper b | paper c | paper R² |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-    let by = |grid, strength| study.methods.iter().find(|m| m.method == ForceMethod { grid, strength });
-    let fitted = by(params.grid, Strength::FittedDrop);
+    let fitted = method(study, params.grid, Strength::FittedDrop);
     if let Some(m) = study.methods.first() {
         for (i, c) in m.curves.iter().enumerate() {
             let r2 = fitted.and_then(|f| f.curves.get(i)).map_or(String::new(), |f| format!("{:.3}", f.r_squared));
@@ -97,6 +102,13 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
             );
         }
     }
+    s
+}
+
+/// Fig. 12: the validation presses' positions, each force method's errors and figures.
+fn validation(study: &StudyReport, params: &StudyParams, unit: LengthUnit) -> String {
+    let (k, u) = (1.0 / unit.metres(), unit.symbol());
+    let mut s = String::new();
     s += "\n## Force and position on the validation presses (Fig. 12)\n\n";
     let found = study.validation_touches.iter().filter(|t| t.is_some()).count();
     s += &format!(
@@ -124,7 +136,7 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
             m.errors.mean_absolute
         );
     }
-    if let Some(c) = by(1, Strength::FittedDrop).and_then(|m| m.curves.first()) {
+    if let Some(c) = method(study, 1, Strength::FittedDrop).and_then(|m| m.curves.first()) {
         let gel = params.sim.hydrogel;
         s += &format!(
             "\nThe fitted press's one curve, from the calibration presses alone: drop(F) = {:.3} {} {:.3}·e^(−F/{:.2} N); the virtual gel's own law: {:.3}·(1 − e^(−F/{:.2} N)).\n",
@@ -140,6 +152,11 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
         s += &format!("\n![{}](fig12_{}.png)\n", m.method.name(), i + 1);
     }
     s
+}
+
+/// The study's results of the force method on a `grid` × `grid` pseudo-array reading `strength`.
+fn method(study: &StudyReport, grid: usize, strength: Strength) -> Option<&eitskin::study::MethodResult> {
+    study.methods.iter().find(|m| m.method == ForceMethod { grid, strength })
 }
 
 /// The noise sweep's rows as JSON (distances in m, forces in N).

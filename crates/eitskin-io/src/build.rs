@@ -1,18 +1,21 @@
 //! The one builder of what a sensor's frames go through, for every front end (the CLI and
 //! Python alike): the linearisation and reconstructor without the channels the spec drops, λ,
 //! the press model, the contrast map and the frame chain, each from the on-disk cache when
-//! there is one ([`cache_dir`]), and the reconstructor of an image taken against frames at rest
-//! ([`ReferenceImaging`]).
+//! there is one ([`cache_dir`]), the live [`pipeline`] with its settings checked, and the
+//! reconstructor of an image taken against frames at rest ([`ReferenceImaging`]).
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
+use eitskin::calibration::Calibration;
 use eitskin::chain::Chain;
 use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
 use eitskin::inverse::{
     choose_hyperparameter, Channels, HyperparameterRule, Linearisation, Reference, Weighting, WeightingUsed,
 };
+use eitskin::pipeline::{Pipeline, PipelineParams};
 use eitskin::press_fit::{PressModel, PressModelParams};
+use eitskin::pseudo_array::PseudoArray;
 use eitskin::strength::Strength;
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
 
@@ -87,18 +90,45 @@ pub fn press_model_cached(spec: &SensorSpec) -> bool {
     path.is_some_and(|path| path.is_file())
 }
 
-/// The frame chain of `spec` with these reconstructor parameters (λ, normalisation) and touch
-/// settings, reading each touch's strength as `strength`: the reconstructor (from the cache,
-/// without the channels the spec drops), the press model when the strength needs it or `fit`
-/// asks for it, the contrast map when the strength reads it.
-pub fn chain(
-    spec: &SensorSpec,
-    params: &ReconstructorParams,
-    touch: TouchParams,
-    strength: Strength,
-    fit: bool,
-) -> Result<Chain, Error> {
-    let recon = reconstructor(spec, params, true)?;
+/// What a frame chain is built from, besides its spec: the settings every front end gives.
+#[derive(Debug, Clone)]
+pub struct ChainSetup {
+    /// The reconstructor's parameters (λ, normalisation, prior).
+    pub recon: ReconstructorParams,
+    /// How touches are found.
+    pub touch: TouchParams,
+    /// How a touch's strength is read; with a calibration, the calibration's own.
+    pub strength: Strength,
+    /// Fit a press to each touch (on by itself when the strength needs the press model).
+    pub fit: bool,
+    /// The pseudo-array and curves that turn strengths into forces, N.
+    pub calibration: Option<(PseudoArray, Calibration)>,
+}
+
+impl ChainSetup {
+    /// The chain of `recon` reading each touch's peak, with the default touch settings, no fit
+    /// and no calibration.
+    pub fn new(recon: ReconstructorParams) -> ChainSetup {
+        ChainSetup { recon, touch: TouchParams::default(), strength: Strength::Peak, fit: false, calibration: None }
+    }
+
+    /// Whether building it needs the press model (seconds on the paper's sheet, unless cached).
+    pub fn needs_press_model(&self) -> bool {
+        self.fit || self.strength().needs_press_model()
+    }
+
+    /// The strength read: the calibration's, else the one asked for.
+    pub fn strength(&self) -> Strength {
+        self.calibration.as_ref().map_or(self.strength, |(_, c)| c.strength)
+    }
+}
+
+/// The frame chain of `spec` as `setup` says: the reconstructor (from the cache, without the
+/// channels the spec drops), the press model when the strength needs it or `fit` asks for it,
+/// the contrast map when the strength reads it, and the calibration.
+pub fn chain(spec: &SensorSpec, setup: ChainSetup) -> Result<Chain, Error> {
+    let strength = setup.strength();
+    let recon = reconstructor(spec, &setup.recon, true)?;
     let map = if strength.needs_contrast_map() {
         let map_params = ContrastMapParams::default();
         Some(match cache_dir() {
@@ -110,14 +140,25 @@ pub fn chain(
     } else {
         None
     };
-    let mut chain = Chain::new(recon, touch);
-    if fit || strength.needs_press_model() {
+    let mut chain = Chain::new(recon, setup.touch);
+    if setup.needs_press_model() {
         chain = chain.with_press_model(press_model(spec)?);
     }
     if let Some(map) = map {
         chain = chain.with_contrast_map(map);
     }
-    Ok(chain.with_strength(strength)?)
+    chain = chain.with_strength(strength)?;
+    if let Some((array, calibration)) = setup.calibration {
+        chain = chain.with_calibration(array, calibration)?;
+    }
+    Ok(chain)
+}
+
+/// The live pipeline of `spec`: `params` checked against their ranges before anything is
+/// built, then the chain of `setup`.
+pub fn pipeline(spec: &SensorSpec, setup: ChainSetup, params: PipelineParams) -> Result<Pipeline, Error> {
+    params.check()?;
+    Ok(Pipeline::new(chain(spec, setup)?, params))
 }
 
 /// The reconstructor of images taken against frames at rest, as `image` makes it: λ by its rule,

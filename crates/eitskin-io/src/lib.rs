@@ -179,6 +179,9 @@ pub enum Error {
     /// The frame chain could not be assembled.
     #[error("the frame chain could not be assembled")]
     Chain(#[from] eitskin::chain::ChainError),
+    /// A pipeline setting is out of its range.
+    #[error(transparent)]
+    Setting(#[from] eitskin::pipeline::RangeError),
 }
 
 fn at(path: &Option<PathBuf>) -> String {
@@ -194,6 +197,7 @@ impl Error {
             | Error::Write { .. }
             | Error::Inverse(_)
             | Error::Chain(_)
+            | Error::Setting(_)
             | Error::UnknownProtocol { .. } => {}
             Error::Toml { path, .. }
             | Error::Json { path, .. }

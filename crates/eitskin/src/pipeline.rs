@@ -44,6 +44,8 @@
 //! sensor) and reads the results. After the reference is taken, [`Pipeline::process`]
 //! allocates nothing, except on the frame that drops a channel (an event, not the frame path).
 
+use std::ops::RangeInclusive;
+
 use crate::chain::Chain;
 pub use crate::chain::TouchForce;
 use crate::image::Image;
@@ -142,7 +144,62 @@ impl Default for PipelineParams {
     }
 }
 
+/// The frames [`PipelineParams::reference_frames`] takes.
+pub const REFERENCE_FRAMES: RangeInclusive<usize> = 1..=10_000;
+/// The frames [`PipelineParams::reference_limit`] takes.
+pub const REFERENCE_LIMIT: RangeInclusive<usize> = 1..=1_000_000;
+/// The frames [`PipelineParams::average`] takes.
+pub const AVERAGE: RangeInclusive<usize> = 1..=1000;
+/// The largest false-alarm rate ([`NoiseFloor::FalseAlarm`]) taken, per frame without a touch;
+/// the rate must be above 0.
+pub const MAX_FALSE_ALARM_RATE: f64 = 0.5;
+
+/// Whether `rate` is a false-alarm rate a pipeline takes: in (0, [`MAX_FALSE_ALARM_RATE`]].
+pub fn false_alarm_rate_ok(rate: f64) -> bool {
+    rate > 0.0 && rate <= MAX_FALSE_ALARM_RATE
+}
+
+/// A pipeline setting out of its range: its name, its value as given, and the range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{name} must be {range}, got {value}")]
+pub struct RangeError {
+    /// The setting, as [`PipelineParams`] names it.
+    pub name: &'static str,
+    /// The value given.
+    pub value: String,
+    /// The range it must lie in.
+    pub range: String,
+}
+
 impl PipelineParams {
+    /// Checks every setting against its range (the one check the CLI's flags and Python's
+    /// keywords share): the first out of range is the error.
+    pub fn check(&self) -> Result<(), RangeError> {
+        let whole = |name, value: usize, range: RangeInclusive<usize>| match range.contains(&value) {
+            true => Ok(()),
+            false => Err(RangeError {
+                name,
+                value: value.to_string(),
+                range: format!("{} to {}", range.start(), range.end()),
+            }),
+        };
+        whole("reference_frames", self.reference_frames, REFERENCE_FRAMES)?;
+        whole("reference_limit", self.reference_limit, REFERENCE_LIMIT)?;
+        whole("average", self.average, AVERAGE)?;
+        if !(0.0..=1.0).contains(&self.baseline_rate) {
+            let value = self.baseline_rate.to_string();
+            return Err(RangeError { name: "baseline_rate", value, range: "in [0, 1]".into() });
+        }
+        match self.noise_floor {
+            NoiseFloor::FalseAlarm { rate } if !false_alarm_rate_ok(rate) => Err(RangeError {
+                name: "false_alarm_rate",
+                value: rate.to_string(),
+                range: format!("in (0, {MAX_FALSE_ALARM_RATE}]"),
+            }),
+            _ => Ok(()),
+        }
+    }
+
     /// The frames the reference is the mean of: `reference_frames` × `average` (each at least 1).
     pub fn frames_in_reference(&self) -> usize {
         self.reference_frames.max(1).saturating_mul(self.average.max(1))
@@ -626,6 +683,32 @@ mod tests {
         assert!(noise_changed(&[], &then), "nothing derived yet");
     }
     use super::*;
+
+    #[test]
+    fn every_setting_is_checked_against_its_range() {
+        assert_eq!(PipelineParams::default().check(), Ok(()));
+        let refused = |params: PipelineParams| params.check().unwrap_err().to_string();
+        let default = PipelineParams::default;
+        assert_eq!(
+            refused(PipelineParams { reference_frames: 0, ..default() }),
+            "reference_frames must be 1 to 10000, got 0"
+        );
+        assert_eq!(
+            refused(PipelineParams { reference_limit: 2_000_000, ..default() }),
+            "reference_limit must be 1 to 1000000, got 2000000"
+        );
+        assert_eq!(refused(PipelineParams { average: 1001, ..default() }), "average must be 1 to 1000, got 1001");
+        assert_eq!(
+            refused(PipelineParams { baseline_rate: f64::NAN, ..default() }),
+            "baseline_rate must be in [0, 1], got NaN"
+        );
+        for rate in [0.0, 0.6, f64::NAN] {
+            let params = PipelineParams { noise_floor: NoiseFloor::FalseAlarm { rate }, ..default() };
+            assert!(refused(params).starts_with("false_alarm_rate must be in (0, 0.5], got "));
+        }
+        let edge = PipelineParams { noise_floor: NoiseFloor::FalseAlarm { rate: 0.5 }, average: 1000, ..default() };
+        assert_eq!(edge.check(), Ok(()));
+    }
     use crate::calibration::{Calibration, Strength};
     use crate::press_fit::PressModel;
     use crate::sim::VirtualSensor;
