@@ -1,15 +1,15 @@
-//! The README's "Your own data": a tank's MAT file (homogeneous and object frames as two
-//! variables, one frame per column) to touches and a label image, with the README's own spec
+//! The book's "Your own data" (docs/src/own-data.md): a tank's MAT file (homogeneous and object frames as two
+//! variables, one frame per column) to touches and a label image, with the chapter's own spec
 //! and commands, on frames simulated by `forward` (an object of known place and sign).
 
 mod binary;
 
 use binary::{ok, scratch};
 
-/// The spec between `cat > tank.toml <<'TOML'` and `TOML` in the README.
+/// The spec between `cat > tank.toml <<'TOML'` and `TOML` in the book's chapter.
 fn readme_spec() -> String {
-    let readme = include_str!("../../../README.md");
-    let start = readme.find("cat > tank.toml <<'TOML'\n").expect("the README writes tank.toml") + 25;
+    let readme = include_str!("../../../docs/src/own-data.md");
+    let start = readme.find("cat > tank.toml <<'TOML'\n").expect("the chapter writes tank.toml") + 25;
     let end = start + readme[start..].find("\nTOML\n").expect("the spec ends");
     readme[start..end].to_string()
 }

@@ -1,6 +1,6 @@
 //! The sensor spec file (TOML): parsed into [`SensorSpec`], lengths converted to metres once.
 //!
-//! Every key is documented in the README. Unknown keys are errors, and so is a key that does
+//! Every key is documented in the book (`docs/src/spec.md`). Unknown keys are errors, and so is a key that does
 //! not belong to the chosen `kind` or `placement`; values are then checked by
 //! [`SensorSpec::validate`], whose errors name the key at fault.
 

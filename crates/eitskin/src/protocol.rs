@@ -25,7 +25,7 @@
 //! k and measures U_{m+s+1} − U_m: both signs flipped, so every value is the same as `skip`'s.
 //! The OpenEIT firmware's 32-electrode adjacent table (928 values) is `adjacent`'s order, and
 //! its 16-electrode opposition table (192 values) is `opposite`'s order and sign; the board
-//! reports magnitudes |Z| (see `docs/openeit.md`).
+//! reports magnitudes |Z| (see `docs/src/openeit.md`).
 
 use thiserror::Error;
 
