@@ -38,6 +38,11 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Cores each image product uses, 1 or 2: with 2 (the default) a helper thread takes part
+    /// of each large product while it is free; with 1 every product stays on the calling
+    /// thread. The numbers are the same either way.
+    #[arg(long, global = true, default_value_t = 2, value_parser = ranges::whole("a number of cores", 1, 2))]
+    cores: usize,
 }
 
 #[derive(Debug, Subcommand)]
@@ -85,6 +90,7 @@ fn command() -> clap::Command {
 
 fn main() {
     let cli = Cli::from_arg_matches(&command().get_matches()).unwrap_or_else(|e| e.exit());
+    eitskin::parallel::set_par(if cli.cores == 1 { eitskin::parallel::Par::Seq } else { eitskin::parallel::Par::Two });
     let result = match cli.command {
         Command::Spec { spec } => load::spec(spec.as_deref()).map(|s| print!("{}", eitskin_io::spec_to_toml(&s))),
         Command::Mesh(args) => mesh::run(args),

@@ -204,6 +204,24 @@ fn the_virtual_sensor_pressed_by_a_script_gives_a_touch_where_and_when_pressed()
     }
 }
 
+/// One core or two (`--cores`): the same lines, rasters included, byte for byte, since the
+/// split product computes each pixel as one core does.
+#[test]
+fn one_core_gives_the_lines_two_cores_give() {
+    let dir = scratch("cores");
+    let script = dir.join("script.txt");
+    std::fs::write(&script, "0.6 1.2 30 -20 7\n1.0 1.6 -40 50 11\n").unwrap();
+    let source = format!("sim:{}", script.display());
+    let run = |cores: &str| {
+        let args =
+            ["--cores", cores, "run", "--source", &source, "--frames", "40", "--fast", "--fit", "--stream-image"];
+        binary::ok(dir.eitskin(&[&args[..], &["--triangles", "1500"]].concat()))
+    };
+    let (one, two) = (run("1"), run("2"));
+    assert!(one.contains("\"raster\"") && one.contains("\"press\":{"), "images and presses in the lines: {one}");
+    assert_eq!(one, two);
+}
+
 /// A first run that ends in newtons: the virtual sensor calibrated first as a user calibrates a
 /// board (the paper's six units, 0–15 N), then pressed by a script at places it was not
 /// calibrated: each touch has a force within 1 N of the script's, with its standard deviation.

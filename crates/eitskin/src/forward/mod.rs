@@ -13,7 +13,6 @@ mod assemble;
 mod jacobian;
 mod low_rank;
 
-pub(crate) use low_rank::{grow, room, DenseLu};
 pub use low_rank::{ChangeScratch, LowRankUpdate, DENSE_LIMIT};
 
 use faer::linalg::solvers::Solve;

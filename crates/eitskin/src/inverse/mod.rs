@@ -16,7 +16,6 @@
 
 mod channels;
 mod criterion;
-pub(crate) mod helper;
 mod hyperparameter;
 mod linearisation;
 mod noise_model;

@@ -102,7 +102,7 @@ fn product(out: &mut [f32], data: &[f32], columns: usize, first: usize, d: &[f32
     let (rows, output) = (out.len(), &Output(out.as_mut_ptr()));
     let block_data = BLOCK * columns;
     let chunks = (data.len() / block_data).div_ceil(CHUNK);
-    super::helper::run_split(chunks, &|chunk| {
+    crate::parallel::run_split(chunks, &|chunk| {
         let blocks = chunk * CHUNK..((chunk + 1) * CHUNK).min(data.len() / block_data);
         let pixels = blocks.start * BLOCK..(blocks.end * BLOCK).min(rows);
         // SAFETY: `pixels` lies inside `out`, and `run_split` runs each chunk exactly once, so
@@ -113,38 +113,9 @@ fn product(out: &mut [f32], data: &[f32], columns: usize, first: usize, d: &[f32
     });
 }
 
-/// [`product`] on one core, over whole blocks of `data` and their pixels in `out`.
-#[allow(
-    unsafe_code,
-    reason = "calls a kernel compiled for vector extensions only once the processor is known to have them"
-)]
-fn product_blocks(out: &mut [f32], data: &[f32], columns: usize, first: usize, d: &[f32], add: bool) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the features the function is compiled for were just detected.
-            unsafe { product_avx512(out, data, columns, first, d, add) };
-            return;
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: as above.
-            unsafe { product_avx2(out, data, columns, first, d, add) };
-            return;
-        }
-    }
-    product_portable(out, data, columns, first, d, add);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn product_avx512(out: &mut [f32], data: &[f32], columns: usize, first: usize, d: &[f32], add: bool) {
-    product_portable(out, data, columns, first, d, add);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn product_avx2(out: &mut [f32], data: &[f32], columns: usize, first: usize, d: &[f32], add: bool) {
-    product_portable(out, data, columns, first, d, add);
+crate::parallel::widest! {
+    /// [`product`] on one core, over whole blocks of `data` and their pixels in `out`.
+    fn product_blocks = product_portable(out: &mut [f32], data: &[f32], columns: usize, first: usize, d: &[f32], add: bool) -> ()
 }
 
 /// The kernel: for each block, its partial sums over the measurements, then one write.

@@ -7,6 +7,7 @@
 //! likelihood summed over the outputs (Rasmussen & Williams, eq. 2.30), which needs one
 //! Cholesky factor per grid point and no held-out presses.
 
+use crate::parallel::widest;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use faer::linalg::solvers::{DenseSolveCore, Solve};
@@ -213,37 +214,6 @@ impl GaussianProcess {
     }
 }
 
-/// Defines `$name`, which runs the `#[inline(always)]` function `$portable` compiled for the
-/// widest vectors the processor has (AVX-512, AVX2 with FMA, chosen at run time) or portably.
-macro_rules! widest {
-    ($(#[$doc:meta])* fn $name:ident = $portable:ident($($arg:ident: $ty:ty),*) -> $ret:ty) => {
-        $(#[$doc])*
-        #[allow(unsafe_code, reason = "calls a kernel compiled for vector extensions only once the processor is known to have them")]
-        fn $name($($arg: $ty),*) -> $ret {
-            #[cfg(target_arch = "x86_64")]
-            {
-                #[target_feature(enable = "avx512f")]
-                fn avx512($($arg: $ty),*) -> $ret {
-                    $portable($($arg),*)
-                }
-                #[target_feature(enable = "avx2,fma")]
-                fn avx2($($arg: $ty),*) -> $ret {
-                    $portable($($arg),*)
-                }
-                if std::arch::is_x86_feature_detected!("avx512f") {
-                    // SAFETY: the features the function is compiled for were just detected.
-                    return unsafe { avx512($($arg),*) };
-                }
-                if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-                    // SAFETY: as above.
-                    return unsafe { avx2($($arg),*) };
-                }
-            }
-            $portable($($arg),*)
-        }
-    };
-}
-
 impl Variance {
     /// The packed upper triangle of `inverse`, (K + σ²I)⁻¹.
     fn packed(inverse: &Mat<f64>) -> Variance {
@@ -315,7 +285,7 @@ impl Variance {
             scratch.product.extend(scratch.kernel.iter().map(|&k| k as f32));
         }
         let (kernel, product, partial) = (&scratch.kernel, &scratch.product, &scratch.partial);
-        crate::inverse::helper::run_split(chunks, &|c| {
+        crate::parallel::run_split(chunks, &|c| {
             let rows = chunk_rows[c]..chunk_rows[c + 1];
             let sum = match self {
                 Variance::Packed { inverse, row_start, .. } => quadratic_rows(inverse, row_start, product, rows),

@@ -10,8 +10,9 @@
 //! of a flat press.
 
 use crate::conductivity::circle_triangle_area;
-use crate::forward::{room, ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
+use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
 use crate::mesh::TriangleBuckets;
+use crate::scratch::room;
 
 /// A flat press: a disk where the conductivity is lowered by a share of the background.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -25,8 +25,8 @@ use super::detect::{Exact, Scan, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter};
 use super::refine::{refine, RefineParams, DEEPEST};
 use super::{PressFit, PressModel, PressScratch};
-use crate::forward::{grow, room};
 use crate::inverse::InverseError;
+use crate::scratch::{grow, room};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 

@@ -8,7 +8,8 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::exact::{Disk, DiskParameter, ExactPresses, ExactScratch};
-use crate::forward::{grow, room, DenseLu, ForwardError};
+use crate::forward::ForwardError;
+use crate::scratch::{grow, room, DenseLu};
 
 /// Largest drop a refined press may take (a fraction of the background): at 1 the nodes under
 /// it would lose their conductance and the update its meaning.

@@ -8,8 +8,8 @@ use super::exact::{Disk, DiskParameter, ExactScratch};
 use super::joint::{disk_of, orthonormal_rows, unexplained_into};
 use super::refine::DEEPEST;
 use super::{PressFit, PressScratch};
-use crate::forward::{grow, room, DenseLu};
 use crate::inverse::InverseError;
+use crate::scratch::{grow, room, DenseLu};
 
 /// The largest shift of the fitted parameters the second-order term a carried step leaves out
 /// may cause, in standard deviations of the fit (whitened: the term's part in the span of the

@@ -17,6 +17,11 @@
 //!
 //! The state of a product is one atomic word (generation, near end, far end), so a claim is
 //! one compare-and-swap that also proves the product is still the one whose buffers it names.
+//! The caller publishes a product's kernel and its generation under one lock, and the helper
+//! holds that lock while it claims and runs chunks, so the kernel it calls is always the one
+//! of the generation its claims succeed on: a generation that wraps (2²⁴ products) can make
+//! the helper miss a product, which the caller then does alone, never run a stale kernel. A
+//! caller that finds the lock held (the helper leaving the last product) works alone.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Mutex, OnceLock, PoisonError};
@@ -35,14 +40,14 @@ const END_MASK: u64 = (1 << END_BITS) - 1;
 type Kernel = dyn Fn(usize) + Sync;
 
 /// A product in progress, as the helper sees it: a pointer to the caller's kernel, valid while
-/// the generation it was published with still has chunks to claim.
+/// the generation published with it (under the same lock) still has chunks to claim.
 #[derive(Clone, Copy)]
 struct Job {
     kernel: *const Kernel,
 }
 
 // SAFETY: the kernel is `Sync`; the helper calls it only after a claim that proves the caller
-// is still inside `run_split`, which keeps it alive (see `Helper::claim`).
+// is still inside `run_split`, which keeps it alive (see `Helper::serve`).
 #[allow(unsafe_code, reason = "the job's kernel is shared with the helper only while the caller waits for it")]
 unsafe impl Send for Job {}
 
@@ -95,16 +100,20 @@ impl Helper {
             let generation = unpack(self.state.load(Ordering::Acquire)).0;
             if generation != seen {
                 seen = generation;
-                let job = *self.job.lock().unwrap_or_else(PoisonError::into_inner);
-                if let Some(job) = job {
+                // Held while chunks are claimed and run: no other product can be published
+                // meanwhile, so a claim on `generation` that succeeds is a claim on this job.
+                let job = self.job.lock().unwrap_or_else(PoisonError::into_inner);
+                if let Some(job) = *job {
                     while let Some(chunk) = self.claim(generation, true) {
-                        // SAFETY: the claim succeeded, so this generation still had chunks
-                        // left: its caller is inside `run_split`, which does not return (nor
-                        // publish another job) before every claimed chunk is counted done.
+                        // SAFETY: the claim succeeded, so this generation, whose kernel `job`
+                        // is (both were published under the lock held here), still had chunks
+                        // left: its caller is inside `run_split`, which does not return before
+                        // every claimed chunk is counted done.
                         call(unsafe { &*job.kernel }, chunk);
                         self.done.fetch_add(1, Ordering::AcqRel);
                     }
                 }
+                drop(job);
                 idle = Instant::now();
             } else if idle.elapsed() < SPIN {
                 // Offer the core to any other thread that is ready (a reader decoding the
@@ -163,24 +172,33 @@ fn helper() -> Option<&'static Helper> {
 }
 
 /// Runs `kernel(chunk)` for every chunk in 0..`chunks`, the helper taking chunks from the far
-/// end while it is free; each chunk must write only its own part of the output. Allocates
-/// nothing after the first call (which starts the helper).
+/// end while it is free (with [`Par::Two`](super::Par)); each chunk must write only its own
+/// part of the output. Allocates nothing after the first call (which starts the helper).
 pub fn run_split(chunks: usize, kernel: &(dyn Fn(usize) + Sync)) {
     let alone = || (0..chunks).for_each(kernel);
+    if super::par() == super::Par::Seq {
+        return alone();
+    }
     let Some(helper) = helper().filter(|_| chunks >= 2 && chunks <= END_MASK as usize) else {
         return alone();
     };
     if helper.busy.swap(true, Ordering::Acquire) {
         return alone();
     }
+    // The helper still holds the lock after the last product (it is leaving it): work alone.
+    let Ok(mut job) = helper.job.try_lock() else {
+        helper.busy.store(false, Ordering::Release);
+        return alone();
+    };
     let generation = (unpack(helper.state.load(Ordering::Acquire)).0 + 1) & (u64::MAX >> (2 * END_BITS));
     helper.done.store(0, Ordering::Release);
     #[allow(unsafe_code, reason = "the kernel outlives every call the helper makes of it; see below")]
     // SAFETY: the pointer's lifetime is erased, but the helper calls it only under a claim of
     // this generation, and this function waits for those calls below before it returns.
     let kernel_ptr: *const Kernel = unsafe { std::mem::transmute::<&(dyn Fn(usize) + Sync), &'static Kernel>(kernel) };
-    *helper.job.lock().unwrap_or_else(PoisonError::into_inner) = Some(Job { kernel: kernel_ptr });
+    *job = Some(Job { kernel: kernel_ptr });
     helper.state.store(pack(generation, 0, chunks), Ordering::SeqCst);
+    drop(job);
     // A sleeping helper wakes too late for this product (tens of µs): wake it only when
     // products come faster than it spins, for the ones that follow.
     let now = Instant::now();
@@ -236,5 +254,20 @@ mod tests {
                 });
             }
         });
+    }
+
+    /// With [`Par::Seq`](super::super::Par) every chunk runs once, on the calling thread.
+    #[test]
+    fn sequential_work_stays_on_the_calling_thread() {
+        use super::super::{set_par, Par};
+        set_par(Par::Seq);
+        let caller = std::thread::current().id();
+        let runs = Mutex::new(Vec::new());
+        run_split(40, &|c| runs.lock().unwrap_or_else(PoisonError::into_inner).push((c, std::thread::current().id())));
+        set_par(Par::Two);
+        let mut runs = runs.into_inner().unwrap_or_else(PoisonError::into_inner);
+        runs.sort_by_key(|r| r.0);
+        assert_eq!(runs.iter().map(|r| r.0).collect::<Vec<_>>(), (0..40).collect::<Vec<_>>());
+        assert!(runs.iter().all(|r| r.1 == caller));
     }
 }
