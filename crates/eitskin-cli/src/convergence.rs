@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
-use eitskin::convergence::{default_inclusion, study};
 use eitskin::memory::Stage;
+use eitskin_study::convergence::{default_inclusion, study};
 use serde::Serialize;
 
 use crate::{load, ranges};

@@ -1,11 +1,11 @@
 //! The study's numbers as JSON and as a Markdown report beside the paper's.
 
 use eitskin::strength::Strength;
-use eitskin::study::learning::LearningReport;
-use eitskin::study::sweep::SweepReport;
-use eitskin::study::users::{UsersParams, UsersReport, COUNTED_FROM, MAX_FORCE, PAIR_APART};
-use eitskin::study::{ForceMethod, StudyParams, StudyReport};
 use eitskin::LengthUnit;
+use eitskin_study::learning::LearningReport;
+use eitskin_study::sweep::SweepReport;
+use eitskin_study::users::{UsersParams, UsersReport, COUNTED_FROM, MAX_FORCE, PAIR_APART};
+use eitskin_study::{ForceMethod, StudyParams, StudyReport};
 use serde_json::{json, Value};
 
 /// The paper's Table 2 (a, b, c, R² per area, its sign convention) and headline figures.
@@ -155,7 +155,7 @@ fn validation(study: &StudyReport, params: &StudyParams, unit: LengthUnit) -> St
 }
 
 /// The study's results of the force method on a `grid` × `grid` pseudo-array reading `strength`.
-fn method(study: &StudyReport, grid: usize, strength: Strength) -> Option<&eitskin::study::MethodResult> {
+fn method(study: &StudyReport, grid: usize, strength: Strength) -> Option<&eitskin_study::MethodResult> {
     study.methods.iter().find(|m| m.method == ForceMethod { grid, strength })
 }
 
@@ -164,7 +164,7 @@ pub fn sweep_json(sweep: &SweepReport) -> Value {
     let number = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
     json!({
         "max_force_newton": sweep.max_force,
-        "match_distance_m": eitskin::study::sweep::MATCH_DISTANCE,
+        "match_distance_m": eitskin_study::sweep::MATCH_DISTANCE,
         "rows": sweep.rows.iter().map(|r| json!({
             "noise_db": r.level.db,
             "noise_relative": r.level.relative(),
@@ -192,7 +192,7 @@ pub fn sweep_json(sweep: &SweepReport) -> Value {
 pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
     let k = 1.0 / unit.metres();
     let u = unit.symbol();
-    let found = |r: &eitskin::study::sweep::SweepRow| match r.detection_interval {
+    let found = |r: &eitskin_study::sweep::SweepRow| match r.detection_interval {
         [lo, hi] if r.detection.is_finite() => {
             format!("{:.1} ({:.1}–{:.1})", 100.0 * r.detection, 100.0 * lo, 100.0 * hi)
         }
@@ -200,7 +200,7 @@ pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
     };
     let len = |x: f64| if x.is_finite() { format!("{:.1}", x * k) } else { "–".into() };
     let force = |x: f64| if x.is_finite() { format!("{:.1}", 100.0 * x / sweep.max_force) } else { "–".into() };
-    let force_rms = |r: &eitskin::study::sweep::SweepRow| match r.force_rms_interval {
+    let force_rms = |r: &eitskin_study::sweep::SweepRow| match r.force_rms_interval {
         [lo, hi] if lo.is_finite() => format!("{} ({}–{})", force(r.force_rms), force(lo), force(hi)),
         _ => force(r.force_rms),
     };
@@ -209,7 +209,7 @@ pub fn sweep_markdown(sweep: &SweepReport, unit: LengthUnit) -> String {
     s += "Single frames unless averaged; λ and the noise tests from 10 reference frames, as `eitskin run` takes them, the reference then grown to 100 frames on the sheet at rest (× the frames averaged). ";
     s += &format!(
         "A press is found when a touch lies within {:.0} {u}; forces (presses in Δv only) through one curve of the fitted drop, calibrated at each level on single presses of the same kind (the 15 mm indenter through the 10 mm one's: its force is ambiguous for any method); force RMS in % of {:.0} N. Found % with its 95 % interval (Wilson's, of so many presses); force RMS with its 95 % interval (normal in the log of the mean square, frames as the units; approximate where a few presses dominate). The bound beside the force RMS is the Cramér–Rao bound of the press model's drop (centre and drop of every press unknown) through the same curve: what no unbiased estimate from Δv can beat. A force is the mean of its posterior over the calibrated range given its drop and the fit's standard deviation of it (uniform there, as the inverse's clamp assumes), so where the curve flattens it can fall below the bound; each comes with its posterior standard deviation, and the last column says how often the truth lay within twice it (about 95 % if they are honest).\n\n",
-        eitskin::study::sweep::MATCH_DISTANCE * k,
+        eitskin_study::sweep::MATCH_DISTANCE * k,
         sweep.max_force
     );
     s += "![](sweep_position.png)\n\n![](sweep_force.png)\n\n";

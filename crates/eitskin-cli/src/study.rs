@@ -6,10 +6,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use eitskin::study::sweep::{self, SweepParams, SweepReport};
-use eitskin::study::users::{self, UsersParams, UsersReport};
-use eitskin::study::{run as run_study, StudyParams, StudyReport};
 use eitskin::LengthUnit;
+use eitskin_study::sweep::{self, SweepParams, SweepReport};
+use eitskin_study::users::{self, UsersParams, UsersReport};
+use eitskin_study::{run as run_study, StudyParams, StudyReport};
 
 use crate::{load, plot, ranges, report};
 
@@ -101,7 +101,7 @@ pub fn run(args: Args) -> Result<()> {
         add("sweep", report::sweep_json(&sweep), report::sweep_markdown(&sweep, unit))?;
     }
     if args.learning_presses > 0 {
-        let learning = eitskin::study::learning::run(&spec, args.learning_presses, args.seed, &mut report)?;
+        let learning = eitskin_study::learning::run(&spec, args.learning_presses, args.seed, &mut report)?;
         crate::learn::write_learning_figures(&learning.curves, Some(learning.max_force), &args.out)?;
         add("learning", report::learning_json(&learning), report::learning_markdown(&learning))?;
     }

@@ -42,7 +42,6 @@ pub mod chain;
 pub mod colour;
 pub mod conductivity;
 pub mod contrast_map;
-pub mod convergence;
 pub mod forward;
 pub mod geometry;
 pub mod image;
@@ -63,7 +62,6 @@ pub mod sensitivity;
 pub mod sim;
 pub mod spec;
 pub mod strength;
-pub mod study;
 pub mod touch;
 pub mod values;
 

@@ -123,7 +123,7 @@ fn virtual_calibration(spec: &SensorSpec, args: &Args) -> Result<(PathBuf, eitsk
     let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [5, 5])?;
     let sim = eitskin::sim::SimParams::default();
     let seed = args.seed ^ 0x00ca_11b0;
-    let (calibration, found) = eitskin::study::users::calibrate_virtual(spec, sim, seed, chain, &array, 20)?;
+    let (calibration, found) = eitskin_study::users::calibrate_virtual(spec, sim, seed, chain, &array, 20)?;
     eprintln!(
         "eitskin run: {:.0} % of the calibration presses found, {} curves of the fitted drop ({:.1} s)",
         100.0 * found,

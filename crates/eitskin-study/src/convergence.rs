@@ -2,7 +2,7 @@
 //! setup time, and the converged answer they approach.
 //!
 //! The answer is analytic where one exists (a disk with homogeneous conductivity: the
-//! Fourier-series complete electrode model of [`crate::analytic`]); otherwise it is the
+//! Fourier-series complete electrode model of [`eitskin::analytic`]); otherwise it is the
 //! Richardson extrapolation of the two finest levels, v* = v₂ + (v₂ − v₁)/(r^p − 1), with h
 //! shrinking by r between them and p the order observed over the three finest levels.
 //! Errors are max_m |v_m − v*_m| / max_m |v*_m|: relative to the largest value, so that
@@ -10,11 +10,11 @@
 
 use std::time::Instant;
 
-use crate::analytic::DiskCem;
-use crate::conductivity::{with_inclusions, Inclusion};
-use crate::geometry::Outline;
-use crate::protocol::Protocol;
-use crate::spec::{SensorSpec, SpecError};
+use eitskin::analytic::DiskCem;
+use eitskin::conductivity::{with_inclusions, Inclusion};
+use eitskin::geometry::Outline;
+use eitskin::protocol::Protocol;
+use eitskin::spec::{SensorSpec, SpecError};
 
 /// What a convergence study found: the errors of each level against the converged answer.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,11 +1,11 @@
-//! The study's learned calibration: every [`crate::learn`] method's learning curve on robot
-//! presses of the imperfect virtual skin ([`crate::sim::imperfect`]).
+//! The study's learned calibration: every [`eitskin::learn`] method's learning curve on robot
+//! presses of the imperfect virtual skin ([`eitskin::sim::imperfect`]).
 
 use super::Progress;
 use super::StudyError;
-use crate::learn::{learning_curves, LearningCurve, NominalSensor};
-use crate::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
-use crate::SensorSpec;
+use eitskin::learn::{learning_curves, LearningCurve, NominalSensor};
+use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
+use eitskin::SensorSpec;
 
 /// Robot presses held out of training.
 pub const HELD_OUT: usize = 300;

@@ -4,7 +4,7 @@
 //! Noise is the standard deviation of each value relative to it, in dB below the value:
 //! 10^(−dB/20), so 50 dB is 0.32 %, 54 dB 0.2 %, 66 dB 0.05 %, 80 dB 0.01 %. The OpenEIT
 //! captures vary 0.3–0.5 % from frame to frame (46–50 dB); the AD5940's converter alone is far
-//! quieter (see [`crate::sim`]), so 80 dB is a best case of wiring and contact.
+//! quieter (see [`eitskin::sim`]), so 80 dB is a best case of wiring and contact.
 //!
 //! Presses ([`PressKind`]): the flat 10 mm indenter and saturating law the press model assumes;
 //! a smooth, Hertz-like profile whose contact radius grows with force; another force law; and a
@@ -13,7 +13,7 @@
 //! with random forces from 2 to 16 N, simulated on the virtual sensor's own finer mesh.
 //!
 //! Methods: touches from the image (the paper's 60 % of the frame's peak, tested against the
-//! noise) and presses found in Δv by the press model ([`crate::press_fit::PressDetection`]),
+//! noise) and presses found in Δv by the press model ([`eitskin::press_fit::PressDetection`]),
 //! the latter with forces through one curve of the fitted drop, calibrated at each level on
 //! single presses of the same kind (a user calibrates their own gel and indenter), except the
 //! 15 mm indenter, read through the 10 mm one's calibration. A press is found when a touch lies within [`MATCH_DISTANCE`] of
@@ -32,22 +32,22 @@
 //!
 //! Not for: the paper's design (that is [`super::run`]).
 
-use crate::SeededRng;
+use eitskin::SeededRng;
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 
 use super::{Progress, StudyError};
-use crate::calibration::{Calibration, Curve};
-use crate::chain::{Chain, LabelledFrame};
-use crate::inverse::{Reconstructor, ReconstructorParams};
-use crate::noise::NoiseModel;
-use crate::pipeline::{Pipeline, PipelineParams};
-use crate::press_fit::{refine, Disk, PressModel, PressModelParams, RefineParams, RefineScratch};
-use crate::pseudo_array::PseudoArray;
-use crate::sim::{add_relative_noise, ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
-use crate::spec::SensorSpec;
-use crate::strength::Strength;
-use crate::TouchParams;
+use eitskin::calibration::{Calibration, Curve};
+use eitskin::chain::{Chain, LabelledFrame};
+use eitskin::inverse::{Reconstructor, ReconstructorParams};
+use eitskin::noise::NoiseModel;
+use eitskin::pipeline::{Pipeline, PipelineParams};
+use eitskin::press_fit::{refine, Disk, PressModel, PressModelParams, RefineParams, RefineScratch};
+use eitskin::pseudo_array::PseudoArray;
+use eitskin::sim::{add_relative_noise, ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
+use eitskin::spec::SensorSpec;
+use eitskin::strength::Strength;
+use eitskin::TouchParams;
 
 /// A touch counts for a press within this distance of it, in m.
 pub const MATCH_DISTANCE: f64 = 0.02;
@@ -353,7 +353,7 @@ fn level_rows(
     };
     let pipeline_params = PipelineParams {
         reference_frames: params.reference_frames,
-        noise_floor: crate::pipeline::NoiseFloor::FalseAlarm { rate: params.false_alarm_rate },
+        noise_floor: eitskin::pipeline::NoiseFloor::FalseAlarm { rate: params.false_alarm_rate },
         auto_hyperparameter: true,
         average: level.average,
         // Each frame is a scene of its own: nothing to carry from the last.
@@ -504,7 +504,7 @@ struct Tally {
 
 impl Tally {
     /// Matches the touches of a frame to its presses, nearest pairs first.
-    fn frame(&mut self, presses: &[Press], touches: &[crate::chain::TouchForce]) {
+    fn frame(&mut self, presses: &[Press], touches: &[eitskin::chain::TouchForce]) {
         self.frames += 1;
         self.presses += presses.len();
         let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
@@ -622,7 +622,7 @@ pub fn rms_interval(groups: &[(f64, usize)]) -> [f64; 2] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Outline;
+    use eitskin::Outline;
 
     /// Wilson's interval against values worked by hand: 57 of 60 (0.95) is [0.863, 0.983]; 0 of
     /// 10 is [0, 0.278]; all of 300 is [0.987, 1].
@@ -677,7 +677,7 @@ mod tests {
     /// bound (here four times).
     #[test]
     fn drop_bounds_match_the_spread_of_fits_and_grow_with_a_second_press() {
-        use crate::conductivity::{with_inclusions, Inclusion};
+        use eitskin::conductivity::{with_inclusions, Inclusion};
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 1500;
         let model = spec.forward_model().unwrap();

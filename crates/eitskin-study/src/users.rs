@@ -1,6 +1,6 @@
 //! The study's calibration as users make it: a few places by the paper's protocol, or random
 //! robot presses, then presses anywhere else, of a kind the press model does not assume, read
-//! through the path `eitskin calibrate` and `evaluate` take ([`crate::labelled`]).
+//! through the path `eitskin calibrate` and `evaluate` take ([`eitskin::labelled`]).
 //!
 //! The sweep ([`super::sweep`]) calibrates on presses drawn from the very generator it then
 //! validates on, over the whole sheet. Here, per kind of press and noise level:
@@ -24,21 +24,21 @@
 //!
 //! Not for: the noise sweep over every press kind (that is [`super::sweep`]).
 
-use crate::SeededRng;
+use eitskin::SeededRng;
 use rand::{RngExt, SeedableRng};
 
 use super::{Progress, StudyError};
-use crate::calibration::{force_errors, Calibration};
-use crate::chain::{Chain, LabelledFrame, TouchForce};
-use crate::inverse::{Reconstructor, ReconstructorParams};
-use crate::labelled::{process_labelled, process_scenes, samples, split_references};
-use crate::pipeline::PipelineParams;
-use crate::press_fit::{PressModel, PressModelParams};
-use crate::pseudo_array::PseudoArray;
-use crate::sim::{add_relative_noise, ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
-use crate::spec::SensorSpec;
-use crate::strength::Strength;
-use crate::TouchParams;
+use eitskin::calibration::{force_errors, Calibration};
+use eitskin::chain::{Chain, LabelledFrame, TouchForce};
+use eitskin::inverse::{Reconstructor, ReconstructorParams};
+use eitskin::labelled::{process_labelled, process_scenes, samples, split_references};
+use eitskin::pipeline::PipelineParams;
+use eitskin::press_fit::{PressModel, PressModelParams};
+use eitskin::pseudo_array::PseudoArray;
+use eitskin::sim::{add_relative_noise, ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
+use eitskin::spec::SensorSpec;
+use eitskin::strength::Strength;
+use eitskin::TouchParams;
 
 /// Presses are kept this far inside the outline's box, in m.
 pub const EDGE_MARGIN: f64 = 0.012;
@@ -337,7 +337,7 @@ fn method_row(
 /// The RMS force error (N) of the presses found with a force, and the share of those with a
 /// standard deviation whose truth lies within twice it.
 fn force_figures(truth: &[f64], found: &[Option<TouchForce>]) -> (f64, f64) {
-    let estimates: Vec<(f64, crate::calibration::ForceEstimate)> =
+    let estimates: Vec<(f64, eitskin::calibration::ForceEstimate)> =
         truth.iter().zip(found).filter_map(|(t, f)| Some((*t, f.as_ref()?.force?))).collect();
     let (t, p): (Vec<f64>, Vec<f64>) = estimates.iter().map(|(t, f)| (*t, f.newtons)).unzip();
     let with_std: Vec<bool> =

@@ -1,5 +1,23 @@
-//! The paper's study rerun on the virtual sensor (its sections 2.1 and 3.3), with every force
-//! method side by side on the same validation presses.
+//! # eitskin-study
+//!
+//! The research around eitskin, built on the runtime library (`eitskin`), never the other way
+//! round: the paper's study rerun on the virtual sensor (its sections 2.1 and 3.3), with every
+//! force method side by side on the same validation presses; the noise sweep through the frame
+//! path ([`sweep`]); calibration as users calibrate ([`users`]); learning curves of the learned
+//! calibration ([`learning`]); and the forward model's convergence under refinement
+//! ([`convergence`]).
+//!
+//! ```
+//! use eitskin_study::convergence::{observed_order, relative_error};
+//! // Differences between levels that halve with each doubling of the triangles (h shrinks by
+//! // √2 each time): second order in h.
+//! let levels: [&[f64]; 3] = [&[1.4, 2.4], &[1.2, 2.2], &[1.1, 2.1]];
+//! let order = observed_order(levels, [1000, 2000, 4000]).unwrap_or(f64::NAN);
+//! assert!((order - 2.0).abs() < 1e-9);
+//! assert!(relative_error(levels[2], &[1.0, 2.0]) < relative_error(levels[0], &[1.0, 2.0]));
+//! ```
+//!
+//! The study itself:
 //!
 //! 1. Location dependence (Fig. 3c): an inclusion of radius 5 % of the side at half the
 //!    background conductivity, every 5 % of the side along x.
@@ -15,37 +33,42 @@
 //!    the same 475 presses: a finer n×n division; the pseudo-array on the fitted press's drop;
 //!    and one curve for the whole sheet on each strength that is meant to be the same anywhere
 //!    (peak ÷ sensitivity, the contrast map's drop from the peak, the volume and both, the
-//!    fitted drop; see [`crate::strength`] and [`crate::contrast_map`]).
+//!    fitted drop; see [`eitskin::strength`] and [`eitskin::contrast_map`]).
 //!
 //! Every method is a [`ForceMethod`] — a division and a [`Strength`] — and runs through the one
 //! [`Chain`]: its samples are the chain's readings of the calibration frames, and its forces
 //! the chain's, with the fitted calibration, on the validation frames. `eitskin calibrate` and
 //! `evaluate` on the frames the study writes give the same numbers.
 
+#![deny(missing_docs)]
+#![warn(rustdoc::broken_intra_doc_links)]
+#![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
+
+pub mod convergence;
 pub mod learning;
 pub mod sweep;
 pub mod users;
 
-use crate::SeededRng;
+use eitskin::SeededRng;
 use rand::{RngExt, SeedableRng};
 use thiserror::Error;
 
-use crate::calibration::{force_errors, Calibration, CalibrationError, Curve, ForceErrors};
-use crate::chain::{Chain, ChainError, LabelledFrame};
-use crate::conductivity::Inclusion;
-use crate::contrast_map::{ContrastMap, ContrastMapParams};
-use crate::forward::ForwardError;
-use crate::inverse::mean_of_finite;
-use crate::inverse::{InverseError, Reconstructor, ReconstructorParams};
-use crate::labelled::{self, process_labelled, split_references};
-use crate::pipeline::PipelineParams;
-use crate::press_fit::{PressFit, PressModel, PressModelParams};
-use crate::pseudo_array::{PseudoArray, PseudoArrayError};
-use crate::sensitivity::{along_x, peaks};
-use crate::sim::{Press, SimParams, VirtualSensor};
-use crate::spec::{SensorSpec, SpecError};
-use crate::strength::Strength;
-use crate::touch::{Touch, TouchParams};
+use eitskin::calibration::{force_errors, Calibration, CalibrationError, Curve, ForceErrors};
+use eitskin::chain::{Chain, ChainError, LabelledFrame};
+use eitskin::conductivity::Inclusion;
+use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
+use eitskin::forward::ForwardError;
+use eitskin::inverse::mean_of_finite;
+use eitskin::inverse::{InverseError, Reconstructor, ReconstructorParams};
+use eitskin::labelled::{self, process_labelled, split_references};
+use eitskin::pipeline::PipelineParams;
+use eitskin::press_fit::{PressFit, PressModel, PressModelParams};
+use eitskin::pseudo_array::{PseudoArray, PseudoArrayError};
+use eitskin::sensitivity::{along_x, peaks};
+use eitskin::sim::{Press, SimParams, VirtualSensor};
+use eitskin::spec::{SensorSpec, SpecError};
+use eitskin::strength::Strength;
+use eitskin::touch::{Touch, TouchParams};
 
 /// What stopped the study; each stage keeps its own error as the cause.
 #[derive(Debug, Error, PartialEq)]
@@ -70,10 +93,10 @@ pub enum StudyError {
     Chain(#[from] ChainError),
     /// Labelled frames could not go through the pipeline.
     #[error("labelled frames could not go through the pipeline")]
-    Labelled(#[from] crate::labelled::LabelledError),
+    Labelled(#[from] eitskin::labelled::LabelledError),
     /// A calibration could not be learned.
     #[error("a calibration could not be learned")]
-    Learn(#[from] crate::learn::LearnError),
+    Learn(#[from] eitskin::learn::LearnError),
 }
 
 /// How to run the study; `Default` is the paper's design.
@@ -184,7 +207,7 @@ pub struct StudyReport {
     pub validation_frames: Vec<LabelledFrame>,
 }
 
-pub use crate::Progress;
+pub use eitskin::Progress;
 
 /// The paper's force ranges by area (its numbering from 1): 15, 15, 12, 15, 11, 9 N; areas
 /// past the sixth (finer divisions) take the range of the 5×5 area their unit centre lies in.

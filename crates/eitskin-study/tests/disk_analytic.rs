@@ -5,8 +5,8 @@
 use std::f64::consts::PI;
 
 use eitskin::analytic::disk_point_dipole;
-use eitskin::convergence::{disk_values, relative_error};
 use eitskin::{ElectrodeModel, ForwardModel, Outline, Placement, Protocol, SensorSpec};
+use eitskin_study::convergence::{disk_values, relative_error};
 
 /// The unit disk, σ = 1 S/m, t = 1 m, 16 electrodes 0.1 m wide from angle 0, z = 0.01 Ω·m².
 fn disk(triangles: usize) -> SensorSpec {
