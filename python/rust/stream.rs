@@ -265,9 +265,7 @@ impl Calibration {
             )));
         }
         let spec = spec.0.clone();
-        let electrodes = spec.electrode_positions().map_err(error)?;
-        let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.outline, &electrodes, [grid.0, grid.1])
-            .map_err(error)?;
+        let array = eitskin::pseudo_array::PseudoArray::of_sensor(&spec, [grid.0, grid.1]).map_err(error)?;
         let area = from_one(&area, "area", array.area_count())?;
         let samples: Vec<eitskin::calibration::Sample> = (0..area.len())
             .map(|k| eitskin::calibration::Sample {
@@ -289,9 +287,7 @@ impl Calibration {
     #[pyo3(signature = (spec, x, y, grid = (5, 5)))]
     fn area_of(spec: &SensorSpec, x: f64, y: f64, grid: (i64, i64)) -> PyResult<Option<usize>> {
         let grid = (crate::count(grid.0, "grid")?, crate::count(grid.1, "grid")?);
-        let electrodes = spec.0.electrode_positions().map_err(error)?;
-        let array = eitskin::pseudo_array::PseudoArray::by_symmetry(&spec.0.outline, &electrodes, [grid.0, grid.1])
-            .map_err(error)?;
+        let array = eitskin::pseudo_array::PseudoArray::of_sensor(&spec.0, [grid.0, grid.1]).map_err(error)?;
         Ok(array.unit_at([x, y]).map(|u| array.area_of(u) + 1))
     }
 

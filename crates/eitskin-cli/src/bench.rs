@@ -23,11 +23,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
-use eitskin::chain::Chain;
 use eitskin::conductivity::{with_inclusions, Inclusion};
 use eitskin::inverse::Channels;
 use eitskin::memory::Stage;
-use eitskin::pipeline::{Pipeline, PipelineParams};
+use eitskin::pipeline::PipelineParams;
 use eitskin::press_fit::{exact_model_for, PressDetection, PressModel, PressModelParams, PressScratch, PressTrack};
 use eitskin::sim::VirtualSensor;
 use eitskin::touch::{detect_into, TouchScratch};
@@ -87,14 +86,16 @@ fn time<T>(runs: usize, mut f: impl FnMut() -> Result<T>) -> Result<(Timing, T)>
     Ok((Timing::of(&mut times), last.ok_or_else(|| anyhow::anyhow!("no run"))?))
 }
 
-/// Replays text lines as fast as possible through the lines decoder, the pipeline (reference of
-/// 10 frames, image, touches) and the JSON line `eitskin run` prints: frames per second over the
-/// whole replay, and the latency from a line's last byte to its JSON line, in s.
-fn replay(recon: &Reconstructor, rest: &[f64], pressed: &[f64]) -> Result<(f64, Timing)> {
+/// Replays text lines as fast as possible through the lines decoder, the pipeline `run` builds
+/// for `spec` (reference of 10 frames, image, touches) and the JSON line `eitskin run` prints:
+/// frames per second over the whole replay, and the latency from a line's last byte to its JSON
+/// line, in s.
+fn replay(spec: &eitskin::SensorSpec, rest: &[f64], pressed: &[f64]) -> Result<(f64, Timing)> {
     let count = 5000;
     let line = |v: &[f64]| v.iter().map(|x| format!("{x:.6e}")).collect::<Vec<_>>().join(",") + "\n";
     let lines: Vec<String> = (0..count).map(|k| line(if k % 2 == 0 || k < 10 { rest } else { pressed })).collect();
-    let mut pipeline = Pipeline::new(Chain::new(recon.clone(), TouchParams::default()), PipelineParams::default());
+    let setup = eitskin_io::build::ChainSetup::new(ReconstructorParams::default());
+    let mut pipeline = eitskin_io::build::pipeline(spec, setup, PipelineParams::default())?;
     let mut decoder = LinesDecoder::new(rest.len());
     let (mut events, mut sink) = (Vec::with_capacity(4), Vec::with_capacity(4096));
     let mut out = eitskin_io::stream::FrameLine::default();
@@ -163,7 +164,7 @@ pub fn run(args: Args) -> Result<()> {
     let (model, values) = forward(&spec, n, &mut stages)?;
     let recon = inverse(&spec, &model, n, &mut stages)?;
     let (frame, pixels, touches) = frames(&spec, &model, &recon, &values, n, &mut stages)?;
-    let (replay_fps, replay_latency) = replay(&recon, &values, &frame)?;
+    let (replay_fps, replay_latency) = replay(&spec, &values, &frame)?;
     stages.per_frame.push(("replay_latency", replay_latency));
     simulated(&spec, n, &mut stages)?;
     let (t_learn, t_learned_frame, t_learn_press, t_learned_press_frame) = learned(&spec)?;

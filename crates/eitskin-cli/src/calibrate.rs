@@ -93,7 +93,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     read.extend(args.spec.as_deref().map(|p| ("the spec", p)));
     outputs::check(&[("--out", &args.out)], &read)?;
     let spec = load::spec(args.spec.as_deref())?;
-    let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [args.grid; 2])?;
+    let array = PseudoArray::of_sensor(&spec, [args.grid; 2])?;
     let strength = args.strength;
     let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
     let samples = match Labelled::of(&spec, &array, &args.samples, rows)? {

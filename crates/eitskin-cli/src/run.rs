@@ -217,6 +217,7 @@ pub fn run(args: Args) -> Result<()> {
         stream_image: args.stream_image,
         hyperparameter: imaging.hyperparameter,
         recorded: args.record.is_some(),
+        masked: spec.used_channels()?.iter().enumerate().filter(|(_, used)| !**used).map(|(m, _)| m).collect(),
     };
     let mut processing = Processing::new(pipeline, learned, settings);
     let Tally { frames, bad, stopped } = processing.drive(&items, &mut sinks)?;

@@ -87,7 +87,7 @@ fn a_given_lambda_is_used_and_a_calibration_fixes_it() {
 
     // A calibration records λ and normalisation; a run takes them, and refuses others.
     let spec = SensorSpec::square_hydrogel();
-    let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [5, 5]).unwrap();
+    let array = PseudoArray::of_sensor(&spec, [5, 5]).unwrap();
     let curves = vec![Hydrogel::default().drop_curve(16.0); array.area_count()];
     let calibration = Calibration { curves, strength: Strength::Peak };
     let path = dir.join("calibration.json");

@@ -326,7 +326,7 @@ mod tests {
     use eitskin::calibration::Sample;
 
     fn fitted(spec: &SensorSpec) -> (PseudoArray, Calibration) {
-        let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [5, 5]).unwrap();
+        let array = PseudoArray::of_sensor(spec, [5, 5]).unwrap();
         let samples: Vec<Sample> = (0..array.area_count())
             .flat_map(|area| {
                 (0..10).map(move |f| Sample {

@@ -192,7 +192,7 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     let model = spec.forward_model()?;
     let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
     let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?;
-    let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [1, 1])?;
+    let array = PseudoArray::of_sensor(spec, [1, 1])?;
     let mut rng = SeededRng::seed_from_u64(params.seed);
 
     // Clean frames, once: the untouched sheet, calibration presses of the model's kind, scenes.

@@ -464,7 +464,7 @@ mod tests {
         spec.mesh.triangles = 800;
         let model = spec.forward_model().unwrap();
         let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
-        let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
+        let array = PseudoArray::of_sensor(&spec, [1, 1]).unwrap();
         let calibration = Calibration { curves: vec![Hydrogel::default().drop_curve(16.0)], strength: Strength::Peak };
         let touch = TouchParams { polarity: Polarity::Both, ..TouchParams::default() };
         let mut chain = Chain::new(recon, touch).with_calibration(array, calibration).unwrap();

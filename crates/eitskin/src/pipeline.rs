@@ -752,7 +752,7 @@ mod tests {
         let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
         // One area for the whole sheet, its curve the virtual gel's law drop = 0.9·(1 − e^(−F/5.54 N)),
         // written down rather than fitted: the fitted drop must be the physical one.
-        let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
+        let array = PseudoArray::of_sensor(&spec, [1, 1]).unwrap();
         let gel = Hydrogel::default().drop_curve(16.0);
         let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
         let chain = Chain::new(recon, crate::TouchParams::default())

@@ -31,7 +31,7 @@
 //! use eitskin::pseudo_array::PseudoArray;
 //! use eitskin::SensorSpec;
 //! let spec = SensorSpec::square_hydrogel(); // 200 mm square, four electrodes a side
-//! let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [5, 5])?;
+//! let array = PseudoArray::of_sensor(&spec, [5, 5])?;
 //! let unit = array.unit_at([0.0, -0.09]).ok_or("outside the sheet")?; // 10 mm above the bottom edge
 //! assert_eq!((array.area_count(), unit, array.area_of(unit)), (6, 2, 2)); // the paper's area 3
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -71,6 +71,9 @@ pub const MAX_UNITS_PER_SIDE: usize = 100;
 /// messages and fields).
 #[derive(Debug, Error, PartialEq)]
 pub enum PseudoArrayError {
+    /// The spec's electrodes could not be placed on its outline.
+    #[error("the sensor spec does not make a sensor")]
+    Spec(#[from] crate::SpecError),
     /// The grid has no unit along x or along y, or more than [`MAX_UNITS_PER_SIDE`].
     #[error(
         "the pseudo-array grid is {nx} × {ny} units; it needs 1 to {MAX_UNITS_PER_SIDE} units each way (the paper's is 5 × 5)"
@@ -112,6 +115,12 @@ pub enum PseudoArrayError {
 }
 
 impl PseudoArray {
+    /// The paper's division of `spec`'s sheet: `grid` units over its outline's box, grouped by
+    /// the symmetries of its outline and electrodes ([`PseudoArray::by_symmetry`]).
+    pub fn of_sensor(spec: &crate::SensorSpec, grid: [usize; 2]) -> Result<PseudoArray, PseudoArrayError> {
+        PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, grid)
+    }
+
     /// Units over `outline`'s bounding box (m) grouped by the symmetries of outline and electrodes.
     ///
     /// `grid` is `[nx, ny]`, units along x and along y; `electrodes` are arc-length intervals of

@@ -50,7 +50,7 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     let model = spec.forward_model().unwrap();
     let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
     let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
-    let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions().unwrap(), [1, 1]).unwrap();
+    let array = PseudoArray::of_sensor(&spec, [1, 1]).unwrap();
     let gel = Hydrogel::default().drop_curve(16.0);
     let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
     let chain = Chain::new(recon, TouchParams::default())

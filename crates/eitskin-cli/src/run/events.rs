@@ -6,8 +6,15 @@ use eitskin::pipeline::{Pipeline, Status};
 use eitskin_io::stream::Event;
 
 /// The event a frame's status calls for, also said on stderr: the reference taken (with λ and
-/// the channels left out), or channels dropped; `None` for any other frame.
-pub fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparameter: Hyperparameter) -> Option<Event> {
+/// the channels left out, those of the spec's mask, from 0, named apart), or channels dropped;
+/// `None` for any other frame.
+pub fn channel_event(
+    seq: u64,
+    status: Status,
+    pipeline: &Pipeline,
+    hyperparameter: Hyperparameter,
+    masked: &[usize],
+) -> Option<Event> {
     let one_based = |channels: &[usize]| channels.iter().map(|m| m + 1).collect::<Vec<usize>>();
     match status {
         Status::Referencing { collected, needed } if collected == needed => {
@@ -17,11 +24,15 @@ pub fn channel_event(seq: u64, status: Status, pipeline: &Pipeline, hyperparamet
             let dropped = one_based(&pipeline.dropped_channels());
             let how =
                 if chosen { format!(" (chosen from the noise of {needed} reference frames)") } else { String::new() };
-            let left_out = if dropped.is_empty() {
-                String::new()
-            } else {
-                format!("; channels {dropped:?} left out (missing from a reference frame, or a zero reference)")
-            };
+            let (by_spec, by_data): (Vec<usize>, Vec<usize>) = dropped.iter().partition(|m| masked.contains(&(*m - 1)));
+            let mut left_out = String::new();
+            if !by_spec.is_empty() {
+                left_out += &format!("; channels {by_spec:?} left out (the spec drops them)");
+            }
+            if !by_data.is_empty() {
+                left_out +=
+                    &format!("; channels {by_data:?} left out (missing from a reference frame, or a zero reference)");
+            }
             let (threshold, noise) = noise_figures(pipeline);
             let measured = pipeline.noise_measured();
             let test = match threshold {

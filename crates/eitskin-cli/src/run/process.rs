@@ -27,6 +27,8 @@ pub struct Settings {
     pub hyperparameter: Hyperparameter,
     /// Whether a sink records every frame (each line then says `recorded`).
     pub recorded: bool,
+    /// The channels the spec's mask drops, from 0.
+    pub masked: Vec<usize>,
 }
 
 /// What came of a run: frames processed, input refused, and whether a sink's reader went away.
@@ -143,7 +145,9 @@ impl Processing {
             }
         };
         let mut flow = Flow::Go;
-        if let Some(event) = channel_event(seq, status, &self.pipeline, self.settings.hyperparameter) {
+        if let Some(event) =
+            channel_event(seq, status, &self.pipeline, self.settings.hyperparameter, &self.settings.masked)
+        {
             flow = to_all(sinks, |s| s.event(&event))?;
         }
         self.tally.frames += 1;

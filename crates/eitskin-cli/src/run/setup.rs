@@ -120,7 +120,7 @@ fn virtual_calibration(spec: &SensorSpec, args: &Args) -> Result<(PathBuf, eitsk
     let strength = Strength::FittedDrop;
     let setup = ChainSetup { strength, ..ChainSetup::new(ReconstructorParams::default()) };
     let chain = load::chain("run", spec, setup)?;
-    let array = PseudoArray::by_symmetry(&spec.outline, &spec.electrode_positions()?, [5, 5])?;
+    let array = PseudoArray::of_sensor(spec, [5, 5])?;
     let sim = eitskin::sim::SimParams::default();
     let seed = args.seed ^ 0x00ca_11b0;
     let (calibration, found) = eitskin_study::users::calibrate_virtual(spec, sim, seed, chain, &array, 20)?;
