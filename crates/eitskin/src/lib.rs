@@ -36,34 +36,18 @@
 /// The linear-algebra crate whose matrices appear in this API (Jacobians, reconstruction matrices).
 pub use faer;
 
-pub mod analytic;
-pub mod calibration;
-pub mod chain;
-pub mod colour;
-pub mod conductivity;
-pub mod contrast_map;
-pub mod forward;
-pub mod geometry;
-pub mod image;
-pub mod inverse;
-pub mod labelled;
-pub mod learn;
-pub mod memory;
-pub mod mesh;
-pub mod noise;
-pub mod parallel;
-pub mod pipeline;
-pub mod press_fit;
-pub mod protocol;
-pub mod pseudo_array;
-mod scratch;
-pub mod segmentation;
-pub mod sensitivity;
-pub mod sim;
-pub mod spec;
-pub mod strength;
-pub mod touch;
-pub mod values;
+// The source folders follow the data flow: the sensor and its physics (`model/`), frames to
+// images and touches (`imaging/`), touches to presses and forces (`press/`), and the frame
+// path over time (`live/`). The modules keep their paths at the crate's root.
+mod imaging;
+mod live;
+mod model;
+mod press;
+pub use imaging::{colour, image, inverse, noise, segmentation, sensitivity, touch, values};
+pub(crate) use live::scratch;
+pub use live::{chain, labelled, memory, parallel, pipeline};
+pub use model::{analytic, conductivity, forward, geometry, mesh, protocol, sim, spec};
+pub use press::{calibration, contrast_map, learn, press_fit, pseudo_array, strength};
 
 pub use forward::{ElectrodeModel, ForwardError, ForwardModel, ForwardSolution};
 pub use geometry::{Electrode, Outline};
