@@ -176,6 +176,9 @@ pub enum Error {
     /// A precomputed model (reconstructor, press model) could not be built.
     #[error("the inverse model could not be built")]
     Inverse(#[from] InverseError),
+    /// A press model could not be built.
+    #[error("the press model could not be built")]
+    PressModel(#[from] eitskin::press_fit::PressModelError),
     /// The frame chain could not be assembled.
     #[error("the frame chain could not be assembled")]
     Chain(#[from] eitskin::chain::ChainError),
@@ -198,6 +201,7 @@ impl Error {
             | Error::Inverse(_)
             | Error::Chain(_)
             | Error::Setting(_)
+            | Error::PressModel(_)
             | Error::UnknownProtocol { .. } => {}
             Error::Toml { path, .. }
             | Error::Json { path, .. }

@@ -82,6 +82,9 @@ pub enum StudyError {
     /// A reconstructor, press model or contrast map could not be built, or a frame was refused.
     #[error("the inverse model failed")]
     Inverse(#[from] InverseError),
+    /// A press model could not be built.
+    #[error("the press model could not be built")]
+    PressModel(#[from] eitskin::press_fit::PressModelError),
     /// A pseudo-array could not be made.
     #[error("the pseudo-array could not be made")]
     PseudoArray(#[from] PseudoArrayError),

@@ -45,6 +45,23 @@ use crate::inverse::InverseError;
 use crate::mesh::Mesh;
 use crate::mesh::PointLocator;
 
+/// Why a press model could not be built.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum PressModelError {
+    /// The indenter radius must be positive and finite.
+    #[error("the indenter radius must be positive and finite, got {0} m")]
+    IndenterRadius(f64),
+    /// The forward model could not be solved or linearised at the background.
+    #[error("the press model's responses could not be computed")]
+    Inverse(#[from] InverseError),
+}
+
+impl From<crate::forward::ForwardError> for PressModelError {
+    fn from(error: crate::forward::ForwardError) -> PressModelError {
+        PressModelError::Inverse(InverseError::Forward(error))
+    }
+}
+
 mod detect;
 mod exact;
 mod joint;
@@ -391,7 +408,11 @@ impl PressModel {
     }
 
     /// Tabulates the responses of `model` linearised at the homogeneous `background` (S/m).
-    pub fn new(model: &ForwardModel, background: f64, params: &PressModelParams) -> Result<PressModel, InverseError> {
+    pub fn new(
+        model: &ForwardModel,
+        background: f64,
+        params: &PressModelParams,
+    ) -> Result<PressModel, PressModelError> {
         PressModel::with_exact_model(model, model, background, params)
     }
 
@@ -403,9 +424,9 @@ impl PressModel {
         exact_model: &ForwardModel,
         background: f64,
         params: &PressModelParams,
-    ) -> Result<PressModel, InverseError> {
+    ) -> Result<PressModel, PressModelError> {
         if !(params.radius > 0.0 && params.radius.is_finite()) {
-            return Err(InverseError::IndenterRadius(params.radius));
+            return Err(PressModelError::IndenterRadius(params.radius));
         }
         let mesh = model.mesh();
         let sigma = vec![background; mesh.triangles().len()];
@@ -765,6 +786,17 @@ mod tests {
 
     fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
         (a[0] - b[0]).hypot(a[1] - b[1])
+    }
+
+    #[test]
+    fn an_indenter_of_no_size_is_a_press_model_error() {
+        let mut spec = crate::SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let model = spec.forward_model().unwrap();
+        for radius in [0.0, -0.01, f64::NAN] {
+            let err = PressModel::new(&model, 1.0, &PressModelParams { radius, ..PressModelParams::default() });
+            assert!(matches!(err, Err(PressModelError::IndenterRadius(r)) if r.to_bits() == radius.to_bits()));
+        }
     }
 
     #[test]

@@ -51,9 +51,6 @@ pub enum InverseError {
     /// The hyperparameter must be positive and finite.
     #[error("the hyperparameter λ must be positive and finite, got {0}")]
     Hyperparameter(f64),
-    /// The indenter radius of a press model must be positive and finite.
-    #[error("the indenter radius must be positive and finite, got {0} m")]
-    IndenterRadius(f64),
     /// The forward model could not be solved (at the background, or with an inclusion).
     #[error("the forward model could not be solved")]
     Forward(#[from] crate::forward::ForwardError),

@@ -141,9 +141,12 @@ pub enum LearnError {
     /// The sensor as specified could not be solved.
     #[error("the sensor as specified could not be solved")]
     Forward(#[from] crate::ForwardError),
+    /// Its press features could not be computed.
+    #[error("the sensor's press features could not be computed")]
+    Inverse(#[from] crate::InverseError),
     /// Its press model could not be built.
     #[error("the sensor's press model could not be built")]
-    Inverse(#[from] crate::InverseError),
+    PressModel(#[from] crate::press_fit::PressModelError),
 }
 
 /// One press with its label: the frame's values (or Δv), its position in m, its force in N.
