@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use eitskin::calibration::{force_errors, Calibration, ForceEstimate, Sample};
-use eitskin::chain::{LabelledFrame, TouchForce};
+use eitskin::chain::LabelledFrame;
 use eitskin::labelled::{self, process_labelled, split_references, MATCH_DISTANCE};
 use eitskin::pipeline::PipelineParams;
 use eitskin::pseudo_array::PseudoArray;
@@ -36,13 +36,35 @@ pub struct CalibrateArgs {
     /// channel's noise is measured on them.
     #[arg(long)]
     reference: Option<PathBuf>,
-    /// What the curves take as the touch's strength: `peak` (the image's, the paper's),
-    /// `fitted-drop` (of the press fitted to Δv), `peak-sensitivity` (peak ÷ the forward model's
-    /// sensitivity there), or the forward model's contrast map read from the peak, the volume or
-    /// both: `contrast-map-peak`, `contrast-map-volume`, `contrast-map-peak-and-volume`. All
-    /// but `peak` need raw frames.
-    #[arg(long, value_parser = parse_strength, default_value = "peak")]
-    strength: Strength,
+    /// What the curves take as the touch's strength: `auto` (raw frames: the press strength
+    /// that reads the samples best at places its curve did not see, each printed; peaks: the
+    /// peak), `peak` (the image's, the paper's), `fitted-drop` (of the press fitted to Δv),
+    /// `sized-drop` (the same, every press's radius fitted), `peak-sensitivity` (peak ÷ the
+    /// forward model's sensitivity there), or the forward model's contrast map read from the
+    /// peak, the volume or both: `contrast-map-peak`, `contrast-map-volume`,
+    /// `contrast-map-peak-and-volume`. All but `peak` need raw frames.
+    #[arg(long, value_parser = parse_strength_choice, default_value = "auto")]
+    strength: StrengthChoice,
+}
+
+/// `--strength`: one strength, or the best press strength for the samples.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum StrengthChoice {
+    /// The press strength that reads the samples best ([`labelled::choose_strength`]); the
+    /// peak for samples of peaks.
+    Auto,
+    /// This one.
+    One(Strength),
+}
+
+/// Parses `--strength`: `auto` or a strength's flag.
+fn parse_strength_choice(text: &str) -> Result<StrengthChoice, String> {
+    if text == "auto" {
+        return Ok(StrengthChoice::Auto);
+    }
+    parse_strength(text)
+        .map(StrengthChoice::One)
+        .map_err(|e| e.replace("expected one of ", "expected auto, or one of "))
 }
 
 /// A strength's name on the command line: its file name in kebab case (`fitted drop` →
@@ -94,23 +116,31 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     outputs::check(&[("--out", &args.out)], &read)?;
     let spec = load::spec(args.spec.as_deref())?;
     let array = PseudoArray::of_sensor(&spec, [args.grid; 2])?;
-    let strength = args.strength;
     let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
-    let samples = match Labelled::of(&spec, &array, &args.samples, rows)? {
-        Labelled::Peaks(peaks) if strength == Strength::Peak => peaks,
-        Labelled::Peaks(_) => {
+    let (samples, strength) = match (Labelled::of(&spec, &array, &args.samples, rows)?, args.strength) {
+        (Labelled::Peaks(peaks), StrengthChoice::Auto | StrengthChoice::One(Strength::Peak)) => (peaks, Strength::Peak),
+        (Labelled::Peaks(_), StrengthChoice::One(strength)) => {
             bail!(
                 "{}: a \"{strength}\" calibration needs each sample's raw frame, not its peak",
                 args.samples.display()
             )
         }
-        Labelled::Frames(frames) => {
+        (Labelled::Frames(frames), choice) => {
             let (references, pressed) = references(args.reference.as_deref(), &args.samples, frames)?;
-            let setup = ChainSetup { strength, ..ChainSetup::new(ReconstructorParams::default()) };
+            let strengths = match choice {
+                StrengthChoice::Auto => labelled::PRESS_STRENGTHS.to_vec(),
+                StrengthChoice::One(strength) => vec![strength],
+            };
+            let setup = ChainSetup { strength: strengths[0], ..ChainSetup::new(ReconstructorParams::default()) };
             let chain = load::chain("calibrate", &spec, setup)?;
-            let found = process_labelled(chain, PipelineParams::default(), &references, &pressed)?;
-            report_missed(&args.samples, &pressed, &found);
-            labelled::samples(&array, &pressed, &found)
+            let params = PipelineParams::default();
+            let (trials, best) = labelled::choose_strength(&chain, &strengths, params, &references, &pressed, &array)?;
+            if trials.len() > 1 {
+                print_trials(&trials, best);
+            }
+            let trial = &trials[best];
+            report_missed(&args.samples, &pressed, &trial.samples);
+            (trial.samples.iter().flatten().copied().collect(), trial.strength)
         }
     };
     let calibration = Calibration::fit_strength(&samples, array.area_count(), strength)?;
@@ -126,6 +156,17 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     Ok(())
 }
 
+/// Each press strength tried on the samples, and which `--strength auto` keeps.
+fn print_trials(trials: &[labelled::StrengthTrial], best: usize) {
+    println!("strengths tried (one curve each, read at places it did not see, on the presses all of them found):");
+    for (k, trial) in trials.iter().enumerate() {
+        let read = trial.samples.iter().flatten().count();
+        let error = trial.held_out_rms.map_or("– (fewer than 3 places)".into(), |e| format!("{e:.3} N"));
+        let kept = if k == best { "  ← kept" } else { "" };
+        println!("  {:<12} {read:>5} presses read, held-out force RMS {error}{kept}", trial.strength.name());
+    }
+}
+
 /// The fitted curves, one line per area, with how far each reads from one curve for every sample.
 fn print_curves(calibration: &Calibration, samples: &[Sample], strength: Strength) {
     let unit = format!("[{}]", strength.unit());
@@ -135,13 +176,18 @@ fn print_curves(calibration: &Calibration, samples: &[Sample], strength: Strengt
         Ok(one) if calibration.curves.len() > 1 => calibration.offsets_from(&one.curves[0]),
         _ => vec![f64::NAN; calibration.curves.len()],
     };
-    println!("{} samples, {} areas; {strength}(F) = a·e^(−F/b) + c:", samples.len(), calibration.curves.len());
     println!(
-        "{:>5} {:>12} {:>10} {:>12} {:>7} {:>12} {:>10} {:>8} {:>13}",
+        "{} samples, {} areas; {strength}(F) = a·e^(−F/b) + c, or a·(1 + F/(k·b))^(−k) + c where a shape k fits better:",
+        samples.len(),
+        calibration.curves.len()
+    );
+    println!(
+        "{:>5} {:>12} {:>10} {:>12} {:>5} {:>7} {:>12} {:>10} {:>8} {:>13}",
         "area",
         format!("a {unit}"),
         "b [N]",
         format!("c {unit}"),
+        "k",
         "R²",
         format!("spread {unit}"),
         "F [N]",
@@ -151,11 +197,12 @@ fn print_curves(calibration: &Calibration, samples: &[Sample], strength: Strengt
     for (k, (c, offset)) in calibration.curves.iter().zip(&offsets).enumerate() {
         let offset = if offset.is_finite() { format!("{offset:.2}") } else { "–".into() };
         println!(
-            "{:>5} {:>12.4e} {:>10.3} {:>12.4e} {:>7.3} {:>12.3e} {:>4.0}–{:<5.0} {:>8} {:>13}{}",
+            "{:>5} {:>12.4e} {:>10.3} {:>12.4e} {:>5} {:>7.3} {:>12.3e} {:>4.0}–{:<5.0} {:>8} {:>13}{}",
             k + 1,
             c.a,
             c.b,
             c.c,
+            c.shape.map_or("exp".into(), |k| format!("{k}")),
             c.r_squared,
             c.spread,
             c.force_range[0],
@@ -364,7 +411,7 @@ fn references(
 
 /// Says on stderr which samples' presses were not found (no touch within
 /// [`MATCH_DISTANCE`] of the label), rows counted among the pressed ones from 1.
-fn report_missed(samples: &Path, pressed: &[LabelledFrame], found: &[Option<TouchForce>]) {
+fn report_missed<T>(samples: &Path, pressed: &[LabelledFrame], found: &[Option<T>]) {
     let missed: Vec<String> =
         found.iter().enumerate().filter(|(_, t)| t.is_none()).map(|(k, _)| (k + 1).to_string()).collect();
     if missed.is_empty() {
@@ -448,6 +495,8 @@ mod tests {
             assert_eq!(parse_strength(&strength_flag(strength)), Ok(strength));
         }
         assert_eq!(strength_flag(Strength::ContrastPeakAndVolume), "contrast-map-peak-and-volume");
-        assert!(parse_strength("volume").unwrap_err().contains("fitted-drop, peak-sensitivity"));
+        assert!(parse_strength("volume").unwrap_err().contains("fitted-drop, sized-drop, peak-sensitivity"));
+        assert_eq!(parse_strength_choice("auto"), Ok(StrengthChoice::Auto));
+        assert!(parse_strength_choice("volume").unwrap_err().starts_with("expected auto, or one of peak"));
     }
 }

@@ -314,6 +314,7 @@ pub fn users_json(users: &UsersReport) -> Value {
                     "noise": r.noise,
                     "calibrated": r.calibrated,
                     "strength": r.strength.name(),
+                    "strength_chosen": r.chosen,
                     "grid": r.grid,
                     "refused": r.refused,
                     "calibration_found": number(r.calibration_found),
@@ -347,7 +348,8 @@ pub fn users_markdown(users: &UsersReport, params: &UsersParams) -> String {
     let force = |v: f64| if v.is_finite() { format!("{:.1} %", 100.0 * v / MAX_FORCE) } else { "–".into() };
     for r in &users.rows {
         let method = format!(
-            "{}, {}",
+            "{}{}, {}",
+            if r.chosen { "auto: " } else { "" },
             r.strength.name(),
             if r.grid == 1 { "one curve".into() } else { format!("{0}×{0}", r.grid) }
         );

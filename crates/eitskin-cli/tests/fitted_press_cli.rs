@@ -73,7 +73,7 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
 
     let path = |name: &str| -> String { dir.join(name).to_str().unwrap().to_string() };
     let mut rms = Vec::new();
-    for (strength, grid) in [("peak", "5"), ("fitted-drop", "1")] {
+    for (strength, grid) in [("peak", "5"), ("fitted-drop", "1"), ("auto", "1"), ("sized-drop", "1")] {
         let cal = path(&format!("{strength}.json"));
         let table = ok(dir.eitskin(&[
             "calibrate",
@@ -89,6 +89,13 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
             &cal,
         ]));
         assert!(table.contains(if strength == "peak" { "peak(F)" } else { "drop(F)" }), "{table}");
+        // `auto` reads both press strengths, says how each reads the places left out, keeps one.
+        if strength == "auto" {
+            assert!(
+                table.contains("strengths tried") && table.contains("sized drop") && table.contains("← kept"),
+                "{table}"
+            );
+        }
         let text = ok(dir.eitskin(&[
             "evaluate",
             "--calibration",
@@ -101,6 +108,7 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
         rms.push(rms_of(&text));
     }
     assert!(rms[1] < 0.6 * rms[0], "fitted drop {} N against peak {} N", rms[1], rms[0]);
+    assert!(rms[2] < 0.6 * rms[0], "auto {} N against peak {} N", rms[2], rms[0]);
     // A fitted-drop calibration cannot be made from peaks alone.
     std::fs::write(dir.join("peaks.csv"), "unit,force,peak\n1,0,0.01\n1,5,0.1\n1,10,0.2\n").unwrap();
     let out = dir.eitskin(&[
@@ -113,14 +121,47 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
         &path("x.json"),
     ]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("needs each sample's raw frame"));
+    // By default, samples of peaks calibrate the peak.
+    let table =
+        ok(dir.eitskin(&["calibrate", "--samples", &path("peaks.csv"), "--grid", "1", "--out", &path("x.json")]));
+    assert!(table.contains("peak(F)") && !table.contains("strengths tried"), "{table}");
 
     // Live: the same frames at rest, then the validation frames, through `eitskin run`, each
-    // frame a scene of its own: the forces `evaluate` gave, frame for frame.
+    // frame a scene of its own: the forces `evaluate` gave, frame for frame, with either press
+    // strength (the sized drop fits every press's radius in `run` as in `evaluate`).
+    let mut lines = String::new();
+    for v in rest.iter().chain(&validation_frames) {
+        lines += &line(v);
+        lines.push('\n');
+    }
+    std::fs::write(dir.join("frames.txt"), lines).unwrap();
+    for calibration in ["fitted-drop.json", "sized-drop.json"] {
+        let (live, count) = live_against_evaluate(&dir, &path(calibration), &validation, per_metre);
+        eprintln!("{calibration}: live RMS {live} N over {count} touches");
+        assert!(count >= validation.len() * 3 / 4, "{count} of {} presses gave a touch", validation.len());
+        assert!(live < rms[0], "live RMS {live} N over {count} touches, peak calibration {} N", rms[0]);
+    }
+    eprintln!(
+        "RMS error: peak per area {} N, fitted drop {} N, auto {} N, sized drop {} N",
+        rms[0], rms[1], rms[2], rms[3]
+    );
+}
+
+/// `evaluate` with `calibration` on the validation frames, then `run` on the frames at rest and
+/// those frames: each press's force the same in both (or missed by both); the RMS error of the
+/// live forces (N) and how many presses gave one.
+fn live_against_evaluate(
+    dir: &binary::Scratch,
+    calibration: &str,
+    validation: &[Press],
+    per_metre: f64,
+) -> (f64, usize) {
+    let path = |name: &str| -> String { dir.join(name).to_str().unwrap().to_string() };
     let results = path("results.csv");
     ok(dir.eitskin(&[
         "evaluate",
         "--calibration",
-        &path("fitted-drop.json"),
+        calibration,
         "--samples",
         &path("validation.csv"),
         "--reference",
@@ -135,12 +176,6 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
         .map(|l| l.split(',').nth(7).unwrap().parse::<f64>().ok())
         .collect();
     assert_eq!(evaluated.len(), validation.len());
-    let mut lines = String::new();
-    for v in rest.iter().chain(&validation_frames) {
-        lines += &line(v);
-        lines.push('\n');
-    }
-    std::fs::write(dir.join("frames.txt"), lines).unwrap();
     let out = ok(dir.eitskin(&[
         "run",
         "--source",
@@ -151,7 +186,7 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
         "15",
         "--fresh-presses",
         "--calibration",
-        &path("fitted-drop.json"),
+        calibration,
     ]));
     let processed: Vec<serde_json::Value> = out
         .lines()
@@ -160,7 +195,7 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
         .collect();
     assert_eq!(processed.len(), validation.len());
     let (mut sum, mut count) = (0.0, 0);
-    for ((line, press), evaluated) in processed.iter().zip(&validation).zip(&evaluated) {
+    for ((line, press), evaluated) in processed.iter().zip(validation).zip(&evaluated) {
         // The touch `evaluate` matched: the one nearest the press within 20 mm.
         let touches = line["touches"].as_array().unwrap();
         let nearest = touches
@@ -183,8 +218,5 @@ fn fitted_drop_calibration_beats_the_peak_on_the_same_frames_and_runs_live() {
             other => panic!("run and evaluate disagree on whether {press:?} was found: {other:?}"),
         }
     }
-    let live = (sum / count as f64).sqrt();
-    eprintln!("RMS error: peak per area {} N, fitted drop {} N; live {live} N over {count} touches", rms[0], rms[1]);
-    assert!(count >= validation.len() * 3 / 4, "{count} of {} presses gave a touch", validation.len());
-    assert!(live < rms[0], "live RMS {live} N over {count} touches, peak calibration {} N", rms[0]);
+    ((sum / count as f64).sqrt(), count)
 }

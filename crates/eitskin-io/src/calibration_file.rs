@@ -2,7 +2,7 @@
 //! to the sensor they were made for.
 //!
 //! ```json
-//! { "format": "eitskin-calibration", "version": 5, "spec_key": "…", "strength": "peak",
+//! { "format": "eitskin-calibration", "version": 6, "spec_key": "…", "strength": "peak",
 //!   "hyperparameter": 0.1, "normalised": false, "grid": [5, 5], "areas": [6, 5, 3, …], "curves": [{ "a": …, "b": …, "c": …,
 //!   "r_squared": …, "force_range": [0, 15], "samples": 240, "spread": 0.004 }, …] }
 //! ```
@@ -15,8 +15,10 @@
 //! (Δv/v_ref); older files were all made with the paper's λ = 0.1 and absolute differences, and
 //! are read so. Version 5 adds each curve's `spread`: the standard deviation of the strength
 //! about the curve that its samples' own noise does not explain, added to each reading's when a
-//! force's standard deviation is given (read as 0 from older files). A file made for another
-//! sensor (another `spec_key`) is refused.
+//! force's standard deviation is given (read as 0 from older files). Version 6 adds a curve's
+//! `shape` k where it is a·(1 + F/(k·b))^(−k) + c (k > 0, b > 0) instead of the exponential;
+//! a curve without it is the exponential. A file made for another sensor (another `spec_key`)
+//! is refused.
 //!
 //! The key ([`spec_key`]) is a SHA-256 of the sensor's canonical values, serialised as JSON: a
 //! key version; thickness and background conductivity; the outline's kind and lengths; the
@@ -38,7 +40,7 @@ use sha2::{Digest, Sha256};
 use crate::Error;
 
 const FORMAT: &str = "eitskin-calibration";
-const VERSION: u32 = 5;
+const VERSION: u32 = 6;
 /// The version of the canonical sensor values hashed into the key.
 const KEY_VERSION: u32 = 1;
 
@@ -75,19 +77,22 @@ struct CurveJson {
     /// Whether the curve is the fallback's, not a converged fit (version 5; false before).
     #[serde(default)]
     fallback: bool,
+    /// The shape k of a·(1 + F/(k·b))^(−k) + c (version 6); absent for a·e^(−F/b) + c.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    shape: Option<f64>,
 }
 
 impl From<&Curve> for CurveJson {
     fn from(c: &Curve) -> CurveJson {
-        let Curve { a, b, c, r_squared, force_range, samples, spread, fallback } = *c;
-        CurveJson { a, b, c, r_squared, force_range, samples, spread, fallback }
+        let Curve { a, b, c, r_squared, force_range, samples, spread, fallback, shape } = *c;
+        CurveJson { a, b, c, r_squared, force_range, samples, spread, fallback, shape }
     }
 }
 
 impl From<&CurveJson> for Curve {
     fn from(c: &CurveJson) -> Curve {
-        let CurveJson { a, b, c, r_squared, force_range, samples, spread, fallback } = *c;
-        Curve { a, b, c, r_squared, force_range, samples, spread, fallback }
+        let CurveJson { a, b, c, r_squared, force_range, samples, spread, fallback, shape } = *c;
+        Curve { a, b, c, r_squared, force_range, samples, spread, fallback, shape }
     }
 }
 
@@ -105,6 +110,11 @@ fn curve_problem(c: &CurveJson) -> Option<String> {
         Some("`a` = 0: the curve is flat, so no strength tells one force from another".into())
     } else if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi) {
         Some(format!("`force_range` = [{lo}, {hi}] N must run from a force ≥ 0 to a larger one"))
+    } else if let Some(k) = c.shape.filter(|k| !(k.is_finite() && *k > 0.0 && c.b > 0.0)) {
+        Some(format!(
+            "`shape` = {k} with `b` = {} N: a curve a·(1 + F/(k·b))^(−k) + c needs k > 0 and b > 0 (omit `shape` for a·e^(−F/b) + c)",
+            c.b
+        ))
     } else if !(c.spread.is_finite() && c.spread >= 0.0) {
         Some(format!("`spread` = {} must be a finite number ≥ 0 (the strength's spread about the curve)", c.spread))
     } else {
@@ -356,8 +366,8 @@ mod tests {
         let mut denser = spec.clone();
         denser.mesh.triangles = 9000;
         assert!(parse_calibration(&text, &denser).is_ok(), "the mesh density is not part of the sensor");
-        let err = parse_calibration(&text.replace("\"version\": 5", "\"version\": 7"), &spec).unwrap_err();
-        assert!(err.to_string().contains("reads versions 1 to 5"), "{err}");
+        let err = parse_calibration(&text.replace("\"version\": 6", "\"version\": 7"), &spec).unwrap_err();
+        assert!(err.to_string().contains("reads versions 1 to 6"), "{err}");
         // A fitted-drop calibration keeps its kind; an unknown kind is refused by name.
         let drop = Calibration { strength: Strength::FittedDrop, ..calibration.clone() };
         let text = calibration_to_json(&spec, &array, &drop).unwrap();
@@ -368,6 +378,12 @@ mod tests {
             let file = calibration_to_json(&spec, &array, &Calibration { strength, ..calibration.clone() }).unwrap();
             assert_eq!(parse_calibration(&file, &spec).unwrap().1.strength, strength);
         }
+        // A curve of a shape keeps it; an exponential's file has no `shape`.
+        assert!(!text.contains("shape"), "{text}");
+        let mut shaped = drop.clone();
+        shaped.curves[3].shape = Some(1.0);
+        let text = calibration_to_json(&spec, &array, &shaped).unwrap();
+        assert_eq!(parse_calibration(&text, &spec).unwrap().1, shaped);
     }
 
     /// A curve that cannot turn a strength into a force is refused, naming the curve and the
@@ -394,6 +410,15 @@ mod tests {
             "`curves` curve 1 (area 1): `a` = 0: the curve is flat, so no strength tells one force from another; fit the calibration again"
         );
         broken.curves[0] = calibration.curves[0];
+        broken.curves[1].shape = Some(-1.0);
+        assert_eq!(
+            reason(&broken),
+            format!(
+                "`curves` curve 2 (area 2): `shape` = -1 with `b` = {} N: a curve a·(1 + F/(k·b))^(−k) + c needs k > 0 and b > 0 (omit `shape` for a·e^(−F/b) + c); fit the calibration again",
+                calibration.curves[1].b
+            )
+        );
+        broken.curves[1] = calibration.curves[1];
         broken.curves[5].force_range = [20.0, 15.0];
         assert_eq!(
             reason(&broken),
@@ -438,7 +463,7 @@ mod tests {
                 _ => lines[k],
             })
             .collect();
-        kept.join("\n").replace("\"version\": 5", "\"version\": 3")
+        kept.join("\n").replace("\"version\": 6", "\"version\": 3")
     }
 
     /// `calibration` as a file older than version 5 holds it: no spread, no fallback.

@@ -15,7 +15,9 @@
 //!   outside the calibrated 3×3 units, and [`UsersParams::pairs`] frames of two presses of
 //!   2–16 N at least [`PAIR_APART`] apart anywhere;
 //! - **methods**: the image's peak on the 5×5 pseudo-array (the paper's), the fitted press's
-//!   drop on the 5×5 pseudo-array, and the fitted drop on one curve for the whole sheet.
+//!   drop on the 5×5 pseudo-array, on one curve for the whole sheet the fitted drop, the sized
+//!   drop (every press's radius fitted), and the one of those two that reads the calibration
+//!   presses best at places its curve did not see (`calibrate --strength auto`).
 //!
 //! Presses are kept [`EDGE_MARGIN`] inside the outline's box. Kinds: a Hertz-like sphere whose
 //! contact grows with force (10 mm at 8 N) on the saturating law, and a flat 15 mm indenter on
@@ -31,7 +33,9 @@ use super::{Progress, StudyError};
 use eitskin::calibration::{force_errors, Calibration};
 use eitskin::chain::{Chain, LabelledFrame, TouchForce};
 use eitskin::inverse::{Reconstructor, ReconstructorParams};
-use eitskin::labelled::{process_labelled, process_scenes, samples, split_references};
+use eitskin::labelled::{
+    choose_strength, process_labelled, process_scenes, samples, split_references, PRESS_STRENGTHS,
+};
 use eitskin::pipeline::PipelineParams;
 use eitskin::press_fit::{PressModel, PressModelParams};
 use eitskin::pseudo_array::PseudoArray;
@@ -144,6 +148,9 @@ pub struct UsersRow {
     pub calibrated: &'static str,
     /// The strength its curves take.
     pub strength: Strength,
+    /// Whether that strength was chosen among [`PRESS_STRENGTHS`] by how well each reads the
+    /// calibration presses at places its curve did not see (`calibrate --strength auto`).
+    pub chosen: bool,
     /// Units per side of its pseudo-array.
     pub grid: usize,
     /// Why `calibrate` refused, if it did (then the numbers below are NaN).
@@ -214,7 +221,13 @@ pub fn run(spec: &SensorSpec, params: &UsersParams, progress: Progress<'_>) -> R
     let pairs: Vec<Vec<Press>> = (0..params.pairs).map(|_| places.pair(&mut rng)).collect();
 
     let kinds = press_kinds();
-    let methods = [(Strength::Peak, &paper_array), (Strength::FittedDrop, &paper_array), (Strength::FittedDrop, &one)];
+    let methods: [(&[Strength], &PseudoArray); 5] = [
+        (&[Strength::Peak], &paper_array),
+        (&[Strength::FittedDrop], &paper_array),
+        (&[Strength::FittedDrop], &one),
+        (&[Strength::SizedDrop], &one),
+        (&PRESS_STRENGTHS, &one),
+    ];
     let mut report = UsersReport { rows: Vec::new(), frames: Vec::new() };
     let steps = kinds.len() * (1 + params.levels.len());
     for (k, (name, hydrogel)) in kinds.iter().enumerate() {
@@ -249,21 +262,21 @@ pub fn run(spec: &SensorSpec, params: &UsersParams, progress: Progress<'_>) -> R
                 pairs: pairs.iter().zip(&clean_pairs).map(|(p, c)| (p.clone(), noisy(c))).collect(),
             };
             for (calibrated, presses) in [("paper's six units", &frames.paper), ("robot presses", &frames.robot)] {
-                for (strength, array) in methods {
+                for (strengths, array) in methods {
                     let mut chain = Chain::new(recon.clone(), TouchParams::default());
-                    if strength.needs_press_model() {
+                    if strengths.iter().any(|s| s.needs_press_model()) {
                         chain = chain.with_press_model(press_model.clone());
                     }
-                    let chain = chain.with_strength(strength)?;
                     let row = UsersRow {
                         kind: name,
                         noise,
                         calibrated,
-                        strength,
+                        strength: strengths[0],
+                        chosen: strengths.len() > 1,
                         grid: array.grid()[0],
                         ..UsersRow::refused(String::new())
                     };
-                    report.rows.push(method_row(row, chain, array, &frames, presses)?);
+                    report.rows.push(method_row(row, &chain, strengths, array, &frames, presses)?);
                 }
             }
             report.frames.push(frames);
@@ -281,6 +294,7 @@ impl UsersRow {
             noise: f64::NAN,
             calibrated: "",
             strength: Strength::Peak,
+            chosen: false,
             grid: 0,
             refused: Some(reason),
             calibration_found: f64::NAN,
@@ -295,10 +309,12 @@ impl UsersRow {
 }
 
 /// `row` filled in: `chain` calibrated on `calibration` (its 0 N frames join the reference) as
-/// `calibrate` does, then read on the validation frames and pairs as `evaluate` and `run` do.
+/// `calibrate` does, with the best of `strengths` ([`choose_strength`]), then read on the
+/// validation frames and pairs as `evaluate` and `run` do.
 fn method_row(
     mut row: UsersRow,
-    chain: Chain,
+    chain: &Chain,
+    strengths: &[Strength],
     array: &PseudoArray,
     frames: &UsersFrames,
     calibration: &[LabelledFrame],
@@ -306,9 +322,11 @@ fn method_row(
     let (mut references, pressed) = split_references(calibration.to_vec());
     references.splice(0..0, frames.rest.iter().cloned());
     let params = PipelineParams::default();
-    let found = process_labelled(chain.clone(), params, &references, &pressed)?;
-    let samples = samples(array, &pressed, &found);
-    row.calibration_found = found.iter().filter(|f| f.is_some()).count() as f64 / found.len().max(1) as f64;
+    let (trials, best) = choose_strength(chain, strengths, params, &references, &pressed, array)?;
+    let trial = &trials[best];
+    row.strength = trial.strength;
+    let samples: Vec<_> = trial.samples.iter().flatten().copied().collect();
+    row.calibration_found = samples.len() as f64 / pressed.len().max(1) as f64;
     let calibration = match Calibration::fit_strength(&samples, array.area_count(), row.strength) {
         Ok(c) => c,
         Err(e) => {
@@ -317,7 +335,7 @@ fn method_row(
         }
     };
     row.refused = None;
-    let chain = chain.with_calibration(array.clone(), calibration)?;
+    let chain = chain.clone().with_calibration(array.clone(), calibration)?;
     let found = process_labelled(chain.clone(), params, &frames.rest, &frames.validation)?;
     let forces: Vec<f64> = frames.validation.iter().map(|f| f.force).collect();
     let counted = forces.iter().zip(&found).filter(|(f, _)| **f >= COUNTED_FROM);
@@ -414,7 +432,7 @@ mod tests {
         let params =
             UsersParams { levels: vec![1e-4], validation: 12, pairs: 4, robot: 40, reference_frames: 10, seed: 3 };
         let report = run(&spec, &params, &mut |_, _, _| {}).unwrap();
-        assert_eq!(report.rows.len(), 2 * 2 * 3, "kinds × calibrations × methods");
+        assert_eq!(report.rows.len(), 2 * 2 * 5, "kinds × calibrations × methods");
         assert_eq!(report.frames.len(), 2);
         let frames = &report.frames[0];
         assert_eq!(frames.paper.len(), 6 * 16, "six units, 0–15 N");

@@ -190,7 +190,7 @@ impl Chain {
 
     /// The same chain, fitting a press to Δv from each touch.
     pub fn with_press_model(mut self, model: PressModel) -> Chain {
-        self.press_model = Some(model);
+        self.press_model = Some(model.with_every_radius(self.strength == Strength::SizedDrop));
         self.mask_press_model();
         self
     }
@@ -232,6 +232,11 @@ impl Chain {
             return Err(ChainError::NeedsContrastMap { strength });
         }
         self.strength = strength;
+        // The sized drop fits every press's radius; the others fit it where the misfit asks.
+        let every_radius = strength == Strength::SizedDrop;
+        for slot in [&mut self.press_model, &mut self.masked_press] {
+            *slot = slot.take().map(|model| model.with_every_radius(every_radius));
+        }
         Ok(self)
     }
 

@@ -8,6 +8,9 @@
 //! its posterior's mean with its standard deviation. Frames without a touch join the reference
 //! as they do in `run` ([`PipelineParams::reference_limit`]).
 //!
+//! [`choose_strength`] reads the same presses with several strengths and keeps the one whose
+//! curve reads forces best at the places it did not see (`calibrate --strength auto`).
+//!
 //! Each labelled press is matched to the touch nearest its label within [`MATCH_DISTANCE`]
 //! (several presses in one frame each to a touch of its own, [`process_scenes`]); a press with
 //! none is *missed* (`None`), to be counted, never dropped unseen.
@@ -36,11 +39,12 @@
 
 use thiserror::Error;
 
-use crate::calibration::Sample;
-use crate::chain::{Chain, LabelledFrame, TouchForce};
+use crate::calibration::{Calibration, Sample};
+use crate::chain::{Chain, ChainError, LabelledFrame, TouchForce};
 use crate::inverse::InverseError;
 use crate::pipeline::{Pipeline, PipelineParams};
 use crate::pseudo_array::PseudoArray;
+use crate::strength::Strength;
 
 /// A touch counts for a labelled press within this distance of the label, in m.
 pub const MATCH_DISTANCE: f64 = 0.02;
@@ -59,6 +63,9 @@ pub enum LabelledError {
         /// Why.
         source: InverseError,
     },
+    /// The chain cannot read a strength tried ([`choose_strength`]).
+    #[error(transparent)]
+    Chain(#[from] ChainError),
     /// A labelled frame was refused.
     #[error("sample {sample}: {source}")]
     Sample {
@@ -115,15 +122,71 @@ pub fn process_scenes(
 /// per press found with a strength, the area of `array` its label lies in, its force and that
 /// strength (a press off the array or without a reading gives none).
 pub fn samples(array: &PseudoArray, frames: &[LabelledFrame], found: &[Option<TouchForce>]) -> Vec<Sample> {
-    frames
-        .iter()
-        .zip(found)
-        .filter_map(|(labelled, touch)| {
-            let reading = touch.as_ref()?.reading?;
-            let unit = array.unit_at(labelled.position)?;
-            Some(Sample::read(array.area_of(unit), labelled.force, labelled.position, reading))
-        })
-        .collect()
+    frames.iter().zip(found).filter_map(|(labelled, touch)| sample(array, labelled, touch.as_ref())).collect()
+}
+
+/// The strengths [`choose_strength`] compares: the press fitted to Δv, read at the indenter's
+/// radius where the misfit does not ask for another, or with every radius fitted.
+pub const PRESS_STRENGTHS: [Strength; 2] = [Strength::FittedDrop, Strength::SizedDrop];
+
+/// One strength read on labelled presses ([`choose_strength`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StrengthTrial {
+    /// The strength.
+    pub strength: Strength,
+    /// Per pressed frame, its calibration sample (`None`: its press was not found, or read no
+    /// strength).
+    pub samples: Vec<Option<Sample>>,
+    /// The RMS force error (N) of one curve of this strength read at places it did not see
+    /// ([`Calibration::held_out_force_rms`]), on the presses every strength tried read; `None`
+    /// with fewer than three places.
+    pub held_out_rms: Option<f64>,
+}
+
+/// Each of `strengths` read by `chain` (it must hold a press model where a strength needs one)
+/// on the same labelled presses as [`process_labelled`] reads them, their places on `array`;
+/// then each one's force error at places its curve did not see, on the presses all of them
+/// read (a strength that misses presses another finds is not scored on fewer, easier ones).
+/// Returns the trials and the index of the best (least held-out error; the first where none
+/// has one).
+pub fn choose_strength(
+    chain: &Chain,
+    strengths: &[Strength],
+    params: PipelineParams,
+    references: &[Vec<f64>],
+    pressed: &[LabelledFrame],
+    array: &PseudoArray,
+) -> Result<(Vec<StrengthTrial>, usize), LabelledError> {
+    let mut trials = Vec::with_capacity(strengths.len());
+    for &strength in strengths {
+        let chain = chain.clone().with_strength(strength)?;
+        let found = process_labelled(chain, params, references, pressed)?;
+        let samples = pressed.iter().zip(&found).map(|(f, t)| sample(array, f, t.as_ref())).collect();
+        trials.push(StrengthTrial { strength, samples, held_out_rms: None });
+    }
+    let common = |trial: &StrengthTrial| -> Vec<Sample> {
+        (0..pressed.len())
+            .filter(|&k| trials.iter().all(|t| t.samples[k].is_some()))
+            .filter_map(|k| trial.samples[k])
+            .collect()
+    };
+    let scores: Vec<Option<f64>> = trials.iter().map(|t| Calibration::held_out_force_rms(&common(t))).collect();
+    for (trial, score) in trials.iter_mut().zip(scores) {
+        trial.held_out_rms = score;
+    }
+    let best = (0..trials.len())
+        .filter_map(|k| Some((k, trials[k].held_out_rms?)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(0, |(k, _)| k);
+    Ok((trials, best))
+}
+
+/// The calibration sample of a labelled frame and what was found for it: its label's area on
+/// `array`, its force and the touch's strength; `None` without a reading or off the array.
+fn sample(array: &PseudoArray, labelled: &LabelledFrame, touch: Option<&TouchForce>) -> Option<Sample> {
+    let reading = touch?.reading?;
+    let unit = array.unit_at(labelled.position)?;
+    Some(Sample::read(array.area_of(unit), labelled.force, labelled.position, reading))
 }
 
 /// Splits labelled frames into those without a press (force 0: the sheet at rest, frames for
@@ -165,6 +228,40 @@ mod tests {
     use super::*;
     use crate::sim::VirtualSensor;
     use crate::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
+
+    /// Both press strengths read the same presses; each is scored at places its curve did not
+    /// see, the best is the smaller score, and with fewer than three places there is no score
+    /// and the first strength is kept.
+    #[test]
+    fn the_strength_kept_reads_the_places_left_out_best() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 800;
+        let model = spec.forward_model().unwrap();
+        let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
+        let press = crate::press_fit::PressModel::new(&model, 1.0, &Default::default()).unwrap();
+        let chain = Chain::new(recon, TouchParams::default()).with_press_model(press);
+        let array = PseudoArray::of_sensor(&spec, [1, 1]).unwrap();
+        let mut skin = VirtualSensor::new(&spec, 5).unwrap();
+        let references: Vec<Vec<f64>> = (0..10).map(|_| skin.frame().unwrap()).collect();
+        let mut pressed = Vec::new();
+        for place in [[0.05, 0.05], [-0.04, 0.03], [0.02, -0.06], [-0.05, -0.05]] {
+            for force in [3.0, 6.0, 9.0, 12.0] {
+                skin.release();
+                skin.press(place, force);
+                pressed.push(LabelledFrame { position: place, force, frame: skin.frame().unwrap() });
+            }
+        }
+        let params = PipelineParams::default();
+        let (trials, best) = choose_strength(&chain, &PRESS_STRENGTHS, params, &references, &pressed, &array).unwrap();
+        assert_eq!(trials.iter().map(|t| t.strength).collect::<Vec<_>>(), PRESS_STRENGTHS);
+        assert!(trials.iter().all(|t| t.samples.len() == pressed.len() && t.samples.iter().flatten().count() >= 12));
+        let scores: Vec<f64> = trials.iter().map(|t| t.held_out_rms.unwrap()).collect();
+        assert!(scores.iter().all(|s| s.is_finite() && *s < 3.0), "{scores:?}");
+        assert_eq!(best, if scores[1] < scores[0] { 1 } else { 0 }, "{scores:?}");
+        let (trials, best) =
+            choose_strength(&chain, &PRESS_STRENGTHS, params, &references, &pressed[..8], &array).unwrap();
+        assert!(trials.iter().all(|t| t.held_out_rms.is_none()) && best == 0, "two places: {trials:?}");
+    }
 
     /// A press far from its label is missed, not matched; a frame of the wrong length names its sample.
     #[test]

@@ -118,6 +118,7 @@ impl Hydrogel {
             samples: 0,
             spread: 0.0,
             fallback: false,
+            shape: None,
         }
     }
 }

@@ -1,5 +1,7 @@
 //! Force calibration: per area of the sensor, the touch peak follows the force as
-//! σ(F) = a·e^(−F/b) + c, and a force is read off the inverse of that curve.
+//! σ(F) = a·e^(−F/b) + c, and a force is read off the inverse of that curve. Where the data
+//! approach their asymptote more slowly than an exponential can, the curve takes the shape
+//! a·(1 + F/(k·b))^(−k) + c instead, whose limit as k → ∞ is the paper's (module `shape`).
 //!
 //! The paper (its section 3.3, eq. 4 and Table 2) divides the sheet into areas, loads one unit of
 //! each area at known forces and fits, per area, the reconstructed conductivity peak against the
@@ -55,7 +57,9 @@ use crate::pseudo_array::PseudoArray;
 use crate::strength::Reading;
 pub use crate::strength::Strength;
 
+mod shape;
 mod spread;
+pub use shape::SHAPES;
 pub use spread::PLACE_FOLDS;
 
 /// Largest |b| a fit may reach, as a multiple of the force span (b → ∞ for linear data).
@@ -64,6 +68,11 @@ const MAX_DECAY_PER_SPAN: f64 = 1e6;
 const MAX_ITERATIONS: usize = 200;
 /// Multiples of the estimated decay length b₀ to start from; negative ones let the data pick b < 0.
 const START_MULTIPLES: [f64; 5] = [1.0, 0.3, 3.0, -1.0, -3.0];
+/// A shape replaces the exponential only where it lowers the sum of squares by more than this
+/// many times the residual variance it leaves (per degree of freedom, its shape counted as a
+/// fourth parameter): χ²₁ passes 16 with a probability of 6e-5, so by chance one of the five
+/// shapes does so for one data set of an exponential in about 3,000.
+const SHAPE_TEST: f64 = 16.0;
 /// Relative tolerance under which an inverse force still counts as inside the calibrated range.
 const RANGE_TOLERANCE: f64 = 1e-9;
 /// Points of the calibrated range a force's posterior is summed on ([`Curve::force_given`]).
@@ -161,7 +170,8 @@ pub enum CalibrationError {
     },
 }
 
-/// One area's curve peak(F) = a·e^(−F/b) + c, peak in S/m and F in N.
+/// One area's curve peak(F) = a·e^(−F/b) + c (the paper's), or a·(1 + F/(k·b))^(−k) + c of a
+/// shape k (module `shape`), peak in S/m and F in N.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Curve {
     /// Amplitude a, in S/m (negative for a peak that grows with force).
@@ -184,6 +194,9 @@ pub struct Curve {
     /// Whether Levenberg–Marquardt converged from no start and the curve is the best of a grid
     /// of decay forces b instead (monotone like every curve of the family, but not a minimum).
     pub fallback: bool,
+    /// The shape k > 0 of a·(1 + F/(k·b))^(−k) + c, whose fall to c is slower than the
+    /// exponential's; `None` for the paper's a·e^(−F/b) + c (the limit k → ∞).
+    pub shape: Option<f64>,
 }
 
 /// A force read off a curve.
@@ -199,8 +212,15 @@ pub struct ForceEstimate {
 }
 
 impl Curve {
-    /// Fits the curve to samples (force in N, peak in S/m); `area` (0-based) is only for messages.
+    /// Fits the curve to samples (force in N, peak in S/m): the paper's exponential, or the
+    /// shape of [`SHAPES`] with the least sum of squares where one fits better (forces ≥ 0 and a
+    /// strength that saturates); `area` (0-based) is only for messages.
     pub fn fit(area: usize, forces: &[f64], peaks: &[f64]) -> Result<Curve, CalibrationError> {
+        Curve::fit_among(area, forces, peaks, &SHAPES)
+    }
+
+    /// [`Curve::fit`] with the exponential and `shapes` only.
+    fn fit_among(area: usize, forces: &[f64], peaks: &[f64], shapes: &[f64]) -> Result<Curve, CalibrationError> {
         let area_number = area + 1;
         if forces.len() != peaks.len() {
             return Err(CalibrationError::LengthMismatch {
@@ -256,9 +276,38 @@ impl Curve {
             return Err(CalibrationError::NotFiniteFit { area: area_number, a, b, c });
         }
         let force_range = [low, high];
-        let mut curve =
-            Curve { a, b, c, r_squared: f64::NAN, force_range, samples: forces.len(), spread: 0.0, fallback };
-        let residual = forces.iter().zip(peaks).map(|(&f, p)| (p - curve.peak(f)).powi(2)).sum::<f64>();
+        let mut curve = Curve {
+            a,
+            b,
+            c,
+            r_squared: f64::NAN,
+            force_range,
+            samples: forces.len(),
+            spread: 0.0,
+            fallback,
+            shape: None,
+        };
+        let sum_of_squares = |curve: &Curve| forces.iter().zip(peaks).map(|(&f, p)| (p - curve.peak(f)).powi(2)).sum();
+        let mut residual: f64 = sum_of_squares(&curve);
+        // A shape that falls to c more slowly, where it fits better than chance would let it
+        // (module `shape`).
+        if low >= 0.0 && forces.len() > 4 {
+            let best = shapes
+                .iter()
+                .filter_map(|&k| shape::fit_shape(k, forces, peaks, high, mean, spread))
+                .map(|fit| {
+                    let shaped =
+                        Curve { a: fit.a, b: fit.b, c: fit.c, fallback: false, shape: Some(fit.shape), ..curve };
+                    (sum_of_squares(&shaped), shaped)
+                })
+                .min_by(|x, y| x.0.total_cmp(&y.0));
+            if let Some((shaped_residual, shaped)) = best {
+                let noise = shaped_residual / (forces.len() - 4) as f64;
+                if residual - shaped_residual > SHAPE_TEST * noise {
+                    (curve, residual) = (shaped, shaped_residual);
+                }
+            }
+        }
         curve.r_squared = 1.0 - residual / total;
         // The residual's standard deviation, per degree of freedom (3 parameters fitted).
         if forces.len() > 3 {
@@ -269,12 +318,13 @@ impl Curve {
 
     /// The peak (S/m) the curve predicts at `force` (N).
     pub fn peak(&self, force: f64) -> f64 {
-        self.a * (-force / self.b).exp() + self.c
+        self.a * shape::fall(self.shape, force / self.b) + self.c
     }
 
-    /// The curve's slope dpeak/dF at `force` (N), in S/m per N: −(a/b)·e^(−F/b).
+    /// The curve's slope dpeak/dF at `force` (N), in S/m per N: −(a/b)·e^(−F/b) for the
+    /// exponential.
     pub fn slope(&self, force: f64) -> f64 {
-        -self.a / self.b * (-force / self.b).exp()
+        self.a / self.b * shape::fall_slope(self.shape, force / self.b)
     }
 
     /// The force (N) for a measured `peak` (S/m), clamped to the calibrated range.
@@ -294,7 +344,7 @@ impl Curve {
     fn inverse(&self, peak: f64) -> f64 {
         let ratio = (peak - self.c) / self.a;
         if ratio > 0.0 {
-            -self.b * ratio.ln()
+            self.b * shape::fall_inverse(self.shape, ratio)
         } else if self.b > 0.0 {
             f64::INFINITY
         } else {
@@ -434,6 +484,14 @@ impl Calibration {
             })
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Calibration { curves, strength })
+    }
+
+    /// How well one curve of `samples`' strength reads forces at places it did not see: the
+    /// RMS force error (N) of each sample read off the curve fitted without its place (up to
+    /// [`PLACE_FOLDS`] folds), every area pooled; `None` where the samples name fewer than three
+    /// places. Strengths read off the same presses compare by it.
+    pub fn held_out_force_rms(samples: &[Sample]) -> Option<f64> {
+        spread::held_out_force_rms(&samples.iter().collect::<Vec<_>>())
     }
 
     /// How far each area's curve reads from `pooled` (one curve fitted to every sample), in N:
@@ -809,6 +867,26 @@ mod tests {
     fn fit_recovers_known_curve_from_noisy_samples() {
         assert_recovers(-0.02, 5.0, 0.021, 0.002, 0.01, 42);
         assert_recovers(-0.02, 5.0, 0.021, 0.01, 0.05, 42);
+    }
+
+    /// A gel whose drop follows F/(F + F₀) (here 0.9·F/(F + 5.5)), sampled with noise of 0.5 %
+    /// of its span at 0–16 N: the exponential leaves a curve too flat at large forces, the
+    /// hyperbola (k = 1) is kept, and it reads the noiseless drops back where the exponential
+    /// misses by several times as much.
+    #[test]
+    fn a_hyperbolic_gel_gets_the_shape_that_reads_it() {
+        let law = |f: f64| 0.9 * f / (f + 5.5);
+        let mut noise = Noise(11);
+        let forces: Vec<f64> = (0..=16).flat_map(|f| [f64::from(f); 6]).collect();
+        let drops: Vec<f64> = forces.iter().map(|&f| law(f) + 0.005 * 0.67 * noise.normal()).collect();
+        let curve = Curve::fit(0, &forces, &drops).unwrap();
+        assert_eq!(curve.shape, Some(1.0), "{curve:?}");
+        let exponential = Curve::fit_among(0, &forces, &drops, &[]).unwrap();
+        assert_eq!(exponential.shape, None);
+        let worst =
+            |c: &Curve| (1..16).map(|f| (c.force(law(f64::from(f))).newtons - f64::from(f)).abs()).fold(0.0, f64::max);
+        assert!(worst(&curve) < 0.2, "{}", worst(&curve));
+        assert!(worst(&exponential) > 3.0 * worst(&curve), "{} against {}", worst(&exponential), worst(&curve));
     }
 
     #[test]

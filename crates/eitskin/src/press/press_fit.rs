@@ -181,6 +181,9 @@ pub struct PressModel {
     ladder: Vec<[f64; LADDER.len()]>,
     /// The exact responses, shared by the model's copies (`None` for one read from its table).
     exact: Option<Arc<ExactPresses>>,
+    /// Whether every press's radius is fitted, not only where the misfit asks for it
+    /// ([`PressModel::with_every_radius`]).
+    every_radius: bool,
 }
 
 impl PartialEq for PressModel {
@@ -404,7 +407,18 @@ impl PressModel {
             return None;
         }
         let norms = responses.chunks_exact(measurements).map(|g| g.iter().map(|x| x * x).sum()).collect();
-        Some(PressModel { grid, measurements, radius, search, responses, norms, coarse, ladder, exact: None })
+        Some(PressModel {
+            grid,
+            measurements,
+            radius,
+            search,
+            responses,
+            norms,
+            coarse,
+            ladder,
+            exact: None,
+            every_radius: false,
+        })
     }
 
     /// Tabulates the responses of `model` linearised at the homogeneous `background` (S/m).
@@ -462,6 +476,7 @@ impl PressModel {
             coarse,
             ladder: Vec::new(),
             exact: None,
+            every_radius: false,
         };
         let values = solution.measurements(model.protocol());
         let exact = press_model.exact_of(exact_model, background, &values)?;
@@ -604,6 +619,21 @@ impl PressModel {
     /// Radius of the indenter it models, in m.
     pub fn radius(&self) -> f64 {
         self.radius
+    }
+
+    /// The same model fitting every press's radius too (`true`), not only where the misfit
+    /// falls by more than chance would (`false`, the default): each press's polarisation is then
+    /// that of its own size, at the price of a noisier drop, which reads presses wider or
+    /// narrower than the indenter without the bias of an indenter-sized fit
+    /// ([`Strength::SizedDrop`](crate::strength::Strength::SizedDrop)).
+    pub fn with_every_radius(mut self, every_radius: bool) -> PressModel {
+        self.every_radius = every_radius;
+        self
+    }
+
+    /// Whether it fits every press's radius ([`PressModel::with_every_radius`]).
+    pub fn every_radius(&self) -> bool {
+        self.every_radius
     }
 
     /// The response (V) of a full-depth press at `p` (m), bilinear between grid points inside

@@ -9,6 +9,7 @@
 //! |---|---|---|---|
 //! | [`Strength::Peak`] | the image's peak, S/m (the paper's) | touch centre | — |
 //! | [`Strength::FittedDrop`] | drop of the press fitted to Δv, at the indenter's radius (0 if none fits) | press centre | [`PressModel`](crate::press_fit::PressModel) |
+//! | [`Strength::SizedDrop`] | the same, every press's radius fitted too | press centre | [`PressModel`](crate::press_fit::PressModel) |
 //! | [`Strength::Sensitivity`] | peak ÷ S(centre), S(x) the peak of a reference press there | touch centre | [`ContrastMap`] |
 //! | [`Strength::ContrastPeak`] | the drop whose simulated peak at the centre is the peak | touch centre | [`ContrastMap`] |
 //! | [`Strength::ContrastVolume`] | the same from the touch's volume | touch centre | [`ContrastMap`] |
@@ -37,6 +38,10 @@ pub enum Strength {
     /// as a press of the indenter's radius ([`PressFit::equivalent_drop`](crate::press_fit::PressFit::equivalent_drop));
     /// its unit is looked up at the fitted centre.
     FittedDrop,
+    /// [`Strength::FittedDrop`] with every press's radius fitted, not only where the misfit asks
+    /// for it ([`PressModel::with_every_radius`](crate::press_fit::PressModel::with_every_radius)):
+    /// less biased for presses wider or narrower than the indenter, noisier for those of its size.
+    SizedDrop,
     /// The peak divided by the sensitivity S(x) at the touch's centre (dimensionless): the
     /// continuous calibration.
     Sensitivity,
@@ -63,9 +68,10 @@ pub struct Reading {
 
 impl Strength {
     /// Every strength, the paper's first.
-    pub const ALL: [Strength; 6] = [
+    pub const ALL: [Strength; 7] = [
         Strength::Peak,
         Strength::FittedDrop,
+        Strength::SizedDrop,
         Strength::Sensitivity,
         Strength::ContrastPeak,
         Strength::ContrastVolume,
@@ -77,6 +83,7 @@ impl Strength {
         match self {
             Strength::Peak => "peak",
             Strength::FittedDrop => "fitted drop",
+            Strength::SizedDrop => "sized drop",
             Strength::Sensitivity => "peak / sensitivity",
             Strength::ContrastPeak => "contrast map (peak)",
             Strength::ContrastVolume => "contrast map (volume)",
@@ -99,7 +106,7 @@ impl Strength {
 
     /// Whether reading it needs the press fitted to Δv.
     pub fn needs_press_model(self) -> bool {
-        self == Strength::FittedDrop
+        matches!(self, Strength::FittedDrop | Strength::SizedDrop)
     }
 
     /// Whether reading it needs the forward model's contrast map.
@@ -118,7 +125,7 @@ impl Strength {
         let value = match self {
             Strength::Peak => touch.peak,
             // A touch with nothing in Δv that looks like a press has no drop.
-            Strength::FittedDrop => {
+            Strength::FittedDrop | Strength::SizedDrop => {
                 return Some(press.map_or(Reading { centre: at, value: 0.0, std: None }, |(p, indenter)| Reading {
                     centre: p.centre,
                     value: p.equivalent_drop(indenter),

@@ -20,11 +20,10 @@ pub const PLACE_FOLDS: usize = 10;
 /// Bisection steps of the spread's equation (relative precision 2⁻⁶⁰).
 const BISECTIONS: usize = 60;
 
-/// The residuals (in the strength's unit) of curves fitted without each fold of places on the
-/// samples of that fold, each with its sample's noise variance ([`noise_variance`]), and the
-/// number of places: every sample's place known and three places or more, else `None` (so too
-/// when no fold leaves a curve that fits).
-fn held_out_residuals(samples: &[&Sample]) -> Option<(Vec<(f64, f64)>, usize)> {
+/// Each sample with the curve fitted without its fold of places (up to [`PLACE_FOLDS`] folds,
+/// places taken in turn), given to `visit`; the number of places: every sample's place known
+/// and three places or more, else `None` (a fold that leaves no curve that fits is skipped).
+fn held_out(samples: &[&Sample], mut visit: impl FnMut(&Curve, &Sample)) -> Option<usize> {
     let places: Vec<[f64; 2]> = samples.iter().map(|s| s.place).collect::<Option<_>>()?;
     let mut distinct: Vec<[f64; 2]> = Vec::new();
     let place_of: Vec<usize> = places
@@ -40,18 +39,33 @@ fn held_out_residuals(samples: &[&Sample]) -> Option<(Vec<(f64, f64)>, usize)> {
         return None;
     }
     let folds = distinct.len().min(PLACE_FOLDS);
-    let mut residuals = Vec::with_capacity(samples.len());
     for fold in 0..folds {
         let held = |k: &usize| place_of[*k] % folds == fold;
         let kept: Vec<&Sample> = (0..samples.len()).filter(|k| !held(k)).map(|k| samples[k]).collect();
         let forces: Vec<f64> = kept.iter().map(|s| s.force).collect();
         let peaks: Vec<f64> = kept.iter().map(|s| s.peak).collect();
         let Ok(curve) = Curve::fit(0, &forces, &peaks) else { continue };
-        for s in (0..samples.len()).filter(held).map(|k| samples[k]) {
-            residuals.push((s.peak - curve.peak(s.force), noise_variance(s)));
-        }
+        (0..samples.len()).filter(held).for_each(|k| visit(&curve, samples[k]));
     }
-    (!residuals.is_empty()).then_some((residuals, distinct.len()))
+    Some(distinct.len())
+}
+
+/// The residuals (in the strength's unit) of curves fitted without each fold of places on the
+/// samples of that fold, each with its sample's noise variance ([`noise_variance`]), and the
+/// number of places ([`held_out`]; `None` also when no fold leaves a curve that fits).
+fn held_out_residuals(samples: &[&Sample]) -> Option<(Vec<(f64, f64)>, usize)> {
+    let mut residuals = Vec::with_capacity(samples.len());
+    let places = held_out(samples, |curve, s| residuals.push((s.peak - curve.peak(s.force), noise_variance(s))))?;
+    (!residuals.is_empty()).then_some((residuals, places))
+}
+
+/// The RMS force error (N) of one curve read at places it did not see: each sample's force
+/// read off the curve fitted without its fold of places ([`held_out`]), less its own; `None`
+/// where its places are unknown or fewer than three.
+pub(super) fn held_out_force_rms(samples: &[&Sample]) -> Option<f64> {
+    let mut squares = Vec::with_capacity(samples.len());
+    held_out(samples, |curve, s| squares.push((curve.force(s.peak).newtons - s.force).powi(2)))?;
+    (!squares.is_empty()).then(|| (squares.iter().sum::<f64>() / squares.len() as f64).sqrt())
 }
 
 /// A sample's noise variance, in the strength's unit squared: its `std` squared, 0 where not known.

@@ -265,6 +265,8 @@ impl PressModel {
                 cost = self.refit(exact, presses, scratch)?;
             }
             let rank = fit_basis(scratch);
+            // Every radius fitted: any fall of the misfit sizes a press.
+            let size_test = if self.every_radius { 0.0 } else { SIZE_TEST };
             for i in 0..presses.len() {
                 if scratch.sizes[i] != Size::Untested || scratch.refits >= REFITS {
                     continue;
@@ -275,7 +277,7 @@ impl PressModel {
                 let zz = self.size_z(exact, presses, i, rank, scratch)?;
                 let neighbour = self.weaker_neighbour(presses, i);
                 let scale = misfit_scale(cost, exact, presses.len(), fitted(&scratch.sizes));
-                if zz.powi(2) < SIZE_TEST * scale && neighbour.is_none() {
+                if zz.powi(2) < size_test * scale && neighbour.is_none() {
                     scratch.sizes[i] = Size::Nominal;
                     continue;
                 }
@@ -303,7 +305,7 @@ impl PressModel {
                     changed = true;
                     break;
                 }
-                if zz.powi(2) < SIZE_TEST * scale {
+                if zz.powi(2) < size_test * scale {
                     scratch.sizes[i] = Size::Nominal;
                     cost = self.refit(exact, presses, scratch)?;
                     continue;
@@ -311,7 +313,7 @@ impl PressModel {
                 save(presses, scratch, m);
                 let (sized, press) = self.sized(exact, presses, i, scratch)?;
                 let sized_scale = misfit_scale(sized, exact, presses.len(), fitted(&scratch.sizes) | 1 << i);
-                if cost - sized > SIZE_TEST * sized_scale {
+                if cost - sized > size_test * sized_scale {
                     presses[i] = press;
                     retest_sizes(&mut scratch.sizes);
                     scratch.sizes[i] = Size::Fitted;
