@@ -229,7 +229,8 @@ fn from_one(values: &[i64], what: &str, count: usize) -> PyResult<Vec<usize>> {
         .collect()
 }
 
-/// A force calibration: the pseudo-array's areas, one curve σ(F) = a·e^(−F/b) + c each.
+/// A force calibration: the pseudo-array's areas, one curve σ(F) = a·e^(−F/b) + c each (or
+/// a·(1 + F/(k·b))^(−k) + c where the samples approach c more slowly than an exponential can).
 ///
 /// Made with `Calibration.fit(spec, area, force, strength)` from samples or read with
 /// `Calibration.load(path, spec)` (files of `eitskin calibrate`); `force(area, strength)` gives
