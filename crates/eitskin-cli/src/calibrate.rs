@@ -126,7 +126,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
             )
         }
         (Labelled::Frames(frames), choice) => {
-            let (references, pressed) = references(args.reference.as_deref(), &args.samples, frames)?;
+            let (references, pressed) = references(&spec, args.reference.as_deref(), &args.samples, frames)?;
             let strengths = match choice {
                 StrengthChoice::Auto => labelled::PRESS_STRENGTHS.to_vec(),
                 StrengthChoice::One(strength) => vec![strength],
@@ -282,7 +282,7 @@ fn evaluated(
             calibration.strength
         ),
         Labelled::Frames(frames) => {
-            let (references, pressed) = references(reference, samples, frames)?;
+            let (references, pressed) = references(spec, reference, samples, frames)?;
             let params = ReconstructorParams {
                 hyperparameter: imaging.hyperparameter,
                 normalised: imaging.normalised,
@@ -377,12 +377,22 @@ struct Found {
 }
 
 /// The frames without a press (those of `--reference`, then the samples' rows of 0 N, in
-/// order) and the pressed ones, of a samples file of raw frames.
+/// order) and the pressed ones, of a samples file of raw frames; each of `spec`'s protocol's
+/// length, else refused naming its file.
 fn references(
+    spec: &SensorSpec,
     path: Option<&Path>,
     samples: &Path,
     frames: Vec<LabelledFrame>,
 ) -> Result<(Vec<Vec<f64>>, Vec<LabelledFrame>)> {
+    let measurements = spec.protocol()?.measurements().len();
+    if let Some(frame) = frames.first().filter(|f| f.frame.len() != measurements) {
+        bail!(
+            "{}: each sample holds {} values, and the sensor's protocol has {measurements} measurements",
+            samples.display(),
+            frame.frame.len()
+        );
+    }
     let mut references = match path {
         Some(path) => {
             let table = eitskin_io::read_frames(path, &FrameSelect::default())?;
@@ -394,11 +404,22 @@ fn references(
                     path.display()
                 );
             }
+            if let Some(k) = table.frames.iter().position(|f| f.len() != measurements) {
+                bail!(
+                    "--reference {}: frame {} holds {} values, and the sensor's protocol has {measurements} measurements",
+                    path.display(),
+                    k + 1,
+                    table.frames[k].len()
+                );
+            }
             table.frames
         }
         None => Vec::new(),
     };
     let (rest, pressed) = split_references(frames);
+    if pressed.is_empty() {
+        bail!("{}: every sample is at 0 N (the sheet at rest): there is no press to read", samples.display());
+    }
     references.extend(rest);
     if references.is_empty() {
         bail!(

@@ -232,6 +232,23 @@ fn read_presses(args: &Args, spec: &SensorSpec) -> Result<(Vec<LabelledPress>, O
                 first.inputs.len()
             );
         }
+        // A press learned from is no test of what was learned.
+        let seen =
+            held.iter().filter(|h| training.iter().any(|t| t.position == h.position && t.inputs == h.inputs)).count();
+        if seen == held.len() {
+            bail!(
+                "{}: every held-out press is also one of the training presses of {}: hold out presses the model does not learn from",
+                path.display(),
+                args.samples.display()
+            );
+        }
+        if seen > 0 {
+            eprintln!(
+                "warning: {}: {seen} of {} held-out presses are also training presses; their errors flatter the model",
+                path.display(),
+                held.len()
+            );
+        }
     }
     Ok((training, held_out))
 }

@@ -16,6 +16,9 @@ pub fn check(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> 
         if !folder.is_dir() {
             bail!("{flag} {}: the folder {} does not exist", path.display(), folder.display());
         }
+        if path.is_dir() {
+            bail!("{flag} {}: is a folder; give the path of a file to write", path.display());
+        }
         let target = resolved(path);
         if let Some((input, given)) = inputs.iter().find(|(_, p)| resolved(p) == target) {
             bail!(

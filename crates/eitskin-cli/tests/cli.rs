@@ -490,4 +490,36 @@ fn samples_and_references_that_cannot_go_together_are_refused() {
         String::from_utf8_lossy(&out.stderr),
         format!("error: {s}: `samples` line 1: a header and no samples under it\n")
     );
+    // Frames at rest of another length are named by their file and frame, once; samples of
+    // another length by theirs; samples all at 0 N have nothing to read.
+    let ones = vec!["1.0"; 120].join(",");
+    std::fs::write(&samples, format!("x,y,force,{}\n10,20,5,{ones}\n", channels.join(","))).unwrap();
+    let rest = dir.join("rest.txt");
+    std::fs::write(&rest, format!("{}\n", vec!["1.0"; 119].join(","))).unwrap();
+    let rest = rest.to_str().unwrap();
+    // (`evaluate` reads its samples through the same function.)
+    let out = dir.eitskin(&["calibrate", "--samples", s, "--reference", rest, "--out", o]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        format!(
+            "error: --reference {rest}: frame 1 holds 119 values, and the sensor's protocol has 120 measurements\n"
+        )
+    );
+    std::fs::write(&samples, "x,y,force,v1,v2\n10,20,5,1,1\n").unwrap();
+    let out = dir.eitskin(&["calibrate", "--samples", s, "--reference", rest, "--out", o]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        format!("error: {s}: each sample holds 2 values, and the sensor's protocol has 120 measurements\n")
+    );
+    std::fs::write(&samples, format!("x,y,force,{}\n10,20,0,{ones}\n", channels.join(","))).unwrap();
+    let out = dir.eitskin(&["calibrate", "--samples", s, "--out", o]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        format!("error: {s}: every sample is at 0 N (the sheet at rest): there is no press to read\n")
+    );
+    // An output that is a folder is refused before any work.
+    let folder = dir.join("folder.json");
+    std::fs::create_dir(&folder).unwrap();
+    let out = dir.eitskin(&["calibrate", "--samples", s, "--out", folder.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is a folder; give the path of a file to write"), "{out:?}");
 }

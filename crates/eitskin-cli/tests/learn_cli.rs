@@ -28,6 +28,12 @@ fn robot_presses_are_learned_and_the_curves_reported() {
 
     let plots = dir.join("plots");
     let p = plots.to_str().unwrap();
+    // The training presses given as the held-out ones test nothing: refused.
+    let same = dir.eitskin(&["learn", "--samples", t, "--held-out", t]);
+    assert!(
+        String::from_utf8_lossy(&same.stderr).contains("every held-out press is also one of the training presses"),
+        "{same:?}"
+    );
     let out = ok(dir.eitskin(&["learn", "--samples", t, "--held-out", h, "--curve", "--plots", p, "--out", m]));
     for png in ["learning_position.png", "learning_force.png"] {
         assert_eq!(&std::fs::read(plots.join(png)).unwrap()[1..4], b"PNG", "{png}");

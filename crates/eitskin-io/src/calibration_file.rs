@@ -31,13 +31,13 @@
 
 use std::path::Path;
 
-use eitskin::calibration::{Calibration, Curve, Strength};
+use eitskin::calibration::{Calibration, Curve, Strength, MAX_DECAY_PER_SPAN, MAX_FORCE};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::{Outline, SensorSpec};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::Error;
+use crate::{Error, Quoted};
 
 const FORMAT: &str = "eitskin-calibration";
 const VERSION: u32 = 6;
@@ -100,16 +100,27 @@ impl From<&CurveJson> for Curve {
 /// number, an e-folding force b of 0 (it divides by zero; a negative b, a curve that
 /// steepens, is a fit like any other), a flat curve (a = 0
 /// gives every strength the same force), a force range that is not 0 ≤ F₀ < F₁.
-fn curve_problem(c: &CurveJson) -> Option<String> {
+fn curve_problem(c: &CurveJson, version: u32) -> Option<String> {
     let [lo, hi] = c.force_range;
-    if !(c.a.is_finite() && c.c.is_finite()) {
+    if let Some(problem) = curve_fields_problem(c, version) {
+        Some(problem)
+    } else if !(c.a.is_finite() && c.c.is_finite()) {
         Some(format!("`a` = {} and `c` = {} must be finite numbers", c.a, c.c))
     } else if !(c.b.is_finite() && c.b != 0.0) {
         Some(format!("`b` = {} N must be a force other than 0 (the e-folding force of a·e^(−F/b) + c)", c.b))
     } else if c.a == 0.0 {
         Some("`a` = 0: the curve is flat, so no strength tells one force from another".into())
-    } else if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi) {
-        Some(format!("`force_range` = [{lo}, {hi}] N must run from a force ≥ 0 to a larger one"))
+    } else if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= MAX_FORCE) {
+        Some(format!(
+            "`force_range` = [{lo}, {hi}] N must run from a force ≥ 0 to a larger one, at most {MAX_FORCE:e} N",
+            lo = Quoted(lo),
+            hi = Quoted(hi)
+        ))
+    } else if c.b.abs() > MAX_DECAY_PER_SPAN * (hi - lo) {
+        Some(format!(
+            "`b` = {:?} N is past {MAX_DECAY_PER_SPAN:e} times the force range, the most a fit gives (the curve is flat there)",
+            c.b
+        ))
     } else if let Some(k) = c.shape.filter(|k| !(k.is_finite() && *k > 0.0 && c.b > 0.0)) {
         Some(format!(
             "`shape` = {k} with `b` = {} N: a curve a·(1 + F/(k·b))^(−k) + c needs k > 0 and b > 0 (omit `shape` for a·e^(−F/b) + c)",
@@ -117,6 +128,41 @@ fn curve_problem(c: &CurveJson) -> Option<String> {
         ))
     } else if !(c.spread.is_finite() && c.spread >= 0.0) {
         Some(format!("`spread` = {} must be a finite number ≥ 0 (the strength's spread about the curve)", c.spread))
+    } else {
+        strength_problem(c)
+    }
+}
+
+/// What a curve's bookkeeping fields hold that no fit gives: a `shape` before version 6, an
+/// R² over 1, fewer than 3 samples.
+fn curve_fields_problem(c: &CurveJson, version: u32) -> Option<String> {
+    if c.shape.is_some() && version < 6 {
+        Some(format!("has a `shape`, which a file of version {version} cannot hold (version 6 or later)"))
+    } else if c.r_squared > 1.0 {
+        Some(format!("`r_squared` = {:?} is over 1", c.r_squared))
+    } else if c.samples < 3 {
+        Some(format!("`samples` = {}: a curve is fitted to 3 samples or more", c.samples))
+    } else {
+        None
+    }
+}
+
+/// Whether the curve's strength changes over its force range as numbers can hold it, and by
+/// more than its spread: else no strength tells one force from another.
+fn strength_problem(c: &CurveJson) -> Option<String> {
+    let curve = Curve::from(c);
+    let [lo, hi] = c.force_range;
+    let rise = (curve.peak(hi) - curve.peak(lo)).abs();
+    if !(rise.is_finite() && rise > 0.0) {
+        Some(format!(
+            "the strength does not change between {lo} and {hi} N in floating point (`a` = {:?}, `b` = {:?} N, `c` = {:?}): no strength tells one force from another",
+            c.a, c.b, c.c
+        ))
+    } else if c.spread > rise {
+        Some(format!(
+            "`spread` = {:?} is more than the curve's whole rise over its range ({rise:e}): it reads no force",
+            c.spread
+        ))
     } else {
         None
     }
@@ -322,7 +368,7 @@ pub fn parse_calibration_file(text: &str, spec: &SensorSpec) -> Result<Calibrati
         return refuse("curves", format!("has {} curves for {} areas", file.curves.len(), array.area_count()));
     }
     for (k, curve) in file.curves.iter().enumerate() {
-        if let Some(problem) = curve_problem(curve) {
+        if let Some(problem) = curve_problem(curve, file.version) {
             return refuse("curves", format!("curve {} (area {}): {problem}; fit the calibration again", k + 1, k + 1));
         }
     }
@@ -419,10 +465,35 @@ mod tests {
             )
         );
         broken.curves[1] = calibration.curves[1];
+        // Fields no fit gives: each refused, naming what.
+        type Spoil = fn(&mut Curve);
+        let fields: [(Spoil, &str); 7] = [
+            (|c| c.b = 1e300, "`b` = 1e300 N is past 1e6 times the force range"),
+            (|c| c.c = 1e300, "the strength does not change between 0 and 9 N in floating point"),
+            (|c| c.spread = 1e300, "`spread` = 1e300 is more than the curve's whole rise"),
+            (|c| c.force_range[1] = 1e300, "must run from a force ≥ 0 to a larger one, at most 1e5 N"),
+            (|c| c.samples = 0, "`samples` = 0: a curve is fitted to 3 samples or more"),
+            (|c| c.r_squared = 5.0, "`r_squared` = 5.0 is over 1"),
+            (|c| c.a = 1e-300, "the strength does not change between 0 and 9 N"),
+        ];
+        for (spoil, says) in fields {
+            spoil(&mut broken.curves[4]);
+            assert!(
+                reason(&broken).starts_with("`curves` curve 5 (area 5): ") && reason(&broken).contains(says),
+                "{}",
+                reason(&broken)
+            );
+            broken.curves[4] = calibration.curves[4];
+        }
+        broken.curves[4].shape = Some(1.0);
+        let text = calibration_to_json(&spec, &array, &broken).unwrap().replace("\"version\": 6", "\"version\": 5");
+        let err = parse_calibration(&text, &spec).unwrap_err().to_string();
+        assert!(err.contains("has a `shape`, which a file of version 5 cannot hold"), "{err}");
+        broken.curves[4] = calibration.curves[4];
         broken.curves[5].force_range = [20.0, 15.0];
         assert_eq!(
             reason(&broken),
-            "`curves` curve 6 (area 6): `force_range` = [20, 15] N must run from a force ≥ 0 to a larger one; fit the calibration again"
+            "`curves` curve 6 (area 6): `force_range` = [20, 15] N must run from a force ≥ 0 to a larger one, at most 1e5 N; fit the calibration again"
         );
     }
 

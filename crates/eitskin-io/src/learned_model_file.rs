@@ -1,15 +1,19 @@
 //! A learned model's file (JSON): the method and the labelled presses it was trained on, tied
-//! to the protocol and its channel count. Loading trains the method again on those presses
+//! to the sensor (version 2: its `spec_key`, as a calibration's), the protocol and its channel
+//! count. Loading trains the method again on those presses
 //! (deterministic: the same grid, the same folds), so the file holds data, not a solver's state.
 //!
 //! ```json
-//! {"format": "eitskin-learned-model", "version": 1, "protocol": "two-terminal", "channels": 120,
+//! {"format": "eitskin-learned-model", "version": 2, "spec_key": "…", "protocol": "two-terminal", "channels": 120,
 //!  "method": "gp-shape", "presses": [{"x": 0.01, "y": -0.02, "force": 5.0, "inputs": [...]}, ...]}
 //! ```
-//! Positions in m, forces in N; a press may also have a `depth`, in m.
+//! Positions in m, forces in N; a press may also have a `depth`, in m. The presses are held to
+//! what a samples file may hold: on the sheet, forces and depths of 0 or more (forces at most
+//! [`MAX_FORCE`]). Version 1 files (no key) still read.
 
 use std::path::Path;
 
+use eitskin::calibration::MAX_FORCE;
 use eitskin::learn::{train, Features, LabelledPress, LearnedModel, Method, NominalSensor};
 use eitskin::press_fit::PressModelParams;
 use eitskin::SensorSpec;
@@ -18,13 +22,15 @@ use serde::{Deserialize, Serialize};
 use crate::Error;
 
 const FORMAT: &str = "eitskin-learned-model";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ModelJson {
     format: String,
     version: u32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    spec_key: Option<String>,
     protocol: String,
     channels: usize,
     method: String,
@@ -48,6 +54,7 @@ pub fn learned_model_to_json(spec: &SensorSpec, method: Method, presses: &[Label
     let file = ModelJson {
         format: FORMAT.into(),
         version: VERSION,
+        spec_key: Some(crate::spec_key(spec)?),
         protocol: crate::protocol_kind(&spec.protocol),
         channels: presses.first().map_or(0, |p| p.inputs.len()),
         method: method.name(),
@@ -97,8 +104,8 @@ pub fn parse_learned_model(
 ) -> Result<LearnedModel, Error> {
     let file: ModelJson = crate::parse_json_file(text, FORMAT)?;
     let key = |key: &'static str, reason: String| Error::Key { path: None, key, reason };
-    if file.version != VERSION {
-        return Err(key("version", format!("is {}; this eitskin reads version {VERSION}", file.version)));
+    if !(1..=VERSION).contains(&file.version) {
+        return Err(key("version", format!("is {}; this eitskin reads versions 1 to {VERSION}", file.version)));
     }
     let protocol = crate::protocol_kind(&spec.protocol);
     if file.protocol != protocol {
@@ -107,6 +114,23 @@ pub fn parse_learned_model(
     if file.channels != channels {
         return Err(key("channels", format!("is {}, but the frames given have {channels} values", file.channels)));
     }
+    if file.version >= 2 {
+        let here = crate::spec_key(spec)?;
+        match &file.spec_key {
+            Some(k) if *k == here => {}
+            Some(k) => {
+                return Err(key(
+                    "spec_key",
+                    format!(
+                        "says the model was learned on another sensor spec ({}… here {}…); learn this sensor",
+                        k.get(..12).unwrap_or(k),
+                        &here[..12]
+                    ),
+                ))
+            }
+            None => return Err(key("spec_key", "is missing: a file of version 2 or later records it".into())),
+        }
+    }
     let method =
         Method::from_name(&file.method).ok_or_else(|| key("method", format!("{:?} is not a method", file.method)))?;
     let presses: Vec<LabelledPress> = file
@@ -114,8 +138,28 @@ pub fn parse_learned_model(
         .into_iter()
         .map(|p| LabelledPress { inputs: p.inputs, position: [p.x, p.y], force: p.force, depth: p.depth })
         .collect();
+    check_labels(&presses, spec)?;
     let sensor = (method.features == Features::Press).then(|| nominal_sensor(spec, cache)).transpose()?;
     train(&presses, method, sensor.as_ref()).map_err(|e| key("presses", e.to_string()))
+}
+
+/// The presses' labels as a samples file may hold them: forces in [0, [`MAX_FORCE`]] N,
+/// depths of 0 or more, positions on the sheet ([`crate::check_labels_on_sheet`]).
+fn check_labels(presses: &[LabelledPress], spec: &SensorSpec) -> Result<(), Error> {
+    let refuse = |k: usize, reason: String| Error::Key {
+        path: None,
+        key: "presses",
+        reason: format!("press {}: {reason}", k + 1),
+    };
+    for (k, p) in presses.iter().enumerate() {
+        if let Some(f) = p.force.filter(|f| !(0.0..=MAX_FORCE).contains(f)) {
+            return Err(refuse(k, format!("force {f:?} N is outside 0–{MAX_FORCE:e} N")));
+        }
+        if let Some(d) = p.depth.filter(|d| *d < 0.0) {
+            return Err(refuse(k, format!("depth {d:?} m is negative")));
+        }
+    }
+    crate::check_labels_on_sheet(presses, spec)
 }
 
 #[cfg(test)]
@@ -146,6 +190,22 @@ mod tests {
         other.protocol = eitskin::ProtocolSpec::Adjacent;
         let err = parse_learned_model(&text, &other, 3, None).unwrap_err().to_string();
         assert_eq!(err, "`protocol` is \"two-terminal\", but the sensor's protocol is \"adjacent\"");
+        // Another sheet with the same protocol is another sensor; a file of version 1 has no key.
+        let mut wider = spec.clone();
+        wider.outline = eitskin::Outline::Rectangle { width: 0.3, height: 0.3 };
+        let err = parse_learned_model(&text, &wider, 3, None).unwrap_err().to_string();
+        assert!(err.starts_with("`spec_key` says the model was learned on another sensor spec"), "{err}");
+        let key = format!("\"spec_key\":\"{}\",", crate::spec_key(&spec).unwrap());
+        let v1 = text.replace(&key, "").replace("\"version\":2", "\"version\":1");
+        assert!(parse_learned_model(&v1, &wider, 3, None).is_ok(), "{v1}");
+        // Labels a samples file could not hold.
+        for (spoiled, says) in [
+            (text.replacen("\"force\":0.0", "\"force\":-10.0", 1), "press 1: force -10.0 N is outside 0–1e5 N"),
+            (text.replacen("\"x\":0.0", "\"x\":1e300", 1), "of press 1 are (1e303"),
+        ] {
+            let err = parse_learned_model(&spoiled, &spec, 3, None).unwrap_err().to_string();
+            assert!(err.contains(says), "{err}");
+        }
         // A model given where a calibration is wanted, and the other way round, is named as what
         // it is, before any of its fields is read.
         let err = crate::parse_calibration(&text, &spec).unwrap_err().to_string();

@@ -284,3 +284,13 @@ fn read_text(path: &Path) -> Result<String, Error> {
         None => text,
     })
 }
+
+/// A number from a file as its shortest text (`1e300`, not 301 digits; `20`, not `20.0`).
+pub(crate) struct Quoted(pub(crate) f64);
+
+impl std::fmt::Display for Quoted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let text = format!("{:?}", self.0);
+        f.write_str(text.strip_suffix(".0").unwrap_or(&text))
+    }
+}

@@ -62,16 +62,20 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
     let Some((_, header)) = lines.next() else {
         return Err(fail(1, "no header line".into()));
     };
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
-    // A label named twice would leave its second copy read as a channel.
-    for label in LABELS {
-        let at: Vec<String> = (0..names.len()).filter(|k| names[*k] == label).map(|k| (k + 1).to_string()).collect();
-        if at.len() > 1 {
-            return Err(fail(1, format!("column `{label}` is named {} times (columns {})", at.len(), at.join(", "))));
+    // Names as a spreadsheet may quote them ("x","y").
+    let names: Vec<&str> = header.split(',').map(|n| n.trim().trim_matches('"')).collect();
+    // A column named twice would leave its second copy read as a channel, or two channels as one.
+    for (k, name) in names.iter().enumerate().filter(|(_, n)| !n.is_empty()) {
+        let at: Vec<String> = (0..names.len()).filter(|j| names[*j] == *name).map(|j| (j + 1).to_string()).collect();
+        if at.len() > 1 && at[0] == (k + 1).to_string() {
+            return Err(fail(1, format!("column `{name}` is named {} times (columns {})", at.len(), at.join(", "))));
         }
     }
     let column = |name: &str| names.iter().position(|n| *n == name);
     let location = match (column("unit"), column("x"), column("y")) {
+        (Some(_), Some(_), _) | (Some(_), _, Some(_)) => {
+            return Err(fail(1, "names both a `unit` column and `x`/`y` columns: give one way to say where".into()))
+        }
         (Some(u), _, _) => Ok(u),
         (None, Some(x), Some(y)) => Err((x, y)),
         _ => return Err(fail(1, "needs a `unit` column or `x` and `y` columns".into())),
@@ -120,6 +124,10 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
         let label = |k: Option<usize>, what: &str, unit: &str| -> Result<Option<f64>, Error> {
             let Some(k) = k else { return Ok(None) };
             let value = number(k)?;
+            if what == "force" && value > MAX_FORCE {
+                let text = fields.get(k).copied().unwrap_or("");
+                return Err(fail(n + 1, format!("force {text} N is past {MAX_FORCE:e} N, the most a label may hold")));
+            }
             if value < 0.0 {
                 let text = fields.get(k).copied().unwrap_or("");
                 return Err(fail(
@@ -139,8 +147,7 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
     Ok(rows)
 }
 
-/// The columns a samples file names, beside the channels.
-const LABELS: [&str; 6] = ["unit", "x", "y", "force", "depth", "peak"];
+pub use eitskin::calibration::MAX_FORCE;
 
 /// How far outside the outline's bounding box a press's label may lie, as a fraction of the
 /// box's larger side: a robot's frame may be off by millimetres, not by a sheet.
@@ -155,7 +162,7 @@ pub fn check_labels_on_sheet(presses: &[LabelledPress], spec: &SensorSpec) -> Re
     let far = |[x, y]: [f64; 2]| x < x0 - margin || x > x1 + margin || y < y0 - margin || y > y1 + margin;
     let Some(k) = presses.iter().position(|p| far(p.position)) else { return Ok(()) };
     let (per_metre, unit) = (1.0 / spec.length_unit.metres(), spec.length_unit.symbol());
-    let [x, y] = presses[k].position.map(|v| v * per_metre);
+    let [x, y] = presses[k].position.map(|v| crate::Quoted(v * per_metre));
     let [x0, x1, y0, y1] = [x0, x1, y0, y1].map(|v| v * per_metre);
     let reason = format!(
         "of press {} are ({x}, {y}) {unit}, far off the sheet (its outline spans {x0}–{x1} by {y0}–{y1} {unit}): give them in the spec's unit ({unit}), from the outline's origin",
@@ -253,6 +260,14 @@ mod tests {
         assert!(parse_samples("force,peak\n1,2\n", 1.0).unwrap_err().to_string().contains("`unit` column"));
         let err = parse_samples("unit,force,peak\n1,2,1\n2,-0.5,1\n", 1.0).unwrap_err().to_string();
         assert_eq!(err, "`samples` line 3: force -0.5 N is negative: a press's force is 0 N or more");
+        let err = parse_samples("unit,force,peak\n1,1e300,1\n", 1.0).unwrap_err().to_string();
+        assert_eq!(err, "`samples` line 2: force 1e300 N is past 1e5 N, the most a label may hold");
+        let err = parse_samples("x,y,force,v1,v2,v1\n1,2,3,1,1,1\n", 1.0).unwrap_err().to_string();
+        assert_eq!(err, "`samples` line 1: column `v1` is named 2 times (columns 4, 6)");
+        let err = parse_samples("unit,x,y,force,peak\n1,1,2,3,1\n", 1.0).unwrap_err().to_string();
+        assert!(err.contains("both a `unit` column and `x`/`y` columns"), "{err}");
+        let quoted = parse_samples("\"unit\",\"force\",\"peak\"\n1,2,0.5\n", 1.0).unwrap();
+        assert_eq!(quoted[0].force, Some(2.0));
         let err = parse_samples("x,y,depth,v1\n1,2,-3,1\n", 1e-3).unwrap_err().to_string();
         assert_eq!(err, "`samples` line 2: depth -3 is negative: a press's depth is 0 or more");
         let err = parse_samples("# made by hand\nx,y,force,v1\n", 1.0).unwrap_err().to_string();

@@ -56,23 +56,23 @@ pub enum LabelledError {
     #[error("no frame without a press to take the reference from: give reference frames")]
     NoReference,
     /// A reference frame was refused (wrong length, too many channels missing).
-    #[error("reference frame {frame}: {source}")]
+    #[error("reference frame {frame}: {reason}")]
     Reference {
         /// 1-based reference frame.
         frame: usize,
-        /// Why.
-        source: InverseError,
+        /// Why (said in the message, so not also its source).
+        reason: InverseError,
     },
     /// The chain cannot read a strength tried ([`choose_strength`]).
     #[error(transparent)]
     Chain(#[from] ChainError),
     /// A labelled frame was refused.
-    #[error("sample {sample}: {source}")]
+    #[error("sample {sample}: {reason}")]
     Sample {
         /// 1-based labelled frame.
         sample: usize,
-        /// Why.
-        source: InverseError,
+        /// Why (said in the message, so not also its source).
+        reason: InverseError,
     },
 }
 
@@ -106,13 +106,13 @@ pub fn process_scenes(
     let params = PipelineParams { reference_frames: references.len(), average: 1, carry_presses: false, ..params };
     let mut pipeline = Pipeline::new(chain, params);
     for (k, frame) in references.iter().enumerate() {
-        pipeline.process(frame).map_err(|source| LabelledError::Reference { frame: k + 1, source })?;
+        pipeline.process(frame).map_err(|reason| LabelledError::Reference { frame: k + 1, reason })?;
     }
     scenes
         .iter()
         .enumerate()
         .map(|(k, (frame, presses))| {
-            pipeline.process(frame).map_err(|source| LabelledError::Sample { sample: k + 1, source })?;
+            pipeline.process(frame).map_err(|reason| LabelledError::Sample { sample: k + 1, reason })?;
             Ok(match_presses(pipeline.touches(), presses))
         })
         .collect()

@@ -63,7 +63,10 @@ pub use shape::SHAPES;
 pub use spread::PLACE_FOLDS;
 
 /// Largest |b| a fit may reach, as a multiple of the force span (b → ∞ for linear data).
-const MAX_DECAY_PER_SPAN: f64 = 1e6;
+pub const MAX_DECAY_PER_SPAN: f64 = 1e6;
+/// The largest force a calibration sample or a calibrated range may hold, in N: a label past it
+/// is a unit or a column gone wrong, not a press.
+pub const MAX_FORCE: f64 = 1e5;
 /// Most Levenberg–Marquardt iterations (Jacobian evaluations) per start.
 const MAX_ITERATIONS: usize = 200;
 /// Multiples of the estimated decay length b₀ to start from; negative ones let the data pick b < 0.

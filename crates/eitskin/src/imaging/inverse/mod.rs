@@ -37,6 +37,7 @@ pub use linearisation::Linearisation;
 pub use noise_model::NoiseModel;
 pub use prior::Prior;
 pub use product::BlockedMatrix;
+pub use raster::LARGEST_VALUE;
 pub use raster::{Reconstructor, ReconstructorParams};
 pub use reference::{mark_missing, HyperparameterRule, Reference, Weighting, WeightingUsed};
 
@@ -70,6 +71,17 @@ pub enum InverseError {
     NotFinite {
         /// 1-based measurement.
         measurement: usize,
+    },
+    /// A frame value is larger than any measurement ([`LARGEST_VALUE`]).
+    #[error(
+        "measurement {measurement} of the frame is {value:e}, past {LARGEST_VALUE:e} in size: not a measurement \
+         (the image would overflow)"
+    )]
+    TooLarge {
+        /// 1-based measurement.
+        measurement: usize,
+        /// The value, in the frame's unit.
+        value: f64,
     },
     /// Every channel is dropped (masked, missing or without a usable noise estimate).
     #[error("no channel is left to image with: every measurement is masked, missing or not finite")]
@@ -330,6 +342,14 @@ mod tests {
             assert!((value - image.values[pixel]).abs() <= 1e-5 * image.values[pixel].abs().max(1e-9), "{pixel}");
         }
         assert!(recon.pixel_value(&v_ref, &v[1..], 0).is_err(), "a frame of the wrong length");
+        // A value past any measurement would overflow the single-precision image: refused, in
+        // either frame, naming it.
+        let mut huge = v.clone();
+        huge[6] = 1e300;
+        let err = recon.image(&v_ref, &huge).unwrap_err();
+        assert_eq!(err, InverseError::TooLarge { measurement: 7, value: 1e300 });
+        assert!(err.to_string().starts_with("measurement 7 of the frame is 1e300, past 1e30"), "{err}");
+        assert!(recon.image(&huge, &v).is_err());
     }
 
     #[test]

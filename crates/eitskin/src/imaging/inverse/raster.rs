@@ -18,6 +18,10 @@ use crate::forward::ForwardModel;
 use crate::image::Image;
 use crate::mesh::RasterMap;
 
+/// The largest magnitude a frame's value may have, in the frame's unit (V, Ω or S): the image is
+/// single precision, and differences past this would overflow it.
+pub const LARGEST_VALUE: f64 = 1e30;
+
 /// How to build a [`Reconstructor`]; `Default` is the paper's: NOSER (p = 0.5), λ = 0.1,
 /// absolute differences, 64 × 64 pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -274,6 +278,10 @@ impl Reconstructor {
             let bad = |(m, x): (usize, &f64)| self.channels.is_used(m) && !x.is_finite();
             if let Some((m, _)) = frame.iter().enumerate().find(|&p| bad(p)) {
                 return Err(InverseError::NotFinite { measurement: m + 1 });
+            }
+            let huge = |(m, x): (usize, &f64)| self.channels.is_used(m) && x.abs() > LARGEST_VALUE;
+            if let Some((m, x)) = frame.iter().enumerate().find(|&p| huge(p)) {
+                return Err(InverseError::TooLarge { measurement: m + 1, value: *x });
             }
         }
         if self.params.normalised {
