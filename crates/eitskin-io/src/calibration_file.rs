@@ -424,6 +424,14 @@ mod tests {
             let file = calibration_to_json(&spec, &array, &Calibration { strength, ..calibration.clone() }).unwrap();
             assert_eq!(parse_calibration(&file, &spec).unwrap().1.strength, strength);
         }
+        // A field of the wrong type is named, with its place in the file.
+        let err =
+            parse_calibration(&text.replace("\"version\": 6", "\"version\": \"6\""), &spec).unwrap_err().to_string();
+        assert!(err.starts_with("`version`: invalid type: string \"6\", expected u32 at line"), "{err}");
+        let err = parse_calibration(&text.replace("\"grid\": [\n    5,", "\"grid\": [\n    -5,"), &spec)
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("`grid[0]`: invalid value: integer `-5`"), "{err}");
         // A curve of a shape keeps it; an exponential's file has no `shape`.
         assert!(!text.contains("shape"), "{text}");
         let mut shaped = drop.clone();

@@ -47,7 +47,20 @@ pub(crate) fn parse_values(text: &str) -> Result<Vec<f64>, Error> {
         let mut values = Vec::new();
         for (n, line) in lines {
             let fields = line.split([',', ';', ' ', '\t']).map(str::trim).filter(|f| !f.is_empty());
-            let fields: Vec<&str> = if header { fields.skip(1).collect() } else { fields.collect() };
+            let mut fields: Vec<&str> = fields.collect();
+            // Under the header, each row is `measurement,value`, the measurements counted from 1
+            // in order: a row elsewhere would put its value on another channel.
+            if header && !fields.is_empty() {
+                let want = values.len() + 1;
+                if fields[0].parse::<f64>().ok() != Some(want as f64) {
+                    let found = fields[0];
+                    return Err(frame_error(&format!(
+                        "line {}: measurement {found:?} where measurement {want} is due (rows count 1, 2, 3, … in order)",
+                        n + 1
+                    )));
+                }
+                fields.remove(0);
+            }
             for field in fields {
                 let x: f64 =
                     field.parse().map_err(|_| frame_error(&format!("line {}: {field:?} is not a number", n + 1)))?;
@@ -85,5 +98,14 @@ mod tests {
         assert!(parse_frame("[1, NaN]").is_err());
         assert!(parse_frame("1, inf").unwrap_err().to_string().contains("value 2 is not a finite number"));
         assert!(parse_frame("").is_err());
+        let err = parse_frame("measurement,value_ohm\n2,1.5\n1,2\n").unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "`frame` line 2: measurement \"2\" where measurement 1 is due (rows count 1, 2, 3, … in order)"
+        );
+        assert!(parse_frame("measurement,value_ohm\n1,1.5\n1,2\n")
+            .unwrap_err()
+            .to_string()
+            .contains("measurement 2 is due"));
     }
 }

@@ -254,6 +254,16 @@ const JSON_FILES: [(&str, &str); 2] = [
     ("eitskin-learned-model", "a learned model (what `eitskin learn --out` writes)"),
 ];
 
+/// What eitskin JSON file `head` (a file's first bytes) starts, by its `format`, if it is one
+/// of [`JSON_FILES`] (a calibration, a learned model), in words.
+fn json_file_kind(head: &[u8]) -> Option<&'static str> {
+    let text = String::from_utf8_lossy(head);
+    let after = text[text.find("\"format\"")? + "\"format\"".len()..].trim_start().strip_prefix(':')?;
+    let value = after.trim_start().strip_prefix('"')?;
+    let format = &value[..value.find('"')?];
+    JSON_FILES.iter().find(|(known, _)| *known == format).map(|(_, what)| *what)
+}
+
 /// `text` as the eitskin JSON file of `format`: a file of another kind is named as such (its
 /// `format` read first) before any of its fields is checked.
 fn parse_json_file<T: serde::de::DeserializeOwned>(text: &str, format: &str) -> Result<T, Error> {
@@ -272,8 +282,12 @@ fn parse_json_file<T: serde::de::DeserializeOwned>(text: &str, format: &str) -> 
         };
         return Err(Error::Key { path: None, key: "format", reason });
     }
-    // Again from the text, so that a message names its line and column.
-    serde_json::from_str(text).map_err(json)
+    // Again from the text, so that a message names its line and column, and the field.
+    serde_path_to_error::deserialize(&mut serde_json::Deserializer::from_str(text)).map_err(|e| {
+        let field = e.path().to_string();
+        let message = e.into_inner().to_string();
+        Error::Json { path: None, message: if field == "." { message } else { format!("`{field}`: {message}") } }
+    })
 }
 
 /// The text of `path`, without the byte-order mark a spreadsheet's "CSV UTF-8" starts with.

@@ -230,6 +230,11 @@ pub fn read_frames(path: &Path, select: &FrameSelect) -> Result<FrameTable, Erro
     let problem =
         |variable: Option<String>, problem: ArrayProblem| Error::Array { path: path.to_path_buf(), variable, problem };
     let kind = kind(&bytes);
+    // A MAT header's text with less than the header's 128 bytes: a MAT file cut short.
+    if kind == Kind::Text && bytes.starts_with(b"MATLAB ") && bytes.windows(8).take(24).any(|w| w == b"MAT-file") {
+        let message = format!("its header is {} of 128 bytes: the file was cut short", bytes.len());
+        return Err(problem(None, ArrayProblem::Malformed { format: "MAT", message }));
+    }
     let (array, variable) = match kind {
         Kind::Mat5 | Kind::Mat73 => {
             let read = if kind == Kind::Mat5 { mat5::read } else { mat73::read };
@@ -388,6 +393,14 @@ mod tests {
         assert_eq!(kind(&mat), Kind::Mat73);
         assert_eq!(kind(b"\x93NUMPY\x01\x00"), Kind::Npy);
         assert_eq!(kind(b"MATLAB"), Kind::Text);
+        let dir = tempfile::tempdir().unwrap();
+        let cut = dir.path().join("cut.mat");
+        std::fs::write(&cut, &mat[..100]).unwrap();
+        let err = read_frames(&cut, &FrameSelect::default()).unwrap_err().to_string();
+        assert!(
+            err.contains("is not a readable MAT file (its header is 100 of 128 bytes: the file was cut short)"),
+            "{err}"
+        );
         assert_eq!(kind(b"1, 2, 3"), Kind::Text);
     }
 }

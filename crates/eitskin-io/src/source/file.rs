@@ -24,11 +24,20 @@ pub(super) fn open(
 ) -> Result<Box<dyn FrameSource>, SourceError> {
     let read_error = |e: std::io::Error| SourceError::Read { path: path.to_path_buf(), reason: e.to_string() };
     let mut reader = BufReader::with_capacity(READ_BUFFER, File::open(path).map_err(read_error)?);
+    // A byte-order mark (an editor's "UTF-8 with BOM") is not part of the first record or line.
+    if reader.fill_buf().map_err(read_error)?.starts_with(b"\xef\xbb\xbf") {
+        reader.consume(3);
+    }
     let head = reader.fill_buf().map_err(read_error)?;
     if head.starts_with(b"\x93NUMPY") || head.starts_with(b"MATLAB") {
         return Ok(Box::new(TableSource::open(path, measurements, settings)?));
     }
     if head.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
+        // Another of eitskin's JSON files is named as what it is.
+        if let Some(what) = crate::json_file_kind(head) {
+            let reason = format!("this is {what}, not a recording (what `eitskin run --record` writes)");
+            return Err(SourceError::Recording { path: path.to_path_buf(), reason });
+        }
         Ok(Box::new(RecordingSource::new(path, reader, measurements, settings.speed)?))
     } else {
         Ok(Box::new(CaptureSource::new(path, reader, measurements, settings.codec, settings.rate, settings.speed)))
@@ -380,6 +389,21 @@ mod tests {
         std::fs::write(&path, "\n {\"event\":\"start\",\"format\":\"eitskin-run\"}\n").unwrap();
         let error = open(&path, 120, &settings(Codec::Lines, 0.0)).err().unwrap();
         assert!(matches!(&error, SourceError::Recording { path: p, .. } if p == &path), "{error:?}");
+        // A calibration given as a source is named as one; a recording saved with a byte-order
+        // mark is still a recording.
+        let (_dir, path) = scratch("cal.json");
+        std::fs::write(&path, "{\n  \"format\": \"eitskin-calibration\",\n  \"version\": 6\n}").unwrap();
+        let error = open(&path, 120, &settings(Codec::Lines, 0.0)).err().unwrap().to_string();
+        assert!(
+            error.contains("this is a calibration (what `eitskin calibrate --out` writes), not a recording"),
+            "{error}"
+        );
+        let (_dir, path) = scratch("bom.jsonl");
+        Recorder::create(&path, &Header::now(16, "p")).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        std::fs::write(&path, format!("\u{feff}{text}")).unwrap();
+        let error = open(&path, 120, &settings(Codec::Lines, 0.0)).err().unwrap().to_string();
+        assert!(error.contains("frames of 16 values"), "read as a recording: {error}");
         let (_dir, missing) = scratch("missing.csv");
         let error = open(&missing, 120, &settings(Codec::Lines, 0.0)).err().unwrap();
         assert!(error.to_string().starts_with("cannot read ") && error.to_string().contains("missing.csv"), "{error}");

@@ -314,7 +314,8 @@ impl fmt::Debug for Source {
 fn read_script(path: &Path, metres: f64) -> Result<Script, SourceError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| SourceError::Read { path: path.to_path_buf(), reason: e.to_string() })?;
-    Script::parse(&text, metres).map_err(|error| SourceError::Script { path: path.to_path_buf(), error })
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    Script::parse(text, metres).map_err(|error| SourceError::Script { path: path.to_path_buf(), error })
 }
 
 /// Frame k of a clock of `period` per frame started at `start`: sleeps until it is due.
@@ -340,6 +341,17 @@ mod tests {
 
     fn frame(seq: u64) -> Result<Acquired, SourceError> {
         Ok(Acquired::Frame { seq, t: 0.0, values: vec![1.0] })
+    }
+
+    /// A press script saved with a byte-order mark reads as without it.
+    #[test]
+    fn a_script_with_a_byte_order_mark_reads() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("script.txt");
+        std::fs::write(&path, "\u{feff}0 1 50 -20 8\n").unwrap();
+        let script = read_script(&path, 1e-3).unwrap();
+        std::fs::write(&path, "0 1 50 -20 8\n").unwrap();
+        assert_eq!(script, read_script(&path, 1e-3).unwrap());
     }
 
     fn bad(seq: u64) -> Result<Acquired, SourceError> {
