@@ -134,14 +134,12 @@ fn curve_problem(c: &CurveJson, version: u32) -> Option<String> {
 }
 
 /// What a curve's bookkeeping fields hold that no fit gives: a `shape` before version 6, an
-/// R² over 1, fewer than 3 samples.
+/// R² over 1. (A curve written by hand, from a law, has no samples: `samples` may be 0.)
 fn curve_fields_problem(c: &CurveJson, version: u32) -> Option<String> {
     if c.shape.is_some() && version < 6 {
         Some(format!("has a `shape`, which a file of version {version} cannot hold (version 6 or later)"))
     } else if c.r_squared > 1.0 {
         Some(format!("`r_squared` = {:?} is over 1", c.r_squared))
-    } else if c.samples < 3 {
-        Some(format!("`samples` = {}: a curve is fitted to 3 samples or more", c.samples))
     } else {
         None
     }
@@ -475,12 +473,11 @@ mod tests {
         broken.curves[1] = calibration.curves[1];
         // Fields no fit gives: each refused, naming what.
         type Spoil = fn(&mut Curve);
-        let fields: [(Spoil, &str); 7] = [
+        let fields: [(Spoil, &str); 6] = [
             (|c| c.b = 1e300, "`b` = 1e300 N is past 1e6 times the force range"),
             (|c| c.c = 1e300, "the strength does not change between 0 and 9 N in floating point"),
             (|c| c.spread = 1e300, "`spread` = 1e300 is more than the curve's whole rise"),
             (|c| c.force_range[1] = 1e300, "must run from a force ≥ 0 to a larger one, at most 1e5 N"),
-            (|c| c.samples = 0, "`samples` = 0: a curve is fitted to 3 samples or more"),
             (|c| c.r_squared = 5.0, "`r_squared` = 5.0 is over 1"),
             (|c| c.a = 1e-300, "the strength does not change between 0 and 9 N"),
         ];
