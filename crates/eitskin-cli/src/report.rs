@@ -20,7 +20,7 @@ const PAPER_TABLE_2: [(f64, f64, f64, f64); 6] = [
 
 /// Everything measured, as one JSON value.
 pub fn json(study: &StudyReport, params: &StudyParams, seconds: f64) -> Value {
-    let curve = |c: &eitskin::calibration::Curve| json!({"a": c.a, "b_newton": c.b, "c": c.c, "r_squared": c.r_squared, "force_range_newton": c.force_range, "samples": c.samples});
+    let curve = |c: &eitskin::calibration::Curve| json!({"a": c.a, "b_newton": c.b, "c": c.c, "shape": c.shape, "r_squared": c.r_squared, "force_range_newton": c.force_range, "samples": c.samples});
     json!({
         "seconds": seconds,
         "seed": params.seed,
@@ -79,7 +79,7 @@ pub fn markdown(study: &StudyReport, params: &StudyParams, unit: LengthUnit, sec
 /// Table 2: the per-area curves of the peak (and R² of the fitted press's drop) beside the paper's.
 fn calibration_table(study: &StudyReport, params: &StudyParams) -> String {
     let mut s = String::new();
-    s += "## Calibration (Table 2)\n\nOurs: peak(F) = a·e^(−F/b) + c with the peak a positive magnitude, so our b > 0 where the paper's (signed conductivity) b < 0.\n\n";
+    s += "## Calibration (Table 2)\n\nOurs: peak(F) = a·e^(−F/b) + c with the peak a positive magnitude, so our b > 0 where the paper's (signed conductivity) b < 0; where a curve is a·(1 + F/(k·b))^(−k) + c instead (it fitted better than chance would let it), its b says k.\n\n";
     s += "The column R² (fitted press) is the same per-area fit on the drop of the press fitted to Δv (`eitskin::press_fit`) instead of the image's peak.\n\n";
     s += "| area | a | b [N] | c | R² | R² (fitted press) | forces [N] | samples | paper a | paper b | paper c | paper R² |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     let fitted = method(study, params.grid, Strength::FittedDrop);
@@ -89,11 +89,11 @@ fn calibration_table(study: &StudyReport, params: &StudyParams) -> String {
             let paper = PAPER_TABLE_2
                 .get(i)
                 .map_or("| | | | ".to_string(), |p| format!("| {} | {} | {:e} | {} ", p.0, p.1, p.2, p.3));
+            let b = c.shape.map_or(format!("{:.3}", c.b), |k| format!("{:.3} (k = {k})", c.b));
             s += &format!(
-                "| {} | {:.4e} | {:.3} | {:.4e} | {:.3} | {r2} | {:.0}–{:.0} | {} {paper}|\n",
+                "| {} | {:.4e} | {b} | {:.4e} | {:.3} | {r2} | {:.0}–{:.0} | {} {paper}|\n",
                 i + 1,
                 c.a,
-                c.b,
                 c.c,
                 c.r_squared,
                 c.force_range[0],
