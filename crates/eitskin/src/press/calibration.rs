@@ -668,21 +668,26 @@ fn starting_decays(xs: &[f64], ys: &[f64]) -> [f64; START_MULTIPLES.len()] {
 
 /// The start [D, B, κ] at decay rate `decay`: D and B from the linear least-squares fit at that κ.
 fn start_at(xs: &[f64], ys: &[f64], decay: f64) -> [f64; 3] {
-    let n = xs.len() as f64;
-    let (mut su, mut suu, mut sy, mut suy) = (0.0, 0.0, 0.0, 0.0);
-    for (&x, &y) in xs.iter().zip(ys) {
-        let u = rise(decay, x).0;
-        (su, suu, sy, suy) = (su + u, suu + u * u, sy + y, suy + u * y);
+    match line_through(xs.iter().zip(ys).map(|(&x, &y)| (rise(decay, x).0, y))) {
+        Some((value, slope)) => [value, slope, decay],
+        None => {
+            let (low, high) = (mean_at(xs, ys, 0.0), mean_at(xs, ys, 1.0));
+            [low, (high - low) / rise(decay, 1.0).0, decay]
+        }
+    }
+}
+
+/// The least-squares line y = D + B·u through `points` (u, y): (D, B), or `None` where the u
+/// barely vary (the system is singular to working precision) or the line is not finite.
+fn line_through(points: impl Iterator<Item = (f64, f64)>) -> Option<(f64, f64)> {
+    let (mut n, mut su, mut suu, mut sy, mut suy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (u, y) in points {
+        (n, su, suu, sy, suy) = (n + 1.0, su + u, suu + u * u, sy + y, suy + u * y);
     }
     let determinant = n * suu - su * su;
     let slope = (n * suy - su * sy) / determinant;
     let value = (suu * sy - su * suy) / determinant;
-    if determinant > 1e-12 * n * suu && slope.is_finite() && value.is_finite() {
-        [value, slope, decay]
-    } else {
-        let (low, high) = (mean_at(xs, ys, 0.0), mean_at(xs, ys, 1.0));
-        [low, (high - low) / rise(decay, 1.0).0, decay]
-    }
+    (determinant > 1e-12 * n * suu && slope.is_finite() && value.is_finite()).then_some((value, slope))
 }
 
 /// Decay rates κ of the fallback's grid: ±[`PROFILE_DECAYS`] in [`PROFILE_STEPS`] steps each way.

@@ -125,19 +125,7 @@ pub(super) fn fit_shape(
 /// D, B and the sum of squares of the least-squares line y = D + B·φ(κ, x) at `rate` κ.
 fn line(xs: &[f64], ys: &[f64], shape: f64, rate: f64) -> Option<(f64, f64, f64)> {
     let phi = |x: f64| (1.0 - fall(Some(shape), rate * x)) / rate;
-    let n = xs.len() as f64;
-    let (mut su, mut suu, mut sy, mut suy) = (0.0, 0.0, 0.0, 0.0);
-    for (&x, &y) in xs.iter().zip(ys) {
-        let u = phi(x);
-        (su, suu, sy, suy) = (su + u, suu + u * u, sy + y, suy + u * y);
-    }
-    let determinant = n * suu - su * su;
-    // A NaN determinant fails this too.
-    if determinant.partial_cmp(&(1e-12 * n * suu)) != Some(std::cmp::Ordering::Greater) {
-        return None;
-    }
-    let slope = (n * suy - su * sy) / determinant;
-    let value = (suu * sy - su * suy) / determinant;
+    let (value, slope) = super::line_through(xs.iter().zip(ys).map(|(&x, &y)| (phi(x), y)))?;
     let sum_of_squares: f64 = xs.iter().zip(ys).map(|(&x, y)| (y - value - slope * phi(x)).powi(2)).sum();
     sum_of_squares.is_finite().then_some((value, slope, sum_of_squares))
 }
