@@ -115,6 +115,7 @@ impl LearnedModel {
             .zip(forces.into_iter().zip(depths))
             .map(|((inputs, p), (force, depth))| LabelledPress { inputs, position: [p[0], p[1]], force, depth })
             .collect();
+        let presses = without_copies(py, presses)?;
         let forced = method
             .map(|m| {
                 Method::from_name(m).ok_or_else(|| {
@@ -182,6 +183,16 @@ impl LearnedModel {
         }
         if let Some(k) = dv.iter().position(|v| !v.is_finite()) {
             return Err(fail(format!("dv value {} is {}: every value must be a finite number", k + 1, dv[k])));
+        }
+        // A press changes a frame by percents: a Δv ten times the training presses' is a raw
+        // frame, or another unit or gain (a weak press's Δv may be any smaller).
+        let size = eitskin::learn::typical_size(std::iter::once(dv)).unwrap_or(0.0);
+        if size >= eitskin::inverse::SCALE_LIMIT * self.model.input_size {
+            return Err(fail(format!(
+                "dv's root mean square is {size:.4e}, {:.3} times that of the presses the model learned from ({:.4e}): give Δv (a frame less its reference) in the unit and gain the model learned",
+                size / self.model.input_size,
+                self.model.input_size
+            )));
         }
         let Some(answer) = self.model.predict(dv, &mut self.scratch) else { return Ok(None) };
         let dict = pyo3::types::PyDict::new(py);
@@ -293,4 +304,18 @@ pub(crate) fn robot_presses<'py>(
     let dv = dv.into_pyarray(py).reshape([count, channels])?;
     let positions = positions.into_pyarray(py).reshape([count, 2])?;
     Ok((dv, positions, forces.into_pyarray(py)))
+}
+
+/// `presses` less their exact copies, named in a `UserWarning` as `eitskin learn` names them.
+fn without_copies(
+    py: Python<'_>,
+    presses: Vec<eitskin::learn::LabelledPress>,
+) -> PyResult<Vec<eitskin::learn::LabelledPress>> {
+    let (kept, left_out) = eitskin::learn::without_copies(presses);
+    if let Some(left_out) = left_out {
+        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        let message = std::ffi::CString::new(left_out.to_string()).map_err(|e| fail(e.to_string()))?;
+        PyErr::warn(py, &category, &message, 1)?;
+    }
+    Ok(kept)
 }

@@ -72,3 +72,12 @@ def test_bad_input_is_refused_with_the_reason(spec, presses):
         model.predict(np.zeros(3))
     with pytest.raises(eitskin.EitskinError, match="count must be 1 to 1000000"):
         eitskin.robot_presses(spec, 0)
+    # A raw frame (Δv on the frame at rest, some 200 Ω) given for Δv is refused with the sizes.
+    rest = spec.forward_model().measure(spec.conductivity)
+    with pytest.raises(eitskin.EitskinError, match="times that of the presses the model learned from"):
+        model.predict(dv[30] + rest)
+    # Copies teach nothing: named in a warning and left out; presses at one place are refused.
+    with pytest.warns(UserWarning, match="3 of 23 presses repeat an earlier one exactly"):
+        eitskin.LearnedModel.train(np.vstack([dv[:20], dv[:3]]), np.vstack([positions[:20], positions[:3]]), method="knn-1")
+    with pytest.raises(eitskin.EitskinError, match="a model of position needs presses at two places or more"):
+        eitskin.LearnedModel.train(dv[:20], np.tile(positions[:1], (20, 1)), method="knn-1")

@@ -427,7 +427,32 @@ fn references(
             samples.display()
         );
     }
+    check_scale(&references, &pressed, path, samples)?;
     Ok((references, pressed))
+}
+
+/// Refuses pressed frames whose values are typically (the median over frames of each one's
+/// [`typical_ratio`](eitskin::inverse::typical_ratio)) beyond
+/// [`SCALE_LIMIT`](eitskin::inverse::SCALE_LIMIT) times the reference's either way: another
+/// sensor, unit or gain, which no curve can read (and which made calibration search every
+/// frame for touches that are not there).
+fn check_scale(references: &[Vec<f64>], pressed: &[LabelledFrame], path: Option<&Path>, samples: &Path) -> Result<()> {
+    let reference = eitskin::inverse::mean_frame(references);
+    let mut ratios: Vec<f64> =
+        pressed.iter().filter_map(|p| eitskin::inverse::typical_ratio(&p.frame, &reference)).collect();
+    if ratios.is_empty() {
+        return Ok(());
+    }
+    let middle = ratios.len() / 2;
+    let ratio = *ratios.select_nth_unstable_by(middle, f64::total_cmp).1;
+    if !eitskin::inverse::plausible_ratio(ratio) {
+        let from = path.map_or_else(|| "its frames at 0 N".to_owned(), |p| format!("--reference {}", p.display()));
+        bail!(
+            "{}: the pressed frames' values are typically {ratio:.3} times those of the reference ({from}; the median over frames and channels): a press changes them by percents; are the two from the same sensor, unit and gain?",
+            samples.display()
+        );
+    }
+    Ok(())
 }
 
 /// Says on stderr which samples' presses were not found (no touch within

@@ -75,10 +75,18 @@ fn every_flag_refuses_numbers_out_of_its_range_or_documents_them() {
     let mut seen_text = Vec::new();
     for sub in root.get_subcommands().filter(|s| s.get_name() != "help") {
         let name = sub.get_name();
-        let required: Vec<String> = sub
+        // Each required flag with a value its parser takes (an output's name its format's).
+        let required: Vec<(String, &str)> = sub
             .get_arguments()
             .filter(|a| a.is_required_set())
-            .filter_map(|a| a.get_long().map(|l| format!("--{l}")))
+            .filter_map(|a| {
+                let flag = format!("--{}", a.get_long()?);
+                let taken = |v: &&str| match sub.clone().try_get_matches_from([name, &flag, v]) {
+                    Err(e) => !matches!(e.kind(), ErrorKind::ValueValidation | ErrorKind::InvalidValue),
+                    Ok(_) => true,
+                };
+                Some((flag.clone(), ["x", "x.csv", "x.json"].into_iter().find(taken)?))
+            })
             .collect();
         for arg in sub.get_arguments().filter(|a| a.get_action().takes_values()) {
             let Some(flag) = arg.get_long() else {
@@ -92,8 +100,8 @@ fn every_flag_refuses_numbers_out_of_its_range_or_documents_them() {
             }
             for bad in BAD {
                 let mut argv = vec!["eitskin".to_string(), name.to_string()];
-                for other in required.iter().filter(|r| **r != format!("--{flag}")) {
-                    argv.extend([other.clone(), "x".into()]);
+                for (other, value) in required.iter().filter(|(r, _)| *r != format!("--{flag}")) {
+                    argv.extend([other.clone(), value.to_string()]);
                 }
                 argv.extend([format!("--{flag}"), bad.to_string()]);
                 match command().try_get_matches_from(&argv) {

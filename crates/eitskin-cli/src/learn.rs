@@ -167,6 +167,9 @@ pub fn run(args: Args) -> Result<()> {
     if args.curve && args.held_out.is_none() {
         bail!("--curve needs --held-out: the curves are errors on presses kept out of training");
     }
+    if let Some(dir) = &args.plots {
+        outputs::check_folder("--plots", dir)?;
+    }
     let (training, held_out) = read_presses(&args, &spec)?;
     let sensor = nominal_sensor(&spec, &training, forced)?;
     let started = Instant::now();
@@ -219,7 +222,7 @@ pub fn run(args: Args) -> Result<()> {
 /// held-out presses of another channel count are refused.
 fn read_presses(args: &Args, spec: &SensorSpec) -> Result<(Vec<LabelledPress>, Option<Vec<LabelledPress>>)> {
     let reference = reference(args.reference.as_deref())?;
-    let training = presses(&args.samples, spec, reference.as_ref())?;
+    let training = without_copies(presses(&args.samples, spec, reference.as_ref())?, &args.samples);
     let held_out = args.held_out.as_deref().map(|p| presses(p, spec, reference.as_ref())).transpose()?;
     if let (Some(held), Some(path), Some(first)) = (&held_out, args.held_out.as_deref(), training.first()) {
         if let Some((k, p)) = held.iter().enumerate().find(|(_, p)| p.inputs.len() != first.inputs.len()) {
@@ -251,6 +254,15 @@ fn read_presses(args: &Args, spec: &SensorSpec) -> Result<(Vec<LabelledPress>, O
         }
     }
     Ok((training, held_out))
+}
+
+/// `presses` less their exact copies, which a warning names.
+fn without_copies(presses: Vec<LabelledPress>, path: &Path) -> Vec<LabelledPress> {
+    let (kept, left_out) = eitskin::learn::without_copies(presses);
+    if let Some(left_out) = left_out {
+        eprintln!("warning: {}: {left_out}", path.display());
+    }
+    kept
 }
 
 /// The sensor as specified, for press features, when the presses are Δv of the protocol's
@@ -511,6 +523,9 @@ pub fn evaluate_model(
     let held = presses(samples, spec, reference(reference_frame)?.as_ref())?;
     let channels = held.first().map_or(spec.protocol()?.len(), |p| p.inputs.len());
     let learned = eitskin_io::read_learned_model(model, spec, channels, eitskin_io::build::cache_dir().as_deref())?;
+    learned
+        .check_scale(&held)
+        .with_context(|| format!("{} against the model {}", samples.display(), model.display()))?;
     let e = evaluate(&learned, &held);
     println!(
         "{} on {} presses of {}: mean position error {:.1} mm{}",

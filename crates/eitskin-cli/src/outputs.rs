@@ -34,6 +34,19 @@ pub fn check(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> 
     Ok(())
 }
 
+/// Refuses an output folder (made if missing) that is a file, or inside one, before any work.
+pub fn check_folder(flag: &str, path: &Path) -> Result<()> {
+    match path.ancestors().find(|a| !a.as_os_str().is_empty() && a.exists()) {
+        Some(found) if !found.is_dir() && found == path => {
+            bail!("{flag} {}: is a file; give a folder to write into", path.display())
+        }
+        Some(found) if !found.is_dir() => {
+            bail!("{flag} {}: {} is a file, so no folder can be made inside it", path.display(), found.display())
+        }
+        _ => Ok(()),
+    }
+}
+
 /// A command's output files written all or nothing: each is written to a hidden file beside its
 /// target (its name ending in the target's, so that a writer choosing a format by extension
 /// still finds it), and all are renamed into place by [`Staged::commit`] once the command has
@@ -75,27 +88,32 @@ impl Drop for Staged {
 }
 
 /// Extensions that name a format of data, tables or pictures: a file named with one of them must
-/// be in that format, so a flag that writes another refuses it (a name with another extension, or
-/// none, is taken as the user gives it).
+/// be in that format, so a flag that writes another refuses it.
 const FORMATS: &[&str] = &[
     "bmp", "csv", "gif", "h5", "hdf5", "jpeg", "jpg", "json", "jsonl", "mat", "ndjson", "npy", "npz", "pdf", "png",
     "svg", "tif", "tiff", "toml", "tsv", "txt", "webp", "xls", "xlsx",
 ];
 
 /// A parser for an output flag that writes one of `formats` (extensions, the first the usual
-/// one): refuses a path whose extension names another format (`--png x.jpg`, `--out x.txt`
-/// where `.npy` or `.csv` is chosen by extension) before any work starts.
+/// one): refuses a path whose extension names another format (`--png x.jpg`) before any work
+/// starts. A flag of one format takes any other name as the user gives it; a flag of several
+/// chooses by the extension, so a name with none of them (`--out image`, `--out x.v2`) is
+/// refused rather than written in a format the user did not name.
 pub fn writes(formats: &'static [&'static str]) -> impl Fn(&str) -> Result<PathBuf, String> + Clone + Send + Sync {
     move |value: &str| {
         let path = PathBuf::from(value);
-        match path.extension().and_then(|e| e.to_str()) {
-            Some(extension)
-                if FORMATS.iter().any(|f| f.eq_ignore_ascii_case(extension))
-                    && !formats.iter().any(|f| f.eq_ignore_ascii_case(extension)) =>
-            {
-                let names: Vec<String> = formats.iter().map(|f| format!(".{f}")).collect();
-                Err(format!("this flag writes {}, not .{extension}: name the file so", names.join(" or ")))
+        let names = || formats.iter().map(|f| format!(".{f}")).collect::<Vec<String>>().join(" or ");
+        let extension = path.extension().and_then(|e| e.to_str());
+        let known = |e: &str| formats.iter().any(|f| f.eq_ignore_ascii_case(e));
+        match extension {
+            Some(e) if known(e) => Ok(path),
+            Some(e) if FORMATS.iter().any(|f| f.eq_ignore_ascii_case(e)) => {
+                Err(format!("this flag writes {}, not .{e}: name the file so", names()))
             }
+            _ if formats.len() > 1 => Err(format!(
+                "this flag writes {}, chosen by the file's extension, and {value:?} ends in neither: name the file so",
+                names()
+            )),
             _ => Ok(path),
         }
     }
@@ -158,6 +176,24 @@ mod tests {
         let raster = writes(&["npy", "csv"]);
         assert_eq!(raster("x.txt").unwrap_err(), "this flag writes .npy or .csv, not .txt: name the file so");
         assert!(raster("X.NPY").is_ok() && raster("x.csv").is_ok());
+        // The extension chooses the format: without one of them, nothing says which.
+        for name in ["image", "out/image.v2"] {
+            let refusal = raster(name).unwrap_err();
+            assert!(refusal.contains("chosen by the file's extension") && refusal.contains(name), "{refusal}");
+        }
+    }
+
+    #[test]
+    fn an_output_folder_that_is_a_file_or_inside_one_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("notes.txt");
+        std::fs::write(&file, "x").unwrap();
+        let refusal = check_folder("--plots", &file).unwrap_err().to_string();
+        assert!(refusal.ends_with("notes.txt: is a file; give a folder to write into"), "{refusal}");
+        let refusal = check_folder("--plots", &file.join("plots/a")).unwrap_err().to_string();
+        assert!(refusal.contains("notes.txt is a file, so no folder can be made inside it"), "{refusal}");
+        assert!(check_folder("--plots", &dir.path().join("new/plots")).is_ok());
+        assert!(check_folder("--plots", dir.path()).is_ok() && check_folder("--plots", Path::new("plots")).is_ok());
     }
 
     #[test]

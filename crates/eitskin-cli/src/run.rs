@@ -192,6 +192,17 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(path) = &args.record {
         check_record(path, &args)?;
     }
+    let reference_frames = args.reference_frames.saturating_mul(args.average);
+    if let (Some(frames), None) = (args.frames, &args.record) {
+        if frames <= reference_frames {
+            bail!(
+                "--frames {frames}: the run would end before its reference is taken (the first {reference_frames}: \
+                 --reference-frames {} × --average {}), and image nothing; give more frames, or --record to record them",
+                args.reference_frames,
+                args.average
+            );
+        }
+    }
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
     let setup::Built { pipeline, params, imaging, learned } = setup::build(&args, &spec)?;
     let kind = args.values.kind(args.component);
@@ -233,11 +244,16 @@ pub fn run(args: Args) -> Result<()> {
         bail!("{}: the source ended without a frame ({bad} bad or skipped)", args.source);
     }
     if processing.pipeline.reference().is_none() {
-        eprintln!(
-            "warning: {}: the source ended after {frames} frames, before the reference ({} frames) was taken: nothing was imaged",
+        let said = format!(
+            "{}: the source ended after {frames} frames, before the reference ({} frames) was taken: nothing was imaged",
             args.source,
             params.frames_in_reference()
         );
+        // A recording was the run's work, and is whole; without one, the run answered nothing.
+        match &args.record {
+            Some(path) => eprintln!("warning: {said} ({} holds the frames)", path.display()),
+            None => bail!("{said}"),
+        }
     }
     Ok(())
 }

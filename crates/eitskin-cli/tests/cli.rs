@@ -517,6 +517,19 @@ fn samples_and_references_that_cannot_go_together_are_refused() {
         String::from_utf8_lossy(&out.stderr),
         format!("error: {s}: every sample is at 0 N (the sheet at rest): there is no press to read\n")
     );
+    // Frames at rest in another unit (mV where the samples hold V) are refused with the ratio,
+    // where calibration searched every frame for touches and said only that an area had none.
+    std::fs::write(&samples, format!("x,y,force,{}\n10,20,5,{ones}\n", channels.join(","))).unwrap();
+    let millivolts = dir.join("rest_mv.txt");
+    std::fs::write(&millivolts, format!("{}\n", vec!["1000.0"; 120].join(","))).unwrap();
+    let out = dir.eitskin(&["calibrate", "--samples", s, "--reference", millivolts.to_str().unwrap(), "--out", o]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        format!(
+            "error: {s}: the pressed frames' values are typically 0.001 times those of the reference (--reference {}; the median over frames and channels): a press changes them by percents; are the two from the same sensor, unit and gain?\n",
+            millivolts.display()
+        )
+    );
     // An output that is a folder is refused before any work.
     let folder = dir.join("folder.json");
     std::fs::create_dir(&folder).unwrap();

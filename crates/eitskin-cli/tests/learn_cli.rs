@@ -91,6 +91,29 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     let from_dv = ok(dir.eitskin(&["learn", "--samples", t, "--held-out", h, "--method", "gp-press"]));
     assert_eq!(held_line(&from_raw), held_line(&from_dv), "{from_raw}");
 
+    // Raw frames given to a model of Δv (no --reference): refused with the two sizes, where
+    // they were answered 18 mm and 52 % of the force off without a word. The frame at rest is
+    // the sensor's own, of some 200 Ω.
+    let rest: Vec<f64> = ok(dir.eitskin(&["forward", "--format", "csv"]))
+        .lines()
+        .filter_map(|l| l.split(',').nth(1)?.parse().ok())
+        .collect();
+    let on_rest = dir.join("on_rest.csv");
+    let text = std::fs::read_to_string(&held).unwrap();
+    let rows = text.lines().map(|line| match line.split(',').next().map(|x| x.parse::<f64>()) {
+        Some(Ok(_)) => {
+            let fields: Vec<&str> = line.split(',').collect();
+            let shifted = fields[3..].iter().zip(&rest).map(|(v, r)| (v.parse::<f64>().unwrap() + r).to_string());
+            fields[..3].iter().map(|l| l.to_string()).chain(shifted).collect::<Vec<_>>().join(",")
+        }
+        _ => line.to_owned(),
+    });
+    std::fs::write(&on_rest, rows.collect::<Vec<_>>().join("\n")).unwrap();
+    let refused = dir.eitskin(&["evaluate", "--model", m, "--samples", on_rest.to_str().unwrap()]);
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && message.contains("times the"), "{message}");
+    assert!(message.contains("raw frames given to a model of Δv (give the reference"), "{message}");
+
     // The model's errors on other presses, as `evaluate` reports them.
     let out = ok(dir.eitskin(&["evaluate", "--model", m, "--samples", h]));
     assert!(
@@ -107,7 +130,7 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     let adjacent = dir.join("adjacent.toml");
     let spec = ok(dir.eitskin(&["spec"])).replace("kind = \"two-terminal\"", "kind = \"adjacent\"");
     std::fs::write(&adjacent, spec).unwrap();
-    let refused = dir.eitskin(&["run", adjacent.to_str().unwrap(), "--frames", "1", "--model", m]);
+    let refused = dir.eitskin(&["run", adjacent.to_str().unwrap(), "--frames", "12", "--model", m]);
     let message = String::from_utf8_lossy(&refused.stderr);
     assert!(message.contains("`protocol` is \"two-terminal\", but the sensor's protocol is \"adjacent\""), "{message}");
 
@@ -127,6 +150,29 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     let message = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success() && message.contains("`x, y` of press 1 are (5000, "), "{message}");
     assert!(message.contains("far off the sheet (its outline spans -100–100 by -100–100 mm)"), "{message}");
+
+    // A press pasted ten times is one press: the copies are named and left out, and one press
+    // is too few; presses all labelled at one place are refused (a model of nothing).
+    let (head, rows) = text.split_at(text.find("\n").unwrap() + 1);
+    let (header, rows) = rows.split_at(rows.find("\n").unwrap() + 1);
+    let first_row = &rows[..rows.find('\n').unwrap() + 1];
+    let copies = dir.join("copies.csv");
+    std::fs::write(&copies, format!("{head}{header}{}", first_row.repeat(10))).unwrap();
+    let refused = dir.eitskin(&["learn", "--samples", copies.to_str().unwrap()]);
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(message.contains("9 of 10 presses repeat an earlier one exactly (press 2 of 1, 3 of 1,"), "{message}");
+    assert!(!refused.status.success() && message.contains("1 labelled presses are too few"), "{message}");
+    let place = &first_row[..first_row.match_indices(',').nth(1).unwrap().0];
+    let one_place: String =
+        rows.lines().take(12).map(|r| format!("{place}{}\n", &r[r.match_indices(',').nth(1).unwrap().0..])).collect();
+    let one = dir.join("one_place.csv");
+    std::fs::write(&one, format!("{head}{header}{one_place}")).unwrap();
+    let refused = dir.eitskin(&["learn", "--samples", one.to_str().unwrap(), "--method", "knn-1"]);
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(message.contains("every one of the 12 presses is labelled at ("), "{message}");
+    // A folder for the figures that is a file is refused before any work.
+    let refused = dir.eitskin(&["learn", "--samples", t, "--held-out", h, "--curve", "--plots", t]);
+    assert!(String::from_utf8_lossy(&refused.stderr).contains(": is a file; give a folder to write into"));
 
     // A press whose Δv carries nothing (a failed press on a real skin) is named and left out of
     // the methods that need a press; the command runs to the end.

@@ -287,8 +287,9 @@ fn a_table_of_frames_replays_like_a_capture() {
 }
 
 /// A source that ends before anything was imaged says so: an empty file is an error (it used
-/// to end with the start line alone and exit 0), and a run that ends before its reference is
-/// taken warns that nothing was imaged.
+/// to end with the start line alone and exit 0), as is a run that ends before its reference is
+/// taken (it warned and exited 0) unless it recorded the frames; a `--frames` too few for the
+/// reference is refused before any work.
 #[test]
 fn a_source_that_ends_before_an_image_says_so() {
     let dir = scratch("empty");
@@ -303,10 +304,25 @@ fn a_source_that_ends_before_an_image_says_so() {
         "{stderr}"
     );
     let out = dir.eitskin(&["run", "--frames", "3", "--fast", "--triangles", "800"]);
-    assert!(out.status.success());
+    assert_eq!(out.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    let warning = "warning: sim: the source ended after 3 frames, before the reference (10 frames) was taken: nothing was imaged\n";
-    assert!(stderr.ends_with(warning), "{stderr}");
+    assert!(stderr.starts_with("error: --frames 3: the run would end before its reference is taken"), "{stderr}");
+    assert!(stderr.contains("--reference-frames 10 × --average 1"), "{stderr}");
+    let three = dir.join("three.txt");
+    std::fs::write(&three, format!("{}\n", vec!["100"; 120].join(",")).repeat(3)).unwrap();
+    let source = format!("file:{}", three.display());
+    let out = dir.eitskin(&["run", "--source", &source, "--triangles", "800"]);
+    assert_eq!(out.status.code(), Some(1));
+    let ended = format!(
+        "{source}: the source ended after 3 frames, before the reference (10 frames) was taken: nothing was imaged"
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).ends_with(&format!("error: {ended}\n")), "{out:?}");
+    // Recording was the work: it is whole, and the run succeeds with a warning.
+    let record = dir.join("three.jsonl");
+    let out = dir.eitskin(&["run", "--source", &source, "--triangles", "800", "--record", record.to_str().unwrap()]);
+    assert!(out.status.success(), "{out:?}");
+    let warning = format!("warning: {ended} ({} holds the frames)\n", record.display());
+    assert!(String::from_utf8_lossy(&out.stderr).ends_with(&warning), "{out:?}");
 }
 
 #[test]

@@ -224,13 +224,13 @@ impl Recorder {
         let refuse = |reason: String| Error::Key { path: Some(self.path.clone()), key: "record", reason };
         if values.len() != self.header.measurements {
             return Err(refuse(format!(
-                "frame {seq} has {} values, but the recording holds frames of {}; is it the same protocol?",
+                "frame seq {seq} has {} values, but the recording holds frames of {}; is it the same protocol?",
                 values.len(),
                 self.header.measurements
             )));
         }
         if !t_s.is_finite() {
-            return Err(refuse(format!("frame {seq} has time {t_s} s, which is not a finite number")));
+            return Err(refuse(format!("frame seq {seq} has time {t_s} s, which is not a finite number")));
         }
         Ok(())
     }

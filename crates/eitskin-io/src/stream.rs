@@ -32,14 +32,14 @@
 //! {"event":"start","format":"eitskin-run","version":6,"source":"sim","length_unit":"mm","measurements":120,"reference_frames":10,"reference_limit":100,"normalised":false,"polarity":"decrease","average":1,"peak_of":"frame","false_alarm_rate":0.001}
 //! {"event":"reference_taken","hyperparameter":0.031,"chosen":true,"normalised":false,"channels_dropped":[],"threshold":4.6,"noise":0.0005,"noise_measured":true,"detail":"…"}
 //! {"seq":10,"t":0.5,"status":"ok","touches":[{"sign":"decrease","x":-49.1,"y":41.7,"peak":0.63,"z":48.2,"unit":7,"calibration_area":2,"force":8.7,"force_std":0.3,"saturated":false,"press":{"x":-50.2,"y":40.1,"drop":0.41,"radius":10.0}}],"counters":{"frames":11,"bad":0},"recorded":true}
-//! {"event":"bad","seq":11,"reason":"frame 11 has 3 values, expected 120; …"}
+//! {"event":"bad","seq":11,"reason":"frame seq 11 has 3 values, expected 120; …"}
 //! ```
 //!
 //! The frame line ([`FrameLine`]):
 //!
 //! | field       | meaning                                                                         |
 //! |-------------|---------------------------------------------------------------------------------|
-//! | `seq`       | the frame's sequence number from the source (board counter, line count, as recorded) |
+//! | `seq`       | the frame's sequence number from the source (board counter; lines or table rows counted from 0; as recorded); messages call it "frame seq" |
 //! | `t`         | the frame's time, in s (the source's clock, as recorded, or since the port opened) |
 //! | `status`    | `"referencing"` (the frame went into the reference; no touches) or `"ok"` (imaged) |
 //! | `touches`   | the touches found, strongest first; each a [`Touch`], below                      |

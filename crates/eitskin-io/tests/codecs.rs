@@ -104,9 +104,12 @@ fn lines_a_frame_split_across_chunks_is_whole() {
 #[test]
 fn messages_are_sentences_with_the_numbers() {
     let message = BadFrame::WrongCount { seq: 12, expected: 120, got: 119 }.to_string();
-    assert!(message.starts_with("frame 12 has 119 values, expected 120; maybe the protocol is adjacent"), "{message}");
+    assert!(
+        message.starts_with("frame seq 12 has 119 values, expected 120; maybe the protocol is adjacent"),
+        "{message}"
+    );
     let message = BadFrame::Gap { seq: 9, missing: 2 }.to_string();
-    assert!(message.starts_with("2 frames were lost before frame 9"), "{message}");
+    assert!(message.starts_with("2 frames were lost before frame seq 9"), "{message}");
     assert_eq!(BadFrame::Garbage { bytes: 3 }.seq(), None);
     assert_eq!(BadFrame::Crc { seq: 4, expected: 1, got: 2 }.seq(), Some(4));
 }

@@ -207,7 +207,7 @@ fn recorder_refuses_frames_that_would_not_read_back() {
     let path = dir.path().join("run.jsonl");
     let mut recorder = Recorder::create(&path, &header(3)).expect("a new recording");
     let err = recorder.record(7, 0.0, &[1.0, 2.0], None).expect_err("too short");
-    assert!(err.to_string().contains("frame 7 has 2 values, but the recording holds frames of 3"), "{err}");
+    assert!(err.to_string().contains("frame seq 7 has 2 values, but the recording holds frames of 3"), "{err}");
     assert!(recorder.record(9, f64::INFINITY, &[1.0, 2.0, 3.0], None).is_err());
     recorder.record(10, 0.5, &[1.0, 2.0, 3.0], Some(&serde_json::Value::Null)).expect("recorded");
     recorder.sync().expect("synced");

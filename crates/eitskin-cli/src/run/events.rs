@@ -78,7 +78,7 @@ pub fn channel_event(
                 "channel(s) {channels:?} went bad (not finite) and are dropped until the reference is \
                  re-taken ({dropped} dropped in all); imaging goes on without them"
             );
-            eprintln!("warning: frame {seq}: {detail}");
+            eprintln!("warning: frame seq {seq}: {detail}");
             Some(Event::ChannelsDropped { seq, channels, dropped, detail })
         }
         _ => None,

@@ -137,7 +137,7 @@ impl Processing {
             Ok(done) => done,
             Err(e) => {
                 if let eitskin::InverseError::TooManyBadChannels { .. } = e {
-                    eprintln!("warning: frame {seq}: {e}");
+                    eprintln!("warning: frame seq {seq}: {e}");
                 }
                 self.tally.bad += 1;
                 let event = Event::Bad { seq: Some(seq), reason: e.to_string() };

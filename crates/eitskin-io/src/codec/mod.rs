@@ -58,7 +58,7 @@ pub struct Frame {
 pub enum BadFrame {
     /// The frame does not hold the expected number of values.
     #[error(
-        "frame {seq} has {got} values, expected {expected}; maybe the protocol is adjacent, not two-terminal, \
+        "frame seq {seq} has {got} values, expected {expected}; maybe the protocol is adjacent, not two-terminal, \
          or bytes were lost on the line"
     )]
     WrongCount {
@@ -70,7 +70,7 @@ pub enum BadFrame {
         got: usize,
     },
     /// A field that does not read as a number.
-    #[error("frame {seq}: field {field} ({text:?}) is not a number; is the board sending another format?")]
+    #[error("frame seq {seq}: field {field} ({text:?}) is not a number; is the board sending another format?")]
     NotANumber {
         /// Where the frame was in the stream.
         seq: u64,
@@ -80,7 +80,9 @@ pub enum BadFrame {
         text: String,
     },
     /// A line longer than the decoder's limit; it was dropped up to the next new line.
-    #[error("frame {seq} is {bytes} bytes long, over the line limit, and was dropped; is the board ending its lines?")]
+    #[error(
+        "frame seq {seq} is {bytes} bytes long, over the line limit, and was dropped; is the board ending its lines?"
+    )]
     TooLong {
         /// Where the frame was in the stream.
         seq: u64,
@@ -89,7 +91,7 @@ pub enum BadFrame {
     },
     /// A binary frame whose checksum does not match its bytes.
     #[error(
-        "frame {seq} carries CRC {expected:#06x} but its bytes give {got:#06x}; it was corrupted on the line \
+        "frame seq {seq} carries CRC {expected:#06x} but its bytes give {got:#06x}; it was corrupted on the line \
          (check the cable, the ground and the baud rate)"
     )]
     Crc {
@@ -101,7 +103,7 @@ pub enum BadFrame {
         got: u16,
     },
     /// Frames missing from the board's counter that were not reported otherwise.
-    #[error("{missing} frames were lost before frame {seq}; the link drops data (lower the frame rate or raise the baud rate)")]
+    #[error("{missing} frames were lost before frame seq {seq}; the link drops data (lower the frame rate or raise the baud rate)")]
     Gap {
         /// The counter of the frame after the gap (that frame is still delivered).
         seq: u64,
@@ -109,7 +111,7 @@ pub enum BadFrame {
         missing: u64,
     },
     /// A frame cut short when the link went away (never decoded: its end is unknown).
-    #[error("frame {seq} was cut off after {bytes} bytes when the link went away, and is dropped")]
+    #[error("frame seq {seq} was cut off after {bytes} bytes when the link went away, and is dropped")]
     Torn {
         /// Where in the stream it was.
         seq: u64,

@@ -100,6 +100,26 @@ pub enum LearnError {
         /// Its value.
         value: f64,
     },
+    /// Every press is labelled at one place: nothing tells positions apart.
+    #[error("every one of the {presses} presses is labelled at ({x} m, {y} m): a model of position needs presses at two places or more")]
+    OnePlace {
+        /// Presses given.
+        presses: usize,
+        /// The one place's x, in m.
+        x: f64,
+        /// Its y, in m.
+        y: f64,
+    },
+    /// Presses whose inputs are of another size than the training presses'.
+    #[error("these presses' inputs are typically {given:.4e} (root mean square, the median press), {ratio:.3} times the {trained:.4e} of the presses the model learned from: a press changes a frame by percents, so these are in another unit or gain, or raw frames given to a model of Δv (give the reference the model's presses were taken against)")]
+    Scale {
+        /// Their size against the training presses'.
+        ratio: f64,
+        /// Their typical size, in the inputs' unit.
+        given: f64,
+        /// The training presses' typical size.
+        trained: f64,
+    },
     /// Every channel is dead.
     #[error("every channel is constant or not finite over the training presses: nothing to learn from")]
     NoChannels,
@@ -328,6 +348,9 @@ pub struct LearnedModel {
     /// The training presses (0-based) it left out: for press features, those whose Δv looks
     /// like no press ([`PressFeatures::unlike`]).
     pub left_out: Vec<usize>,
+    /// The typical size of a training press's inputs ([`typical_size`]), in their unit: what
+    /// [`LearnedModel::check_scale`] holds other presses to.
+    pub input_size: f64,
 }
 
 /// One answer of a model.
@@ -383,7 +406,84 @@ fn check(presses: &[LabelledPress], needed: usize) -> Result<(bool, bool), Learn
             return Err(LearnError::LabelNotFinite { press: i + 1, label, value });
         }
     }
+    let first = presses[0].position;
+    if presses.iter().all(|p| p.position == first) {
+        return Err(LearnError::OnePlace { presses: presses.len(), x: first[0], y: first[1] });
+    }
     Ok((forces, depths))
+}
+
+/// The presses that repeat an earlier one exactly (every label and every input, bit for bit), as
+/// (copy, the press it copies), 0-based: a press pasted twice teaches nothing new and makes
+/// cross-validation test a press on itself.
+pub fn copies(presses: &[LabelledPress]) -> Vec<(usize, usize)> {
+    let key = |p: &LabelledPress| -> Vec<u64> {
+        let labels = [p.position[0], p.position[1], p.force.unwrap_or(f64::NAN), p.depth.unwrap_or(f64::NAN)];
+        labels.iter().chain(&p.inputs).map(|v| v.to_bits()).collect()
+    };
+    let mut first = std::collections::HashMap::new();
+    let mut found = Vec::new();
+    for (i, p) in presses.iter().enumerate() {
+        match first.entry(key(p)) {
+            std::collections::hash_map::Entry::Occupied(e) => found.push((i, *e.get())),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(i);
+            }
+        }
+    }
+    found
+}
+
+/// Presses left out as exact copies of earlier ones ([`copies`]); says which, 1-based.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CopiesLeftOut {
+    /// (copy, the press it copies), 0-based.
+    pub copies: Vec<(usize, usize)>,
+    /// Presses given.
+    pub of: usize,
+}
+
+impl std::fmt::Display for CopiesLeftOut {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let named: Vec<String> = self.copies.iter().take(5).map(|(c, o)| format!("{} of {}", c + 1, o + 1)).collect();
+        let more = if self.copies.len() > named.len() { ", …" } else { "" };
+        write!(
+            f,
+            "{} of {} presses repeat an earlier one exactly (press {}{more}) and are left out: a copy teaches nothing and flatters the cross-validation",
+            self.copies.len(),
+            self.of,
+            named.join(", ")
+        )
+    }
+}
+
+/// The typical size of presses' inputs: the median over presses of the root mean square of
+/// each one's finite inputs; `None` where no press has a finite input.
+pub fn typical_size<'a>(inputs: impl Iterator<Item = &'a [f64]>) -> Option<f64> {
+    let mut sizes: Vec<f64> = inputs
+        .filter_map(|v| {
+            let (sum, n) = v.iter().filter(|x| x.is_finite()).fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+            (n > 0).then(|| (sum / n as f64).sqrt())
+        })
+        .collect();
+    if sizes.is_empty() {
+        return None;
+    }
+    let middle = sizes.len() / 2;
+    Some(*sizes.select_nth_unstable_by(middle, f64::total_cmp).1)
+}
+
+/// `presses` less their exact [`copies`], and which were left out (`None` when none was).
+pub fn without_copies(presses: Vec<LabelledPress>) -> (Vec<LabelledPress>, Option<CopiesLeftOut>) {
+    let found = copies(&presses);
+    if found.is_empty() {
+        return (presses, None);
+    }
+    let mut kept = vec![true; presses.len()];
+    found.iter().for_each(|(copy, _)| kept[*copy] = false);
+    let of = presses.len();
+    let presses = presses.into_iter().zip(kept).filter(|(_, kept)| *kept).map(|(p, _)| p).collect();
+    (presses, Some(CopiesLeftOut { copies: found, of }))
 }
 
 /// Trains `method` on `presses` (at least 2, all with forces or none, all with depths or none);
@@ -478,7 +578,8 @@ pub fn train(
             Regressor::Curve { curves, residual }
         }
     };
-    Ok(LearnedModel { method, standardiser, regressor, forces, depths, press, left_out })
+    let input_size = typical_size(presses.iter().map(|p| p.inputs.as_slice())).unwrap_or(f64::NAN);
+    Ok(LearnedModel { method, standardiser, regressor, forces, depths, press, left_out, input_size })
 }
 
 impl LearnedModel {
@@ -489,6 +590,22 @@ impl LearnedModel {
             (Some(press), _) => press.dead().to_vec(),
             (None, Features::Shape) => self.standardiser.dead().into_iter().filter(|&c| c < self.channels()).collect(),
             (None, _) => self.standardiser.dead(),
+        }
+    }
+
+    /// Refuses presses whose inputs are typically ([`typical_size`]) more than
+    /// [`SCALE_LIMIT`](crate::inverse::SCALE_LIMIT) times the training presses', or under
+    /// 1/[`SCALE_LIMIT`](crate::inverse::SCALE_LIMIT)² of them (light presses may change a frame
+    /// ten times less than the training's; a hundred times is another unit): raw frames given to
+    /// a model of Δv, another unit or another gain, whose answers would be wrong without a sign.
+    pub fn check_scale(&self, presses: &[LabelledPress]) -> Result<(), LearnError> {
+        let limit = crate::inverse::SCALE_LIMIT;
+        let given = typical_size(presses.iter().map(|p| p.inputs.as_slice()));
+        match given.map(|g| g / self.input_size) {
+            Some(ratio) if !(ratio > 1.0 / (limit * limit) && ratio < limit) => {
+                Err(LearnError::Scale { ratio, given: given.unwrap_or(f64::NAN), trained: self.input_size })
+            }
+            _ => Ok(()),
         }
     }
 
@@ -825,7 +942,8 @@ mod tests {
 
     #[test]
     fn presses_that_disagree_are_refused() {
-        let press = |inputs: Vec<f64>, force| LabelledPress { inputs, position: [0.0, 0.0], force, depth: None };
+        // Each at its own place: the first input's value along x.
+        let press = |inputs: Vec<f64>, force| LabelledPress { position: [inputs[0], 0.0], inputs, force, depth: None };
         let mixed = [press(vec![1.0, 2.0], Some(1.0)), press(vec![2.0, 1.0], None)];
         assert_eq!(train(&mixed, Method::knn(1), None).unwrap_err(), LearnError::MixedForces { press: 2 });
         let lengths = [press(vec![1.0, 2.0], None), press(vec![2.0], None)];
@@ -833,8 +951,15 @@ mod tests {
             train(&lengths, Method::knn(1), None).unwrap_err().to_string(),
             "press 2 has 1 channels, the first press 2"
         );
-        let flat = [press(vec![1.0], None), press(vec![1.0], None)];
+        let mut flat = [press(vec![1.0], None), press(vec![1.0], None)];
+        flat[1].position[0] = 2.0;
         assert_eq!(train(&flat, Method::knn(1), None).unwrap_err(), LearnError::NoChannels);
+        // Presses all at one place tell no place from another.
+        let one_place = [press(vec![1.0, 2.0], None), press(vec![1.0, 1.0], None)];
+        assert_eq!(
+            train(&one_place, Method::knn(1), None).unwrap_err().to_string(),
+            "every one of the 2 presses is labelled at (1 m, 0 m): a model of position needs presses at two places or more"
+        );
         // A label that is not a number would poison every answer.
         let mut unlabelled = [press(vec![1.0, 2.0], Some(1.0)), press(vec![2.0, 1.0], Some(f64::NAN))];
         assert_eq!(
@@ -852,5 +977,28 @@ mod tests {
         let refused = train(&few, Method::knn(5), None).unwrap_err();
         assert_eq!(refused.to_string(), "knn-5 needs at least 5 presses to learn from, and has 3: give a smaller k");
         assert!(train(&few, Method::knn(3), None).is_ok());
+    }
+
+    /// A press pasted again is named as a copy of the first, and only an exact copy: another
+    /// frame at the same place, or the same frame with another force, is a press of its own.
+    #[test]
+    fn exact_copies_are_named_and_nothing_else() {
+        let press = |x: f64, inputs: Vec<f64>, force| LabelledPress { inputs, position: [x, 0.0], force, depth: None };
+        let presses = [
+            press(0.0, vec![1.0, 2.0], Some(1.0)),
+            press(0.0, vec![1.0, 2.5], Some(1.0)),
+            press(0.0, vec![1.0, 2.0], Some(2.0)),
+            press(0.0, vec![1.0, 2.0], Some(1.0)),
+            press(0.1, vec![1.0, 2.0], Some(1.0)),
+            press(0.0, vec![1.0, 2.5], Some(1.0)),
+        ];
+        assert_eq!(copies(&presses), vec![(3, 0), (5, 1)]);
+        assert!(copies(&presses[..3]).is_empty());
+        let (kept, left_out) = without_copies(presses.to_vec());
+        assert_eq!(kept, presses[..3].iter().chain(&presses[4..5]).cloned().collect::<Vec<_>>());
+        assert!(left_out
+            .unwrap()
+            .to_string()
+            .starts_with("2 of 6 presses repeat an earlier one exactly (press 4 of 1, 6 of 2)"));
     }
 }
