@@ -24,7 +24,8 @@
 
 use std::str::FromStr;
 
-use super::hyperparameter::{Eigensystem, SEARCH};
+use super::eigensystem::Eigensystem;
+use super::hyperparameter::SEARCH;
 use super::{Channels, InverseError, Linearisation, Prior};
 
 /// A criterion that chooses λ from frames with their reference.
@@ -92,13 +93,17 @@ pub fn data_hyperparameter(
         if let Some(i) = d.iter().position(|x| !x.is_finite()) {
             return Err(InverseError::NotFinite { measurement: used[i] + 1 });
         }
-        let b: Vec<f64> = (0..d.len()).map(|k| system.u.col(k).iter().zip(&d).map(|(u, d)| u * d).sum()).collect();
-        coefficients.push(b);
+        let b = system.coefficients(&d);
+        // What lies outside the eigenvectors' span (eigenvalue 0: never fitted).
+        let outside = (d.iter().map(|d| d * d).sum::<f64>() - b.iter().map(|b| b * b).sum::<f64>()).max(0.0);
+        coefficients.push((b, outside));
     }
     let e: Vec<f64> = system.eigenvalues.iter().map(|e| e.max(0.0)).collect();
-    let n = e.len() as f64;
+    let n = used.len() as f64;
     let residual = |lambda2: f64| -> f64 {
-        let each = |b: &Vec<f64>| e.iter().zip(b).map(|(e, b)| (lambda2 / (e + lambda2) * b).powi(2)).sum::<f64>();
+        let each = |(b, outside): &(Vec<f64>, f64)| {
+            e.iter().zip(b).map(|(e, b)| (lambda2 / (e + lambda2) * b).powi(2)).sum::<f64>() + outside
+        };
         coefficients.iter().map(each).sum()
     };
     let (lo, hi) = (SEARCH.0.log10(), SEARCH.1.log10());
@@ -108,7 +113,7 @@ pub fn data_hyperparameter(
         DataCriterion::Gcv => {
             let gcv = |lambda: f64| {
                 let lambda2 = lambda * lambda;
-                let freedom: f64 = e.iter().map(|e| lambda2 / (e + lambda2)).sum();
+                let freedom: f64 = e.iter().map(|e| lambda2 / (e + lambda2)).sum::<f64>() + (n - e.len() as f64);
                 n * residual(lambda2) / (freedom * freedom)
             };
             argmin(&grid, gcv)

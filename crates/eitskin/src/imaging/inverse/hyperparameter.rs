@@ -15,9 +15,9 @@
 //! target is the triangles within 10 % of the sensor's equivalent radius √(area/π) of the
 //! mesh's area centroid (at least the triangle nearest to it), at unit contrast.
 //!
-//! In the eigenbasis of the whitened system Σ^-½ J R⁻¹Jᵀ Σ^-½ = U diag(e) Uᵀ, every NF(λ)
-//! costs channels² (through the Gram matrix of the eigenvectors' images), so λ is found on a fine
-//! grid in milliseconds.
+//! In the eigenbasis of the whitened system Σ^-½ J R⁻¹Jᵀ Σ^-½ = U diag(e) Uᵀ on its range
+//! ([`super::eigensystem`]), every NF(λ) costs rank² (through the Gram matrix of the
+//! eigenvectors' images), so λ is found on a fine grid in milliseconds.
 //!
 //! **Noise level.** NF is a ratio of two SNRs, so the noise's level cancels from it, and λ_NF
 //! would stay the same however noisy the board. The one-step reconstruction is also the
@@ -32,9 +32,10 @@
 
 use std::str::FromStr;
 
-use faer::{Mat, Side};
+use faer::Mat;
 
-use super::linearisation::{inverse_diagonal, lower_product, uniform_response};
+use super::eigensystem::Eigensystem;
+use super::linearisation::{inverse_diagonal, uniform_response};
 use super::{Channels, InverseError, Linearisation, Prior};
 
 /// The noise figure λ is chosen for (EIDORS' GREIT examples use 0.5).
@@ -101,44 +102,6 @@ struct NoiseFigure {
     snr_z: f64,
 }
 
-/// The whitened system Σ^-½ J R⁻¹ Jᵀ Σ^-½ = U diag(e) Uᵀ of the used channels, which the noise
-/// figure and the data's criteria ([`super::criterion`]) are computed in.
-pub(super) struct Eigensystem {
-    /// The Jacobian's rows of the used channels.
-    pub jacobian: Mat<f64>,
-    /// Each used channel's noise standard deviation relative to the mean variance's root.
-    pub std: Vec<f64>,
-    /// Σ^-½ J R⁻¹: used channels × triangles.
-    pub scaled: Mat<f64>,
-    /// The eigenvalues e, ascending.
-    pub eigenvalues: Vec<f64>,
-    /// The eigenvectors U, one per column.
-    pub u: Mat<f64>,
-}
-
-impl Eigensystem {
-    pub(super) fn new(
-        lin: &Linearisation,
-        prior: &Prior,
-        normalised: bool,
-        channels: &Channels,
-    ) -> Result<Eigensystem, InverseError> {
-        channels.check(lin.measurements())?;
-        let jacobian = lin.rows(&channels.used(), normalised)?;
-        let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
-        let r_inv = inverse_diagonal(&r);
-        let std: Vec<f64> = channels.relative_variance().iter().map(|v| v.sqrt()).collect();
-        let (m, k) = (jacobian.nrows(), jacobian.ncols());
-        let whitened = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i]);
-        let scaled = Mat::from_fn(m, k, |i, j| whitened[(i, j)] * r_inv[j]);
-        // The system is symmetric and the eigensolver reads its lower half: only that is formed.
-        let system = lower_product(scaled.as_ref(), whitened.transpose());
-        let eigen = system.self_adjoint_eigen(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
-        let eigenvalues: Vec<f64> = (0..m).map(|i| eigen.S()[i]).collect();
-        Ok(Eigensystem { jacobian, std, scaled, eigenvalues, u: eigen.U().to_owned() })
-    }
-}
-
 impl NoiseFigure {
     fn new(
         lin: &Linearisation,
@@ -146,25 +109,19 @@ impl NoiseFigure {
         normalised: bool,
         channels: &Channels,
     ) -> Result<NoiseFigure, InverseError> {
-        let Eigensystem { jacobian, std, scaled, eigenvalues, u } = Eigensystem::new(lin, prior, normalised, channels)?;
+        let system = Eigensystem::new(lin, prior, normalised, channels)?;
         let variance = channels.relative_variance();
-        let (m, k) = (jacobian.nrows(), jacobian.ncols());
         let mesh = lin.mesh();
-        // CᵀC = Uᵀ (scaled A)(scaled A)ᵀ U: channels² work per λ instead of triangles × channels.
-        let weighted = Mat::from_fn(m, k, |i, t| scaled[(i, t)] * mesh.area(t));
-        let mut inner = lower_product(weighted.as_ref(), weighted.transpose());
-        for j in 0..m {
-            for i in 0..j {
-                inner[(i, j)] = inner[(j, i)];
-            }
-        }
-        let gram = u.transpose() * inner * &u;
+        // CᵀC: channels² work per λ instead of triangles × channels.
+        let area: Vec<f64> = (0..mesh.triangles().len()).map(|t| mesh.area(t)).collect();
+        let gram = system.image_gram(&area);
         let contrast = target(mesh);
-        let z0: Vec<f64> = (0..m).map(|i| contrast.iter().map(|&t| jacobian[(i, t)]).sum()).collect();
-        let zw: Vec<f64> = z0.iter().zip(&std).map(|(z, s)| z / s).collect();
-        let target = (0..m).map(|i| (0..m).map(|j| u[(j, i)] * zw[j]).sum()).collect();
+        let jacobian = &system.jacobian;
+        let z0: Vec<f64> = (0..jacobian.nrows()).map(|i| contrast.iter().map(|&t| jacobian[(i, t)]).sum()).collect();
+        let zw: Vec<f64> = z0.iter().zip(&system.std).map(|(z, s)| z / s).collect();
+        let target = system.coefficients(&zw);
         let snr_z = z0.iter().map(|z| z * z).sum::<f64>() / variance.iter().sum::<f64>();
-        Ok(NoiseFigure { eigenvalues, gram, target, snr_z })
+        Ok(NoiseFigure { eigenvalues: system.eigenvalues, gram, target, snr_z })
     }
 
     fn at(&self, hyperparameter: f64) -> f64 {

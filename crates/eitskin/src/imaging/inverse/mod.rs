@@ -16,6 +16,7 @@
 
 mod channels;
 mod criterion;
+mod eigensystem;
 mod hyperparameter;
 mod linearisation;
 mod noise_model;
