@@ -87,35 +87,14 @@ impl Drop for Staged {
     }
 }
 
-/// Extensions that name a format of data, tables or pictures: a file named with one of them must
-/// be in that format, so a flag that writes another refuses it.
-const FORMATS: &[&str] = &[
-    "bmp", "csv", "gif", "h5", "hdf5", "jpeg", "jpg", "json", "jsonl", "mat", "ndjson", "npy", "npz", "pdf", "png",
-    "svg", "tif", "tiff", "toml", "tsv", "txt", "webp", "xls", "xlsx",
-];
-
 /// A parser for an output flag that writes one of `formats` (extensions, the first the usual
-/// one): refuses a path whose extension names another format (`--png x.jpg`) before any work
-/// starts. A flag of one format takes any other name as the user gives it; a flag of several
-/// chooses by the extension, so a name with none of them (`--out image`, `--out x.v2`) is
-/// refused rather than written in a format the user did not name.
+/// one): [`eitskin_io::check_output_name`] before any work starts.
 pub fn writes(formats: &'static [&'static str]) -> impl Fn(&str) -> Result<PathBuf, String> + Clone + Send + Sync {
     move |value: &str| {
         let path = PathBuf::from(value);
-        let names = || formats.iter().map(|f| format!(".{f}")).collect::<Vec<String>>().join(" or ");
-        let extension = path.extension().and_then(|e| e.to_str());
-        let known = |e: &str| formats.iter().any(|f| f.eq_ignore_ascii_case(e));
-        match extension {
-            Some(e) if known(e) => Ok(path),
-            Some(e) if FORMATS.iter().any(|f| f.eq_ignore_ascii_case(e)) => {
-                Err(format!("this flag writes {}, not .{e}: name the file so", names()))
-            }
-            _ if formats.len() > 1 => Err(format!(
-                "this flag writes {}, chosen by the file's extension, and {value:?} ends in neither: name the file so",
-                names()
-            )),
-            _ => Ok(path),
-        }
+        eitskin_io::check_output_name(&path, formats)
+            .map(|()| path)
+            .map_err(|e| e.replacen("this writes", "this flag writes", 1))
     }
 }
 

@@ -43,6 +43,7 @@ mod frame_file;
 mod learned_model_file;
 mod memory;
 mod mesh_file;
+mod output_name;
 mod press_model_file;
 mod protocol_file;
 mod raster_file;
@@ -67,6 +68,7 @@ pub use frame_file::{parse_frame, read_frame};
 pub use learned_model_file::{learned_model_to_json, nominal_sensor, parse_learned_model, read_learned_model};
 pub use memory::{available_memory, peak_memory};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
+pub use output_name::check_output_name;
 pub use press_model_file::{
     build_press_model, decode_press_model, encode_press_model, load_or_build_press_model, press_model_path,
 };
