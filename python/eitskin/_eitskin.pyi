@@ -197,7 +197,7 @@ class Source(Iterator[Union[Frame, Event]]):
 class Calibration:
     @staticmethod
     def fit(
-        spec: SensorSpec, area: Sequence[int], force: ArrayLike, strength: ArrayLike, grid: Tuple[int, int] = (5, 5)
+        spec: SensorSpec, area: ArrayLike, force: ArrayLike, strength: ArrayLike, grid: Tuple[int, int] = (5, 5)
     ) -> Calibration: ...
     @staticmethod
     def area_of(spec: SensorSpec, x: float, y: float, grid: Tuple[int, int] = (5, 5)) -> Optional[int]: ...

@@ -1,15 +1,16 @@
 //! Images from frames: the one-step Gauss–Newton reconstructor, images and touches.
 
-use eitskin::inverse::{normalize_jacobian, reconstruction_matrix};
+use eitskin::inverse::{normalize_jacobian, plausible_ratio, reconstruction_matrix, typical_ratio};
 use eitskin::touch::Polarity;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
+use crate::arguments;
 use crate::model::{ForwardModel, Mesh};
-use crate::{as_array, error, fail, floats};
+use crate::{as_array, error, fail, floats, matrix};
 
-/// The prior from its name.
+/// The prior from its name, with the NOSER exponent p (read by [`arguments::exponent`]).
 fn prior(name: &str, exponent: f64) -> PyResult<eitskin::Prior> {
     match name {
         "noser" => Ok(eitskin::Prior::Noser { exponent }),
@@ -20,25 +21,24 @@ fn prior(name: &str, exponent: f64) -> PyResult<eitskin::Prior> {
 }
 
 /// The element-level one-step Gauss–Newton matrix (triangles, measurements), S/m per V:
-/// Δσ = (JᵀJ + λ²R)⁻¹JᵀΔv for `jacobian` (measurements, triangles) on `mesh`.
+/// Δσ = (JᵀJ + λ²R)⁻¹JᵀΔv for `jacobian` (measurements, triangles) on `mesh`, λ in (0, 1000],
+/// the NOSER exponent in [0, 1].
 #[pyfunction]
 #[pyo3(signature = (jacobian, mesh, hyperparameter, prior = "noser", exponent = 0.5, background = None))]
 pub(crate) fn one_step_matrix<'py>(
     py: Python<'py>,
     jacobian: &Bound<'py, PyAny>,
     mesh: &Mesh,
-    hyperparameter: f64,
+    #[pyo3(from_py_with = arguments::hyperparameter)] hyperparameter: f64,
     prior: &str,
-    exponent: f64,
+    #[pyo3(from_py_with = arguments::exponent)] exponent: f64,
     background: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let array = as_array(jacobian, "float64")?;
-    let array: PyReadonlyArray2<'_, f64> = array.extract().map_err(|_| fail("jacobian: expected a 2-D array"))?;
-    let (rows, columns) = (array.shape()[0], array.shape()[1]);
-    let values = array.as_slice()?;
-    let mut j = eitskin::faer::Mat::from_fn(rows, columns, |m, t| values[m * columns + t]);
+    let rows = matrix(jacobian, "jacobian")?;
+    let columns = rows.first().map_or(0, Vec::len);
+    let mut j = eitskin::faer::Mat::from_fn(rows.len(), columns, |m, t| rows[m][t]);
     if let Some(background) = background {
-        normalize_jacobian(&mut j, &floats(background)?).map_err(error)?;
+        normalize_jacobian(&mut j, &floats(background, "background")?).map_err(error)?;
     }
     let prior = self::prior(prior, exponent)?;
     let mesh = &mesh.0;
@@ -125,14 +125,11 @@ impl Touch {
 #[pyo3(signature = (image, threshold = 0.6, polarity = "decrease", per_touch = false, peak_of = "sign"))]
 pub(crate) fn touches(
     image: &Image,
-    threshold: f64,
+    #[pyo3(from_py_with = arguments::threshold)] threshold: f64,
     polarity: &str,
     per_touch: bool,
     peak_of: &str,
 ) -> PyResult<Vec<Touch>> {
-    if !(threshold > 0.0 && threshold <= 1.0) {
-        return Err(fail(format!("threshold must be in (0, 1], got {threshold}")));
-    }
     let polarity: Polarity = polarity.parse().map_err(fail)?;
     let peak_of: eitskin::touch::PeakOf = peak_of.parse().map_err(|e: String| fail(format!("peak_of: {e}")))?;
     let params = eitskin::TouchParams {
@@ -181,7 +178,7 @@ pub(crate) fn touches(
 /// prior : {"noser", "tikhonov", "laplace"}, default "noser"
 ///     R: diag(JᵀJ)^exponent, the identity, or a Laplacian over neighbouring triangles.
 /// exponent : float, default 0.5
-///     The NOSER exponent p (pyEIT's "lm" is p = 1).
+///     The NOSER exponent p, in [0, 1] (0 is Tikhonov's R; pyEIT's "lm" is p = 1).
 /// normalised : bool, default False
 ///     Image Δv/v_ref instead of Δv (the CLI's ``--normalised``).
 /// raster : (int, int), default (64, 64)
@@ -193,7 +190,9 @@ pub(crate) fn touches(
 /// Raises
 /// ------
 /// EitskinError
-///     A hyperparameter out of range, an unknown prior or weighting, a raster out of range.
+///     A hyperparameter, exponent or raster out of range, an unknown prior or weighting; in
+///     `image`, a frame whose values are typically not within 10 times its reference's (another
+///     unit or gain), as the CLI refuses it.
 ///
 /// Examples
 /// --------
@@ -215,12 +214,8 @@ pub(crate) fn rule(hyperparameter: &Bound<'_, PyAny>) -> PyResult<eitskin::inver
     if let Ok(text) = hyperparameter.extract::<String>() {
         return text.parse().map_err(|e: String| fail(format!("hyperparameter: {e}")));
     }
-    let value: f64 = hyperparameter
-        .extract()
-        .map_err(|_| fail(format!("hyperparameter must be a number or \"auto\", got {hyperparameter}")))?;
-    if !(value > 0.0 && value <= LARGEST_HYPERPARAMETER) {
-        return Err(fail(format!("hyperparameter must be in (0, 1000] or \"auto\", got {value}")));
-    }
+    let what = format!("a number in (0, {LARGEST_HYPERPARAMETER}] or \"auto\"");
+    let value = arguments::real(hyperparameter, "hyperparameter", &what, arguments::hyperparameter_ok)?;
     Ok(HyperparameterRule::Model(Hyperparameter::Fixed(value)))
 }
 
@@ -229,27 +224,20 @@ fn weighting(weighting: Option<&str>) -> PyResult<Option<eitskin::inverse::Weigh
     weighting.map(|w| w.parse().map_err(|e: String| fail(format!("weighting: {e}")))).transpose()
 }
 
-/// Reconstructor parameters from Python's keywords, λ left to the rule.
-fn params(
-    prior: &str,
-    exponent: f64,
-    normalised: bool,
-    raster: (usize, usize),
-) -> PyResult<eitskin::ReconstructorParams> {
-    if !(1..=4096).contains(&raster.0) || !(1..=4096).contains(&raster.1) {
-        return Err(fail(format!("raster must be 1 to 4096 pixels each way, got {raster:?}")));
-    }
+/// Reconstructor parameters from Python's keywords (the exponent and raster read by
+/// [`arguments`]), λ left to the rule.
+fn params(prior: &str, exponent: f64, normalised: bool, raster: [usize; 2]) -> PyResult<eitskin::ReconstructorParams> {
     Ok(eitskin::ReconstructorParams {
         prior: self::prior(prior, exponent)?,
         normalised,
-        raster: [raster.0, raster.1],
+        raster,
         ..eitskin::ReconstructorParams::default()
     })
 }
 
 /// Frames at rest from Python: one frame (1-D) or one per row (2-D).
 fn frame_rows(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Vec<f64>>> {
-    let array = as_array(obj, "float64").map_err(|e| fail(format!("{name}: {}", e.value(obj.py()))))?;
+    let array = as_array(obj, "float64", name)?;
     if let Ok(rows) = array.extract::<PyReadonlyArray2<'_, f64>>() {
         let width = rows.shape()[1];
         let values = rows.as_slice()?;
@@ -261,6 +249,20 @@ fn frame_rows(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Vec<f64>>> {
     Ok(vec![crate::vector(obj, name)?.as_slice()?.to_vec()])
 }
 
+/// A reference `v_ref` and a frame `v` (V, protocol order) from Python, the frame refused where
+/// its values are typically ([`typical_ratio`]) not those of a frame of the same sensor, unit
+/// and gain ([`plausible_ratio`]), as the CLI and the pipeline refuse it.
+fn frame_pair<'py>(
+    v_ref: &Bound<'py, PyAny>,
+    v: &Bound<'py, PyAny>,
+) -> PyResult<(PyReadonlyArray1<'py, f64>, PyReadonlyArray1<'py, f64>)> {
+    let (v_ref, v) = (crate::vector(v_ref, "v_ref")?, crate::vector(v, "v")?);
+    if let Some(ratio) = typical_ratio(v.as_slice()?, v_ref.as_slice()?).filter(|r| !plausible_ratio(*r)) {
+        return Err(error(eitskin::InverseError::FrameScale { ratio, restarted: false }));
+    }
+    Ok((v_ref, v))
+}
+
 #[pymethods]
 impl Reconstructor {
     /// Linearises `model` at `background` (S/m): prior "noser" (exponent p), "tikhonov" or
@@ -269,18 +271,18 @@ impl Reconstructor {
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
     #[pyo3(
-        signature = (model, background, hyperparameter = None, prior = "noser", exponent = 0.5, normalised = false, raster = (64, 64), weighting = None),
+        signature = (model, background, hyperparameter = None, prior = "noser", exponent = 0.5, normalised = false, raster = [64, 64], weighting = None),
         text_signature = "(model, background, hyperparameter='auto', prior='noser', exponent=0.5, normalised=False, raster=(64, 64), weighting=None)"
     )]
     fn new(
         py: Python<'_>,
         model: &ForwardModel,
-        background: f64,
+        #[pyo3(from_py_with = arguments::background)] background: f64,
         hyperparameter: Option<&Bound<'_, PyAny>>,
         prior: &str,
-        exponent: f64,
+        #[pyo3(from_py_with = arguments::exponent)] exponent: f64,
         normalised: bool,
-        raster: (usize, usize),
+        #[pyo3(from_py_with = arguments::raster)] raster: [usize; 2],
         weighting: Option<&str>,
     ) -> PyResult<Reconstructor> {
         use eitskin::inverse::{Hyperparameter, HyperparameterRule, Linearisation, Reference};
@@ -318,7 +320,7 @@ impl Reconstructor {
     /// λ by `hyperparameter` ("auto", "gcv" or "discrepancy" on `frames`, or a number).
     #[classmethod]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
-    #[pyo3(signature = (spec, reference, hyperparameter = None, frames = None, prior = "noser", exponent = 0.5, normalised = false, raster = (64, 64), weighting = None, cache = true))]
+    #[pyo3(signature = (spec, reference, hyperparameter = None, frames = None, prior = "noser", exponent = 0.5, normalised = false, raster = [64, 64], weighting = None, cache = true))]
     fn from_reference(
         _class: &Bound<'_, pyo3::types::PyType>,
         py: Python<'_>,
@@ -327,9 +329,9 @@ impl Reconstructor {
         hyperparameter: Option<&Bound<'_, PyAny>>,
         frames: Option<&Bound<'_, PyAny>>,
         prior: &str,
-        exponent: f64,
+        #[pyo3(from_py_with = arguments::exponent)] exponent: f64,
         normalised: bool,
-        raster: (usize, usize),
+        #[pyo3(from_py_with = arguments::raster)] raster: [usize; 2],
         weighting: Option<&str>,
         cache: bool,
     ) -> PyResult<Reconstructor> {
@@ -409,9 +411,10 @@ impl Reconstructor {
         self.recon.channels().dropped().iter().map(|m| m + 1).collect()
     }
 
-    /// The image of frame `v` against the reference `v_ref` (V, protocol order).
+    /// The image of frame `v` against the reference `v_ref` (V, protocol order); a frame in
+    /// another unit or gain than its reference is refused ([`frame_pair`]).
     fn image(&self, py: Python<'_>, v_ref: &Bound<'_, PyAny>, v: &Bound<'_, PyAny>) -> PyResult<Image> {
-        let (v_ref, v) = (crate::vector(v_ref, "v_ref")?, crate::vector(v, "v")?);
+        let (v_ref, v) = frame_pair(v_ref, v)?;
         let (v_ref, v) = (v_ref.as_slice()?, v.as_slice()?);
         let recon = &self.recon;
         py.detach(|| recon.image(v_ref, v)).map(Image).map_err(error)
@@ -424,7 +427,7 @@ impl Reconstructor {
         v_ref: &Bound<'py, PyAny>,
         v: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f32>>> {
-        let (v_ref, v) = (crate::vector(v_ref, "v_ref")?, crate::vector(v, "v")?);
+        let (v_ref, v) = frame_pair(v_ref, v)?;
         let (v_ref, v) = (v_ref.as_slice()?, v.as_slice()?);
         let recon = &self.recon;
         Ok(py.detach(|| recon.element_values(v_ref, v)).map_err(error)?.into_pyarray(py))

@@ -1,9 +1,10 @@
 //! Calibration learned from labelled presses: robot presses of the imperfect virtual skin, and
 //! a model from Δv to where (and how hard, how deep) a press is, with its uncertainty.
 
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 
+use crate::arguments;
 use crate::model::SensorSpec;
 use crate::{error, fail};
 
@@ -35,19 +36,26 @@ enum Saved {
     File(String),
 }
 
-/// Rows of a 2-D float64 array-like of any width (of a fixed width: [`crate::rows`]).
-fn matrix(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Vec<f64>>> {
-    let array = crate::as_array(obj, "float64")?;
-    let array: PyReadonlyArray2<'_, f64> =
-        array.extract().map_err(|_| fail(format!("{what}: expected a 2-D array")))?;
-    let width = array.shape()[1].max(1);
-    Ok(array.as_slice()?.chunks_exact(width).map(<[f64]>::to_vec).collect())
+/// Each press's Δv from a (presses, channels) array-like, every value finite.
+fn inputs(dv: &Bound<'_, PyAny>) -> PyResult<Vec<Vec<f64>>> {
+    let inputs = crate::matrix(dv, "dv")?;
+    for (press, values) in inputs.iter().enumerate() {
+        if let Some(channel) = values.iter().position(|v| !v.is_finite()) {
+            return Err(fail(format!(
+                "dv: press {} channel {} is {}: every value must be a finite number",
+                press + 1,
+                channel + 1,
+                crate::quoted(values[channel])
+            )));
+        }
+    }
+    Ok(inputs)
 }
 
 /// An optional label per press (None, or one finite value ≥ 0 per press).
 fn labels(obj: Option<&Bound<'_, PyAny>>, what: &str, presses: usize) -> PyResult<Vec<Option<f64>>> {
     let Some(obj) = obj else { return Ok(vec![None; presses]) };
-    let values = crate::floats(obj)?;
+    let values = crate::floats(obj, what)?;
     if values.len() != presses {
         return Err(fail(format!("{what}: one per press needed, got {} for {presses} presses", values.len())));
     }
@@ -96,15 +104,11 @@ impl LearnedModel {
         depths: Option<&Bound<'_, PyAny>>,
         method: Option<&str>,
         spec: Option<&SensorSpec>,
-        folds: i64,
+        #[pyo3(from_py_with = arguments::folds)] folds: usize,
     ) -> PyResult<LearnedModel> {
         use eitskin::learn::{choose, train, LabelledPress, Method};
-        let folds = crate::count(folds, "folds")?;
-        if !(2..=20).contains(&folds) {
-            return Err(fail(format!("folds must be 2 to 20, got {folds}")));
-        }
-        let inputs = matrix(dv, "dv")?;
-        let positions = crate::rows::<2, f64>(positions, "float64", "positions")?;
+        let inputs = inputs(dv)?;
+        let positions = crate::rows::<2>(positions, "positions")?;
         if positions.len() != inputs.len() {
             return Err(fail(format!("{} positions for {} presses", positions.len(), inputs.len())));
         }
@@ -214,8 +218,9 @@ impl LearnedModel {
     }
 
     /// Writes it for `spec` as the JSON `eitskin run --model` reads (a model loaded from a file:
-    /// that file's text).
+    /// that file's text), to a name ending in `.json` or in no format's extension.
     fn save(&self, path: std::path::PathBuf, spec: &SensorSpec) -> PyResult<()> {
+        crate::check_output_name(&path, &["json"])?;
         let text = match &self.saved {
             Saved::Presses(presses) => {
                 eitskin_io::learned_model_to_json(&spec.0, self.model.method, presses).map_err(error)?
@@ -249,7 +254,7 @@ impl LearnedModel {
 /// count : int
 ///     Presses, 1 to 1,000,000.
 /// seed : int, default 1
-///     Seed of the skin's errors, the presses and the noise.
+///     Seed of the skin's errors, the presses and the noise, 0 to 2⁶⁴ − 1.
 /// frames_per_press : int, default 32
 ///     Frames averaged for each state (before, pressed), 1 to 10,000.
 /// noise : float, default 0.003
@@ -271,24 +276,13 @@ impl LearnedModel {
 pub(crate) fn robot_presses<'py>(
     py: Python<'py>,
     spec: &SensorSpec,
-    count: i64,
-    seed: i64,
-    frames_per_press: i64,
-    noise: f64,
+    #[pyo3(from_py_with = arguments::count)] count: usize,
+    #[pyo3(from_py_with = arguments::seed)] seed: u64,
+    #[pyo3(from_py_with = arguments::frames_per_press)] frames_per_press: usize,
+    #[pyo3(from_py_with = arguments::noise)] noise: f64,
     circle: bool,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
     use eitskin::sim::imperfect::{disc_radius, ImperfectSkin, Imperfections};
-    let (count, seed) = (crate::count(count, "count")?, crate::seed(seed, "seed")?);
-    let frames_per_press = crate::count(frames_per_press, "frames_per_press")?;
-    if !(1..=1_000_000).contains(&count) {
-        return Err(fail(format!("count must be 1 to 1000000 presses, got {count}")));
-    }
-    if !(1..=10_000).contains(&frames_per_press) {
-        return Err(fail(format!("frames_per_press must be 1 to 10000, got {frames_per_press}")));
-    }
-    if !(0.0..=0.1).contains(&noise) {
-        return Err(fail(format!("noise must be in [0, 0.1] (relative), got {noise}")));
-    }
     let spec = &spec.0;
     let imperfections = Imperfections { frames_per_press, noise_relative: noise, circle, ..Imperfections::default() };
     let presses = py

@@ -1,10 +1,11 @@
 //! eitskin's Python module `eitskin._eitskin`: the library's types over numpy arrays, the GIL
 //! released around every solve. The Python package `eitskin` re-exports it with its docs.
 //!
-//! By concept: [`model`] (spec, mesh, protocol, forward model), [`imaging`] (reconstructor,
+//! By concept: [`arguments`] (every number from Python, read and range-checked once), [`model`] (spec, mesh, protocol, forward model), [`imaging`] (reconstructor,
 //! images, touches), [`stream`] (virtual sensor, sources, pipeline, calibration) and [`learn`]
 //! (calibration learned from labelled presses).
 
+mod arguments;
 mod imaging;
 mod learn;
 mod model;
@@ -44,67 +45,101 @@ pub(crate) fn message(error: &dyn std::error::Error) -> String {
 }
 
 /// `obj` as a contiguous numpy array of `dtype` (any array-like numpy can convert, without a
-/// copy where it already is one); complex values are refused (numpy would drop their imaginary
-/// parts with a warning).
-pub(crate) fn as_array<'py>(obj: &Bound<'py, PyAny>, dtype: &str) -> PyResult<Bound<'py, PyAny>> {
+/// copy where it already is one), named `name` in messages: what numpy cannot convert (strings,
+/// ragged lists, objects) and complex values (numpy would drop their imaginary parts with a
+/// warning) are refused.
+pub(crate) fn as_array<'py>(obj: &Bound<'py, PyAny>, dtype: &str, name: &str) -> PyResult<Bound<'py, PyAny>> {
     let numpy = obj.py().import("numpy")?;
-    let array = numpy.call_method1("asarray", (obj,))?;
+    let refuse = |e: PyErr| fail(format!("{name}: {}", e.value(obj.py())));
+    let array = numpy.call_method1("asarray", (obj,)).map_err(refuse)?;
     if array.getattr("dtype")?.getattr("kind")?.extract::<String>()? == "c" {
-        return Err(fail("complex values: give real ones (their magnitudes or real parts)"));
+        return Err(fail(format!("{name}: complex values: give real ones (their magnitudes or real parts)")));
     }
-    numpy.call_method1("ascontiguousarray", (array, dtype))
+    numpy.call_method1("ascontiguousarray", (array, dtype)).map_err(refuse)
 }
 
 /// `obj` as a 1-D float64 array named `name` in messages: any array-like numpy converts (lists,
 /// integers, float32, views), without a copy where it already is one.
 pub(crate) fn vector<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<PyReadonlyArray1<'py, f64>> {
-    let array = as_array(obj, "float64").map_err(|e| fail(format!("{name}: {}", e.value(obj.py()))))?;
-    one_dimensional(&array, &format!("{name}: "))
+    let array = as_array(obj, "float64", name)?;
+    array.extract().map_err(|_| fail(format!("{name}: expected a 1-D array, got {} dimensions", ndim(&array))))
 }
 
-/// A 1-D float64 array-like as a Vec.
-pub(crate) fn floats(obj: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
-    Ok(one_dimensional(&as_array(obj, "float64")?, "")?.as_slice()?.to_vec())
-}
-
-/// `array` as 1-D float64, else an error starting with `named` ("frame: ", or nothing).
-fn one_dimensional<'py>(array: &Bound<'py, PyAny>, named: &str) -> PyResult<PyReadonlyArray1<'py, f64>> {
-    array.extract().map_err(|_| fail(format!("{named}expected a 1-D array, got {} dimensions", ndim(array))))
+/// A 1-D float64 array-like named `name` in messages, as a Vec.
+pub(crate) fn floats(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
+    Ok(vector(obj, name)?.as_slice()?.to_vec())
 }
 
 fn ndim(array: &Bound<'_, PyAny>) -> usize {
     array.getattr("ndim").and_then(|n| n.extract()).unwrap_or(0)
 }
 
-/// An (n, K) array-like of `dtype` as rows of K.
-pub(crate) fn rows<const K: usize, T: numpy::Element + Copy>(
-    obj: &Bound<'_, PyAny>,
-    dtype: &str,
-    what: &str,
-) -> PyResult<Vec<[T; K]>> {
-    let array = as_array(obj, dtype)?;
-    let array: PyReadonlyArray2<'_, T> = array.extract().map_err(|_| fail(format!("{what}: expected a 2-D array")))?;
+/// Rows of a 2-D float64 array-like of any width named `name` (of a fixed width: [`rows`]).
+pub(crate) fn matrix(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Vec<f64>>> {
+    let array = as_array(obj, "float64", name)?;
+    let array: PyReadonlyArray2<'_, f64> =
+        array.extract().map_err(|_| fail(format!("{name}: expected a 2-D array, got {} dimensions", ndim(&array))))?;
+    let width = array.shape()[1].max(1);
+    Ok(array.as_slice()?.chunks_exact(width).map(<[f64]>::to_vec).collect())
+}
+
+/// An (n, K) float64 array-like named `name` as rows of K.
+pub(crate) fn rows<const K: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<[f64; K]>> {
+    let array = as_array(obj, "float64", name)?;
+    let array: PyReadonlyArray2<'_, f64> =
+        array.extract().map_err(|_| fail(format!("{name}: expected a 2-D array, got {} dimensions", ndim(&array))))?;
     if array.shape()[1] != K {
-        return Err(fail(format!("{what}: expected {K} columns, got {}", array.shape()[1])));
+        return Err(fail(format!("{name}: expected {K} columns, got {}", array.shape()[1])));
     }
-    let values = array.as_slice()?;
-    Ok(values.chunks_exact(K).map(|c| std::array::from_fn(|k| c[k])).collect())
+    Ok(array.as_slice()?.chunks_exact(K).map(|c| std::array::from_fn(|k| c[k])).collect())
 }
 
-/// A count from Python for `name`: a negative one is refused with its value (PyO3 would raise
-/// OverflowError on its way to an unsigned number).
-pub(crate) fn count(value: i64, name: &str) -> PyResult<usize> {
-    usize::try_from(value).map_err(|_| fail(format!("{name} must be a whole number 0 or more, got {value}")))
+/// 2⁵³: up to it a float64 holds every whole number exactly.
+const EXACT_WHOLE: f64 = 9_007_199_254_740_992.0;
+
+/// A number from an array as a message quotes it: a whole one up to 2⁵³ as an integer (as Python
+/// writes an int), any other in its shortest round-trip form (2.5, 1.2e21, 1e300, NaN, inf).
+pub(crate) fn quoted(value: f64) -> String {
+    if value.fract() == 0.0 && value.abs() <= EXACT_WHOLE {
+        format!("{value}")
+    } else {
+        format!("{value:?}")
+    }
 }
 
-/// A seed from Python for `name`: 0 or more.
-pub(crate) fn seed(value: i64, name: &str) -> PyResult<u64> {
-    u64::try_from(value).map_err(|_| fail(format!("{name} must be a whole number 0 or more, got {value}")))
+/// Node (or other) indices named `name`, numbered from `first` (0, or 1 as EIDORS numbers
+/// them), as 0-based ones: each must be a whole number, `first` or more (any numeric array
+/// gives them: integers, or floats that are whole).
+pub(crate) fn indices(values: &[f64], name: &str, first: usize) -> PyResult<Vec<usize>> {
+    let base = first as f64;
+    let index = |&v: &f64| match v {
+        v if !(v.is_finite() && v.fract() == 0.0) => Err(format!("{name}: index {} is not a whole number", quoted(v))),
+        v if v < base && first == 0 => Err(format!("{name}: index {} is negative", quoted(v))),
+        v if v < base => Err(format!("{name}: index {} is below {first}: these count from {first}", quoted(v))),
+        v if v > EXACT_WHOLE => Err(format!("{name}: index {} is larger than any mesh has", quoted(v))),
+        v => Ok((v - base) as usize),
+    };
+    values.iter().map(index).collect::<Result<_, String>>().map_err(fail)
 }
 
-/// Indices as usize, refusing negative ones.
-pub(crate) fn indices(values: &[i64], what: &str) -> PyResult<Vec<usize>> {
-    values.iter().map(|&i| usize::try_from(i).map_err(|_| fail(format!("{what}: index {i} is negative")))).collect()
+/// The nodes each electrode covers, from a list of array-likes of indices from `first` (one
+/// array per electrode, any shape), as 0-based indices.
+pub(crate) fn electrode_nodes(obj: &Bound<'_, PyAny>, name: &str, first: usize) -> PyResult<Vec<Vec<usize>>> {
+    let refuse =
+        || fail(format!("{name}: expected one array of node indices per electrode, got {}", arguments::given(obj)));
+    let items = obj.try_iter().map_err(|_| refuse())?;
+    items
+        .map(|item| {
+            let nodes = as_array(&item?, "float64", name)?.call_method1("reshape", (-1,))?;
+            indices(vector(&nodes, name)?.as_slice()?, name, first)
+        })
+        .collect()
+}
+
+/// Refuses to write `path` unless its extension is one of `formats` (eitskin-io's rule for the
+/// CLI's output flags too), naming the file.
+pub(crate) fn check_output_name(path: &std::path::Path, formats: &[&str]) -> PyResult<()> {
+    eitskin_io::check_output_name(path, formats).map_err(|e| fail(format!("cannot write {}: {e}", path.display())))
 }
 
 /// eitskin's native module.

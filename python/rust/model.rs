@@ -1,10 +1,11 @@
 //! The sensor's description and its forward model: spec, mesh, protocol, voltages, Jacobian.
 
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 
-use crate::{as_array, error, fail, floats, indices, rows};
+use crate::arguments;
+use crate::{electrode_nodes, error, fail, floats, indices, matrix, rows};
 
 /// The sensor's description: outline, electrodes, protocol, mesh settings, gel.
 ///
@@ -86,11 +87,7 @@ impl SensorSpec {
     }
 
     /// The same spec meshed with about `triangles` triangles.
-    fn with_triangles(&self, triangles: i64) -> PyResult<SensorSpec> {
-        let triangles = crate::count(triangles, "triangles")?;
-        if !(1..=100_000_000).contains(&triangles) {
-            return Err(fail(format!("triangles must be 1 to 100000000, got {triangles}")));
-        }
+    fn with_triangles(&self, #[pyo3(from_py_with = arguments::triangles)] triangles: usize) -> PyResult<SensorSpec> {
         let mut spec = self.0.clone();
         spec.mesh.triangles = triangles;
         Ok(SensorSpec(spec))
@@ -129,27 +126,8 @@ impl Mesh {
     /// A mesh from arrays: nodes (n, 2) in m, triangles (t, 3) of 0-based node indices, and per
     /// electrode the node indices it covers (one node each for point electrodes).
     #[new]
-    fn new(
-        nodes: &Bound<'_, PyAny>,
-        triangles: &Bound<'_, PyAny>,
-        electrodes: Vec<Bound<'_, PyAny>>,
-    ) -> PyResult<Mesh> {
-        let nodes = rows::<2, f64>(nodes, "float64", "nodes")?;
-        let triangles: Vec<[i64; 3]> = rows::<3, i64>(triangles, "int64", "triangles")?;
-        let triangles = triangles
-            .iter()
-            .map(|t| indices(t, "triangles").map(|v| [v[0], v[1], v[2]]))
-            .collect::<PyResult<Vec<_>>>()?;
-        let electrodes = electrodes
-            .iter()
-            .map(|e| {
-                let array = as_array(e, "int64")?.call_method1("reshape", (-1,))?;
-                let array: PyReadonlyArray1<'_, i64> = array.extract()?;
-                let values = array.as_slice()?;
-                indices(values, "electrodes")
-            })
-            .collect::<PyResult<Vec<_>>>()?;
-        eitskin::Mesh::new(nodes, triangles, electrodes).map(Mesh).map_err(error)
+    fn new(nodes: &Bound<'_, PyAny>, triangles: &Bound<'_, PyAny>, electrodes: &Bound<'_, PyAny>) -> PyResult<Mesh> {
+        Mesh::from_indices(nodes, triangles, electrodes, 0)
     }
 
     /// A mesh from EIDORS-shaped arrays: `nodes` (n, 2), `elems` (t, 3) and per electrode its
@@ -158,11 +136,9 @@ impl Mesh {
     fn from_eidors(
         nodes: &Bound<'_, PyAny>,
         elems: &Bound<'_, PyAny>,
-        electrodes: Vec<Bound<'_, PyAny>>,
+        electrodes: &Bound<'_, PyAny>,
     ) -> PyResult<Mesh> {
-        let elems = one_based(elems, "elems")?;
-        let electrodes = electrodes.iter().map(|e| one_based(e, "electrode nodes")).collect::<PyResult<Vec<_>>>()?;
-        Mesh::new(nodes, &elems, electrodes)
+        Mesh::from_indices(nodes, elems, electrodes, 1)
     }
 
     /// The mesh as EIDORS numbers it: {"nodes": (n, 2), "elems": (t, 3) 1-based,
@@ -238,14 +214,24 @@ impl Mesh {
     }
 }
 
-/// 1-based indices as a 0-based array, refusing 0 and below.
-fn one_based<'py>(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<Bound<'py, PyAny>> {
-    let array = as_array(obj, "int64")?;
-    let lowest: i64 = array.call_method0("min")?.extract()?;
-    if lowest < 1 {
-        return Err(fail(format!("{what}: EIDORS numbers nodes from 1, found {lowest}")));
+impl Mesh {
+    /// A mesh from nodes (n, 2) in m, triangles (t, 3) and per electrode its nodes, the indices
+    /// numbered from `first` (0, or 1 as EIDORS numbers them).
+    fn from_indices(
+        nodes: &Bound<'_, PyAny>,
+        triangles: &Bound<'_, PyAny>,
+        electrodes: &Bound<'_, PyAny>,
+        first: usize,
+    ) -> PyResult<Mesh> {
+        let triangles_name = if first == 0 { "triangles" } else { "elems" };
+        let nodes = rows::<2>(nodes, "nodes")?;
+        let triangles = rows::<3>(triangles, triangles_name)?
+            .iter()
+            .map(|t| indices(t, triangles_name, first).map(|v| [v[0], v[1], v[2]]))
+            .collect::<PyResult<Vec<_>>>()?;
+        let electrodes = electrode_nodes(electrodes, "electrodes", first)?;
+        eitskin::Mesh::new(nodes, triangles, electrodes).map(Mesh).map_err(error)
     }
-    array.call_method1("__sub__", (1,))
 }
 
 /// Stimulation and measurement patterns.
@@ -258,22 +244,25 @@ impl Protocol {
     /// Every pair of electrodes driven and measured across itself (the paper's board: 120 values
     /// for 16 electrodes).
     #[staticmethod]
-    fn two_terminal(electrodes: i64) -> PyResult<Protocol> {
-        eitskin::Protocol::two_terminal(crate::count(electrodes, "electrodes")?).map(Protocol).map_err(error)
+    fn two_terminal(#[pyo3(from_py_with = arguments::electrodes)] electrodes: usize) -> PyResult<Protocol> {
+        eitskin::Protocol::two_terminal(electrodes).map(Protocol).map_err(error)
     }
 
     /// Adjacent drive, adjacent measurement (pyEIT's `dist_exc=1, step_meas=1`); `skip_driven`
     /// leaves out pairs that touch a driven electrode.
     #[staticmethod]
     #[pyo3(signature = (electrodes, skip_driven = true))]
-    fn adjacent(electrodes: i64, skip_driven: bool) -> PyResult<Protocol> {
-        eitskin::Protocol::adjacent(crate::count(electrodes, "electrodes")?, skip_driven).map(Protocol).map_err(error)
+    fn adjacent(
+        #[pyo3(from_py_with = arguments::electrodes)] electrodes: usize,
+        skip_driven: bool,
+    ) -> PyResult<Protocol> {
+        eitskin::Protocol::adjacent(electrodes, skip_driven).map(Protocol).map_err(error)
     }
 
     /// Opposite drive, adjacent measurement.
     #[staticmethod]
-    fn opposite(electrodes: i64) -> PyResult<Protocol> {
-        eitskin::Protocol::opposite(crate::count(electrodes, "electrodes")?).map(Protocol).map_err(error)
+    fn opposite(#[pyo3(from_py_with = arguments::electrodes)] electrodes: usize) -> PyResult<Protocol> {
+        eitskin::Protocol::opposite(electrodes).map(Protocol).map_err(error)
     }
 
     /// A protocol from arrays: `stimulations` (s, L) currents per electrode (A per unit, each row
@@ -287,18 +276,10 @@ impl Protocol {
         measurement_stimulation: &Bound<'_, PyAny>,
         description: &str,
     ) -> PyResult<Protocol> {
-        let table = |obj: &Bound<'_, PyAny>, what: &str| -> PyResult<Vec<Vec<f64>>> {
-            let array = as_array(obj, "float64")?;
-            let array: numpy::PyReadonlyArray2<'_, f64> =
-                array.extract().map_err(|_| fail(format!("{what}: expected a 2-D array")))?;
-            let columns = array.shape()[1];
-            Ok(array.as_slice()?.chunks_exact(columns.max(1)).map(<[f64]>::to_vec).collect())
-        };
-        let stimulations = table(stimulations, "stimulations")?;
-        let weights = table(measurement_weights, "measurement_weights")?;
-        let index = as_array(measurement_stimulation, "int64")?;
-        let index: PyReadonlyArray1<'_, i64> = index.extract()?;
-        let index = indices(index.as_slice()?, "measurement_stimulation")?;
+        let stimulations = matrix(stimulations, "stimulations")?;
+        let weights = matrix(measurement_weights, "measurement_weights")?;
+        let index = crate::vector(measurement_stimulation, "measurement_stimulation")?;
+        let index = indices(index.as_slice()?, "measurement_stimulation", 0)?;
         if index.len() != weights.len() {
             return Err(fail(format!(
                 "measurement_stimulation has {} entries, measurement_weights {} rows",
@@ -382,7 +363,7 @@ impl ForwardModel {
         if let Ok(value) = conductivity.extract::<f64>() {
             return Ok(vec![value; n]);
         }
-        let values = floats(conductivity)?;
+        let values = floats(conductivity, "conductivity")?;
         if values.len() != n {
             return Err(fail(format!("conductivity has {} values, the mesh {n} triangles", values.len())));
         }
@@ -401,7 +382,7 @@ impl ForwardModel {
         protocol: &Protocol,
         electrodes: &str,
         contact_impedance: Option<&Bound<'_, PyAny>>,
-        thickness: f64,
+        #[pyo3(from_py_with = arguments::thickness)] thickness: f64,
     ) -> PyResult<ForwardModel> {
         let model = match electrodes {
             "point" => eitskin::ElectrodeModel::Point,
@@ -411,7 +392,7 @@ impl ForwardModel {
                     None => return Err(fail("the complete electrode model needs contact_impedance (Ω·m²)")),
                     Some(z) => match z.extract::<f64>() {
                         Ok(z) => vec![z; count],
-                        Err(_) => floats(z)?,
+                        Err(_) => floats(z, "contact_impedance")?,
                     },
                 };
                 eitskin::ElectrodeModel::Complete { contact_impedance: z }

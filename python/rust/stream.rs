@@ -4,6 +4,7 @@
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
+use crate::arguments;
 use crate::model::SensorSpec;
 use crate::{error, fail};
 
@@ -14,7 +15,7 @@ use crate::{error, fail};
 /// spec : SensorSpec
 ///     The sensor to simulate (its outline, electrodes, protocol and gel).
 /// seed : int, default 0
-///     Seed of the measurement noise (0.01 % of each value, relative).
+///     Seed of the measurement noise (0.01 % of each value, relative), 0 to 2⁶⁴ − 1.
 #[pyclass(module = "eitskin")]
 pub(crate) struct VirtualSensor(pub(crate) eitskin::sim::VirtualSensor, eitskin::Outline);
 
@@ -23,19 +24,23 @@ impl VirtualSensor {
     /// The sensor of `spec`, its noise seeded by `seed`.
     #[new]
     #[pyo3(signature = (spec, seed = 0))]
-    fn new(py: Python<'_>, spec: &SensorSpec, seed: i64) -> PyResult<VirtualSensor> {
-        let (spec, seed) = (&spec.0, crate::seed(seed, "seed")?);
+    fn new(
+        py: Python<'_>,
+        spec: &SensorSpec,
+        #[pyo3(from_py_with = arguments::seed)] seed: u64,
+    ) -> PyResult<VirtualSensor> {
+        let spec = &spec.0;
         let sensor = py.detach(|| eitskin::sim::VirtualSensor::new(spec, seed)).map_err(error)?;
         Ok(VirtualSensor(sensor, spec.outline.clone()))
     }
 
     /// Adds a press at (x, y) m from the outline's centre with `force` N; a press off the sheet is refused.
-    fn press(&mut self, x: f64, y: f64, force: f64) -> PyResult<()> {
-        if !(x.is_finite() && y.is_finite() && force.is_finite() && force >= 0.0) {
-            return Err(fail(format!(
-                "a press needs a finite position and a force ≥ 0 N, got ({x}, {y}) m, {force} N"
-            )));
-        }
+    fn press(
+        &mut self,
+        #[pyo3(from_py_with = arguments::x)] x: f64,
+        #[pyo3(from_py_with = arguments::y)] y: f64,
+        #[pyo3(from_py_with = arguments::force)] force: f64,
+    ) -> PyResult<()> {
         if !self.1.contains([x, y]) {
             let [[x0, y0], [x1, y1]] = self.1.bounds();
             return Err(fail(format!(
@@ -114,15 +119,15 @@ impl Event {
 /// spec : SensorSpec
 ///     The sensor whose frames these are (their length is its protocol's).
 /// rate : float, default 20.0
-///     Frames/s of the virtual sensor's clock and of a capture file's pace.
+///     Frames/s of the virtual sensor's clock and of a capture file's pace, 0 to 100,000.
 /// fast : bool, default False
 ///     As fast as possible instead of in real time (a serial port keeps the board's pace).
 /// frames : int, optional
-///     Stop after this many frames.
+///     Stop after this many frames, 1 to 10¹².
 /// codec : {"lines", "binary"}, default "lines"
 ///     How a port's or a capture's bytes encode frames.
 /// seed : int, default 1
-///     The virtual sensor's seed.
+///     The virtual sensor's seed, 0 to 2⁶⁴ − 1.
 /// values_per_measurement : {1, 2}, default 1
 ///     2 for boards sending complex (re, im) pairs.
 ///
@@ -144,26 +149,16 @@ impl Source {
         py: Python<'_>,
         source: &str,
         spec: &SensorSpec,
-        rate: f64,
+        #[pyo3(from_py_with = arguments::rate)] rate: f64,
         fast: bool,
-        frames: Option<i64>,
+        #[pyo3(from_py_with = arguments::frames)] frames: Option<u64>,
         codec: &str,
-        seed: i64,
-        values_per_measurement: i64,
+        #[pyo3(from_py_with = arguments::seed)] seed: u64,
+        #[pyo3(from_py_with = arguments::values_per_measurement)] values_per_measurement: usize,
     ) -> PyResult<Source> {
         use eitskin_io::replay::Speed;
         use eitskin_io::source::{Codec, SourceSettings, SourceSpec};
-        // A source of no frames is a mistake, not an empty loop.
-        let frames = match frames {
-            Some(f) if f < 1 => return Err(fail(format!("frames must be 1 or more (None: every frame), got {f}"))),
-            f => f.map(|f| f as u64),
-        };
-        let seed = crate::seed(seed, "seed")?;
-        let values_per_measurement = crate::count(values_per_measurement, "values_per_measurement")?;
         let which: SourceSpec = source.parse().map_err(error)?;
-        if !(rate >= 0.0 && rate.is_finite()) {
-            return Err(fail(format!("rate must be ≥ 0 frames/s and finite, got {rate}")));
-        }
         let settings = SourceSettings {
             rate,
             speed: if fast { Speed::AsFastAsPossible } else { Speed::Recorded },
@@ -218,15 +213,35 @@ impl Source {
     }
 }
 
-/// Numbers counted from 1 (areas) as 0-based indices, each in 1..=`count`.
-fn from_one(values: &[i64], what: &str, count: usize) -> PyResult<Vec<usize>> {
-    values
-        .iter()
-        .map(|&v| match usize::try_from(v) {
-            Ok(k) if (1..=count).contains(&k) => Ok(k - 1),
-            _ => Err(fail(format!("{what} {v}: areas are counted from 1 to {count}"))),
-        })
-        .collect()
+/// Areas counted from 1, one per sample (any whole numbers: a list, an array, floats that are
+/// whole), as 0-based indices, each in 1..=`count`.
+fn areas(obj: &Bound<'_, PyAny>, count: usize) -> PyResult<Vec<usize>> {
+    let values = crate::floats(obj, "area")?;
+    let area = |(k, &v): (usize, &f64)| match v {
+        v if v.fract() == 0.0 && v >= 1.0 && v <= count as f64 => Ok(v as usize - 1),
+        v => Err(fail(format!(
+            "area of sample {} must be 1 to {count} (areas are counted from 1), got {}",
+            k + 1,
+            crate::quoted(v)
+        ))),
+    };
+    values.iter().enumerate().map(area).collect()
+}
+
+/// Samples of forces (N) and strengths, each force in [0, `MAX_FORCE`] as a samples file's,
+/// each strength finite.
+fn samples(force: &Bound<'_, PyAny>, strength: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<f64>)> {
+    let (force, strength) = (crate::floats(force, "force")?, crate::floats(strength, "strength")?);
+    if let Some(k) = force.iter().position(|f| !arguments::force_ok(*f)) {
+        let max = eitskin::calibration::MAX_FORCE;
+        let given = crate::quoted(force[k]);
+        return Err(fail(format!("force of sample {} is {given} N: a press's force is 0 to {max:e} N", k + 1)));
+    }
+    if let Some(k) = strength.iter().position(|s| !s.is_finite()) {
+        let given = crate::quoted(strength[k]);
+        return Err(fail(format!("strength of sample {} is {given}: every strength must be a finite number", k + 1)));
+    }
+    Ok((force, strength))
 }
 
 /// A force calibration: the pseudo-array's areas, one curve σ(F) = a·e^(−F/b) + c each (or
@@ -244,19 +259,21 @@ pub(crate) struct Calibration {
 #[pymethods]
 impl Calibration {
     /// Fits one curve per area of the spec's pseudo-array (`grid` units, grouped by symmetry)
-    /// from samples: `area` (from 1, as the paper, the CLI and the files count), `force` (N) and `strength` (the image's peak, S/m,
+    /// from samples: `area` (from 1, as the paper, the CLI and the files count), `force` (0 to 1e5 N) and `strength` (the image's peak, S/m,
     /// for strength "peak"), one entry per sample; every area needs ≥ 3 distinct forces.
     #[staticmethod]
-    #[pyo3(signature = (spec, area, force, strength, grid = (5, 5)))]
+    #[pyo3(signature = (spec, area, force, strength, grid = [5, 5]))]
     fn fit(
         spec: &SensorSpec,
-        area: Vec<i64>,
+        area: &Bound<'_, PyAny>,
         force: &Bound<'_, PyAny>,
         strength: &Bound<'_, PyAny>,
-        grid: (i64, i64),
+        #[pyo3(from_py_with = arguments::grid)] grid: [usize; 2],
     ) -> PyResult<Calibration> {
-        let grid = (crate::count(grid.0, "grid")?, crate::count(grid.1, "grid")?);
-        let (force, strength) = (crate::floats(force)?, crate::floats(strength)?);
+        let spec = spec.0.clone();
+        let array = eitskin::pseudo_array::PseudoArray::of_sensor(&spec, grid).map_err(error)?;
+        let area = areas(area, array.area_count())?;
+        let (force, strength) = samples(force, strength)?;
         if force.len() != area.len() || strength.len() != area.len() {
             return Err(fail(format!(
                 "area, force and strength need one entry per sample, got {}, {} and {}",
@@ -265,9 +282,6 @@ impl Calibration {
                 strength.len()
             )));
         }
-        let spec = spec.0.clone();
-        let array = eitskin::pseudo_array::PseudoArray::of_sensor(&spec, [grid.0, grid.1]).map_err(error)?;
-        let area = from_one(&area, "area", array.area_count())?;
         let samples: Vec<eitskin::calibration::Sample> = (0..area.len())
             .map(|k| eitskin::calibration::Sample {
                 area: area[k],
@@ -285,10 +299,14 @@ impl Calibration {
     /// The area (from 1) of the pseudo-array unit under (x, y) m, for `spec`'s array of `grid`
     /// units grouped by symmetry (the paper's 5 × 5 has 6 areas), or None off the array.
     #[staticmethod]
-    #[pyo3(signature = (spec, x, y, grid = (5, 5)))]
-    fn area_of(spec: &SensorSpec, x: f64, y: f64, grid: (i64, i64)) -> PyResult<Option<usize>> {
-        let grid = (crate::count(grid.0, "grid")?, crate::count(grid.1, "grid")?);
-        let array = eitskin::pseudo_array::PseudoArray::of_sensor(&spec.0, [grid.0, grid.1]).map_err(error)?;
+    #[pyo3(signature = (spec, x, y, grid = [5, 5]))]
+    fn area_of(
+        spec: &SensorSpec,
+        #[pyo3(from_py_with = arguments::x)] x: f64,
+        #[pyo3(from_py_with = arguments::y)] y: f64,
+        #[pyo3(from_py_with = arguments::grid)] grid: [usize; 2],
+    ) -> PyResult<Option<usize>> {
+        let array = eitskin::pseudo_array::PseudoArray::of_sensor(&spec.0, grid).map_err(error)?;
         Ok(array.unit_at([x, y]).map(|u| array.area_of(u) + 1))
     }
 
@@ -299,8 +317,10 @@ impl Calibration {
         Ok(Calibration { spec: spec.0.clone(), file })
     }
 
-    /// Writes it as JSON (the calibration file `eitskin run --calibration` reads).
+    /// Writes it as JSON (the calibration file `eitskin run --calibration` reads), to a name ending
+    /// in `.json` or in no format's extension.
     fn save(&self, path: std::path::PathBuf) -> PyResult<()> {
+        crate::check_output_name(&path, &["json"])?;
         let f = &self.file;
         let text =
             eitskin_io::calibration_file_to_json(&self.spec, &f.array, &f.calibration, f.imaging).map_err(error)?;
@@ -314,16 +334,23 @@ impl Calibration {
     }
 
     /// The area (from 1) of the unit under (x, y) m, or None off the array.
-    fn area_at(&self, x: f64, y: f64) -> Option<usize> {
+    fn area_at(
+        &self,
+        #[pyo3(from_py_with = arguments::x)] x: f64,
+        #[pyo3(from_py_with = arguments::y)] y: f64,
+    ) -> Option<usize> {
         self.file.array.unit_at([x, y]).map(|u| self.file.array.area_of(u) + 1)
     }
 
     /// The force (N) for a touch of `strength` in `area` (from 1), and whether it is past the
     /// curve's range (saturated).
-    fn force(&self, area: i64, strength: f64) -> PyResult<(f64, bool)> {
-        let [area] = from_one(&[area], "area", self.file.array.area_count())?[..] else {
-            return Err(fail("area: one area is needed"));
-        };
+    fn force(
+        &self,
+        area: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = arguments::strength)] strength: f64,
+    ) -> PyResult<(f64, bool)> {
+        let areas = self.file.array.area_count();
+        let area = arguments::whole::<usize>(area, "area", 1..=areas as i128)? - 1;
         let estimate = self.file.calibration.force(area, strength).map_err(error)?;
         Ok((estimate.newtons, estimate.saturated))
     }
@@ -413,18 +440,15 @@ impl Pipeline {
         spec: &SensorSpec,
         calibration: Option<&Calibration>,
         fit: bool,
-        reference_frames: i64,
-        false_alarm_rate: f64,
-        average: i64,
+        #[pyo3(from_py_with = arguments::reference_frames)] reference_frames: usize,
+        #[pyo3(from_py_with = arguments::false_alarm_rate)] false_alarm_rate: f64,
+        #[pyo3(from_py_with = arguments::average)] average: usize,
         hyperparameter: Option<&Bound<'_, PyAny>>,
-        reference_limit: i64,
+        #[pyo3(from_py_with = arguments::reference_limit)] reference_limit: usize,
     ) -> PyResult<Pipeline> {
         use eitskin::inverse::{Hyperparameter, HyperparameterRule};
         use eitskin::pipeline::{NoiseFloor, PipelineParams};
         use eitskin_io::build::ChainSetup;
-        let reference_frames = crate::count(reference_frames, "reference_frames")?;
-        let average = crate::count(average, "average")?;
-        let reference_limit = crate::count(reference_limit, "reference_limit")?;
         let spec = &spec.0;
         if let Some(c) = calibration {
             let key = |s: &eitskin::SensorSpec| eitskin_io::spec_key(s).map_err(error);

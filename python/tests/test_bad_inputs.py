@@ -1,6 +1,8 @@
 """No Rust panic reaches Python: every native function and method, each argument in turn given
 values generated from its good one (wrong lengths and shapes, empty, NaN, infinities, huge and
-negative numbers, other types, complex values), answers or raises an ordinary exception.
+negative numbers, other types, complex values, strings), answers or raises an ordinary exception;
+a number or array argument refused raises `EitskinError`, never an OverflowError, a TypeError
+or numpy's ValueError on its way to Rust.
 
 The list of callables is read from the module itself, so a binding added without a good call
 here fails `test_every_native_callable_is_driven`, and cannot skip the edges.
@@ -100,13 +102,13 @@ def _bad_values(good):
     if isinstance(good, bool):
         return common + [2, math.nan]
     if isinstance(good, int):
-        return common + [-1, 0, 2**70, -(2**70), 1.5, math.nan]
+        return common + [-1, 0, 2**64, 2**70, -(2**70), 10**400, 1.5, math.nan, "5", 1j]
     if isinstance(good, float):
-        return common + [math.nan, math.inf, -math.inf, -1.0, 0.0, 1e300, -1e300, 1e-300, 1j]
+        return common + [math.nan, math.inf, -math.inf, -1.0, 0.0, 1e300, -1e300, 1e-300, 1j, 2**70, 10**400, "1.5"]
     if isinstance(good, str):
         return common + ["", "\0", "x" * 10_000]
     if isinstance(good, tuple):
-        return common + [(), (0, 0), (-1, 5), (2**70, 5), (1.5, 2), tuple(good) * 2]
+        return common + [(), (0, 0), (-1, 5), (2**70, 5), (1.5, 2), ("a", 5), tuple(good) * 2]
     if isinstance(good, (list, np.ndarray)):
         a = np.asarray(good)
         bad = common + [
@@ -114,6 +116,7 @@ def _bad_values(good):
             a.reshape(1, -1) if a.ndim == 1 else a.ravel(), a.T, a.astype(complex) * 1j,
             np.full(a.shape, math.nan), np.full(a.shape, math.inf), np.full(a.shape, 1e300), np.zeros(a.shape),
             a.astype(object), a[::-1], -a, np.float64(1.0), a.tolist()[:1],
+            np.full(a.shape, "a"), np.full(a.shape, 2**70, dtype=object), [[1.0, 2.0], [3.0]],
         ]
         if a.dtype.kind == "f":
             spiked = a.copy()
@@ -125,12 +128,20 @@ def _bad_values(good):
     return common
 
 
-def _call(fn, kwargs):
+def _numeric(good):
+    """Whether an argument whose good value is `good` is a number or an array of them."""
+    return isinstance(good, (int, float, tuple, list, np.ndarray)) and not isinstance(good, bool)
+
+
+def _call(fn, kwargs, numeric):
+    """Calls `fn`; a panic, or a refusal of a `numeric` argument other than EitskinError, fails."""
     try:
         fn(**kwargs)
     except BaseException as e:  # PanicException derives from BaseException
         if type(e).__name__ == "PanicException" or not isinstance(e, Exception):
             raise AssertionError(f"{type(e).__name__}: {e}") from None
+        if numeric and not isinstance(e, eitskin.EitskinError):
+            raise AssertionError(f"{type(e).__name__} instead of EitskinError: {e}") from None
 
 
 def _arguments(fn, given):
@@ -156,7 +167,7 @@ def test_no_panic_reaches_python(name, fn, given):
     for argument, good in arguments.items():
         for bad in _bad_values(good):
             try:
-                _call(fn, {**arguments, argument: bad})
+                _call(fn, {**arguments, argument: bad}, _numeric(good))
             except AssertionError as e:
                 raise AssertionError(f"{name}({argument}={bad!r:.80}): {e}") from None
 
@@ -193,3 +204,81 @@ def test_callables_without_arguments_answer():
     skin.frame(), skin.clean_frame(), skin.release()
     _pipeline().retake_reference()
     assert spec.electrode_count == 16
+
+
+def _refused(call, message):
+    """`call()` raises EitskinError whose message holds `message` (a plain string, not a pattern)."""
+    with pytest.raises(eitskin.EitskinError) as refusal:
+        call()
+    assert message in str(refusal.value), str(refusal.value)
+
+
+def test_whole_numbers_of_any_size_are_refused_with_their_value():
+    _refused(lambda: SPEC.with_triangles(2**70), "triangles must be 1 to 100000000, got 1180591620717411303424")
+    _refused(lambda: eitskin.VirtualSensor(SPEC, seed=2**64), "seed must be 0 to 18446744073709551615, got 18446744073709551616")
+    _refused(lambda: eitskin.Source("sim", SPEC, seed=2**64), "seed must be 0 to 18446744073709551615, got 18446744073709551616")
+    _refused(lambda: eitskin.robot_presses(SPEC, 2**64), "count must be 1 to 1000000, got 18446744073709551616")
+    reference = np.array([F["rest"], F["rest"] * 1.001])
+    _refused(lambda: eitskin.Reconstructor.from_reference(SPEC, reference, raster=(-1, 5)), "raster must be (nx, ny), each 1 to 4096, got (-1, 5)")
+    _refused(lambda: SPEC.with_triangles("500"), "triangles must be 1 to 100000000, got '500'")
+    assert eitskin.VirtualSensor(SPEC, seed=2**64 - 1) is not None
+
+
+def test_arrays_numpy_cannot_convert_are_refused_naming_the_argument():
+    _refused(lambda: F["model"].measure("a"), "conductivity: could not convert string to float")
+    _refused(lambda: F["recon"].image(F["rest"], ["a"] * len(F["rest"])), "v: could not convert string to float")
+
+
+@pytest.mark.parametrize("exponent", [math.nan, math.inf, -5.0, 1.5])
+def test_exponents_out_of_range_are_refused(exponent):
+    _refused(lambda: eitskin.Reconstructor.from_reference(SPEC, F["rest"], exponent=exponent, cache=False), f"exponent must be a number in [0, 1], got {exponent}")
+    _refused(lambda: eitskin.one_step_matrix(J, F["mesh"], 0.1, exponent=exponent), "exponent must be a number in [0, 1]")
+
+
+def test_a_frame_in_another_unit_than_its_reference_is_refused_with_the_ratio():
+    recon, rest, pressed = F["recon"], F["rest"], F["pressed"]
+    for call in (recon.image, recon.element_values):
+        _refused(lambda: call(rest, rest / 1000), "the frame's values are typically 1.000e-3 times the reference's")
+        _refused(lambda: call(rest, -rest), "typically -1.000e0 times")
+    assert recon.image(rest, pressed * 1.05).values.shape == (64, 64)
+
+
+def test_a_press_whose_dv_is_not_finite_is_refused_naming_press_and_channel():
+    dv = F["dv"].copy()
+    dv[2, 6] = math.nan
+    _refused(lambda: eitskin.LearnedModel.train(dv, F["positions"], method="knn-3"), "dv: press 3 channel 7 is NaN: every value must be a finite number")
+
+
+def test_calibration_forces_and_strengths_out_of_range_are_refused():
+    fit = lambda forces, grid=(1, 1): eitskin.Calibration.fit(SPEC, [1] * 4, forces, [0.4, 0.3, 0.2, 0.1], grid=grid)
+    _refused(lambda: fit([-1.0, -2.0, -3.0, -4.0]), "force of sample 1 is -1 N: a press's force is 0 to 1e5 N")
+    _refused(lambda: fit([1.0, 2.0, 3.0, 1e300]), "force of sample 4 is 1e300 N")
+    _refused(lambda: fit([1.0, 2.0, 3.0, 4.0], grid=(2**70, 1)), "grid must be (nx, ny), each 1 to 100")
+    for strength in (math.inf, -math.inf, math.nan):
+        _refused(lambda: F["calibration"].force(1, strength), f"strength must be a finite number, got {strength}")
+    _refused(lambda: F["calibration"].force(2**70, 0.05), "area must be 1 to 1, got 1180591620717411303424")
+
+
+def test_coordinates_that_are_not_finite_are_refused():
+    _refused(lambda: eitskin.Calibration.area_of(SPEC, math.nan, 0.0), "x must be a finite number, got nan")
+    _refused(lambda: eitskin.Calibration.area_of(SPEC, 0.0, math.inf), "y must be a finite number, got inf")
+    _refused(lambda: F["calibration"].area_at(0.0, math.nan), "y must be a finite number, got nan")
+
+
+def test_mesh_indices_must_be_whole_numbers():
+    nodes, electrodes = [[0, 0], [1, 0], [0, 1]], [[0], [1], [2]]
+    _refused(lambda: eitskin.Mesh(nodes, [[0, 1, 2.5]], electrodes), "triangles: index 2.5 is not a whole number")
+    _refused(lambda: eitskin.Mesh(nodes, [[0, 1, 2]], [[0], [1.5]]), "electrodes: index 1.5 is not a whole number")
+    _refused(lambda: eitskin.Mesh(nodes, [[0, 1, -1]], electrodes), "triangles: index -1 is negative")
+    _refused(lambda: eitskin.Mesh(nodes, [[0, 1, 2**70]], electrodes), "triangles: index 1.1805916207174113e21 is larger than any mesh has")
+    _refused(lambda: eitskin.Mesh(nodes, [[0, 1, 3]], electrodes), "3")
+    assert len(eitskin.Mesh(nodes, np.array([[0.0, 1.0, 2.0]]), electrodes).triangles) == 1
+
+
+def test_save_writes_json_only_to_json_names(tmp_path):
+    for name in ("x.npy", "x.csv"):
+        _refused(lambda: F["learned"].save(tmp_path / name, SPEC), f"this writes .json, not .{name[2:]}: name the file so")
+        _refused(lambda: F["calibration"].save(tmp_path / name), f"this writes .json, not .{name[2:]}: name the file so")
+        assert not (tmp_path / name).exists()
+    F["calibration"].save(tmp_path / "c.json")
+    assert (tmp_path / "c.json").exists()

@@ -74,9 +74,9 @@ def test_a_calibration_is_fitted_saved_loaded_and_gives_forces(spec, tmp_path):
     assert again.force(1, 0.2) == calibration.force(1, 0.2)
     assert again.area_at(0.0, 0.0) == 1 and again.area_at(1.0, 1.0) is None
     for wrong in (0, 3):
-        with pytest.raises(eitskin.EitskinError, match=rf"area {wrong}: areas are counted from 1 to 1"):
+        with pytest.raises(eitskin.EitskinError, match=rf"area must be 1 to 1, got {wrong}"):
             calibration.force(wrong, 0.2)
-    with pytest.raises(eitskin.EitskinError, match="areas are counted from 1"):
+    with pytest.raises(eitskin.EitskinError, match=r"area of sample 1 must be 1 to 1 \(areas are counted from 1\), got 0"):
         eitskin.Calibration.fit(spec, [0] * 3, [1.0, 2.0, 3.0], [3.0, 2.0, 1.0], grid=(1, 1))
     with pytest.raises(eitskin.EitskinError, match="one entry per sample"):
         eitskin.Calibration.fit(spec, [1, 1], [1.0], [1.0, 2.0])

@@ -117,7 +117,15 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
     let spec = load::spec(args.spec.as_deref())?;
     let array = PseudoArray::of_sensor(&spec, [args.grid; 2])?;
     let rows = eitskin_io::read_samples(&args.samples, spec.length_unit.metres())?;
-    let (samples, strength) = match (Labelled::of(&spec, &array, &args.samples, rows)?, args.strength) {
+    let labelled = Labelled::of(&spec, &array, &args.samples, rows)?;
+    if let (Labelled::Peaks(_), Some(path)) = (&labelled, &args.reference) {
+        bail!(
+            "--reference {}: {} holds peaks, read as they are; frames at rest are for samples of raw frames",
+            path.display(),
+            args.samples.display()
+        );
+    }
+    let (samples, strength) = match (labelled, args.strength) {
         (Labelled::Peaks(peaks), StrengthChoice::Auto | StrengthChoice::One(Strength::Peak)) => (peaks, Strength::Peak),
         (Labelled::Peaks(_), StrengthChoice::One(strength)) => {
             bail!(
@@ -127,6 +135,7 @@ pub fn calibrate(args: CalibrateArgs) -> Result<()> {
         }
         (Labelled::Frames(frames), choice) => {
             let (references, pressed) = references(&spec, args.reference.as_deref(), &args.samples, frames)?;
+            check_areas(&array, &pressed, &args.samples)?;
             let strengths = match choice {
                 StrengthChoice::Auto => labelled::PRESS_STRENGTHS.to_vec(),
                 StrengthChoice::One(strength) => vec![strength],
@@ -276,6 +285,11 @@ fn evaluated(
                 results.push(Evaluated { at: [f64::NAN; 2], force: s.force, found });
             }
         }
+        Labelled::Peaks(_) if reference.is_some() => bail!(
+            "--reference {}: {} holds peaks, read as they are; frames at rest are for samples of raw frames",
+            reference.map_or_else(String::new, |p| p.display().to_string()),
+            samples.display()
+        ),
         Labelled::Peaks(_) => bail!(
             "{}: the calibration reads the \"{}\", which needs each sample's raw frame, not its peak",
             samples.display(),
@@ -420,6 +434,7 @@ fn references(
     if pressed.is_empty() {
         bail!("{}: every sample is at 0 N (the sheet at rest): there is no press to read", samples.display());
     }
+    check_scale(&references, &rest, &pressed, path, samples)?;
     references.extend(rest);
     if references.is_empty() {
         bail!(
@@ -427,30 +442,69 @@ fn references(
             samples.display()
         );
     }
-    check_scale(&references, &pressed, path, samples)?;
     Ok((references, pressed))
 }
 
-/// Refuses pressed frames whose values are typically (the median over frames of each one's
-/// [`typical_ratio`](eitskin::inverse::typical_ratio)) beyond
-/// [`SCALE_LIMIT`](eitskin::inverse::SCALE_LIMIT) times the reference's either way: another
-/// sensor, unit or gain, which no curve can read (and which made calibration search every
-/// frame for touches that are not there).
-fn check_scale(references: &[Vec<f64>], pressed: &[LabelledFrame], path: Option<&Path>, samples: &Path) -> Result<()> {
-    let reference = eitskin::inverse::mean_frame(references);
-    let mut ratios: Vec<f64> =
-        pressed.iter().filter_map(|p| eitskin::inverse::typical_ratio(&p.frame, &reference)).collect();
-    if ratios.is_empty() {
-        return Ok(());
-    }
-    let middle = ratios.len() / 2;
-    let ratio = *ratios.select_nth_unstable_by(middle, f64::total_cmp).1;
-    if !eitskin::inverse::plausible_ratio(ratio) {
-        let from = path.map_or_else(|| "its frames at 0 N".to_owned(), |p| format!("--reference {}", p.display()));
-        bail!(
-            "{}: the pressed frames' values are typically {ratio:.3} times those of the reference ({from}; the median over frames and channels): a press changes them by percents; are the two from the same sensor, unit and gain?",
+/// Refuses frames at rest from two places (`--reference`'s `given`, the samples' rows at 0 N
+/// `rest`) whose values are typically
+/// ([`typical_ratio_of_frames`](eitskin::inverse::typical_ratio_of_frames)) beyond
+/// [`SCALE_LIMIT`](eitskin::inverse::SCALE_LIMIT) times apart either way, and pressed frames so
+/// far from all of them: another sensor, unit or gain, which no curve can read (and which made
+/// calibration search every frame for touches that are not there).
+fn check_scale(
+    given: &[Vec<f64>],
+    rest: &[Vec<f64>],
+    pressed: &[LabelledFrame],
+    path: Option<&Path>,
+    samples: &Path,
+) -> Result<()> {
+    use eitskin::inverse::{mean_frame, plausible_ratio, typical_ratio_of_frames};
+    let refuse = |what: &str, ratio: f64, against: String| {
+        anyhow::anyhow!(
+            "{}: {what} values are typically {ratio:.3} times those of {against} (the median over frames and channels): a press changes them by percents; are the two from the same sensor, unit and gain?",
             samples.display()
-        );
+        )
+    };
+    let given_name = || path.map_or_else(String::new, |p| format!("--reference {}", p.display()));
+    if !given.is_empty() && !rest.is_empty() {
+        let ratio = typical_ratio_of_frames(rest.iter().map(Vec::as_slice), &mean_frame(given));
+        if let Some(ratio) = ratio.filter(|r| !plausible_ratio(*r)) {
+            return Err(refuse("the 0 N frames'", ratio, given_name()));
+        }
+    }
+    let (reference, against) = match given.is_empty() {
+        true => (mean_frame(rest), "its 0 N frames".to_owned()),
+        false => (mean_frame(given), given_name()),
+    };
+    let ratio = typical_ratio_of_frames(pressed.iter().map(|p| p.frame.as_slice()), &reference);
+    if let Some(ratio) = ratio.filter(|r| !plausible_ratio(*r)) {
+        return Err(refuse("the pressed frames'", ratio, against));
+    }
+    Ok(())
+}
+
+/// Refuses pressed samples whose labels leave an area of `array` with presses at fewer than 3
+/// distinct forces, before any frame is imaged: its curve could not be fitted, whatever the
+/// frames hold (calibration spent a minute reading every frame first).
+fn check_areas(array: &PseudoArray, pressed: &[LabelledFrame], samples: &Path) -> Result<()> {
+    for area in 0..array.area_count() {
+        let mut forces: Vec<f64> = pressed
+            .iter()
+            .filter(|p| array.unit_at(p.position).is_some_and(|u| array.area_of(u) == area))
+            .map(|p| p.force)
+            .collect();
+        forces.sort_by(f64::total_cmp);
+        forces.dedup();
+        if forces.len() < 3 {
+            let units: Vec<String> = array.units_in_area(area).iter().map(|u| (u + 1).to_string()).collect();
+            bail!(
+                "{}: area {} (units {}) has presses at {} distinct force(s) by the labels; its curve needs 3 or more: press there too, or fit one curve for the sheet (--grid 1)",
+                samples.display(),
+                area + 1,
+                units.join(", "),
+                forces.len()
+            );
+        }
     }
     Ok(())
 }

@@ -106,6 +106,14 @@ fn presses(path: &Path, spec: &SensorSpec, reference: Option<&(PathBuf, Vec<f64>
         );
     }
     if let Some((file, frame)) = reference {
+        let ratio = eitskin::inverse::typical_ratio_of_frames(presses.iter().map(|p| p.inputs.as_slice()), frame);
+        if let Some(ratio) = ratio.filter(|r| !eitskin::inverse::plausible_ratio(*r)) {
+            bail!(
+                "{}: the presses' values are typically {ratio:.3} times those of --reference {} (the median over presses and channels): a press changes them by percents; give --reference with raw frames of the same unit and gain (Δv needs none)",
+                path.display(),
+                file.display()
+            );
+        }
         for (k, p) in presses.iter_mut().enumerate() {
             if p.inputs.len() != frame.len() {
                 bail!(

@@ -526,9 +526,43 @@ fn samples_and_references_that_cannot_go_together_are_refused() {
     assert_eq!(
         String::from_utf8_lossy(&out.stderr),
         format!(
-            "error: {s}: the pressed frames' values are typically 0.001 times those of the reference (--reference {}; the median over frames and channels): a press changes them by percents; are the two from the same sensor, unit and gain?\n",
+            "error: {s}: the pressed frames' values are typically 0.001 times those of --reference {} (the median over frames and channels): a press changes them by percents; are the two from the same sensor, unit and gain?\n",
             millivolts.display()
         )
+    );
+    // Frames at rest from two places that disagree: the samples' 0 N rows in Ω, --reference in kΩ.
+    let kilo = dir.join("rest_k.txt");
+    std::fs::write(&kilo, format!("{}\n", vec!["0.001"; 120].join(","))).unwrap();
+    std::fs::write(&samples, format!("x,y,force,{}\n10,20,0,{ones}\n10,20,5,{ones}\n", channels.join(","))).unwrap();
+    let out = dir.eitskin(&["calibrate", "--samples", s, "--reference", kilo.to_str().unwrap(), "--out", o]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(message.contains("the 0 N frames' values are typically 1000.000 times those of --reference"), "{message}");
+    // Labels that leave an area without three forces are refused before any frame is imaged
+    // (it took a minute to say so).
+    let out = dir.eitskin(&["calibrate", "--samples", s, "--out", o]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        message.contains("has presses at 0 distinct force(s) by the labels; its curve needs 3 or more"),
+        "{message}"
+    );
+    // Peaks are read as they are: frames at rest given with them are refused, as are a negative
+    // peak, a value past any measurement and a JSON file given as samples.
+    let peaks = dir.join("peaks.csv");
+    let p = peaks.to_str().unwrap();
+    std::fs::write(&peaks, "unit,force,peak\n1,5,0.2\n").unwrap();
+    let out = dir.eitskin(&["calibrate", "--samples", p, "--reference", rest, "--out", o]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("{p} holds peaks, read as they are")), "{out:?}");
+    for (row, said) in [("1,5,-0.2", "peak -0.2 S/m is negative"), ("1,5,1e300", "column 3 (1e300) is past ±1e30")] {
+        std::fs::write(&peaks, format!("unit,force,peak\n{row}\n")).unwrap();
+        let out = dir.eitskin(&["calibrate", "--samples", p, "--out", o]);
+        assert!(String::from_utf8_lossy(&out.stderr).contains(said), "{out:?}");
+    }
+    std::fs::write(&peaks, r#"{"format": "eitskin-learned-model", "version": 2}"#).unwrap();
+    let out = dir.eitskin(&["calibrate", "--samples", p, "--out", o]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        message.contains("line 1: this is a learned model (what `eitskin learn --out` writes), not samples"),
+        "{message}"
     );
     // An output that is a folder is refused before any work.
     let folder = dir.join("folder.json");

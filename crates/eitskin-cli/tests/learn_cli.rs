@@ -170,6 +170,27 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     let refused = dir.eitskin(&["learn", "--samples", one.to_str().unwrap(), "--method", "knn-1"]);
     let message = String::from_utf8_lossy(&refused.stderr);
     assert!(message.contains("every one of the 12 presses is labelled at ("), "{message}");
+    // Labels in metres where the spec reads mm span a speck of the sheet: refused, so is a
+    // reference given with Δv samples (each press would become some −200 Ω).
+    let metres: String = rows
+        .lines()
+        .map(|r| {
+            let f: Vec<&str> = r.split(',').collect();
+            let m = |v: &str| (v.parse::<f64>().unwrap() / 1000.0).to_string();
+            [m(f[0]), m(f[1])].into_iter().chain(f[2..].iter().map(|v| v.to_string())).collect::<Vec<_>>().join(",")
+        })
+        .map(|r| r + "\n")
+        .collect();
+    let in_metres = dir.join("metres.csv");
+    std::fs::write(&in_metres, format!("{head}{header}{metres}")).unwrap();
+    let refused = dir.eitskin(&["learn", "--samples", in_metres.to_str().unwrap()]);
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(message.contains("are they written in a smaller unit than the spec's (mm)?"), "{message}");
+    let rest_file = dir.join("rest.csv");
+    std::fs::write(&rest_file, rest.iter().map(|v| format!("{v}\n")).collect::<String>()).unwrap();
+    let refused = dir.eitskin(&["learn", "--samples", t, "--reference", rest_file.to_str().unwrap()]);
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(message.contains("the presses' values are typically") && message.contains("(Δv needs none)"), "{message}");
     // A folder for the figures that is a file is refused before any work.
     let refused = dir.eitskin(&["learn", "--samples", t, "--held-out", h, "--curve", "--plots", t]);
     assert!(String::from_utf8_lossy(&refused.stderr).contains(": is a file; give a folder to write into"));

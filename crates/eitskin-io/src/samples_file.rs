@@ -9,6 +9,7 @@
 
 use std::path::Path;
 
+use eitskin::inverse::LARGEST_VALUE;
 use eitskin::learn::LabelledPress;
 use eitskin::SensorSpec;
 
@@ -62,6 +63,13 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
     let Some((_, header)) = lines.next() else {
         return Err(fail(1, "no header line".into()));
     };
+    if header.trim_start().starts_with(['{', '[']) {
+        let what = crate::json_file_kind(text.as_bytes()).unwrap_or("a JSON file");
+        return Err(fail(
+            1,
+            format!("this is {what}, not samples: those are CSV with a header such as x,y,force,v1,…"),
+        ));
+    }
     // Names as a spreadsheet may quote them ("x","y").
     let names: Vec<&str> = header.split(',').map(|n| n.trim().trim_matches('"')).collect();
     // A column named twice would leave its second copy read as a channel, or two channels as one.
@@ -104,6 +112,16 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
                 .filter(|v| v.is_finite())
                 .ok_or_else(|| fail(n + 1, format!("column {} ({:?}) is not a finite number", k + 1, text)))
         };
+        // A peak or a channel: finite and within what any measurement can be.
+        let measurement = |k: usize| -> Result<f64, Error> {
+            let value = number(k)?;
+            if value.abs() > LARGEST_VALUE {
+                let text = fields.get(k).copied().unwrap_or("");
+                let reason = format!("column {} ({text}) is past ±{LARGEST_VALUE:e}, beyond any measurement", k + 1);
+                return Err(fail(n + 1, reason));
+            }
+            Ok(value)
+        };
         let location = match location {
             Ok(u) => {
                 let unit = number(u)?;
@@ -115,9 +133,21 @@ pub fn parse_samples(text: &str, metres: f64) -> Result<Vec<SampleRow>, Error> {
             Err((x, y)) => Location::Point([number(x)? * metres, number(y)? * metres]),
         };
         let measured = match peak {
-            Some(p) => Measured::Peak(number(p)?),
+            Some(p) => match measurement(p)? {
+                peak if peak < 0.0 => {
+                    let text = fields.get(p).copied().unwrap_or("");
+                    return Err(fail(
+                        n + 1,
+                        format!("peak {text} S/m is negative: a touch's peak is its size, 0 S/m or more"),
+                    ));
+                }
+                peak => Measured::Peak(peak),
+            },
             None => Measured::Frame(
-                (0..fields.len()).filter(|k| !used.contains(k)).map(number).collect::<Result<Vec<f64>, Error>>()?,
+                (0..fields.len())
+                    .filter(|k| !used.contains(k))
+                    .map(measurement)
+                    .collect::<Result<Vec<f64>, Error>>()?,
             ),
         };
         // A force (N) or depth (the spec's unit) of 0 or more, as written.
@@ -153,15 +183,35 @@ pub use eitskin::calibration::MAX_FORCE;
 /// box's larger side: a robot's frame may be off by millimetres, not by a sheet.
 pub const OFF_SHEET: f64 = 0.5;
 
+/// Presses whose labels all lie within 1/`SPECK` of the sheet's size of each other (but not at
+/// one place) are taken as written in a smaller unit than the spec's: metres read as mm span at
+/// most 1/1000 of a sheet.
+pub const SPECK: f64 = 500.0;
+
 /// Refuses presses labelled more than [`OFF_SHEET`] of the outline's size outside its box on
-/// `spec`'s sheet (a unit or an origin gone wrong, not a press), quoting the label and the
-/// outline's span in the spec's unit.
+/// `spec`'s sheet (a unit or an origin gone wrong, not a press), or all within a speck of it
+/// ([`SPECK`]), quoting the labels and the outline's span in the spec's unit.
 pub fn check_labels_on_sheet(presses: &[LabelledPress], spec: &SensorSpec) -> Result<(), Error> {
     let [[x0, y0], [x1, y1]] = spec.outline.bounds();
-    let margin = OFF_SHEET * (x1 - x0).max(y1 - y0);
+    let size = (x1 - x0).max(y1 - y0);
+    let margin = OFF_SHEET * size;
+    let (per_metre, unit) = (1.0 / spec.length_unit.metres(), spec.length_unit.symbol());
+    // Labels all within a speck of the sheet: written in metres where the spec reads mm, say.
+    let span = |axis: usize| {
+        let values = presses.iter().map(|p| p.position[axis]);
+        values.clone().fold(f64::NEG_INFINITY, f64::max) - values.fold(f64::INFINITY, f64::min)
+    };
+    let spread = span(0).max(span(1));
+    if presses.len() >= 3 && spread > 0.0 && spread < size / SPECK {
+        let (spread, size) = (spread * per_metre, crate::Quoted(size * per_metre));
+        let reason = format!(
+            "of the {} presses span only {spread:.3} {unit} on a sheet {size} {unit} across: are they written in a smaller unit than the spec's ({unit})?",
+            presses.len()
+        );
+        return Err(Error::Key { path: None, key: "x, y", reason });
+    }
     let far = |[x, y]: [f64; 2]| x < x0 - margin || x > x1 + margin || y < y0 - margin || y > y1 + margin;
     let Some(k) = presses.iter().position(|p| far(p.position)) else { return Ok(()) };
-    let (per_metre, unit) = (1.0 / spec.length_unit.metres(), spec.length_unit.symbol());
     let [x, y] = presses[k].position.map(|v| crate::Quoted(v * per_metre));
     let [x0, x1, y0, y1] = [x0, x1, y0, y1].map(|v| v * per_metre);
     let reason = format!(

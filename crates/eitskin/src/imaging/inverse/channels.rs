@@ -151,6 +151,17 @@ pub fn typical_ratio_in(frame: &[f64], reference: &[f64], scratch: &mut Vec<f64>
     Some(*scratch.select_nth_unstable_by(middle, f64::total_cmp).1)
 }
 
+/// Frames' values against a reference's, typically: the median over `frames` of each one's
+/// [`typical_ratio`]; `None` where no frame has one.
+pub fn typical_ratio_of_frames<'a>(frames: impl IntoIterator<Item = &'a [f64]>, reference: &[f64]) -> Option<f64> {
+    let mut ratios: Vec<f64> = frames.into_iter().filter_map(|f| typical_ratio(f, reference)).collect();
+    if ratios.is_empty() {
+        return None;
+    }
+    let middle = ratios.len() / 2;
+    Some(*ratios.select_nth_unstable_by(middle, f64::total_cmp).1)
+}
+
 /// Whether a [`typical_ratio`] is one a frame of the same sensor can have: within
 /// [`SCALE_LIMIT`] either way of 1, and positive.
 pub fn plausible_ratio(ratio: f64) -> bool {

@@ -27,7 +27,8 @@ mod reference;
 
 pub(crate) use channels::floored;
 pub use channels::{
-    mean_frame, mean_of_finite, noise_variance, plausible_ratio, typical_ratio, typical_ratio_in, Channels, SCALE_LIMIT,
+    mean_frame, mean_of_finite, noise_variance, plausible_ratio, typical_ratio, typical_ratio_in,
+    typical_ratio_of_frames, Channels, SCALE_LIMIT,
 };
 pub use criterion::{data_hyperparameter, DataCriterion};
 pub use hyperparameter::{

@@ -816,7 +816,8 @@ pub fn choose(
 
 /// Each score's errors relative to the best: the sum over the labelled quantities (mean
 /// position error, force RMS, depth RMS) of its error over the smallest any candidate has
-/// (so 1 per quantity for the best at it); `None` for a candidate that could not be scored.
+/// (so 1 per quantity for the best at it); `None` for a candidate that could not be scored or
+/// whose errors are not numbers.
 /// The presses' answers count as one more quantity, its error the share unanswered plus one
 /// (press features give none for a Δv like no press).
 pub fn relative_errors(scores: &[Score]) -> Vec<Option<f64>> {
@@ -824,10 +825,14 @@ pub fn relative_errors(scores: &[Score]) -> Vec<Option<f64>> {
         let unanswered = e.unanswered as f64 / (e.presses + e.unanswered).max(1) as f64;
         [Some(e.mean_position), e.force_rms, e.depth_rms, Some(1.0 + unanswered)]
     };
+    // A score that is not a number (a method overflowed on the presses) is no score.
+    let scored = |errors: &Result<Errors, LearnError>| {
+        errors.as_ref().ok().filter(|e| quantities(e).into_iter().flatten().all(f64::is_finite)).copied()
+    };
     let mut best = [f64::INFINITY; 4];
     for (_, errors) in scores {
-        if let Ok(e) = errors {
-            for (b, q) in best.iter_mut().zip(quantities(e)) {
+        if let Some(e) = scored(errors) {
+            for (b, q) in best.iter_mut().zip(quantities(&e)) {
                 *b = b.min(q.unwrap_or(f64::INFINITY));
             }
         }
@@ -835,7 +840,7 @@ pub fn relative_errors(scores: &[Score]) -> Vec<Option<f64>> {
     scores
         .iter()
         .map(|(_, errors)| {
-            let e = errors.as_ref().ok()?;
+            let e = &scored(errors)?;
             let ratio = |(q, b): (Option<f64>, &f64)| q.map_or(0.0, |q| if *b > 0.0 { q / b } else { 1.0 });
             Some(quantities(e).into_iter().zip(&best).map(ratio).sum())
         })
@@ -918,6 +923,11 @@ mod tests {
         assert!((relative[1].unwrap() - (1.1 + 1.0 + 1.0)).abs() < 1e-12);
         assert_eq!(relative[2], None);
         assert!((relative[3].unwrap() - (1.1 + 1.0 + 1.2)).abs() < 1e-12);
+        // A method whose errors are not numbers is no candidate, and moves no one's.
+        let mut overflowed = scores;
+        overflowed.push((Method::knn(2), Ok(errors(f64::NAN, f64::NAN, 0))));
+        let again = relative_errors(&overflowed);
+        assert_eq!((&again[..4], again[4]), (&relative[..], None));
     }
 
     /// A candidate that cannot be cross-validated on the presses (here press features without

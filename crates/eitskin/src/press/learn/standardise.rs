@@ -14,9 +14,13 @@ pub struct Standardiser {
 /// channel's (or is not finite): it is constant, saturated or disconnected.
 pub const DEAD_SPREAD: f64 = 1e-6;
 
+/// A channel whose spread is below this fraction of its mean is constant to rounding.
+const ROUNDING: f64 = 1e-12;
+
 impl Standardiser {
     /// Mean and spread of each channel over `inputs` (rows of equal length); channels whose
-    /// spread is below [`DEAD_SPREAD`] of the median, or with a non-finite value, are dropped.
+    /// spread is below [`DEAD_SPREAD`] of the median or within rounding of their mean, or with a
+    /// non-finite value, are dropped.
     pub fn fit(inputs: &[Vec<f64>]) -> Standardiser {
         let channels = inputs.first().map_or(0, Vec::len);
         let n = inputs.len().max(1) as f64;
@@ -38,8 +42,10 @@ impl Standardiser {
         let mut sorted: Vec<f64> = std.iter().copied().filter(|s| s.is_finite()).collect();
         sorted.sort_by(f64::total_cmp);
         let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
-        let used: Vec<usize> =
-            (0..channels).filter(|&c| finite[c] && std[c].is_finite() && std[c] > DEAD_SPREAD * median).collect();
+        // A spread within rounding of the channel's value is none (a constant channel's spread
+        // is rounding, and where every channel is constant the median is rounding too).
+        let carries = |c: usize| std[c] > DEAD_SPREAD * median && std[c] > ROUNDING * mean[c].abs();
+        let used: Vec<usize> = (0..channels).filter(|&c| finite[c] && std[c].is_finite() && carries(c)).collect();
         let mut inverse_std = vec![0.0; channels];
         used.iter().for_each(|&c| inverse_std[c] = 1.0 / std[c]);
         Standardiser { mean, inverse_std, used }
