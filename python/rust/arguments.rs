@@ -7,7 +7,7 @@
 use std::ops::RangeInclusive;
 
 use eitskin::calibration::MAX_FORCE;
-use eitskin::inverse::LARGEST_HYPERPARAMETER;
+pub(crate) use eitskin::inverse::hyperparameter_in_range;
 use eitskin::pipeline;
 use pyo3::prelude::*;
 use pyo3::types::PyString;
@@ -139,14 +139,9 @@ pub(crate) fn exponent(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
     real(obj, "exponent", &what, |p| NOSER_EXPONENT.contains(&p))
 }
 
-/// `hyperparameter` λ given as a number, dimensionless: in (0, 1000], as the CLI's.
+/// `hyperparameter` λ given as a number, dimensionless: in [1e-6, 1000], as the CLI's.
 pub(crate) fn hyperparameter(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
-    real(obj, "hyperparameter", &format!("a number in (0, {LARGEST_HYPERPARAMETER}]"), hyperparameter_ok)
-}
-
-/// Whether λ (dimensionless) is one the library takes: in (0, [`LARGEST_HYPERPARAMETER`]].
-pub(crate) fn hyperparameter_ok(lambda: f64) -> bool {
-    lambda > 0.0 && lambda <= LARGEST_HYPERPARAMETER
+    real(obj, "hyperparameter", "a number in [1e-6, 1000]", hyperparameter_in_range)
 }
 
 /// `threshold`: a fraction of the peak, in (0, 1], as the CLI's `--threshold`.

@@ -21,7 +21,7 @@ fn prior(name: &str, exponent: f64) -> PyResult<eitskin::Prior> {
 }
 
 /// The element-level one-step Gauss–Newton matrix (triangles, measurements), S/m per V:
-/// Δσ = (JᵀJ + λ²R)⁻¹JᵀΔv for `jacobian` (measurements, triangles) on `mesh`, λ in (0, 1000],
+/// Δσ = (JᵀJ + λ²R)⁻¹JᵀΔv for `jacobian` (measurements, triangles) on `mesh`, λ in [1e-6, 1000],
 /// the NOSER exponent in [0, 1].
 #[pyfunction]
 #[pyo3(signature = (jacobian, mesh, hyperparameter, prior = "noser", exponent = 0.5, background = None))]
@@ -173,7 +173,7 @@ pub(crate) fn touches(
 /// background : float
 ///     The homogeneous conductivity it is linearised at, in S/m.
 /// hyperparameter : float or str, default "auto"
-///     λ, dimensionless, in (0, 1000] (λ² multiplies the prior; pyEIT's ``lamb`` is λ²), or
+///     λ, dimensionless, in [1e-6, 1000] (λ² multiplies the prior; pyEIT's ``lamb`` is λ²), or
 ///     ``"auto"``.
 /// prior : {"noser", "tikhonov", "laplace"}, default "noser"
 ///     R: diag(JᵀJ)^exponent, the identity, or a Laplacian over neighbouring triangles.
@@ -208,14 +208,14 @@ pub(crate) struct Reconstructor {
     reference: Option<Vec<f64>>,
 }
 
-/// `hyperparameter` from Python: a λ in (0, 1000], or a rule's name.
+/// `hyperparameter` from Python: a λ in [1e-6, 1000], or a rule's name.
 pub(crate) fn rule(hyperparameter: &Bound<'_, PyAny>) -> PyResult<eitskin::inverse::HyperparameterRule> {
-    use eitskin::inverse::{Hyperparameter, HyperparameterRule, LARGEST_HYPERPARAMETER};
+    use eitskin::inverse::{Hyperparameter, HyperparameterRule};
     if let Ok(text) = hyperparameter.extract::<String>() {
         return text.parse().map_err(|e: String| fail(format!("hyperparameter: {e}")));
     }
-    let what = format!("a number in (0, {LARGEST_HYPERPARAMETER}] or \"auto\"");
-    let value = arguments::real(hyperparameter, "hyperparameter", &what, arguments::hyperparameter_ok)?;
+    let what = "a number in [1e-6, 1000] or \"auto\"";
+    let value = arguments::real(hyperparameter, "hyperparameter", what, arguments::hyperparameter_in_range)?;
     Ok(HyperparameterRule::Model(Hyperparameter::Fixed(value)))
 }
 

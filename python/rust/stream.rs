@@ -410,7 +410,7 @@ impl TouchForce {
 /// average : int, default 1
 ///     Frames averaged into each image, 1 to 1,000 (adds (average − 1)/2 frames of latency).
 /// hyperparameter : float or "auto", default "auto"
-///     λ in (0, 1000], or "auto": chosen from the reference frames' noise as ``eitskin run``
+///     λ in [1e-6, 1000], or "auto": chosen from the reference frames' noise as ``eitskin run``
 ///     chooses it; a calibration sets its own (another value is refused).
 ///
 /// Examples

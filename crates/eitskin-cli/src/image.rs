@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use serde::Serialize;
 
-use crate::imaging::{reconstruct, BackgroundOut, Imaged, Input, Recording, Refused, Report};
+use crate::imaging::{in_frame_order, reconstruct, BackgroundOut, Imaged, Input, Recording, Refused, Report};
 use crate::{outputs, plot};
 
 /// Flags of `eitskin image`.
@@ -15,7 +15,8 @@ pub struct Args {
     input: Input,
     /// Write the raster as data: `.npy` (f32, ny × nx, row 0 at the top, NaN outside) or `.csv`
     /// (x, y in the spec's unit, Δσ in S/m per inside pixel); for a range of frames or `all`, a
-    /// stack: frames × ny × nx, or a first CSV column `frame`.
+    /// stack: frames × ny × nx (a frame refused all NaN, in its place), or a first CSV column
+    /// `frame`.
     #[arg(long, value_parser = outputs::writes(&["npy", "csv"]))]
     out: Option<PathBuf>,
     /// Write the conductivity change of every triangle as CSV (triangle, centroid x, y, Δσ; a
@@ -102,7 +103,10 @@ pub fn run(args: Args) -> Result<()> {
     match &args.out {
         Some(path) if outputs::has_extension(path, "npy") => match stacked {
             true => {
-                eitskin_io::write_raster_stack_npy(&staged.path(path), &images.iter().map(|i| i.1).collect::<Vec<_>>())?
+                // A refused frame keeps its place in the stack, all NaN.
+                let first = images[0].1;
+                let blank = eitskin::Image { values: vec![f32::NAN; first.values.len()], ..first.clone() };
+                eitskin_io::write_raster_stack_npy(&staged.path(path), &in_frame_order(&images, &refused, &blank))?
             }
             false => eitskin_io::write_raster_npy(&staged.path(path), images[0].1)?,
         },

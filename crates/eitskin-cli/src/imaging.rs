@@ -59,7 +59,7 @@ pub struct Input {
     /// For complex data, the part imaged: real, imaginary, magnitude (signed by the model) or phase.
     #[arg(long, default_value = "real")]
     component: Component,
-    /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in (0, 1000], or `auto`:
+    /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in [1e-6, 1000], or `auto`:
     /// the larger of the λ for a noise figure of 0.5 (EIDORS') and the MAP λ of the noise level,
     /// with the noise measured from the reference frames when the reference file holds
     /// several, else 0.3 % of each value; or chosen from the frames themselves: `gcv`
@@ -342,6 +342,15 @@ impl BackgroundOut {
     }
 }
 
+/// Each frame's item in file order for a stack: the imaged frames' (frame number, item) and
+/// `blank` for every refused frame, so that a stack's index is still the frame's place.
+pub fn in_frame_order<'a, T: ?Sized>(imaged: &[(usize, &'a T)], refused: &[Refused], blank: &'a T) -> Vec<&'a T> {
+    let mut all: Vec<(usize, &T)> = imaged.to_vec();
+    all.extend(refused.iter().map(|r| (r.frame, blank)));
+    all.sort_by_key(|(frame, _)| *frame);
+    all.into_iter().map(|(_, item)| item).collect()
+}
+
 /// Reads the reference and the selected frames, makes one setup, and images and segments each
 /// frame: the chain `image` and `segment` share.
 pub fn reconstruct(input: &Input) -> Result<Recording> {
@@ -351,11 +360,48 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let spec = load::sized(load::spec(input.spec.as_deref())?, input.triangles, Stage::Reconstructor)?;
     let measurements = spec.protocol()?.measurements().len();
     eitskin::memory::check_raster(input.raster, measurements, eitskin_io::available_memory())?;
-    let Read { mut references, mut selected, first } = read_input(input, &spec)?;
+    let Read { mut references, selected, first } = read_input(input, &spec)?;
+    let Kept { numbers, frames: mut selected, refused } = without_empty(input, selected, first)?;
     let lin = eitskin_io::build::linearisation(&spec, !input.no_cache)?;
     let (pattern_fit, gains) = signed_and_gained(input, lin.background(), &mut references, &mut selected);
     let setup = setup(input, spec, &lin, (&references, &selected), pattern_fit, gains)?;
-    image_all(input, setup, selected, first)
+    let recording = Recording { setup, imaged: Vec::new(), refused };
+    image_all(input, recording, selected, &numbers)
+}
+
+/// The frames kept for imaging, with the numbers in their file, and those refused before.
+struct Kept {
+    /// Each kept frame's number in its file, from 1.
+    numbers: Vec<usize>,
+    /// The kept frames.
+    frames: Vec<Vec<f64>>,
+    /// The frames refused.
+    refused: Vec<Refused>,
+}
+
+/// The selected frames (numbered from `first` + 1) less those with no finite value, which
+/// would leave no channel to image any frame with: each refused and named in a stack, else the
+/// error.
+fn without_empty(input: &Input, selected: Vec<Vec<f64>>, first: usize) -> Result<Kept> {
+    let (mut numbers, mut kept, mut refused) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, v) in selected.into_iter().enumerate() {
+        let frame = first + k + 1;
+        if v.iter().any(|x| x.is_finite()) {
+            numbers.push(frame);
+            kept.push(v);
+            continue;
+        }
+        let reason = "holds no finite value (every channel missing)".to_owned();
+        if !input.frames.stacked() {
+            anyhow::bail!("{}: frame {frame} {reason}", input.frame.display());
+        }
+        eprintln!("warning: frame {frame} of {} not imaged: {reason}", input.frame.display());
+        refused.push(Refused { frame, reason });
+    }
+    if kept.is_empty() {
+        anyhow::bail!("no frame of {} holds a finite value", input.frame.display());
+    }
+    Ok(Kept { numbers, frames: kept, refused })
 }
 
 /// The reference frames and the selected frames of `input`, each as long as the protocol, the
@@ -366,10 +412,15 @@ fn read_input(input: &Input, spec: &SensorSpec) -> Result<Read> {
     let select = FrameSelect { variable: input.select.clone(), layout };
     let reference_select = FrameSelect { variable: input.reference_select.clone().or(input.select.clone()), layout };
     let pairs = input.values == ValuesFlag::Complex;
-    let mut references = frames(&eitskin_io::read_frames(&input.reference, &reference_select)?, input.component, pairs)
+    let (reference_table, frame_table) = (
+        eitskin_io::read_frames(&input.reference, &reference_select)?,
+        eitskin_io::read_frames(&input.frame, &select)?,
+    );
+    check_kinds(input, &reference_table, &frame_table)?;
+    let mut references = frames(&reference_table, input.component, pairs)
         .with_context(|| format!("reading {}", input.reference.display()))?;
-    let mut table = frames(&eitskin_io::read_frames(&input.frame, &select)?, input.component, pairs)
-        .with_context(|| format!("reading {}", input.frame.display()))?;
+    let mut table =
+        frames(&frame_table, input.component, pairs).with_context(|| format!("reading {}", input.frame.display()))?;
     let indices = input.frames.indices(table.len(), &input.frame)?;
     let first = *indices.start();
     table.truncate(indices.end() + 1);
@@ -394,6 +445,31 @@ fn read_input(input: &Input, spec: &SensorSpec) -> Result<Read> {
     // image and named by no check of the values.
     mark_missing(&spec.used_channels()?, &mut references, &mut selected);
     Ok(Read { references, selected, first })
+}
+
+/// Refuses a reference and frames of which one holds complex values and the other real ones
+/// (a part of the complex values would be compared with the real values), and a complex
+/// component asked of real frames (it would image the real values without a word).
+fn check_kinds(input: &Input, reference: &FrameTable, frames: &FrameTable) -> Result<()> {
+    let kind = |t: &FrameTable| if t.imaginary.is_some() { "complex" } else { "real" };
+    if reference.imaginary.is_some() != frames.imaginary.is_some() {
+        anyhow::bail!(
+            "{} holds {} values and {} {} ones: give the frames at rest and the frames as the same board sent them",
+            input.reference.display(),
+            kind(reference),
+            input.frame.display(),
+            kind(frames)
+        );
+    }
+    let complex = frames.imaginary.is_some() || input.values == ValuesFlag::Complex;
+    if !complex && matches!(input.component, Component::Imaginary | Component::Phase) {
+        anyhow::bail!(
+            "--component {}: {} holds real values, which have no such part (complex frames have one; (re, im) pairs need --values complex)",
+            if input.component == Component::Phase { "phase" } else { "imaginary" },
+            input.frame.display()
+        );
+    }
+    Ok(())
 }
 
 /// The frames of an `image` or `segment` call, as long as the protocol.
@@ -431,10 +507,10 @@ fn signed_and_gained(
     let estimate = Gains::estimate(&mean_frame(references), model);
     if estimate.pattern_fit < PATTERN_FIT_WARNING {
         eprintln!(
-            "warning: the reference follows the model's pattern poorly (R² = {:.2} of ln|v| against the model's): \
+            "warning: the reference follows the model's pattern poorly (R² = {} of ln|v| against the model's): \
              the values may not be this protocol's voltages (a saturated or clipped front end, another measurement \
              order, another electrode layout)",
-            estimate.pattern_fit
+            r_squared(estimate.pattern_fit)
         );
     }
     let pattern_fit = estimate.pattern_fit;
@@ -503,13 +579,11 @@ fn setup(
     Ok(Setup { spec, recon, v_ref, report, significance, assumed, touch })
 }
 
-/// Each selected frame imaged and segmented; with a stacked selection a frame refused is named
-/// and skipped, else it is the error.
-fn image_all(input: &Input, setup: Setup, selected: Vec<Vec<f64>>, first: usize) -> Result<Recording> {
-    let mut recording = Recording { setup, imaged: Vec::new(), refused: Vec::new() };
+/// Each selected frame (numbered in `numbers`) imaged and segmented into `recording`; with a
+/// stacked selection a frame refused is named and skipped, else it is the error.
+fn image_all(input: &Input, mut recording: Recording, selected: Vec<Vec<f64>>, numbers: &[usize]) -> Result<Recording> {
     let mut scratch = TouchScratch::new(input.raster);
-    for (k, v) in selected.into_iter().enumerate() {
-        let frame = first + k + 1;
+    for (v, &frame) in selected.into_iter().zip(numbers) {
         match recording.setup.image(frame, v, input, &mut scratch) {
             Ok(imaged) => recording.imaged.push(imaged),
             Err(e) if input.frames.stacked() => {
@@ -523,6 +597,7 @@ fn image_all(input: &Input, setup: Setup, selected: Vec<Vec<f64>>, first: usize)
     if recording.imaged.is_empty() {
         anyhow::bail!("no frame of {} could be imaged (see the warnings above)", input.frame.display());
     }
+    recording.refused.sort_by_key(|r| r.frame);
     Ok(recording)
 }
 
@@ -536,6 +611,14 @@ impl Setup {
         }
         let recon = &self.recon;
         let image = recon.image(&self.v_ref, &v).with_context(|| format!("imaging {}", input.frame.display()))?;
+        if let Some((change, largest)) = unchanged(&v, &self.v_ref) {
+            eprintln!(
+                "warning: frame {frame} of {} equals its reference to rounding (largest change {change:.1e} against values up to {largest:.1e}): no touch",
+                input.frame.display()
+            );
+            let labels = vec![eitskin::touch::BACKGROUND; image.values.len()];
+            return Ok(Imaged { frame, v, image, labels, touches: Vec::new(), background_change: None });
+        }
         let significance = self.significance.as_ref();
         // Each sign at its own peak: the weaker sign only where it stands above the other's shadow.
         let polarity = match (input.peak_of, input.polarity) {
@@ -567,10 +650,10 @@ impl Report {
             WeightingUsed::None => "channels weighted alike".to_string(),
         };
         let mut text = format!(
-            "λ = {:.4} ({}; {weighting}), reference against the model R² = {:.3}",
-            self.hyperparameter,
+            "λ = {} ({}; {weighting}), reference against the model R² = {}",
+            significant(self.hyperparameter),
             self.chosen_by.replace('-', " "),
-            self.pattern_fit
+            r_squared(self.pattern_fit)
         );
         if !dropped.is_empty() {
             text += &format!(", channels {dropped:?} dropped");
@@ -605,7 +688,64 @@ fn check_scale(v: &[f64], v_ref: &[f64], frame: usize, input: &Input) -> Result<
     if !(median > 1.0 / SCALE_WARNED && median < SCALE_WARNED) {
         eprintln!("warning: {said}; a press changes them by percents: are the two in the same unit and gain?");
     }
+    if let Some(fit) = pattern_against(v, v_ref).filter(|f| *f < PATTERN_FIT_WARNING) {
+        eprintln!(
+            "warning: frame {frame} of {} follows the pattern of {} poorly (R² = {} of ln|v| against the reference's, channel by channel): a press changes a few channels by percents; is it the same sensor, protocol and order?",
+            input.frame.display(),
+            input.reference.display(),
+            r_squared(fit)
+        );
+    }
     Ok(())
+}
+
+/// A frame no different from its reference but for rounding: the largest change over the
+/// channels and the largest value, where the change is under [`ROUNDING`] of the value.
+fn unchanged(v: &[f64], v_ref: &[f64]) -> Option<(f64, f64)> {
+    let finite = v.iter().zip(v_ref).filter(|(a, b)| a.is_finite() && b.is_finite());
+    let (change, largest) = finite.fold((0.0f64, 0.0f64), |(c, l), (a, b)| (c.max((a - b).abs()), l.max(b.abs())));
+    (largest > 0.0 && change <= ROUNDING * largest).then_some((change, largest))
+}
+
+/// A λ as text: four decimals, or four significant digits where it is below 1 (1e-6 read 0.0000).
+fn significant(value: f64) -> String {
+    if value >= 1.0 {
+        format!("{value:.4}")
+    } else {
+        format!("{value:.4e}")
+    }
+}
+
+/// A change under this fraction of the largest value is rounding, not a press.
+const ROUNDING: f64 = 1e-9;
+
+/// R² of a frame's ln|v| against its reference's, channel by channel (1: the same pattern up to
+/// a press's percents; 0: no likeness); `None` with fewer than three channels to compare.
+fn pattern_against(v: &[f64], v_ref: &[f64]) -> Option<f64> {
+    let pairs: Vec<(f64, f64)> = v
+        .iter()
+        .zip(v_ref)
+        .filter(|(a, b)| a.is_finite() && b.is_finite() && **a != 0.0 && **b != 0.0)
+        .map(|(a, b)| (a.abs().ln(), b.abs().ln()))
+        .collect();
+    if pairs.len() < 3 {
+        return None;
+    }
+    let n = pairs.len() as f64;
+    let mean = |f: &dyn Fn(&(f64, f64)) -> f64| pairs.iter().map(f).sum::<f64>() / n;
+    let (mean_ref, mean_gap) = (mean(&|p| p.1), mean(&|p| p.0 - p.1));
+    let spread = mean(&|p| (p.1 - mean_ref).powi(2));
+    let misfit = mean(&|p| (p.0 - p.1 - mean_gap).powi(2));
+    (spread > 0.0).then(|| 1.0 - misfit / spread)
+}
+
+/// An R² as text: three decimals, or "below −1" where it means no likeness at all.
+fn r_squared(value: f64) -> String {
+    if value < -1.0 {
+        "below −1".into()
+    } else {
+        format!("{value:.3}")
+    }
 }
 
 /// `NX` or `NXxNY` as pixels across and down, each in [4, 1024].

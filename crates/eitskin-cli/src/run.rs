@@ -136,7 +136,7 @@ pub struct Args {
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = viewer::DEFAULT_ADDR,
           value_parser = viewer::parse_addr)]
     viewer: Option<SocketAddr>,
-    /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in (0, 1000], or `auto`:
+    /// Hyperparameter λ of the one-step Gauss–Newton reconstruction, in [1e-6, 1000], or `auto`:
     /// the larger of the λ for a noise figure of 0.5 (EIDORS') and the MAP λ of the noise level,
     /// with the noise measured from the reference frames (each time the reference is taken).
     /// Default: `auto`, or with --calibration the λ the calibration was fitted with (another is

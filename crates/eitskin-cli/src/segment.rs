@@ -5,9 +5,12 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use eitskin::touch::{BACKGROUND, LESS_CONDUCTIVE, MORE_CONDUCTIVE};
+
+/// The label of every pixel of a frame refused, in a stack.
+const NOT_IMAGED: u8 = 255;
 use serde::Serialize;
 
-use crate::imaging::{reconstruct, Input, Recording, Refused, Report};
+use crate::imaging::{in_frame_order, reconstruct, Input, Recording, Refused, Report};
 use crate::outputs;
 
 /// Flags of `eitskin segment`.
@@ -17,7 +20,8 @@ pub struct Args {
     input: Input,
     /// Where to write the labels: `.npy` (u8, ny × nx, row 0 at the top) or `.csv` (x, y in the
     /// spec's unit, label per inside pixel); 0 background, 1 less, 2 more conductive. For a range
-    /// of frames or `all`, a stack: frames × ny × nx, or a first CSV column `frame`.
+    /// of frames or `all`, a stack: frames × ny × nx (a frame refused all 255, in its place), or
+    /// a first CSV column `frame`.
     #[arg(long, value_parser = outputs::writes(&["npy", "csv"]))]
     out: PathBuf,
     /// Print JSON instead of text.
@@ -61,11 +65,12 @@ pub fn run(args: Args) -> Result<()> {
     let grid = &imaged[0].image;
     let labels: Vec<(usize, &[u8])> = imaged.iter().map(|i| (i.frame, i.labels.as_slice())).collect();
     match (outputs::has_extension(&args.out, "npy"), stacked) {
-        (true, true) => eitskin_io::write_labels_stack_npy(
-            &staged.path(&args.out),
-            &labels.iter().map(|l| l.1).collect::<Vec<_>>(),
-            grid.size,
-        )?,
+        (true, true) => {
+            // A refused frame keeps its place in the stack, every pixel NOT_IMAGED.
+            let blank = vec![NOT_IMAGED; grid.values.len()];
+            let stack = in_frame_order(&labels, &refused, blank.as_slice());
+            eitskin_io::write_labels_stack_npy(&staged.path(&args.out), &stack, grid.size)?
+        }
         (true, false) => eitskin_io::write_labels_npy(&staged.path(&args.out), labels[0].1, grid.size)?,
         (false, true) => eitskin_io::write_labels_stack_csv(&staged.path(&args.out), grid, &labels, unit)?,
         (false, false) => eitskin_io::write_labels_csv(&staged.path(&args.out), grid, labels[0].1, unit)?,

@@ -107,6 +107,35 @@ fn a_recordings_labels_are_stacked_and_its_selection_checked() {
     refused(&["--frames", "3-5", "--out", out], "holds 4 frame(s)");
     refused(&["--frames", "0", "--out", out], "\"0\" is not a selection of frames");
     refused(&["--frames", "3", "--out", out], "1000.000 times");
+    // A frame refused keeps its place in an NPY stack (every label 255), so index k is still
+    // frame k + 1; a frame with no finite value is refused alone, as a frame in millivolts is.
+    let all = dir.join("all.npy");
+    let said = ok(segment(&["--frames", "all", "--out", all.to_str().unwrap(), "--raster", "40x30"]));
+    assert!(said.contains("3 frame(s) segmented, 1 refused"), "{said}");
+    let bytes = std::fs::read(&all).unwrap();
+    let header_end = 10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    assert!(String::from_utf8_lossy(&bytes[10..header_end]).contains("'shape': (4, 30, 40"));
+    let third = &bytes[header_end + 2 * 1200..][..1200];
+    assert!(third.iter().all(|l| *l == 255) && bytes[header_end..][..1200].iter().any(|l| *l != 255));
+    let text = std::fs::read_to_string(&frames).unwrap();
+    let with_empty = dir.join("with_empty.txt");
+    let empty = vec!["NaN"; 120].join(",");
+    std::fs::write(&with_empty, text.replacen('\n', &format!("\n{empty}\n"), 1)).unwrap();
+    let labels = dir.join("labels_empty.csv");
+    let out = dir.eitskin(&[
+        "segment",
+        "--reference",
+        &reference,
+        "--frame",
+        with_empty.to_str().unwrap(),
+        "--frames",
+        "all",
+        "--out",
+        labels.to_str().unwrap(),
+    ]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{message}");
+    assert!(message.contains("frame 2 of") && message.contains("holds no finite value"), "{message}");
     let png = dir.join("image.png");
     let png = png.to_str().unwrap();
     let out = dir.eitskin(&["image", "--reference", &reference, "--frame", &frames, "--frames", "all", "--png", png]);

@@ -331,14 +331,14 @@ pub fn parse_calibration_file(text: &str, spec: &SensorSpec) -> Result<Calibrati
     };
     let imaging = match (file.version, file.hyperparameter, file.normalised) {
         (..=3, _, _) => Imaging::default(),
-        (_, Some(hyperparameter), Some(normalised))
-            if hyperparameter > 0.0 && hyperparameter <= eitskin::inverse::LARGEST_HYPERPARAMETER =>
-        {
+        (_, Some(hyperparameter), Some(normalised)) if eitskin::inverse::hyperparameter_in_range(hyperparameter) => {
             Imaging { hyperparameter, normalised }
         }
         (_, Some(hyperparameter), Some(_)) => {
-            let largest = eitskin::inverse::LARGEST_HYPERPARAMETER;
-            return refuse("hyperparameter", format!("is {hyperparameter:?}; λ must be in (0, {largest}]"));
+            return refuse(
+                "hyperparameter",
+                format!("is {}; λ must be in [1e-6, 1000]", crate::Quoted(hyperparameter)),
+            );
         }
         (_, None, _) => return refuse("hyperparameter", "is missing: a file of version 4 or later records λ".into()),
         (_, _, None) => return refuse("normalised", "is missing: a file of version 4 or later records it".into()),
@@ -568,7 +568,7 @@ mod tests {
         assert!(err.contains("`hyperparameter` is -1"), "{err}");
         // Beyond the flag's own range, as `--hyperparameter` refuses it.
         let err = parse_calibration_file(&v4.replace("0.0316", "1e300"), &spec).unwrap_err().to_string();
-        assert!(err.contains("`hyperparameter` is 1e300; λ must be in (0, 1000]"), "{err}");
+        assert!(err.contains("`hyperparameter` is 1e300; λ must be in [1e-6, 1000]"), "{err}");
         let missing = v3.replace("\"version\": 3", "\"version\": 4");
         let err = parse_calibration_file(&missing, &spec).unwrap_err().to_string();
         assert!(err.contains("`hyperparameter` is missing"), "{err}");

@@ -19,7 +19,7 @@ pub struct HyperparameterFlag {
 impl FromStr for HyperparameterFlag {
     type Err = String;
 
-    /// `auto`, or a number in (0, 1000], as [`Hyperparameter`] reads it.
+    /// `auto`, or a number in [1e-6, 1000], as [`Hyperparameter`] reads it.
     fn from_str(text: &str) -> Result<HyperparameterFlag, String> {
         Ok(HyperparameterFlag { written: text.to_owned(), value: text.parse()? })
     }

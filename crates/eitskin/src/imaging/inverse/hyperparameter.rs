@@ -53,8 +53,18 @@ pub const DEFAULT_RELATIVE_NOISE: f64 = 0.003;
 /// The largest λ a user may give (dimensionless): the top of the range `auto` searches.
 pub const LARGEST_HYPERPARAMETER: f64 = 1e3;
 
+/// The smallest λ a user may give (dimensionless): the bottom of the range `auto` searches
+/// (below it the system is all but unregularised, and the image is rounding: λ = 1e-300 gave
+/// ±9,000 S/m).
+pub const SMALLEST_HYPERPARAMETER: f64 = 1e-6;
+
 /// The range λ is searched in (dimensionless).
-pub(super) const SEARCH: (f64, f64) = (1e-6, LARGEST_HYPERPARAMETER);
+pub(super) const SEARCH: (f64, f64) = (SMALLEST_HYPERPARAMETER, LARGEST_HYPERPARAMETER);
+
+/// Whether a given λ is in the range a user may give, [1e-6, 1000].
+pub fn hyperparameter_in_range(lambda: f64) -> bool {
+    (SEARCH.0..=SEARCH.1).contains(&lambda)
+}
 
 /// How λ is set: a given value, or chosen from the noise (see the module doc).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -77,14 +87,14 @@ impl std::fmt::Display for Hyperparameter {
 impl FromStr for Hyperparameter {
     type Err = String;
 
-    /// `auto`, or a number in (0, 1000].
+    /// `auto`, or a number in [1e-6, 1000].
     fn from_str(text: &str) -> Result<Hyperparameter, String> {
         if text.trim() == "auto" {
             return Ok(Hyperparameter::Auto);
         }
         match text.trim().parse::<f64>() {
-            Ok(value) if value > 0.0 && value <= SEARCH.1 => Ok(Hyperparameter::Fixed(value)),
-            _ => Err(format!("\"{text}\" is neither `auto` nor a number in (0, 1000]")),
+            Ok(value) if hyperparameter_in_range(value) => Ok(Hyperparameter::Fixed(value)),
+            _ => Err(format!("\"{text}\" is neither `auto` nor a number in [1e-6, 1000]")),
         }
     }
 }

@@ -32,8 +32,9 @@ pub use channels::{
 };
 pub use criterion::{data_hyperparameter, DataCriterion};
 pub use hyperparameter::{
-    choose_hyperparameter, map_hyperparameter, noise_figure, noise_figure_hyperparameter, Hyperparameter,
-    DEFAULT_RELATIVE_NOISE, LARGEST_HYPERPARAMETER, NOISE_FIGURE_TARGET, TARGET_CONTRAST,
+    choose_hyperparameter, hyperparameter_in_range, map_hyperparameter, noise_figure, noise_figure_hyperparameter,
+    Hyperparameter, DEFAULT_RELATIVE_NOISE, LARGEST_HYPERPARAMETER, NOISE_FIGURE_TARGET, SMALLEST_HYPERPARAMETER,
+    TARGET_CONTRAST,
 };
 pub use linearisation::Linearisation;
 pub use noise_model::NoiseModel;

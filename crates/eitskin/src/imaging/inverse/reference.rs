@@ -87,12 +87,12 @@ impl HyperparameterRule {
 impl FromStr for HyperparameterRule {
     type Err = String;
 
-    /// `auto`, `gcv`, `discrepancy`, or a λ in (0, 1000].
+    /// `auto`, `gcv`, `discrepancy`, or a λ in [1e-6, 1000].
     fn from_str(text: &str) -> Result<HyperparameterRule, String> {
         match (text.parse::<DataCriterion>(), text.parse::<Hyperparameter>()) {
             (Ok(criterion), _) => Ok(HyperparameterRule::Data(criterion)),
             (_, Ok(given)) => Ok(HyperparameterRule::Model(given)),
-            _ => Err(format!("\"{text}\" is neither `auto`, `gcv`, `discrepancy` nor a number in (0, 1000]")),
+            _ => Err(format!("\"{text}\" is neither `auto`, `gcv`, `discrepancy` nor a number in [1e-6, 1000]")),
         }
     }
 }
