@@ -4,8 +4,10 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
+use eitskin::conductivity::Inclusion;
 use eitskin::memory::Stage;
-use eitskin_study::convergence::{default_inclusion, study};
+use eitskin::SensorSpec;
+use eitskin_study::convergence::{default_inclusion, study, Convergence};
 use serde::Serialize;
 
 use crate::{load, ranges};
@@ -15,7 +17,10 @@ use crate::{load, ranges};
 pub struct Args {
     /// Sensor spec file (TOML); default: the paper's sensor.
     spec: Option<PathBuf>,
-    /// Triangle counts to mesh at, comma-separated, coarse to fine, each 1–100,000,000.
+    /// Triangle counts to mesh at, comma-separated, at least 3, coarse to fine (each larger than
+    /// the one before), each 1–100,000,000; a count under the fewest the mesher makes on the
+    /// sheet, about 200 on the paper's sensor, is raised to it with a warning, and two levels
+    /// that would mesh alike are refused.
     #[arg(long, value_delimiter = ',', default_value = "500,1000,2000,4000,8000,16000,32000,64000,128000", value_parser = ranges::triangles())]
     triangles: Vec<usize>,
     /// Override the mesh grading toward electrode edges: the element size there as a fraction
@@ -58,16 +63,19 @@ pub fn run(args: Args) -> Result<()> {
         spec.mesh.grading = g;
     }
     if let Some(p) = &args.protocol {
-        spec.protocol = eitskin_io::protocol_by_name(p, std::path::Path::new("."))?;
+        spec.protocol = eitskin_io::protocol_by_name(p, std::path::Path::new("."), spec.electrodes.count)?;
     }
     load::sized(spec.clone(), args.triangles.iter().max().copied(), Stage::ForwardModel)?;
     let inclusion = match &args.inclusion {
         Some(text) => load::inclusion(text, &spec)?,
         None => default_inclusion(&spec),
     };
+    let finest = check_levels(&args.triangles, &spec)?;
+    check_inclusion(args.inclusion.as_deref(), &inclusion, finest, &spec)?;
     let Some(found) = study(&spec, &args.triangles, inclusion)? else {
         bail!("--triangles needs at least 3 levels to estimate an order, got {}", args.triangles.len());
     };
+    check_found(&args.triangles, &found)?;
     let levels = found
         .levels
         .iter()
@@ -114,6 +122,93 @@ pub fn run(args: Args) -> Result<()> {
                 None => println!("{:>5} % on {what}: not reached", target * 100.0),
             }
         }
+    }
+    Ok(())
+}
+
+/// The levels as written on the command line.
+fn written(levels: &[usize]) -> String {
+    levels.iter().map(usize::to_string).collect::<Vec<_>>().join(",")
+}
+
+/// Refuses fewer than 3 levels, and levels that are not coarse to fine once a count under the
+/// fewest the mesher makes on `spec`'s sheet is raised to it (warning of a raised one); gives
+/// the finest level's count.
+fn check_levels(levels: &[usize], spec: &SensorSpec) -> Result<usize> {
+    let list = written(levels);
+    if levels.len() < 3 {
+        bail!("--triangles {list}: needs at least 3 levels to estimate an order, got {}", levels.len());
+    }
+    let fewest = spec.fewest_triangles()?;
+    for (k, pair) in levels.windows(2).enumerate() {
+        let (coarse, fine) = (pair[0], pair[1]);
+        if fine <= coarse {
+            bail!(
+                "--triangles {list}: level {} ({fine}) is not more than level {} ({coarse}): give the counts coarse to fine, each larger than the one before",
+                k + 2,
+                k + 1
+            );
+        }
+        if fine <= fewest {
+            bail!(
+                "--triangles {list}: levels {} and {} ({coarse} and {fine}) are both {}, so both would mesh alike: start from {fewest} or more",
+                k + 1,
+                k + 2,
+                ranges::below_fewest(fewest, spec)
+            );
+        }
+    }
+    if levels[0] < fewest {
+        eprintln!(
+            "warning: --triangles {list}: level 1 ({}) is {}: it meshes with about that many",
+            levels[0],
+            ranges::below_fewest(fewest, spec)
+        );
+    }
+    Ok(levels.iter().copied().max().unwrap_or(fewest).max(fewest))
+}
+
+/// Refuses an inclusion that would give no difference signal: as the background, or covering
+/// no triangle of the finest level's mesh (off the sheet, or smaller than its triangles);
+/// `text` is its `--inclusion`, `None` for the default.
+fn check_inclusion(text: Option<&str>, inclusion: &Inclusion, finest: usize, spec: &SensorSpec) -> Result<()> {
+    let flag = text.map_or("the default inclusion".to_string(), |t| format!("--inclusion {t:?}"));
+    if inclusion.conductivity == spec.conductivity {
+        bail!(
+            "{flag}: its conductivity is the background's ({} S/m), so there is no difference signal to converge: give another",
+            spec.conductivity
+        );
+    }
+    let mut finest_spec = spec.clone();
+    (finest_spec.mesh.triangles, finest_spec.mesh.max_element_size) = (finest, None);
+    let mesh = finest_spec.mesh()?;
+    eitskin::conductivity::check_inclusion(&mesh, inclusion, spec.length_unit)
+        .map_err(|e| anyhow::anyhow!("{flag}: on the finest level's mesh, {e}"))?;
+    Ok(())
+}
+
+/// Refuses a study whose levels did not mesh finer and finer, or whose errors are not numbers,
+/// rather than print them.
+fn check_found(levels: &[usize], found: &Convergence) -> Result<()> {
+    let list = written(levels);
+    for (k, pair) in found.levels.windows(2).enumerate() {
+        if pair[1].triangles <= pair[0].triangles {
+            bail!(
+                "--triangles {list}: levels {} and {} gave meshes of {} and {} triangles, not finer and finer: space the counts further apart (e.g. each twice the one before)",
+                k + 1,
+                k + 2,
+                pair[0].triangles,
+                pair[1].triangles
+            );
+        }
+    }
+    if let Some(l) = found.levels.iter().find(|l| !(l.value_error.is_finite() && l.difference_error.is_finite())) {
+        bail!(
+            "the level of {} triangles has an error that is not a number (values {}, differences {}): the converged answer is 0 everywhere",
+            l.triangles,
+            l.value_error,
+            l.difference_error
+        );
     }
     Ok(())
 }

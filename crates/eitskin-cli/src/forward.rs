@@ -2,9 +2,10 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
-use eitskin::conductivity::with_inclusions;
+use anyhow::{Context, Result};
+use eitskin::conductivity::{check_inclusion, with_inclusions, Inclusion};
 use eitskin::memory::Stage;
+use eitskin::{LengthUnit, Mesh};
 use serde::Serialize;
 
 use crate::{load, ranges};
@@ -25,7 +26,9 @@ pub struct Args {
     #[arg(long)]
     mesh: Option<PathBuf>,
     /// Mesh with about this many triangles instead of the spec's count, 1–100,000,000 (refused
-    /// when the mesh and what is built on it would not fit in the memory available).
+    /// when the mesh and what is built on it would not fit in the memory available; a count
+    /// under the fewest the mesher makes on the sheet, about 200 on the paper's sensor, is
+    /// raised to it with a warning).
     #[arg(long, value_parser = ranges::triangles())]
     triangles: Option<usize>,
     /// Output format.
@@ -56,15 +59,21 @@ struct Output<'a> {
 pub fn run(args: Args) -> Result<()> {
     let mut spec = load::spec(args.spec.as_deref())?;
     if let Some(p) = &args.protocol {
-        spec.protocol = eitskin_io::protocol_by_name(p, std::path::Path::new("."))?;
+        spec.protocol = eitskin_io::protocol_by_name(p, std::path::Path::new("."), spec.electrodes.count)?;
     }
     // A mesh file sets the size itself: nothing is meshed.
     let spec = if args.mesh.is_none() { load::sized(spec, args.triangles, Stage::ForwardModel)? } else { spec };
     let inclusions = args.inclusion.iter().map(|t| load::inclusion(t, &spec)).collect::<Result<Vec<_>>>()?;
-    let model = match &args.mesh {
-        Some(path) => spec.forward_model_on(eitskin_io::read_mesh(path)?)?,
-        None => spec.forward_model()?,
+    let mesh = match &args.mesh {
+        Some(path) => eitskin_io::read_mesh(path)?,
+        None => {
+            let mesh = spec.mesh()?;
+            ranges::warn_raised_triangles(args.triangles, &mesh, &spec)?;
+            mesh
+        }
     };
+    check_inclusions(&args.inclusion, &inclusions, &mesh, spec.length_unit)?;
+    let model = spec.forward_model_on(mesh)?;
     let sigma = with_inclusions(model.mesh(), spec.conductivity, &inclusions);
     let values = model.measure(&sigma)?;
     match args.format {
@@ -85,6 +94,15 @@ pub fn run(args: Args) -> Result<()> {
                 println!("{},{v:e}", i + 1);
             }
         }
+    }
+    Ok(())
+}
+
+/// Refuses an inclusion that would change nothing on `mesh` (off the sheet, or covering no
+/// triangle's centroid), quoting its `--inclusion` text; lengths in `unit`, the spec's.
+fn check_inclusions(texts: &[String], inclusions: &[Inclusion], mesh: &Mesh, unit: LengthUnit) -> Result<()> {
+    for (text, inclusion) in texts.iter().zip(inclusions) {
+        check_inclusion(mesh, inclusion, unit).with_context(|| format!("--inclusion {text:?}"))?;
     }
     Ok(())
 }

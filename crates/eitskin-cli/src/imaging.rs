@@ -363,6 +363,7 @@ pub fn reconstruct(input: &Input) -> Result<Recording> {
     let Read { mut references, selected, first } = read_input(input, &spec)?;
     let Kept { numbers, frames: mut selected, refused } = without_empty(input, selected, first)?;
     let lin = eitskin_io::build::linearisation(&spec, !input.no_cache)?;
+    crate::ranges::warn_raised_triangles(input.triangles, lin.mesh(), &spec)?;
     let (pattern_fit, gains) = signed_and_gained(input, lin.background(), &mut references, &mut selected);
     let setup = setup(input, spec, &lin, (&references, &selected), pattern_fit, gains)?;
     let recording = Recording { setup, imaged: Vec::new(), refused };

@@ -16,7 +16,9 @@ pub struct Args {
     #[arg(long, short, default_value = "mesh.json", value_parser = outputs::writes(&["json"]))]
     out: PathBuf,
     /// Mesh with about this many triangles instead of the spec's count, 1–100,000,000 (refused
-    /// when the mesh and what is built on it would not fit in the memory available).
+    /// when the mesh and what is built on it would not fit in the memory available; a count
+    /// under the fewest the mesher makes on the sheet, about 200 on the paper's sensor, is
+    /// raised to it with a warning).
     #[arg(long, value_parser = ranges::triangles())]
     triangles: Option<usize>,
 }
@@ -29,6 +31,7 @@ pub fn run(args: Args) -> Result<()> {
     outputs::check(&[("--out", &args.out), ("--out's picture", &png)], &spec)?;
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Mesh)?;
     let mesh = spec.mesh()?;
+    ranges::warn_raised_triangles(args.triangles, &mesh, &spec)?;
     let mut staged = outputs::Staged::default();
     std::fs::write(staged.path(&args.out), eitskin_io::mesh_to_json(&mesh))
         .with_context(|| format!("writing {}", args.out.display()))?;

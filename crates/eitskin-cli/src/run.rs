@@ -205,6 +205,11 @@ pub fn run(args: Args) -> Result<()> {
     }
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
     let setup::Built { pipeline, params, imaging, learned } = setup::build(&args, &spec)?;
+    crate::ranges::warn_raised_triangles(
+        args.triangles,
+        pipeline.chain().reconstructor().linearisation().mesh(),
+        &spec,
+    )?;
     let kind = args.values.kind(args.component);
     let settings = SourceSettings {
         rate: args.rate,

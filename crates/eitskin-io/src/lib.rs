@@ -82,8 +82,8 @@ pub use reconstructor_file::{
     load_or_build,
 };
 pub use samples_file::{
-    check_labels_on_sheet, labelled_presses_to_csv, parse_samples, read_labelled_presses, read_samples, Location,
-    Measured, SampleRow, OFF_SHEET, SPECK,
+    check_labels_on_sheet, labelled_presses_to_csv, off_sheet, parse_samples, read_labelled_presses, read_samples,
+    Location, Measured, SampleRow, OFF_SHEET, SPECK,
 };
 pub use spec_file::{parse_spec, protocol_by_name, protocol_kind, read_spec, spec_to_toml};
 

@@ -10,6 +10,16 @@
 //! `stimulations` (current per electrode, A) and `measurements` (`{"stimulation": k, "weights": […]}`
 //! with k counted from `index_base`). Other keys are ignored, so files of other tools load.
 //!
+//! Each stimulation's currents sum to 0 and each measurement's weights sum to 0 (a
+//! difference). A stimulation must drive some current and a measurement weigh some electrode
+//! (all zeros are refused), and no current may be past ±1e3 A nor any weight past ±1e3 in
+//! size ([`MAX_CURRENT`], [`MAX_WEIGHT`]): boards drive mA and weigh by ±1, so a larger value is
+//! a unit slip. A sensor takes a protocol of as many electrodes as its spec's
+//! `electrodes.count` ([`read_protocol_for`]).
+//!
+//! [`MAX_CURRENT`]: eitskin::protocol::MAX_CURRENT
+//! [`MAX_WEIGHT`]: eitskin::protocol::MAX_WEIGHT
+//!
 //! Published data sets give the patterns as two matrices instead, in a MAT file
 //! ([`read_protocol_matrices`]): the currents of each stimulation (electrodes × stimulations,
 //! e.g. `Inj`) and the weights of each measurement pattern (electrodes × patterns, e.g. `Mpat`),
@@ -53,6 +63,29 @@ pub fn read_protocol(path: &Path) -> Result<Protocol, Error> {
     let text = crate::read_text(path)?;
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     parse_protocol(&text, &name).map_err(|e| e.in_file(path))
+}
+
+/// Reads a protocol file for a sensor of `electrodes` electrodes, refusing one of another
+/// count, naming the file.
+pub fn read_protocol_for(path: &Path, electrodes: usize) -> Result<Protocol, Error> {
+    let protocol = read_protocol(path)?;
+    check_electrodes(&protocol, electrodes).map_err(|e| e.in_file(path))?;
+    Ok(protocol)
+}
+
+/// Refuses `protocol` unless it has `electrodes` electrodes (the spec's `electrodes.count`).
+fn check_electrodes(protocol: &Protocol, electrodes: usize) -> Result<(), Error> {
+    let count = protocol.electrode_count();
+    if count == electrodes {
+        return Ok(());
+    }
+    Err(Error::Key {
+        path: None,
+        key: "electrodes",
+        reason: format!(
+            "is {count} (as given, or the most its patterns name), but the sensor has {electrodes} electrodes (the spec's `electrodes.count`): is it another sensor's protocol?"
+        ),
+    })
 }
 
 /// A protocol from two matrices of a MAT file: `stimulation` (the current of each electrode in
@@ -160,6 +193,37 @@ mod tests {
         let builtin = Protocol::adjacent(16, true).unwrap();
         assert_eq!(a.stimulations()[0], builtin.stimulations()[0]);
         assert_eq!(a.measurements()[0], builtin.measurements()[0]);
+    }
+
+    /// All-zero and huge patterns are refused, naming the file and the pattern; a protocol
+    /// of another electrode count than the sensor's names the file.
+    #[test]
+    fn empty_huge_and_other_sensors_patterns_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, text: &str| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, text).unwrap();
+            path
+        };
+        let message = |path: &Path| crate::full_message(&read_protocol_for(path, 3).unwrap_err());
+        let zero = write(
+            "zero.json",
+            r#"{"stimulations": [[1, -1, 0], [0, 0, 0]], "measurements": [{"stimulation": 1, "weights": [0, 1, -1]}]}"#,
+        );
+        let text = message(&zero);
+        assert!(text.contains("zero.json") && text.contains("stimulation 2 drives no current"), "{text}");
+        let huge = write(
+            "huge.json",
+            r#"{"stimulations": [[1e300, -1e300, 0]], "measurements": [{"stimulation": 1, "weights": [0, 1, -1]}]}"#,
+        );
+        let text = message(&huge);
+        assert!(text.contains("huge.json") && text.contains("1e300 A on electrode 1: past ±1e3 A"), "{text}");
+        let eight = write("pr_el8.json", r#"{"quads": [[1, 2, 3, 4], [1, 2, 7, 8]]}"#);
+        let text = message(&eight);
+        assert!(text.starts_with(&format!("{}: `electrodes` is 8", eight.display())), "{text}");
+        assert!(text.contains("the sensor has 3 electrodes"), "{text}");
+        let three = write("three.json", r#"{"quads": [[1, 2, 2, 3]]}"#);
+        assert_eq!(read_protocol_for(&three, 3).unwrap().electrode_count(), 3);
     }
 
     #[test]

@@ -188,13 +188,20 @@ pub const OFF_SHEET: f64 = 0.5;
 /// most 1/1000 of a sheet.
 pub const SPECK: f64 = 500.0;
 
+/// Whether a press centre (m) lies more than [`OFF_SHEET`] of the outline's size outside its
+/// box on `spec`'s sheet: a unit or an origin gone wrong, not a press (labels, press scripts).
+pub fn off_sheet([x, y]: [f64; 2], spec: &SensorSpec) -> bool {
+    let [[x0, y0], [x1, y1]] = spec.outline.bounds();
+    let margin = OFF_SHEET * (x1 - x0).max(y1 - y0);
+    x < x0 - margin || x > x1 + margin || y < y0 - margin || y > y1 + margin
+}
+
 /// Refuses presses labelled more than [`OFF_SHEET`] of the outline's size outside its box on
 /// `spec`'s sheet (a unit or an origin gone wrong, not a press), or all within a speck of it
 /// ([`SPECK`]), quoting the labels and the outline's span in the spec's unit.
 pub fn check_labels_on_sheet(presses: &[LabelledPress], spec: &SensorSpec) -> Result<(), Error> {
     let [[x0, y0], [x1, y1]] = spec.outline.bounds();
     let size = (x1 - x0).max(y1 - y0);
-    let margin = OFF_SHEET * size;
     let (per_metre, unit) = (1.0 / spec.length_unit.metres(), spec.length_unit.symbol());
     // Labels all within a speck of the sheet: written in metres where the spec reads mm, say.
     let span = |axis: usize| {
@@ -210,8 +217,7 @@ pub fn check_labels_on_sheet(presses: &[LabelledPress], spec: &SensorSpec) -> Re
         );
         return Err(Error::Key { path: None, key: "x, y", reason });
     }
-    let far = |[x, y]: [f64; 2]| x < x0 - margin || x > x1 + margin || y < y0 - margin || y > y1 + margin;
-    let Some(k) = presses.iter().position(|p| far(p.position)) else { return Ok(()) };
+    let Some(k) = presses.iter().position(|p| off_sheet(p.position, spec)) else { return Ok(()) };
     let [x, y] = presses[k].position.map(|v| crate::Quoted(v * per_metre));
     let [x0, x1, y0, y1] = [x0, x1, y0, y1].map(|v| v * per_metre);
     let reason = format!(

@@ -198,12 +198,13 @@ pub fn protocol_kind(protocol: &ProtocolSpec) -> String {
 }
 
 /// A protocol named as on the command line or in `protocol.kind` (one of
-/// [`ProtocolSpec::NAMES`]); anything else is a protocol file, relative to `base`.
-pub fn protocol_by_name(name: &str, base: &Path) -> Result<ProtocolSpec, Error> {
+/// [`ProtocolSpec::NAMES`]); anything else is a protocol file, relative to `base`, for a
+/// sensor of `electrodes` electrodes (a file of another count is refused, naming it).
+pub fn protocol_by_name(name: &str, base: &Path, electrodes: usize) -> Result<ProtocolSpec, Error> {
     match ProtocolSpec::from_name(name) {
         Some(builtin) => Ok(builtin),
         None if !base.join(name).exists() => Err(Error::UnknownProtocol { name: name.into() }),
-        None => Ok(ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(name))?)),
+        None => Ok(ProtocolSpec::Custom(protocol_file::read_protocol_for(&base.join(name), electrodes)?)),
     }
 }
 
@@ -303,7 +304,7 @@ impl SpecFile {
                     measurement,
                     e.count,
                 )?),
-                None => ProtocolSpec::Custom(protocol_file::read_protocol(&base.join(file))?),
+                None => ProtocolSpec::Custom(protocol_file::read_protocol_for(&base.join(file), e.count)?),
             },
             ("custom", None) => return Err(key_error("protocol.file", "is required for kind = \"custom\"".into())),
             (_, Some(_)) => return Err(key_error("protocol.file", "applies only to kind = \"custom\"".into())),
@@ -406,6 +407,24 @@ drop_electrodes = [3]
         assert_eq!(err.to_string(), "`protocol.drop_electrodes` counts from 1, got 0");
         let all = parse_spec(&text.replace("skip-2", "skip-2-all"), Path::new(".")).unwrap();
         assert_eq!(all.protocol().unwrap().len(), 256);
+    }
+
+    /// A custom protocol file of another electrode count than the spec's is refused when the
+    /// spec is read, naming the protocol's file (the forward model said only "the protocol has
+    /// 8 electrodes but the mesh has 16"); so is one named on the command line.
+    #[test]
+    fn a_protocol_of_another_electrode_count_names_its_file() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("pr_el8.json"), r#"{"electrodes": 8, "quads": [[1, 2, 3, 4]]}"#).unwrap();
+        let spec = spec_to_toml(&SensorSpec::square_hydrogel())
+            .replace("kind = \"two-terminal\"", "kind = \"custom\"\nfile = \"pr_el8.json\"");
+        let err = crate::full_message(&parse_spec(&spec, dir.path()).unwrap_err());
+        let file = dir.path().join("pr_el8.json");
+        assert!(err.starts_with(&format!("{}: `electrodes` is 8", file.display())), "{err}");
+        assert!(err.contains("the sensor has 16 electrodes"), "{err}");
+        let err = crate::full_message(&protocol_by_name("pr_el8.json", dir.path(), 16).unwrap_err());
+        assert!(err.starts_with(&format!("{}: `electrodes` is 8", file.display())), "{err}");
+        assert!(protocol_by_name("pr_el8.json", dir.path(), 8).is_ok());
     }
 
     #[test]

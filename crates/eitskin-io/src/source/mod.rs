@@ -251,7 +251,7 @@ impl Source {
                     return Err(SourceError::ValuesPerMeasurement { per });
                 }
                 let script = match script {
-                    Some(path) => read_script(path, sensor.length_unit.metres())?,
+                    Some(path) => read_script(path, sensor)?,
                     None => Script::random(&sensor.outline, RANDOM_PRESS_PERIOD_S, RANDOM_PRESSES, settings.seed),
                 };
                 let skin = VirtualSensor::new(sensor, settings.seed)?;
@@ -310,12 +310,29 @@ impl fmt::Debug for Source {
     }
 }
 
-/// Reads and parses a press script, positions in units of `metres` m.
-fn read_script(path: &Path, metres: f64) -> Result<Script, SourceError> {
+/// Reads and parses a press script for `sensor`, positions in its length unit; a press centred
+/// off the sheet is refused by line ([`press_on_sheet`]).
+fn read_script(path: &Path, sensor: &SensorSpec) -> Result<Script, SourceError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| SourceError::Read { path: path.to_path_buf(), reason: e.to_string() })?;
     let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
-    Script::parse(text, metres).map_err(|error| SourceError::Script { path: path.to_path_buf(), error })
+    Script::parse_where(text, sensor.length_unit.metres(), |centre| press_on_sheet(centre, sensor))
+        .map_err(|error| SourceError::Script { path: path.to_path_buf(), error })
+}
+
+/// Refuses a press centre (m) more than [`OFF_SHEET`](crate::OFF_SHEET) of the outline's size
+/// outside its box, as presses' labels are: a unit or an origin gone wrong, not a press.
+fn press_on_sheet([x, y]: [f64; 2], sensor: &SensorSpec) -> Result<(), String> {
+    if !crate::off_sheet([x, y], sensor) {
+        return Ok(());
+    }
+    let [[x0, y0], [x1, y1]] = sensor.outline.bounds();
+    let (per_metre, unit) = (1.0 / sensor.length_unit.metres(), sensor.length_unit.symbol());
+    let [x, y] = [x, y].map(|v| crate::Quoted(v * per_metre));
+    let [x0, x1, y0, y1] = [x0, x1, y0, y1].map(|v| crate::Quoted(v * per_metre));
+    Err(format!(
+        "the press at ({x}, {y}) {unit} is far off the sheet (its outline spans {x0} to {x1} by {y0} to {y1} {unit}): give it in the spec's unit ({unit}), from the outline's origin"
+    ))
 }
 
 /// Frame k of a clock of `period` per frame started at `start`: sleeps until it is due.
@@ -349,9 +366,35 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("script.txt");
         std::fs::write(&path, "\u{feff}0 1 50 -20 8\n").unwrap();
-        let script = read_script(&path, 1e-3).unwrap();
+        let sensor = SensorSpec::square_hydrogel();
+        let script = read_script(&path, &sensor).unwrap();
         std::fs::write(&path, "0 1 50 -20 8\n").unwrap();
-        assert_eq!(script, read_script(&path, 1e-3).unwrap());
+        assert_eq!(script, read_script(&path, &sensor).unwrap());
+    }
+
+    /// A press far off the sheet is refused naming the file and line, quoting it in the spec's
+    /// unit; one a little outside the outline (a frame's offset) stands, as labels do.
+    #[test]
+    fn a_press_off_the_sheet_is_refused_by_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("script.txt");
+        let sensor = SensorSpec::square_hydrogel(); // 200 mm, from -100 to 100 mm
+        std::fs::write(&path, "# t0 t1 x y F\n0 1 0 0 8\n1 2 5000 0 8\n").unwrap();
+        let err = read_script(&path, &sensor).unwrap_err().to_string();
+        assert_eq!(
+            err,
+            format!(
+                "{}: script line 3: the press at (5000, 0) mm is far off the sheet (its outline spans -100 to 100 by -100 to 100 mm): give it in the spec's unit (mm), from the outline's origin",
+                path.display()
+            )
+        );
+        std::fs::write(&path, "0 1 190 -190 8\n").unwrap();
+        assert!(read_script(&path, &sensor).is_ok());
+        std::fs::write(&path, "0 1 0 nan 8\n").unwrap();
+        assert!(read_script(&path, &sensor)
+            .unwrap_err()
+            .to_string()
+            .ends_with("script line 1: nan is not a finite number"));
     }
 
     fn bad(seq: u64) -> Result<Acquired, SourceError> {

@@ -3,8 +3,102 @@
 //! A triangle cut by an inclusion's circle gets the area-weighted value
 //! σ_e = (1 − f_e)·σ_e + f_e·σ_incl, with f_e the exact share of the triangle's area inside
 //! the circle. Inclusions are applied in order, so a later one overrides an earlier one.
+//!
+//! [`check_inclusion`] refuses an inclusion that would change nothing on a mesh: its disc
+//! covers no triangle's centroid (off the sheet, or smaller than the mesh's triangles).
+//! Conductivities, a spec's and an inclusion's, lie in [[`MIN_CONDUCTIVITY`],
+//! [`MAX_CONDUCTIVITY`]] S/m.
 
-use crate::mesh::Mesh;
+use thiserror::Error;
+
+use crate::mesh::{Mesh, PointLocator};
+use crate::spec::{LengthUnit, Quantity};
+
+/// The least conductivity a spec or an inclusion takes, in S/m: a millionth of tap water's
+/// order; below it the model's matrix loses its positive pivots to rounding.
+pub const MIN_CONDUCTIVITY: f64 = 1e-6;
+
+/// The largest conductivity a spec or an inclusion takes, in S/m: beyond a metal's order (a
+/// tenth of copper's), far past any skin.
+pub const MAX_CONDUCTIVITY: f64 = 1e6;
+
+/// Whether `conductivity` (S/m) is a finite number in [[`MIN_CONDUCTIVITY`], [`MAX_CONDUCTIVITY`]].
+pub fn conductivity_in_range(conductivity: f64) -> bool {
+    (MIN_CONDUCTIVITY..=MAX_CONDUCTIVITY).contains(&conductivity)
+}
+
+/// Why an inclusion is refused on a mesh; lengths quoted in the `unit` the user gave them in.
+#[derive(Debug, Clone, Copy, PartialEq, Error)]
+pub enum InclusionError {
+    /// Its centre lies off the sheet, and its disc covers no triangle's centroid.
+    #[error(
+        "its centre ({}, {}) {unit} is off the sheet (x from {} to {} {unit}, y from {} to {} {unit}) and its disc covers no triangle of the mesh: give a centre on the sheet, in {unit} from the outline's origin",
+        plain(*unit, centre[0]), plain(*unit, centre[1]), plain(*unit, bounds[0][0]), plain(*unit, bounds[1][0]),
+        plain(*unit, bounds[0][1]), plain(*unit, bounds[1][1]), unit = unit.symbol()
+    )]
+    OffSheet {
+        /// The centre given, in m.
+        centre: [f64; 2],
+        /// The mesh's bounding box, `[[x_min, y_min], [x_max, y_max]]`, in m.
+        bounds: [[f64; 2]; 2],
+        /// The unit the user gives lengths in, which the message quotes them in.
+        unit: LengthUnit,
+    },
+    /// Its disc, on the sheet, is too small to cover any triangle's centroid.
+    #[error(
+        "its radius {} covers no triangle's centroid of this mesh of {triangles} triangles, so it would change nothing: give a radius of at least {}, or mesh with more triangles",
+        unit.quote(*radius), Quantity::derived(smallest / unit.metres(), unit.symbol())
+    )]
+    TooSmall {
+        /// The radius given, in m.
+        radius: f64,
+        /// The smallest radius that covers a centroid (the distance to the nearest), in m.
+        smallest: f64,
+        /// Triangles in the mesh.
+        triangles: usize,
+        /// The unit the user gives lengths in, which the message quotes them in.
+        unit: LengthUnit,
+    },
+    /// Its conductivity is outside [[`MIN_CONDUCTIVITY`], [`MAX_CONDUCTIVITY`]].
+    #[error("its conductivity {} is outside {CONDUCTIVITY_RANGE}", Quantity::written(*conductivity, "S/m"))]
+    Conductivity {
+        /// The conductivity given, in S/m.
+        conductivity: f64,
+    },
+}
+
+/// [`MIN_CONDUCTIVITY`] to [`MAX_CONDUCTIVITY`] as messages state the range.
+pub const CONDUCTIVITY_RANGE: &str = "[1e-6, 1e6] S/m";
+
+/// `metres` in `unit`, as written, without the unit's symbol.
+fn plain(unit: LengthUnit, metres: f64) -> Quantity {
+    Quantity::written(metres / unit.metres(), "")
+}
+
+/// Checks that `inclusion` changes `mesh`: its conductivity is in range and its disc covers
+/// the centroid of at least one triangle; gives the number of triangles whose centroid it
+/// covers. A disc that covers none is refused as off the sheet when its centre lies outside
+/// the mesh, and as too small otherwise (with the smallest radius that would cover one);
+/// `unit` is the unit the messages quote lengths in.
+pub fn check_inclusion(mesh: &Mesh, inclusion: &Inclusion, unit: LengthUnit) -> Result<usize, InclusionError> {
+    if !conductivity_in_range(inclusion.conductivity) {
+        return Err(InclusionError::Conductivity { conductivity: inclusion.conductivity });
+    }
+    let distance = |t: usize| {
+        let [x, y] = mesh.centroid(t);
+        (x - inclusion.centre[0]).hypot(y - inclusion.centre[1])
+    };
+    let triangles = mesh.triangles().len();
+    let covered = (0..triangles).filter(|&t| distance(t) <= inclusion.radius).count();
+    if covered > 0 {
+        return Ok(covered);
+    }
+    if PointLocator::new(mesh).locate(inclusion.centre).is_none() {
+        return Err(InclusionError::OffSheet { centre: inclusion.centre, bounds: mesh.bounds(), unit });
+    }
+    let smallest = (0..triangles).map(distance).fold(f64::INFINITY, f64::min);
+    Err(InclusionError::TooSmall { radius: inclusion.radius, smallest, triangles, unit })
+}
 
 /// A circular region of different conductivity: centre and radius in m, conductivity in S/m.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,6 +195,38 @@ mod tests {
     use std::f64::consts::PI;
 
     const TRI: [[f64; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+
+    /// An inclusion off the sheet, or smaller than the triangles, is refused, saying which and
+    /// quoting the values in the user's unit; one that covers a centroid is not.
+    #[test]
+    fn an_inclusion_that_covers_no_triangle_is_refused() {
+        let mut spec = crate::SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 500;
+        let mesh = spec.mesh().unwrap();
+        let mm = LengthUnit::Millimetre;
+        let inclusion = |x: f64, radius: f64| Inclusion { centre: [x, 0.0], radius, conductivity: 0.5 };
+        assert!(check_inclusion(&mesh, &inclusion(0.0, 0.03), mm).unwrap() > 0);
+        let err = check_inclusion(&mesh, &inclusion(5.0, 0.01), mm).unwrap_err();
+        assert!(matches!(err, InclusionError::OffSheet { .. }), "{err}");
+        assert!(
+            err.to_string()
+                .starts_with("its centre (5000, 0) mm is off the sheet (x from -100 to 100 mm, y from -100 to 100 mm)"),
+            "{err}"
+        );
+        let err = check_inclusion(&mesh, &inclusion(0.0, 1e-12), mm).unwrap_err();
+        let InclusionError::TooSmall { smallest, triangles, .. } = err else { panic!("{err}") };
+        assert!(smallest > 1e-12 && smallest < 0.02 && triangles == mesh.triangles().len(), "{err}");
+        assert!(err.to_string().starts_with("its radius 1e-9 mm covers no triangle's centroid"), "{err}");
+        // The smallest radius it names does cover one.
+        assert!(check_inclusion(&mesh, &inclusion(0.0, smallest), mm).is_ok());
+        // Off the sheet but reaching over its edge: it covers triangles, so it stands.
+        assert!(check_inclusion(&mesh, &inclusion(0.11, 0.05), mm).is_ok());
+        let wrong = Inclusion { conductivity: 1e-300, ..inclusion(0.0, 0.03) };
+        assert_eq!(
+            check_inclusion(&mesh, &wrong, mm).unwrap_err().to_string(),
+            "its conductivity 1e-300 S/m is outside [1e-6, 1e6] S/m"
+        );
+    }
 
     #[test]
     fn whole_triangle_and_whole_disk() {

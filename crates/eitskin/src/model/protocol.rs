@@ -3,7 +3,9 @@
 //! A [`Protocol`] is a list of stimulations (the current through each electrode, in A; they
 //! sum to zero) and a list of measurements (a stimulation index and a weight per electrode;
 //! the weights sum to zero, so a measurement is a voltage difference, in V). Electrodes are
-//! indexed from 0 here and numbered from 1 in files and messages.
+//! indexed from 0 here and numbered from 1 in files and messages. Every stimulation drives
+//! some current and every measurement weighs some electrode, and no current is past
+//! [`MAX_CURRENT`] nor weight past [`MAX_WEIGHT`] in size.
 //!
 //! The built-in protocols and their frame order (k the stimulation, m the measured pair,
 //! both from 0 and taken modulo L; "skip driven" drops every pair that shares an electrode
@@ -31,6 +33,14 @@ use thiserror::Error;
 
 /// The most electrodes a protocol (and a spec's `electrodes.count`) takes.
 pub const MAX_ELECTRODES: usize = 256;
+
+/// The largest current a stimulation may put through an electrode, in A (either sign): a
+/// thousand times what an EIT board drives (mA); past it, a value is a unit slip.
+pub const MAX_CURRENT: f64 = 1e3;
+
+/// The largest weight a measurement may give an electrode's voltage, in size (dimensionless;
+/// boards weigh by ±1, or a gain of a few).
+pub const MAX_WEIGHT: f64 = 1e3;
 
 /// What is wrong with a protocol; indices in messages are 1-based, as a user counts.
 #[derive(Debug, Error, PartialEq)]
@@ -81,6 +91,31 @@ pub enum ProtocolError {
         /// 1-based index of the pattern.
         index: usize,
     },
+    /// A stimulation whose currents are all 0, or a measurement whose weights are all 0.
+    #[error("{what} {index} {reason}", reason = if *what == "stimulation" { "drives no current: every electrode's current is 0 A" } else { "weighs no electrode: every weight is 0" })]
+    Nothing {
+        /// "stimulation" or "measurement".
+        what: &'static str,
+        /// 1-based index of the pattern.
+        index: usize,
+    },
+    /// A current past [`MAX_CURRENT`] or a weight past [`MAX_WEIGHT`] in size.
+    #[error(
+        "{what} {index} {} on electrode {electrode}: past ±{max:e}{}, more than any board uses",
+        too_large(what, *value), pattern_unit(what)
+    )]
+    TooLarge {
+        /// "stimulation" or "measurement".
+        what: &'static str,
+        /// 1-based index of the pattern.
+        index: usize,
+        /// 1-based electrode.
+        electrode: usize,
+        /// The current (A) or weight found.
+        value: f64,
+        /// [`MAX_CURRENT`] or [`MAX_WEIGHT`].
+        max: f64,
+    },
     /// A measurement names a stimulation that does not exist.
     #[error("measurement {index} uses stimulation {stimulation}, but there are only {count}")]
     NoSuchStimulation {
@@ -117,6 +152,25 @@ pub enum ProtocolError {
         /// The electrode (1-based).
         electrode: usize,
     },
+}
+
+/// The unit of a pattern's values, as a message writes it after a number: " A" for a
+/// stimulation's currents, none for a measurement's weights.
+fn pattern_unit(what: &str) -> &'static str {
+    if what == "stimulation" {
+        " A"
+    } else {
+        ""
+    }
+}
+
+/// "puts a current of 5 A" or "gives a weight of 5", for [`ProtocolError::TooLarge`].
+fn too_large(what: &str, value: f64) -> String {
+    let value = crate::spec::Quantity::written(value, "");
+    match what {
+        "stimulation" => format!("puts a current of {value} A"),
+        _ => format!("gives a weight of {value}"),
+    }
 }
 
 /// One measurement: which stimulation is applied and the weight of each electrode's voltage.
@@ -162,6 +216,19 @@ impl Protocol {
             }
             if values.iter().any(|v| !v.is_finite()) {
                 return Err(ProtocolError::NotFinite { what, index: index + 1 });
+            }
+            let max = if what == "stimulation" { MAX_CURRENT } else { MAX_WEIGHT };
+            if let Some(e) = values.iter().position(|v| v.abs() > max) {
+                return Err(ProtocolError::TooLarge {
+                    what,
+                    index: index + 1,
+                    electrode: e + 1,
+                    value: values[e],
+                    max,
+                });
+            }
+            if values.iter().all(|&v| v == 0.0) {
+                return Err(ProtocolError::Nothing { what, index: index + 1 });
             }
             let sum: f64 = values.iter().sum();
             let scale = values.iter().map(|v| v.abs()).sum::<f64>().max(1.0);
@@ -569,5 +636,32 @@ mod tests {
         assert_eq!(err.to_string(), "row 2 names electrode 17, but electrodes are numbered 1 to 16");
         let err = Protocol::from_quads("q", 16, &[[1, 2, 3, 3]]).unwrap_err();
         assert_eq!(err, ProtocolError::SamePair { row: 1, electrode: 3 });
+    }
+
+    /// A stimulation of no current, a measurement of no weight, and currents or weights past
+    /// their bound are refused, naming which (1-based); they gave values of 0 or 1e300 Ω.
+    #[test]
+    fn empty_and_huge_patterns_are_refused() {
+        let m = |stimulation, weights: [f64; 3]| Measurement { stimulation, weights: weights.to_vec() };
+        let new = |stimulations: Vec<[f64; 3]>, measurements| {
+            Protocol::new("x", 3, stimulations.iter().map(|s| s.to_vec()).collect(), measurements)
+        };
+        let drive = [1.0, -1.0, 0.0];
+        let err = new(vec![drive, [0.0; 3]], vec![m(0, [0.0, 1.0, -1.0])]).unwrap_err();
+        assert_eq!(err.to_string(), "stimulation 2 drives no current: every electrode's current is 0 A");
+        let err = new(vec![drive], vec![m(0, [0.0, 1.0, -1.0]), m(0, [0.0; 3])]).unwrap_err();
+        assert_eq!(err.to_string(), "measurement 2 weighs no electrode: every weight is 0");
+        let err = new(vec![[0.0, 1e300, -1e300]], vec![m(0, [0.0, 1.0, -1.0])]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "stimulation 1 puts a current of 1e300 A on electrode 2: past ±1e3 A, more than any board uses"
+        );
+        let err = new(vec![drive], vec![m(0, [0.0, 1.0, -1.0]), m(0, [-2e3, 1e3, 1e3])]).unwrap_err();
+        assert_eq!(
+            err,
+            ProtocolError::TooLarge { what: "measurement", index: 2, electrode: 1, value: -2e3, max: MAX_WEIGHT }
+        );
+        // At the bounds they stand.
+        assert!(new(vec![[MAX_CURRENT, -MAX_CURRENT, 0.0]], vec![m(0, [0.0, MAX_WEIGHT, -MAX_WEIGHT])]).is_ok());
     }
 }

@@ -30,6 +30,7 @@ use rand::Rng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
+use crate::calibration::MAX_FORCE;
 use crate::conductivity::{box_distance, mixed, triangle_box, Inclusion};
 use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
 use crate::spec::{SensorSpec, SpecError};
@@ -404,10 +405,26 @@ pub struct ScriptError {
     pub reason: String,
 }
 
+/// The latest time a press script may name, in s (about 31 years): no run reaches it, so a
+/// later one is a slip, not a press.
+pub const MAX_SCRIPT_TIME: f64 = 1e9;
+
 impl Script {
     /// Parses lines `start end x y force` (seconds, positions in units of `metres` m, N),
-    /// separated by spaces, tabs or commas; `#` starts a comment.
+    /// separated by spaces, tabs or commas; `#` starts a comment. Every number is finite; times
+    /// run from 0 to [`MAX_SCRIPT_TIME`] s with the end after the start, and forces from 0 to
+    /// [`MAX_FORCE`] N; an error names the line and quotes the value as written.
     pub fn parse(text: &str, metres: f64) -> Result<Script, ScriptError> {
+        Script::parse_where(text, metres, |_| Ok(()))
+    }
+
+    /// [`Script::parse`], also refusing a press whose centre (m) `place` refuses: its `Err`
+    /// is the reason, quoted after the line (e.g. "the centre (5000, 0) mm is off the sheet").
+    pub fn parse_where(
+        text: &str,
+        metres: f64,
+        place: impl Fn([f64; 2]) -> Result<(), String>,
+    ) -> Result<Script, ScriptError> {
         let mut presses = Vec::new();
         for (n, line) in text.lines().enumerate() {
             let line = line.split('#').next().unwrap_or("").trim();
@@ -415,18 +432,34 @@ impl Script {
                 continue;
             }
             let fail = |reason: String| ScriptError { line: n + 1, reason };
-            let v: Vec<f64> = line
-                .split([',', ' ', '\t'])
-                .filter(|f| !f.is_empty())
-                .map(|f| f.parse::<f64>().map_err(|_| fail(format!("{f:?} is not a number"))))
+            let fields: Vec<&str> = line.split([',', ' ', '\t']).filter(|f| !f.is_empty()).collect();
+            let v: Vec<f64> = fields
+                .iter()
+                .map(|f| match f.parse::<f64>() {
+                    Ok(v) if v.is_finite() => Ok(v),
+                    Ok(_) => Err(fail(format!("{f} is not a finite number"))),
+                    Err(_) => Err(fail(format!("{f:?} is not a number"))),
+                })
                 .collect::<Result<_, _>>()?;
-            let [start, end, x, y, force] = v[..] else {
+            let (&[start, end, x, y, force], &[t0, t1, _, _, f]) = (&v[..], &fields[..]) else {
                 return Err(fail(format!("expected 5 numbers `start end x y force`, got {}", v.len())));
             };
-            if !(end > start && force >= 0.0) {
-                return Err(fail("needs end > start and a force ≥ 0".into()));
+            for (what, time, text) in [("start", start, t0), ("end", end, t1)] {
+                if !(0.0..=MAX_SCRIPT_TIME).contains(&time) {
+                    return Err(fail(format!(
+                        "{what} {text} s is outside 0–{MAX_SCRIPT_TIME:e} s: times count from the run's start, and no run lasts {MAX_SCRIPT_TIME:e} s"
+                    )));
+                }
             }
-            presses.push((start, end, Press { position: [x * metres, y * metres], force }));
+            if end <= start {
+                return Err(fail(format!("end {t1} s is not after start {t0} s")));
+            }
+            if !(0.0..=MAX_FORCE).contains(&force) {
+                return Err(fail(format!("force {f} N is outside 0–{MAX_FORCE:e} N")));
+            }
+            let position = [x * metres, y * metres];
+            place(position).map_err(fail)?;
+            presses.push((start, end, Press { position, force }));
         }
         Ok(Script { presses })
     }
@@ -472,6 +505,31 @@ mod tests {
             "script line 1: expected 5 numbers `start end x y force`, got 4"
         );
         assert!(Script::parse("\n1 0 0 0 1\n", 1.0).unwrap_err().to_string().starts_with("script line 2"));
+        // Numbers that no press has are refused by line, quoted as written (they ran unrefused).
+        for (line, reason) in [
+            ("0 1 nan 0 8", "nan is not a finite number"),
+            ("0 1 0 inf 8", "inf is not a finite number"),
+            ("0 1 0 0 1e9", "force 1e9 N is outside 0–1e5 N"),
+            ("0 1 0 0 -2", "force -2 N is outside 0–1e5 N"),
+            ("-1 1 0 0 8", "start -1 s is outside 0–1e9 s"),
+            ("0 1e300 0 0 8", "end 1e300 s is outside 0–1e9 s"),
+            ("2 1 0 0 8", "end 1 s is not after start 2 s"),
+        ] {
+            let err = Script::parse(&format!("0 1 0 0 8\n{line}\n"), 1e-3).unwrap_err().to_string();
+            assert!(err.starts_with(&format!("script line 2: {reason}")), "{line}: {err}");
+        }
+        let edge = Script::parse(&format!("0 {MAX_SCRIPT_TIME} 0 0 {MAX_FORCE}\n0 1 0 0 0"), 1e-3).unwrap();
+        assert_eq!(edge.presses.len(), 2);
+        // A place the caller refuses is refused with its reason, on its line.
+        let err = Script::parse_where("0 1 0 0 8\n\n0 1 5000 0 8", 1e-3, |[x, _]| {
+            if x > 1.0 {
+                Err(format!("the centre x = {} m is off the sheet", x))
+            } else {
+                Ok(())
+            }
+        })
+        .unwrap_err();
+        assert_eq!(err.to_string(), "script line 3: the centre x = 5 m is off the sheet");
         let random = Script::random(&crate::Outline::Circle { radius: 0.1 }, 2.0, 50, 4);
         assert!(
             !random.presses.is_empty() && random.presses.iter().all(|p| p.2.position[0].hypot(p.2.position[1]) <= 0.1)

@@ -6,6 +6,7 @@
 
 use thiserror::Error;
 
+use crate::conductivity::{conductivity_in_range, CONDUCTIVITY_RANGE};
 use crate::forward::{ElectrodeModel, ForwardError, ForwardModel};
 use crate::geometry::{first_crossing, signed_area, Electrode, Outline};
 use crate::mesh::{Mesh, MeshError, MeshParams};
@@ -163,6 +164,18 @@ pub const MIN_LENGTH: f64 = 1e-6;
 
 /// The longest length a spec takes, and the largest coordinate of a point, in m: 1 km.
 pub const MAX_LENGTH: f64 = 1e3;
+
+/// The least contact impedance a complete electrode takes, in Ω·m²: far below any electrode's
+/// (1e-4 is a gel electrode's order); below it, against a sheet of the least conductivity, the
+/// model's matrix loses its positive pivots to rounding.
+pub const MIN_CONTACT_IMPEDANCE: f64 = 1e-9;
+
+/// The largest contact impedance a complete electrode takes, in Ω·m²: an electrode barely
+/// touching the sheet.
+pub const MAX_CONTACT_IMPEDANCE: f64 = 1e3;
+
+/// [`MIN_CONTACT_IMPEDANCE`] to [`MAX_CONTACT_IMPEDANCE`] as messages state the range.
+pub const CONTACT_IMPEDANCE_RANGE: &str = "[1e-9, 1e3] Ω·m²";
 
 /// The most triangles `mesh.triangles` takes.
 pub const MAX_TRIANGLES: usize = 100_000_000;
@@ -481,7 +494,9 @@ impl SensorSpec {
     /// The electrodes as arc-length intervals of the boundary, after checking the whole spec.
     pub fn electrode_positions(&self) -> Result<Vec<Electrode>, SpecError> {
         self.length_within("thickness", self.thickness)?;
-        positive("conductivity", Quantity::written(self.conductivity, "S/m"))?;
+        let conductivity = Quantity::written(self.conductivity, "S/m");
+        positive("conductivity", conductivity)?;
+        within("conductivity", conductivity, conductivity_in_range, CONDUCTIVITY_RANGE)?;
         self.check_outline()?;
         self.check_mesh()?;
         let e = &self.electrodes;
@@ -493,7 +508,10 @@ impl SensorSpec {
         }
         if !e.point {
             self.length_within("electrodes.width", e.width)?;
-            positive("electrodes.contact_impedance", Quantity::written(e.contact_impedance, "Ω·m²"))?;
+            let impedance = Quantity::written(e.contact_impedance, "Ω·m²");
+            positive("electrodes.contact_impedance", impedance)?;
+            let in_range = |z: f64| (MIN_CONTACT_IMPEDANCE..=MAX_CONTACT_IMPEDANCE).contains(&z);
+            within("electrodes.contact_impedance", impedance, in_range, CONTACT_IMPEDANCE_RANGE)?;
         }
         let width = if e.point { 0.0 } else { e.width };
         let perimeter = self.outline.perimeter();
@@ -620,20 +638,16 @@ impl SensorSpec {
 
     fn check_mesh(&self) -> Result<(), SpecError> {
         let m = &self.mesh;
-        let within = |key, value: f64, (lo, hi): (f64, f64), unit, range: &str| {
-            if value >= lo && value <= hi {
-                Ok(())
-            } else {
-                Err(SpecError::OutOfRange { key, value: Quantity::written(value, unit), range: range.to_string() })
-            }
-        };
-        within("mesh.triangles", m.triangles as f64, (1.0, MAX_TRIANGLES as f64), "", "[1, 100000000]")?;
+        let between = |(lo, hi): (f64, f64)| move |v: f64| v >= lo && v <= hi;
+        let triangles = Quantity::written(m.triangles as f64, "");
+        within("mesh.triangles", triangles, between((1.0, MAX_TRIANGLES as f64)), "[1, 100000000]")?;
         if let Some(h) = m.max_element_size {
             self.length_within("mesh.max_element_size", h)?;
         }
-        within("mesh.grading", m.grading, (1e-3, 1.0), "", "[0.001, 1]")?;
+        within("mesh.grading", Quantity::written(m.grading, ""), between((1e-3, 1.0)), "[0.001, 1]")?;
         // Ruppert refinement is not known to end above about 33.9°; spade stops and says so.
-        within("mesh.min_angle_deg", m.min_angle_deg, (f64::MIN_POSITIVE, 33.0), "degrees", "(0, 33] degrees")
+        let angle = Quantity::written(m.min_angle_deg, "degrees");
+        within("mesh.min_angle_deg", angle, between((f64::MIN_POSITIVE, 33.0)), "(0, 33] degrees")
     }
 
     /// `metres` in the spec's length unit, as `kind` quotes it.
@@ -702,6 +716,17 @@ impl SensorSpec {
         }
     }
 
+    /// The fewest triangles [`SensorSpec::mesh`] makes on this sheet, however few
+    /// `mesh.triangles` asks for (about: near it the count moves a little either way): the
+    /// outline's corners and the electrodes' ends are nodes, the mesh is graded toward the
+    /// electrodes' edges (`mesh.grading`) and no angle is under `mesh.min_angle_deg`.
+    pub fn fewest_triangles(&self) -> Result<usize, SpecError> {
+        let mut coarsest = self.clone();
+        coarsest.mesh.triangles = 1;
+        coarsest.mesh.max_element_size = None;
+        Ok(coarsest.mesh()?.triangles().len())
+    }
+
     /// Meshes the sheet as the spec says.
     pub fn mesh(&self) -> Result<Mesh, SpecError> {
         let electrodes = self.electrode_positions()?;
@@ -733,6 +758,15 @@ fn positive(key: &'static str, value: Quantity) -> Result<(), SpecError> {
         Ok(())
     } else {
         Err(SpecError::NotPositive { key, value })
+    }
+}
+
+/// Refuses a `value` of `key` for which `in_range` does not hold, stating `range` (with its unit).
+fn within(key: &'static str, value: Quantity, in_range: impl Fn(f64) -> bool, range: &str) -> Result<(), SpecError> {
+    if in_range(value.value) {
+        Ok(())
+    } else {
+        Err(SpecError::OutOfRange { key, value, range: range.to_string() })
     }
 }
 
@@ -883,6 +917,60 @@ mod tests {
         assert_eq!(Numbering::from_name("anticlockwise"), None);
         for n in [Numbering::Clockwise, Numbering::CounterClockwise] {
             assert_eq!(Numbering::from_name(n.name()), Some(n));
+        }
+    }
+
+    /// Conductivity, contact impedance and thickness are checked against their stated ranges
+    /// when the spec is read, naming the key and quoting the value (a conductivity of 1e-300
+    /// S/m reached the solver, which said the mesh might not be connected).
+    #[test]
+    fn conductivity_impedance_and_thickness_have_ranges() {
+        let message = |change: fn(&mut SensorSpec)| {
+            let mut spec = SensorSpec::square_hydrogel();
+            change(&mut spec);
+            spec.validate().unwrap_err().to_string()
+        };
+        assert_eq!(
+            message(|s| s.conductivity = 1e-300),
+            "`conductivity` must be a finite number within [1e-6, 1e6] S/m, got 1e-300 S/m"
+        );
+        assert_eq!(
+            message(|s| s.conductivity = 2e6),
+            "`conductivity` must be a finite number within [1e-6, 1e6] S/m, got 2000000 S/m"
+        );
+        assert_eq!(message(|s| s.conductivity = 0.0), "`conductivity` must be a positive number, got 0 S/m");
+        assert_eq!(
+            message(|s| s.electrodes.contact_impedance = 1e-20),
+            "`electrodes.contact_impedance` must be a finite number within [1e-9, 1e3] Ω·m², got 1e-20 Ω·m²"
+        );
+        assert_eq!(
+            message(|s| s.electrodes.contact_impedance = 1e9),
+            "`electrodes.contact_impedance` must be a finite number within [1e-9, 1e3] Ω·m², got 1000000000 Ω·m²"
+        );
+        assert_eq!(
+            message(|s| s.thickness = 1e-300),
+            "`thickness` must be a finite number within [0.001 mm, 1000000 mm], got 1e-297 mm"
+        );
+        // The ends of each range stand, and solve.
+        for (sigma, z) in [(1e-6, 1e-9), (1e6, 1e3), (1e-6, 1e3), (1e6, 1e-9)] {
+            let mut spec = SensorSpec::square_hydrogel();
+            (spec.conductivity, spec.electrodes.contact_impedance, spec.mesh.triangles) = (sigma, z, 300);
+            let model = spec.forward_model().unwrap();
+            let values = model.measure(&spec.homogeneous(model.mesh())).unwrap();
+            assert!(values.iter().all(|v| v.is_finite() && *v > 0.0), "σ = {sigma}, z = {z}");
+        }
+    }
+
+    /// However few triangles are asked for, the mesher makes at least the fewest it can.
+    #[test]
+    fn the_fewest_triangles_are_what_one_asked_triangle_gives() {
+        let spec = SensorSpec::square_hydrogel();
+        let fewest = spec.fewest_triangles().unwrap();
+        assert!((100..1000).contains(&fewest), "{fewest}");
+        for asked in [2, 50] {
+            let mut s = spec.clone();
+            s.mesh.triangles = asked;
+            assert_eq!(s.mesh().unwrap().triangles().len(), fewest, "{asked}");
         }
     }
 
