@@ -689,7 +689,9 @@ fn check_scale(v: &[f64], v_ref: &[f64], frame: usize, input: &Input) -> Result<
     if !(median > 1.0 / SCALE_WARNED && median < SCALE_WARNED) {
         eprintln!("warning: {said}; a press changes them by percents: are the two in the same unit and gain?");
     }
-    if let Some(fit) = pattern_against(v, v_ref).filter(|f| *f < PATTERN_FIT_WARNING) {
+    // The frame's pattern against its reference's (the reference's spread the whole).
+    let fit = eitskin::values::pattern_fit(v_ref, v);
+    if fit < PATTERN_FIT_WARNING {
         eprintln!(
             "warning: frame {frame} of {} follows the pattern of {} poorly (R² = {} of ln|v| against the reference's, channel by channel): a press changes a few channels by percents; is it the same sensor, protocol and order?",
             input.frame.display(),
@@ -719,26 +721,6 @@ fn significant(value: f64) -> String {
 
 /// A change under this fraction of the largest value is rounding, not a press.
 const ROUNDING: f64 = 1e-9;
-
-/// R² of a frame's ln|v| against its reference's, channel by channel (1: the same pattern up to
-/// a press's percents; 0: no likeness); `None` with fewer than three channels to compare.
-fn pattern_against(v: &[f64], v_ref: &[f64]) -> Option<f64> {
-    let pairs: Vec<(f64, f64)> = v
-        .iter()
-        .zip(v_ref)
-        .filter(|(a, b)| a.is_finite() && b.is_finite() && **a != 0.0 && **b != 0.0)
-        .map(|(a, b)| (a.abs().ln(), b.abs().ln()))
-        .collect();
-    if pairs.len() < 3 {
-        return None;
-    }
-    let n = pairs.len() as f64;
-    let mean = |f: &dyn Fn(&(f64, f64)) -> f64| pairs.iter().map(f).sum::<f64>() / n;
-    let (mean_ref, mean_gap) = (mean(&|p| p.1), mean(&|p| p.0 - p.1));
-    let spread = mean(&|p| (p.1 - mean_ref).powi(2));
-    let misfit = mean(&|p| (p.0 - p.1 - mean_gap).powi(2));
-    (spread > 0.0).then(|| 1.0 - misfit / spread)
-}
 
 /// An R² as text: three decimals, or "below −1" where it means no likeness at all.
 fn r_squared(value: f64) -> String {

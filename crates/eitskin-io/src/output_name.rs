@@ -37,3 +37,23 @@ pub fn check_output_name(path: &Path, formats: &[&str]) -> Result<(), String> {
         _ => Ok(()),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Extensions are read in any case; a name of another known format is refused; a name of no
+    /// known format is taken by a writer of one format and refused by a writer of several.
+    #[test]
+    fn names_are_held_to_the_format_written() {
+        let json = |name: &str| check_output_name(Path::new(name), &["json"]);
+        assert!(json("out/MODEL.JSON").is_ok() && json("model").is_ok() && json("model.v2").is_ok());
+        assert_eq!(json("model.npy").unwrap_err(), "this writes .json, not .npy: name the file so");
+        let raster = |name: &str| check_output_name(Path::new(name), &["npy", "csv"]);
+        assert!(raster("x.Npy").is_ok() && raster("x.csv").is_ok());
+        assert_eq!(raster("x.txt").unwrap_err(), "this writes .npy or .csv, not .txt: name the file so");
+        let refusal = raster("x.v2").unwrap_err();
+        assert!(refusal.contains("chosen by the file's extension") && refusal.contains("\"x.v2\""), "{refusal}");
+        assert!(raster("").is_err() && raster(".npy").is_err(), "a hidden name has no extension");
+    }
+}

@@ -196,8 +196,10 @@ impl Gains {
 }
 
 /// R² of ln|reference| against ln|model| + a constant, over the channels the model gives a
-/// value (|v₀| above 1e-3 of the median) and the reference a finite non-zero one.
-fn pattern_fit(reference: &[f64], model: &[f64]) -> f64 {
+/// value (|v₀| above 1e-3 of the median) and the reference a finite non-zero one: 1 for the
+/// same pattern up to a gain, 0 for none; NaN where the reference has no spread. Any two
+/// frames compare so (a frame as `model` against its reference).
+pub fn pattern_fit(reference: &[f64], model: &[f64]) -> f64 {
     let tiny = 1e-3 * median(model.iter().map(|m| m.abs()).collect());
     let pairs: Vec<(f64, f64)> = reference
         .iter()
