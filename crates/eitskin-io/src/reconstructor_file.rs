@@ -1,5 +1,5 @@
-//! The reconstructor cache: the forward model's [`Linearisation`] (Jacobian, background
-//! measurements, mesh) saved to a file named by a hash of everything it depends on (spec,
+//! The reconstructor cache: the forward model's [`Linearisation`] (Jacobian and its factors,
+//! background measurements, mesh) saved to a file named by a hash of everything it depends on (spec,
 //! protocol, mesh settings and this crate's version), so a second start loads it instead of
 //! solving the forward model again. The reconstructor itself (prior, λ, normalisation,
 //! channels, raster) is derived from it in milliseconds to seconds (thousands of channels), so
@@ -11,8 +11,9 @@
 //! File layout (little-endian): `EITSKINR`, format version (u32), the 32-byte key, node,
 //! triangle, electrode and measurement counts (u32), the nodes (2 × f64 each), the triangles
 //! (3 × u32 each), per electrode its node count and nodes (u32), the background
-//! measurements (f64), then the Jacobian (measurements × triangles f64, column-major). A file
-//! that does not match is rebuilt.
+//! measurements (f64), then the Jacobian (measurements × triangles f64, column-major) and its
+//! factors P·B ([`eitskin::forward::JacobianFactors`]; P measurements × L(L−1)/2 pairs, B
+//! pairs × triangles, f64, column-major). A file that does not match is rebuilt.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -24,7 +25,7 @@ use sha2::{Digest, Sha256};
 use crate::Error;
 
 const MAGIC: &[u8; 8] = b"EITSKINR";
-const FORMAT: u32 = 2;
+const FORMAT: u32 = 3;
 
 /// The cache key: SHA-256 of the spec, its protocol patterns and mesh settings (the
 /// reconstructor's parameters are not in it: they are derived after loading).
@@ -146,9 +147,12 @@ pub fn encode_linearisation(lin: &Linearisation, key: &[u8; 32]) -> Vec<u8> {
     for v in lin.background() {
         out.extend_from_slice(&v.to_le_bytes());
     }
-    for k in 0..jacobian.ncols() {
-        for x in jacobian.col(k).iter() {
-            out.extend_from_slice(&x.to_le_bytes());
+    let factors = lin.factors();
+    for matrix in [jacobian, factors.patterns.as_ref(), factors.basis.as_ref()] {
+        for k in 0..matrix.ncols() {
+            for x in matrix.col(k).iter() {
+                out.extend_from_slice(&x.to_le_bytes());
+            }
         }
     }
     out
@@ -174,11 +178,14 @@ pub fn decode_linearisation(bytes: &[u8], key: &[u8; 32]) -> Option<Linearisatio
     }
     let background = r.f64s(measurements)?;
     let values = r.f64s(measurements.checked_mul(triangles)?)?;
+    let pairs = electrodes.saturating_sub(1) * electrodes / 2;
+    let patterns = r.f64s(measurements.checked_mul(pairs)?)?;
+    let basis = r.f64s(pairs.checked_mul(triangles)?)?;
     if !r.0.is_empty() {
         return None;
     }
     let mesh = Mesh::new(nodes, corners, sets).ok()?;
-    Linearisation::from_parts(&values, background, mesh)
+    Linearisation::from_parts(&values, [&patterns, &basis], background, mesh)
 }
 
 /// Reads little-endian values off the front of a byte slice; `None` once it runs out.

@@ -218,12 +218,9 @@ mod tests {
                 .iter()
                 .map(|(r, v)| {
                     let d: Vec<f64> = (0..r.len()).map(|m| (v[m] - r[m]) / system.std[m]).collect();
-                    (0..d.len())
-                        .map(|k| {
-                            let b: f64 = system.u.col(k).iter().zip(&d).map(|(u, d)| u * d).sum();
-                            let e = system.eigenvalues[k].max(0.0);
-                            (l * l / (e + l * l) * b).powi(2)
-                        })
+                    let b = system.coefficients(&d);
+                    (b.iter().zip(&system.eigenvalues))
+                        .map(|(b, e)| (l * l / (e.max(0.0) + l * l) * b).powi(2))
                         .sum::<f64>()
                 })
                 .sum()

@@ -2,35 +2,19 @@
 //! noise figure ([`super::hyperparameter`]) and the data's criteria ([`super::criterion`]) cost
 //! channels² or less per λ.
 //!
-//! **Its range only.** J's rank is far below its row count when the channels are many: the
-//! measurements of L electrodes are linear in their L × L transfer impedances, so a Jacobian
-//! has rank at most L(L+1)/2 whatever the protocol (496 for a 32-electrode tank's 2,356
-//! channels). Every eigenvector outside J's range has e = 0 and neither carries a target's
-//! signal nor images to anything, so only the range is decomposed: a randomised range finder
-//! (Halko, Martinsson & Tropp 2011, adaptive in blocks, stopped where a block of random
-//! probes leaves less than [`RANGE_TOLERANCE`] of the first block's size) gives an orthonormal
-//! Q with range(Q) ⊇ range(J), and K = Q (S R Sᵀ) Qᵀ with S = Qᵀ Σ^-½ J R⁻¹ is decomposed at
-//! Q's width. Where the range is not small against the channels, K is decomposed whole.
+//! **Its range only.** J's rank is far below its row count when the channels are many: every
+//! measurement is a bilinear form in the L−1 basis fields, so J = P·B with P channels ×
+//! L(L−1)/2 pairs ([`crate::forward::JacobianFactors`]: 496 pairs for a 32-electrode tank's 2,356
+//! channels). Every eigenvector outside P's range has e = 0 and neither carries a target's
+//! signal nor images to anything, so only that range is decomposed: with Σ^-½ P = Q R_p (thin
+//! QR), Σ^-½ J R⁻¹ = Q S for S = R_p B R⁻¹, and K = Q (S R Sᵀ) Qᵀ is decomposed at the pairs'
+//! count, exactly and with no product at the channels' count × triangles. Where the pairs are
+//! not fewer than the channels, K is decomposed whole.
 
-use faer::{Mat, MatRef, Side};
-use rand::SeedableRng;
-use rand_distr::{Distribution, StandardNormal};
+use faer::{Mat, Side};
 
 use super::linearisation::{inverse_diagonal, lower_product};
 use super::{Channels, InverseError, Linearisation, Prior};
-use crate::SeededRng;
-
-/// Below this many used channels K is decomposed whole: it costs milliseconds.
-const RANGE_FROM: usize = 400;
-
-/// Random probes per block of the range finder.
-const BLOCK: usize = 48;
-
-/// The range finder stops where a block's largest residual is under this fraction of the first
-/// block's largest probe: what is left is K's rounding, not its range (singular values of
-/// Σ^-½ J R⁻¹ under 1e-10 of the largest, whose eigenvalues under 1e-20 of the largest no
-/// decomposition in f64 resolves).
-const RANGE_TOLERANCE: f64 = 1e-10;
 
 /// The whitened system's eigenpairs on its range, with what the criteria need of it.
 pub(super) struct Eigensystem {
@@ -40,10 +24,12 @@ pub(super) struct Eigensystem {
     pub std: Vec<f64>,
     /// The eigenvalues e of K on its range, ascending; every other eigenvalue is 0.
     pub eigenvalues: Vec<f64>,
-    /// Their eigenvectors U (used channels × eigenvalues), orthonormal.
-    pub u: Mat<f64>,
-    /// Uᵀ Σ^-½ J R⁻¹ (eigenvalues × triangles): each eigenvector's image.
-    pub images: Mat<f64>,
+    /// Q (used channels × rows, orthonormal columns) and S (rows × triangles) with
+    /// Σ^-½ J R⁻¹ = Q S: the range's basis and the images on it (Q = I when decomposed whole).
+    q: Mat<f64>,
+    s: Mat<f64>,
+    /// The eigenvectors V of T = S R Sᵀ (rows × eigenvalues); K's are Q V.
+    v: Mat<f64>,
 }
 
 impl Eigensystem {
@@ -71,83 +57,54 @@ impl Eigensystem {
         let r_inv = inverse_diagonal(&r);
         let std: Vec<f64> = channels.relative_variance().iter().map(|v| v.sqrt()).collect();
         let (m, k) = (jacobian.nrows(), jacobian.ncols());
-        let scaled = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i] * r_inv[j]);
-        let range = if on_range && m >= RANGE_FROM { range(scaled.as_ref(), 3 * m / 4) } else { None };
-        let (eigenvalues, u, images) = match range {
-            Some(q) => {
-                // K = Q T Qᵀ with T = S R Sᵀ: decomposed at Q's width.
-                let s = q.transpose() * &scaled;
-                let weighted = Mat::from_fn(s.nrows(), k, |i, j| s[(i, j)] * r[j]);
-                let t = lower_product(s.as_ref(), weighted.transpose());
-                let (e, v) = eigen(t)?;
-                (e, &q * &v, v.transpose() * s)
-            }
-            None => {
-                let whitened = Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i]);
-                // The system is symmetric and the eigensolver reads its lower half: only that is formed.
-                let (e, u) = eigen(lower_product(scaled.as_ref(), whitened.transpose()))?;
-                let images = u.transpose() * &scaled;
-                (e, u, images)
-            }
+        let basis = &lin.factors().basis;
+        let (q, s) = if on_range && basis.nrows() < m {
+            // Σ^-½ P = Q R_p, so Σ^-½ J R⁻¹ = Q (R_p B R⁻¹).
+            let patterns = lin.pattern_rows(&channels.used(), normalised)?;
+            let whitened = Mat::from_fn(m, patterns.ncols(), |i, p| patterns[(i, p)] / std[i]);
+            let qr = whitened.qr();
+            let scaled = Mat::from_fn(basis.nrows(), k, |p, j| basis[(p, j)] * r_inv[j]);
+            (qr.compute_thin_Q(), qr.thin_R() * scaled)
+        } else {
+            (Mat::identity(m, m), Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i] * r_inv[j]))
         };
-        Ok(Eigensystem { jacobian, std, eigenvalues, u, images })
+        // T is symmetric and the eigensolver reads its lower half: only that is formed.
+        let weighted = Mat::from_fn(s.nrows(), k, |i, j| s[(i, j)] * r[j]);
+        let (eigenvalues, v) = eigen(lower_product(s.as_ref(), weighted.transpose()))?;
+        Ok(Eigensystem { jacobian, std, eigenvalues, q, s, v })
     }
 
-    /// Uᵀ d for a whitened `d` of the used channels: its coefficients on the eigenvectors.
+    /// Uᵀ d = Vᵀ (Qᵀ d) for a whitened `d` of the used channels: its coefficients on the
+    /// eigenvectors.
     pub(super) fn coefficients(&self, d: &[f64]) -> Vec<f64> {
-        (0..self.u.ncols()).map(|k| self.u.col(k).iter().zip(d).map(|(u, d)| u * d).sum()).collect()
+        let on_range = self.q.transpose() * faer::ColRef::from_slice(d);
+        let b = self.v.transpose() * on_range;
+        b.iter().copied().collect()
     }
 
     /// CᵀC for C = diag(w) (Σ^-½ J R⁻¹)ᵀ U, the eigenvectors' images weighted per triangle by `w`:
-    /// eigenvalues × eigenvalues, symmetric.
+    /// eigenvalues × eigenvalues, symmetric; Vᵀ (S diag(w²) Sᵀ) V, at the range's size.
     pub(super) fn image_gram(&self, w: &[f64]) -> Mat<f64> {
-        let weighted = Mat::from_fn(self.images.nrows(), self.images.ncols(), |i, t| self.images[(i, t)] * w[t]);
-        let mut gram = lower_product(weighted.as_ref(), weighted.transpose());
-        for j in 0..gram.ncols() {
-            for i in 0..j {
-                gram[(i, j)] = gram[(j, i)];
-            }
-        }
-        gram
+        let weighted = Mat::from_fn(self.s.nrows(), self.s.ncols(), |i, t| self.s[(i, t)] * w[t] * w[t]);
+        let gram = symmetric(lower_product(self.s.as_ref(), weighted.transpose()));
+        self.v.transpose() * gram * &self.v
     }
+}
+
+/// `lower` with its upper half copied from its lower half.
+fn symmetric(mut lower: Mat<f64>) -> Mat<f64> {
+    for j in 0..lower.ncols() {
+        for i in 0..j {
+            lower[(i, j)] = lower[(j, i)];
+        }
+    }
+    lower
 }
 
 /// The eigenvalues (ascending) and eigenvectors of the symmetric `lower` (its lower half read).
 fn eigen(lower: Mat<f64>) -> Result<(Vec<f64>, Mat<f64>), InverseError> {
     let eigen = lower.self_adjoint_eigen(Side::Lower).map_err(|_| InverseError::NotPositiveDefinite)?;
     Ok(((0..lower.nrows()).map(|i| eigen.S()[i]).collect(), eigen.U().to_owned()))
-}
-
-/// An orthonormal basis Q of `a`'s range, found by random probes in blocks (see the module doc);
-/// `None` where the range needs more than `widest` columns, or a probe is not finite.
-fn range(a: MatRef<'_, f64>, widest: usize) -> Option<Mat<f64>> {
-    let (m, k) = (a.nrows(), a.ncols());
-    let mut rng = SeededRng::seed_from_u64(1);
-    let mut q = Mat::<f64>::zeros(m, 0);
-    let mut first = None;
-    while q.ncols() < widest {
-        let probes = Mat::from_fn(k, BLOCK, |_, _| -> f64 { StandardNormal.sample(&mut rng) });
-        let mut y = a * &probes;
-        // Twice projected off Q: once is not orthogonal enough in floating point.
-        for _ in 0..2 {
-            let along = q.transpose() * &y;
-            y -= &q * &along;
-        }
-        let largest = (0..BLOCK).map(|j| y.col(j).norm_l2()).fold(0.0, f64::max);
-        if !largest.is_finite() {
-            return None;
-        }
-        let first = *first.get_or_insert(largest);
-        if largest <= RANGE_TOLERANCE * first {
-            return Some(q);
-        }
-        let block = y.qr().compute_thin_Q();
-        let mut wider = Mat::zeros(m, q.ncols() + BLOCK);
-        wider.subcols_mut(0, q.ncols()).copy_from(&q);
-        wider.subcols_mut(q.ncols(), BLOCK).copy_from(&block);
-        q = wider;
-    }
-    None
 }
 
 #[cfg(test)]
@@ -184,7 +141,6 @@ mod tests {
         spec.mesh.triangles = 1500;
         let lin = Linearisation::new(&spec.forward_model().unwrap(), 1.0).unwrap();
         let m = lin.measurements();
-        assert!(m >= RANGE_FROM, "{m} channels");
         let variance: Vec<f64> = (0..m).map(|i| 1.0 + (i % 5) as f64).collect();
         let channels = Channels::all(m).with_variance(variance);
         let reduced = Eigensystem::new(&lin, &Prior::default(), false, &channels).unwrap();

@@ -18,13 +18,14 @@ use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::{Accum, Mat, MatRef, Side};
 
 use super::{check_hyperparameter, Channels, InverseError, Prior, ReconstructorParams};
-use crate::forward::ForwardModel;
+use crate::forward::{ForwardModel, JacobianFactors};
 use crate::mesh::Mesh;
 
-/// J, v₀ and the mesh of a forward model at a homogeneous background.
+/// J, its factors, v₀ and the mesh of a forward model at a homogeneous background.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Linearisation {
     jacobian: Mat<f64>,
+    factors: JacobianFactors,
     background: Vec<f64>,
     mesh: Mesh,
 }
@@ -51,28 +52,48 @@ impl Linearisation {
         let sigma = vec![background; model.mesh().triangles().len()];
         let solution = model.solve(&sigma)?;
         let jacobian = model.jacobian(&solution);
+        let factors = model.jacobian_factors(&solution);
         let background = solution.measurements(model.protocol());
-        Ok(Linearisation { jacobian, background, mesh: model.mesh().clone() })
+        Ok(Linearisation { jacobian, factors, background, mesh: model.mesh().clone() })
     }
 
-    /// A linearisation from its parts (as a cache file holds them): the Jacobian column-major
-    /// (measurements × triangles), v₀ and the mesh; `None` if the sizes disagree or a value is
-    /// not finite.
-    pub fn from_parts(jacobian: &[f64], background: Vec<f64>, mesh: Mesh) -> Option<Linearisation> {
+    /// A linearisation from its parts (as a cache file holds them), each column-major: the
+    /// Jacobian (measurements × triangles), its factors' patterns (measurements × pairs) and
+    /// basis products (pairs × triangles), v₀ and the mesh; `None` if the sizes disagree or a
+    /// value is not finite.
+    pub fn from_parts(
+        jacobian: &[f64],
+        [patterns, basis]: [&[f64]; 2],
+        background: Vec<f64>,
+        mesh: Mesh,
+    ) -> Option<Linearisation> {
         let (m, k) = (background.len(), mesh.triangles().len());
+        let electrodes = mesh.electrodes().len();
+        let pairs = electrodes.saturating_sub(1) * electrodes / 2;
         let consistent = m > 0
             && m.checked_mul(k) == Some(jacobian.len())
-            && background.iter().chain(jacobian).all(|v| v.is_finite());
+            && m.checked_mul(pairs) == Some(patterns.len())
+            && pairs.checked_mul(k) == Some(basis.len())
+            && background.iter().chain(jacobian).chain(patterns).chain(basis).all(|v| v.is_finite());
         if !consistent {
             return None;
         }
         let jacobian = Mat::from_fn(m, k, |i, t| jacobian[t * m + i]);
-        Some(Linearisation { jacobian, background, mesh })
+        let factors = JacobianFactors {
+            patterns: Mat::from_fn(m, pairs, |i, p| patterns[p * m + i]),
+            basis: Mat::from_fn(pairs, k, |p, t| basis[t * pairs + p]),
+        };
+        Some(Linearisation { jacobian, factors, background, mesh })
     }
 
     /// The Jacobian ∂v/∂σ, measurements × triangles, in V per S/m (at 1 A).
     pub fn jacobian(&self) -> MatRef<'_, f64> {
         self.jacobian.as_ref()
+    }
+
+    /// The Jacobian's factors P·B (see [`JacobianFactors`]).
+    pub fn factors(&self) -> &JacobianFactors {
+        &self.factors
     }
 
     /// The model's measurements at the background, in V (at 1 A).
@@ -92,6 +113,20 @@ impl Linearisation {
 
     /// The rows of J for the used channels, divided by v₀ when `normalised`.
     pub(crate) fn rows(&self, used: &[usize], normalised: bool) -> Result<Mat<f64>, InverseError> {
+        let scale = self.row_scale(used, normalised)?;
+        Ok(Mat::from_fn(used.len(), self.jacobian.ncols(), |i, k| self.jacobian[(used[i], k)] * scale[i]))
+    }
+
+    /// The rows of the factors' P for the used channels, divided by v₀ when `normalised` (so
+    /// that they times B are [`Linearisation::rows`]).
+    pub(crate) fn pattern_rows(&self, used: &[usize], normalised: bool) -> Result<Mat<f64>, InverseError> {
+        let scale = self.row_scale(used, normalised)?;
+        let patterns = &self.factors.patterns;
+        Ok(Mat::from_fn(used.len(), patterns.ncols(), |i, p| patterns[(used[i], p)] * scale[i]))
+    }
+
+    /// Per used channel, 1/v₀ when `normalised`, else 1; an error for a v₀ of 0.
+    fn row_scale(&self, used: &[usize], normalised: bool) -> Result<Vec<f64>, InverseError> {
         let mut scale = vec![1.0; used.len()];
         if normalised {
             for (s, &m) in scale.iter_mut().zip(used) {
@@ -102,7 +137,7 @@ impl Linearisation {
                 *s = 1.0 / v;
             }
         }
-        Ok(Mat::from_fn(used.len(), self.jacobian.ncols(), |i, k| self.jacobian[(used[i], k)] * scale[i]))
+        Ok(scale)
     }
 
     /// The element-level reconstruction matrix (triangles × all measurements, S/m per V, or per
@@ -219,7 +254,12 @@ impl Global {
 
 /// J·1: each measurement's change for a change of 1 S/m on every triangle.
 pub(crate) fn uniform_response(jacobian: MatRef<'_, f64>) -> Vec<f64> {
-    (0..jacobian.nrows()).map(|i| (0..jacobian.ncols()).map(|k| jacobian[(i, k)]).sum()).collect()
+    // Column by column (J is column-major), each row summed in the order of its triangles.
+    let mut d = vec![0.0; jacobian.nrows()];
+    for k in 0..jacobian.ncols() {
+        d.iter_mut().zip(jacobian.col(k).iter()).for_each(|(d, j)| *d += j);
+    }
+    d
 }
 
 /// (JᵀΣ⁻¹J + λ²R)⁻¹JᵀΣ⁻¹ (triangles × measurements): through the measurement-sized system for

@@ -13,6 +13,7 @@ mod assemble;
 mod jacobian;
 mod low_rank;
 
+pub use jacobian::JacobianFactors;
 pub use low_rank::{ChangeScratch, LowRankUpdate, DENSE_LIMIT};
 
 use faer::linalg::solvers::Solve;
