@@ -5,7 +5,8 @@
 //! L−1 current patterns), `measurements` (the protocol's values from the fields); then the
 //! imaging chain: `jacobian`, `reconstructor` (prior, the measurement-sized solve and the
 //! raster projection), `auto_hyperparameter` (λ chosen from the noise, on the sensor's
-//! reconstructor) and `auto_hyperparameter_2356` (λ alone on a KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table and, by low-rank updates, the ladder
+//! reconstructor) and `auto_hyperparameter_2356` and `reconstructor_2356` (λ, then the reconstructor at it, on a
+//! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table and, by low-rank updates, the ladder
 //! of strong presses) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch) and `frame_three_presses` (three presses found in Δv against
@@ -220,15 +221,21 @@ fn inverse(
     let (t_drop, _) = time(n, || Ok(recon.derive(params.hyperparameter, channels.clone())?))?;
     let (t_auto, _) = time(n.min(3), || Ok(recon.with_auto_hyperparameter(Channels::all(mask.len()), None)?))?;
     stages.setup.extend([("reconstructor", t_recon), ("drop_channel", t_drop), ("auto_hyperparameter", t_auto)]);
-    let t_tank = time(n.min(3), tank_hyperparameter()?)?.0;
-    stages.setup.push(("auto_hyperparameter_2356", t_tank));
+    let (lin, channels) = tank()?;
+    let prior = eitskin::Prior::default();
+    let choose = || Ok(eitskin::inverse::choose_hyperparameter(&lin, &prior, false, &channels)?);
+    let (t_tank, hyperparameter) = time(n.min(3), choose)?;
+    let params = ReconstructorParams { hyperparameter, ..ReconstructorParams::default() };
+    let build = || Ok(Reconstructor::from_linearisation(lin.clone(), &params, channels.clone())?);
+    let t_tank_recon = time(n.min(3), build)?.0;
+    stages.setup.extend([("auto_hyperparameter_2356", t_tank), ("reconstructor_2356", t_tank_recon)]);
     Ok(recon)
 }
 
-/// The automatic λ alone on a 32-electrode tank with a KTC-sized protocol: 76 drives (32
-/// adjacent, 32 skipping two, 12 opposite) × 31 adjacent differences = 2,356 channels, a disc
-/// of 115 mm radius with 4,000 triangles, each channel's noise 0.3 % of its value.
-fn tank_hyperparameter() -> Result<impl FnMut() -> Result<f64>> {
+/// A 32-electrode tank with a KTC-sized protocol: 76 drives (32 adjacent, 32 skipping two, 12
+/// opposite) × 31 adjacent differences = 2,356 channels, a disc of 115 mm radius with 4,000
+/// triangles; its linearisation, and its channels with each one's noise 0.3 % of its value.
+fn tank() -> Result<(std::sync::Arc<eitskin::inverse::Linearisation>, Channels)> {
     let l = 32;
     let pair = |a: usize, b: usize| (0..l).map(|e| f64::from(u8::from(e == a)) - f64::from(u8::from(e == b))).collect();
     let drives: Vec<Vec<f64>> = (0..l)
@@ -247,8 +254,7 @@ fn tank_hyperparameter() -> Result<impl FnMut() -> Result<f64>> {
     spec.protocol = eitskin::ProtocolSpec::Custom(eitskin::Protocol::new("KTC-sized", l, drives, measurements)?);
     let lin = eitskin::inverse::Linearisation::new(&spec.forward_model()?, spec.conductivity)?;
     let channels = lin.noise_weighted(false, Channels::all(lin.measurements()), None);
-    let prior = eitskin::Prior::default();
-    Ok(move || Ok(eitskin::inverse::choose_hyperparameter(&lin, &prior, false, &channels)?))
+    Ok((std::sync::Arc::new(lin), channels))
 }
 
 /// Each frame's stages on a press at (30 %, −20 %) of the half-width: image, touches, the press

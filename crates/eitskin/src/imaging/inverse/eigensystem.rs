@@ -11,7 +11,7 @@
 //! count, exactly and with no product at the channels' count × triangles. Where the pairs are
 //! not fewer than the channels, K is decomposed whole.
 
-use faer::{Mat, Side};
+use faer::{Mat, MatRef, Side};
 
 use super::linearisation::{inverse_diagonal, lower_product};
 use super::{Channels, InverseError, Linearisation, Prior};
@@ -54,23 +54,14 @@ impl Eigensystem {
         channels.check(lin.measurements())?;
         let jacobian = lin.rows(&channels.used(), normalised)?;
         let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
-        let r_inv = inverse_diagonal(&r);
         let std: Vec<f64> = channels.relative_variance().iter().map(|v| v.sqrt()).collect();
-        let (m, k) = (jacobian.nrows(), jacobian.ncols());
-        let basis = &lin.factors().basis;
-        let (q, s) = if on_range && basis.nrows() < m {
-            // Σ^-½ P = Q R_p, so Σ^-½ J R⁻¹ = Q (R_p B R⁻¹).
-            let patterns = lin.pattern_rows(&channels.used(), normalised)?;
-            let whitened = Mat::from_fn(m, patterns.ncols(), |i, p| patterns[(i, p)] / std[i]);
-            let qr = whitened.qr();
-            let scaled = Mat::from_fn(basis.nrows(), k, |p, j| basis[(p, j)] * r_inv[j]);
-            (qr.compute_thin_Q(), qr.thin_R() * scaled)
+        let basis = lin.factors().basis.as_ref();
+        let range = if on_range && basis.nrows() < jacobian.nrows() {
+            Range::factored(lin.pattern_rows(&channels.used(), normalised)?.as_ref(), basis, &std, &r)?
         } else {
-            (Mat::identity(m, m), Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i] * r_inv[j]))
+            Range::whole(jacobian.as_ref(), &std, &r)?
         };
-        // T is symmetric and the eigensolver reads its lower half: only that is formed.
-        let weighted = Mat::from_fn(s.nrows(), k, |i, j| s[(i, j)] * r[j]);
-        let (eigenvalues, v) = eigen(lower_product(s.as_ref(), weighted.transpose()))?;
+        let Range { q, s, eigenvalues, v } = range;
         Ok(Eigensystem { jacobian, std, eigenvalues, q, s, v })
     }
 
@@ -88,6 +79,48 @@ impl Eigensystem {
         let weighted = Mat::from_fn(self.s.nrows(), self.s.ncols(), |i, t| self.s[(i, t)] * w[t] * w[t]);
         let gram = symmetric(lower_product(self.s.as_ref(), weighted.transpose()));
         self.v.transpose() * gram * &self.v
+    }
+}
+
+/// Σ^-½ J R⁻¹ = Q S (Q orthonormal columns), with the eigenpairs of T = S R Sᵀ = V diag(e) Vᵀ:
+/// the whitened system is K = (Q V) diag(e) (Q V)ᵀ.
+pub(super) struct Range {
+    pub q: Mat<f64>,
+    pub s: Mat<f64>,
+    /// Ascending.
+    pub eigenvalues: Vec<f64>,
+    pub v: Mat<f64>,
+}
+
+impl Range {
+    /// From J's factors (see the module doc): `patterns` P's rows as J's (used channels × pairs),
+    /// `basis` B, each channel's noise `std` and the diagonal prior `r`.
+    pub(super) fn factored(
+        patterns: MatRef<'_, f64>,
+        basis: MatRef<'_, f64>,
+        std: &[f64],
+        r: &[f64],
+    ) -> Result<Range, InverseError> {
+        // Σ^-½ P = Q R_p, so Σ^-½ J R⁻¹ = Q (R_p B R⁻¹).
+        let whitened = Mat::from_fn(patterns.nrows(), patterns.ncols(), |i, p| patterns[(i, p)] / std[i]);
+        let qr = whitened.qr();
+        let r_inv = inverse_diagonal(r);
+        let scaled = Mat::from_fn(basis.nrows(), basis.ncols(), |p, j| basis[(p, j)] * r_inv[j]);
+        Range::of(qr.compute_thin_Q(), qr.thin_R() * scaled, r)
+    }
+
+    /// From J's rows whole (Q = I).
+    pub(super) fn whole(jacobian: MatRef<'_, f64>, std: &[f64], r: &[f64]) -> Result<Range, InverseError> {
+        let (m, k) = (jacobian.nrows(), jacobian.ncols());
+        let r_inv = inverse_diagonal(r);
+        Range::of(Mat::identity(m, m), Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i] * r_inv[j]), r)
+    }
+
+    fn of(q: Mat<f64>, s: Mat<f64>, r: &[f64]) -> Result<Range, InverseError> {
+        // T is symmetric and the eigensolver reads its lower half: only that is formed.
+        let weighted = Mat::from_fn(s.nrows(), s.ncols(), |i, j| s[(i, j)] * r[j]);
+        let (eigenvalues, v) = eigen(lower_product(s.as_ref(), weighted.transpose()))?;
+        Ok(Range { q, s, eigenvalues, v })
     }
 }
 
