@@ -49,7 +49,7 @@ use crate::SeededRng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::image::{Image, Polarity};
+use crate::image::Polarity;
 pub use crate::inverse::NoiseModel;
 use crate::inverse::{InverseError, Reconstructor};
 
@@ -167,22 +167,30 @@ impl Significance {
     ) -> Result<Vec<f64>, InverseError> {
         let normalised = recon.params().normalised;
         let mut rng = SeededRng::seed_from_u64(0x05ee_d0f2_015e);
-        let mut image: Image = recon.blank_image();
-        let mut frame = v_ref.to_vec();
-        (0..CALIBRATION_SAMPLES)
-            .map(|_| {
+        let mut frames = vec![v_ref.to_vec(); BATCH];
+        let mut maxima = Vec::with_capacity(CALIBRATION_SAMPLES);
+        while maxima.len() < CALIBRATION_SAMPLES {
+            let count = BATCH.min(CALIBRATION_SAMPLES - maxima.len());
+            for frame in &mut frames[..count] {
                 for (m, v) in frame.iter_mut().enumerate() {
                     let n: f64 = StandardNormal.sample(&mut rng);
                     let d = if sd[m] > 0.0 { sd[m] * n } else { 0.0 };
                     *v = if normalised { v_ref[m] * (1.0 + d) } else { v_ref[m] + d };
                 }
-                recon.image_into(v_ref, &frame, &mut image)?;
-                let z = image.values.iter().zip(&self.inverse_std).map(|(v, s)| polarity.intensity(*v * s));
-                Ok(z.fold(0.0, f64::max))
-            })
-            .collect()
+            }
+            let batch: Vec<&[f64]> = frames[..count].iter().map(Vec::as_slice).collect();
+            let images = recon.image_values_of(v_ref, &batch)?;
+            maxima.extend((0..count).map(|f| {
+                let z = images.col(f).iter().zip(&self.inverse_std).map(|(v, s)| polarity.intensity(*v * s));
+                z.fold(0.0, f64::max)
+            }));
+        }
+        Ok(maxima)
     }
 }
+
+/// Noise frames imaged at once in the calibration (one matrix product each batch).
+const BATCH: usize = 100;
 
 /// Each used channel's noise standard deviation in the differences' units (V, or a ratio when
 /// normalised) for frames that are the mean of `averaged`, with the reference's share; 0 for a

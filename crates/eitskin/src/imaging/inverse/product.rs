@@ -7,6 +7,9 @@
 //! Column-major storage, the obvious layout, adds each measurement's column into the image:
 //! the image is read and written once per measurement (120 times a frame on the paper's board).
 
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef};
+
 /// Pixels per block.
 pub const BLOCK: usize = 64;
 
@@ -77,6 +80,25 @@ impl BlockedMatrix {
     }
 }
 
+impl BlockedMatrix {
+    /// `out` = H·D for several difference vectors at once (D columns × frames, `out` rows ×
+    /// frames): each block of rows is a column-major matrix of its own, times D in one matrix
+    /// product, so that H is read once for all the frames (a frame alone reads it once each).
+    pub fn mul_frames_into(&self, d: MatRef<'_, f32>, mut out: MatMut<'_, f32>) {
+        assert!(d.nrows() == self.columns && out.nrows() == self.rows && out.ncols() == d.ncols(), "H·D's shapes");
+        if self.columns == 0 {
+            out.fill(0.0);
+            return;
+        }
+        for (b, block) in self.data.chunks_exact(BLOCK * self.columns).enumerate() {
+            let rows = (self.rows - b * BLOCK).min(BLOCK);
+            let h = MatRef::from_column_major_slice_with_stride(block, BLOCK, self.columns, BLOCK).subrows(0, rows);
+            let part = out.as_mut().subrows_mut(b * BLOCK, rows);
+            matmul(part, Accum::Replace, h, d, 1.0, faer::get_global_parallelism());
+        }
+    }
+}
+
 /// Blocks per chunk that one core takes at a time (128 pixels, 61 kB of a 120-column matrix).
 const CHUNK: usize = 2;
 
@@ -140,7 +162,7 @@ mod tests {
     use super::*;
 
     /// The blocked product equals the plain one, on sizes that fill no block exactly and on
-    /// more columns than one pass takes.
+    /// more columns than one pass takes, frame by frame and several frames at once.
     #[test]
     fn the_blocked_product_is_the_plain_product() {
         for (rows, columns) in [(1, 1), (63, 5), (64, 120), (200, 7), (130, PASS + 3), (5, 0)] {
@@ -157,6 +179,16 @@ mod tests {
             for (r, y) in out.iter().enumerate() {
                 let want: f32 = (0..columns).map(|c| entry(r, c) * d(c)).sum();
                 assert!((y - want).abs() <= 1e-4 * want.abs().max(1.0), "{rows}×{columns}, row {r}: {y} vs {want}");
+            }
+            // Several frames at once: each column as the product of one.
+            let frames = faer::Mat::from_fn(columns, 3, |c, f| d(c) * (f as f32 - 1.0));
+            let mut many = faer::Mat::from_fn(rows, 3, |_, _| f32::NAN);
+            matrix.mul_frames_into(frames.as_ref(), many.as_mut());
+            for f in 0..3 {
+                for (r, y) in out.iter().enumerate() {
+                    let want = y * (f as f32 - 1.0);
+                    assert!((many[(r, f)] - want).abs() <= 1e-4 * want.abs().max(1.0), "frame {f}, row {r}");
+                }
             }
             if columns > 0 {
                 assert_eq!(

@@ -12,6 +12,8 @@
 
 use std::sync::Arc;
 
+use faer::Mat;
+
 use super::product::BlockedMatrix;
 use super::{Channels, InverseError, Linearisation, Prior};
 use crate::forward::ForwardModel;
@@ -254,6 +256,19 @@ impl Reconstructor {
         assert_eq!(image.values.len(), pixels, "the image must come from blank_image()");
         self.matrix.mul_into(&mut image.values, |m| self.difference(v_ref, v, m));
         Ok(())
+    }
+
+    /// The pixel values of the images of several `frames` against one reference `v_ref`, in
+    /// S/m (pixels × frames; 0 outside the outline): one matrix product, the matrix read once
+    /// for all of them. An error names the first frame refused (see [`Reconstructor::image`]).
+    pub fn image_values_of(&self, v_ref: &[f64], frames: &[&[f64]]) -> Result<Mat<f32>, InverseError> {
+        for v in frames {
+            self.check(v_ref, v)?;
+        }
+        let d = Mat::from_fn(self.measurements(), frames.len(), |m, f| self.difference(v_ref, frames[f], m));
+        let mut values = Mat::zeros(self.template.values.len(), frames.len());
+        self.matrix.mul_frames_into(d.as_ref(), values.as_mut());
+        Ok(values)
     }
 
     /// The difference of channel m that the matrix multiplies: 0 for a dropped channel.
