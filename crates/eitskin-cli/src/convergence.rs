@@ -7,7 +7,7 @@ use anyhow::{bail, Result};
 use eitskin::conductivity::Inclusion;
 use eitskin::memory::Stage;
 use eitskin::SensorSpec;
-use eitskin_study::convergence::{default_inclusion, study, Convergence};
+use eitskin_study::convergence::{default_inclusion, study, Convergence, Elements};
 use serde::Serialize;
 
 use crate::{load, ranges};
@@ -35,9 +35,20 @@ pub struct Args {
     /// the width at a quarter of the width right of centre, half the background conductivity.
     #[arg(long, allow_hyphen_values = true)]
     inclusion: Option<String>,
+    /// Elements of the forward model: `p1` (linear, the one every other command uses) or `p2`
+    /// (quadratic on the same mesh: a second unknown on every edge, complete electrodes only).
+    #[arg(long, value_enum, default_value = "p1")]
+    elements: ElementsArg,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
+}
+
+/// `--elements`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum ElementsArg {
+    P1,
+    P2,
 }
 
 #[derive(Serialize)]
@@ -50,6 +61,7 @@ struct Row {
 
 #[derive(Serialize)]
 struct Report {
+    elements: &'static str,
     reference: &'static str,
     value_order: Option<f64>,
     difference_order: Option<f64>,
@@ -72,7 +84,16 @@ pub fn run(args: Args) -> Result<()> {
     };
     let finest = check_levels(&args.triangles, &spec)?;
     check_inclusion(args.inclusion.as_deref(), &inclusion, finest, &spec)?;
-    let Some(found) = study(&spec, &args.triangles, inclusion)? else {
+    if args.elements == ElementsArg::P2 && spec.electrodes.point {
+        bail!(
+            "--elements p2: the sensor has point electrodes, and quadratic elements are for complete electrodes only"
+        );
+    }
+    let elements = match args.elements {
+        ElementsArg::P1 => Elements::Linear,
+        ElementsArg::P2 => Elements::Quadratic,
+    };
+    let Some(found) = study(&spec, &args.triangles, inclusion, elements)? else {
         bail!("--triangles needs at least 3 levels to estimate an order, got {}", args.triangles.len());
     };
     check_found(&args.triangles, &found)?;
@@ -87,6 +108,7 @@ pub fn run(args: Args) -> Result<()> {
         })
         .collect();
     let report = Report {
+        elements: if elements == Elements::Linear { "p1" } else { "p2" },
         reference: found.reference,
         value_order: found.value_order,
         difference_order: found.difference_order,
@@ -96,7 +118,7 @@ pub fn run(args: Args) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    println!("reference: {}; grading {}", report.reference, spec.mesh.grading);
+    println!("{} elements; reference: {}; grading {}", report.elements, report.reference, spec.mesh.grading);
     println!("{:>10} {:>12} {:>14} {:>18}", "triangles", "setup ms", "value error", "difference error");
     for r in &report.levels {
         println!(

@@ -3,7 +3,8 @@
 //! (and its line or key) and quoting the value as written: inclusions that cover no triangle,
 //! convergence levels that are not coarse to fine, protocol patterns of nothing or of too much,
 //! press scripts off the sheet or out of range, and a spec's conductivity out of its range; a
-//! `--triangles` under what the mesher makes is raised with a warning.
+//! `--triangles` under what the mesher makes is raised with a warning; quadratic elements
+//! refused for point electrodes.
 
 mod binary;
 
@@ -93,6 +94,25 @@ fn convergence_refuses_levels_not_coarse_to_fine_and_inclusions_that_change_noth
             assert!(level[key].as_f64().is_some_and(f64::is_finite), "{json}");
         }
     }
+}
+
+/// `--elements p2` studies quadratic elements, and refuses point electrodes before any work.
+#[test]
+fn convergence_studies_quadratic_elements_of_complete_electrodes_only() {
+    let dir = scratch("quadratic");
+    let out = ok(dir.eitskin(&["convergence", "--elements", "p2", "--triangles", "500,1000,2000", "--json"]));
+    let json: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(json["elements"], "p2", "{json}");
+    let errors: Vec<f64> =
+        json["levels"].as_array().unwrap().iter().map(|l| l["value_error"].as_f64().unwrap()).collect();
+    assert!(errors.iter().all(|e| e.is_finite()) && errors[2] < errors[0], "{json}");
+    let spec = write(
+        &dir,
+        "points.toml",
+        "units = \"m\"\nthickness = 1.0\nconductivity = 1.0\n[outline]\nkind = \"circle\"\nradius = 1.0\n[electrodes]\ncount = 16\nmodel = \"point\"\nplacement = \"equal\"\n",
+    );
+    let err = refused(dir.eitskin(&["convergence", text(&spec), "--elements", "p2", "--triangles", "500,1000,2000"]));
+    assert!(err.starts_with("error: --elements p2: the sensor has point electrodes"), "{err}");
 }
 
 /// `mesh --triangles 1` made 200 triangles without a word.

@@ -16,6 +16,16 @@ use eitskin::geometry::Outline;
 use eitskin::protocol::Protocol;
 use eitskin::spec::{SensorSpec, SpecError};
 
+/// The elements of a study's forward model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Elements {
+    /// Linear (P1), the forward model everything else uses.
+    #[default]
+    Linear,
+    /// Quadratic (P2) on the same mesh ([`eitskin::forward::ForwardModel::measure_quadratic`]).
+    Quadratic,
+}
+
 /// What a convergence study found: the errors of each level against the converged answer.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Convergence {
@@ -50,15 +60,20 @@ pub fn default_inclusion(spec: &SensorSpec) -> Inclusion {
     Inclusion { centre: [0.25 * width, 0.0], radius: 0.05 * width, conductivity: 0.5 * spec.conductivity }
 }
 
-/// Meshes `spec` at each count of `triangles` (coarse to fine, at least 3), measures it with and
-/// without `inclusion`, and gives each level's error against the analytic answer where there is
+/// Meshes `spec` at each count of `triangles` (coarse to fine, at least 3), measures it with
+/// `elements`, with and without `inclusion`, and gives each level's error against the analytic answer where there is
 /// one and the Richardson extrapolation of the two finest levels otherwise, with the orders
 /// observed over the three finest; `None` with fewer than 3 levels.
-pub fn study(spec: &SensorSpec, triangles: &[usize], inclusion: Inclusion) -> Result<Option<Convergence>, SpecError> {
+pub fn study(
+    spec: &SensorSpec,
+    triangles: &[usize],
+    inclusion: Inclusion,
+    elements: Elements,
+) -> Result<Option<Convergence>, SpecError> {
     if triangles.len() < 3 {
         return Ok(None);
     }
-    let levels = levels(spec, triangles, &[inclusion])?;
+    let levels = levels(spec, triangles, &[inclusion], elements)?;
     let n = levels.len();
     let tri = |k: usize| levels[k].triangles;
     let order_of = |f: fn(&Level) -> &[f64]| {
@@ -100,8 +115,18 @@ pub struct Level {
     pub difference: Vec<f64>,
 }
 
-/// Meshes `spec` at about each count of `triangles` and measures it, with and without `inclusions`.
-pub fn levels(spec: &SensorSpec, triangles: &[usize], inclusions: &[Inclusion]) -> Result<Vec<Level>, SpecError> {
+/// Meshes `spec` at about each count of `triangles` and measures it with `elements`, with and
+/// without `inclusions`.
+pub fn levels(
+    spec: &SensorSpec,
+    triangles: &[usize],
+    inclusions: &[Inclusion],
+    elements: Elements,
+) -> Result<Vec<Level>, SpecError> {
+    let measure = |model: &eitskin::forward::ForwardModel, sigma: &[f64]| match elements {
+        Elements::Linear => model.measure(sigma),
+        Elements::Quadratic => model.measure_quadratic(sigma),
+    };
     let mut out = Vec::with_capacity(triangles.len());
     for &n in triangles {
         let mut spec = spec.clone();
@@ -109,13 +134,13 @@ pub fn levels(spec: &SensorSpec, triangles: &[usize], inclusions: &[Inclusion]) 
         spec.mesh.max_element_size = None;
         let start = Instant::now();
         let model = spec.forward_model()?;
-        let values = model.measure(&spec.homogeneous(model.mesh()))?;
+        let values = measure(&model, &spec.homogeneous(model.mesh()))?;
         let setup_seconds = start.elapsed().as_secs_f64();
         let difference = if inclusions.is_empty() {
             Vec::new()
         } else {
             let sigma = with_inclusions(model.mesh(), spec.conductivity, inclusions);
-            model.measure(&sigma)?.iter().zip(&values).map(|(a, b)| a - b).collect()
+            measure(&model, &sigma)?.iter().zip(&values).map(|(a, b)| a - b).collect()
         };
         out.push(Level { triangles: model.mesh().triangles().len(), setup_seconds, values, difference });
     }

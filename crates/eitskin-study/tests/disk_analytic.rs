@@ -1,6 +1,7 @@
 //! On a disk, the finite-element forward model converges under mesh refinement to
 //! independent analytic answers (a Fourier-series solution of the complete electrode model,
-//! and the point-electrode dipole), and it is reciprocal.
+//! and the point-electrode dipole), and it is reciprocal; quadratic elements converge to the
+//! same answer, faster.
 
 use std::f64::consts::PI;
 
@@ -54,6 +55,26 @@ fn adjacent_converges_to_the_fourier_solution() {
     eprintln!("disk adjacent: errors {errors:?}, orders in h {orders:?}");
     assert!(errors.windows(2).all(|e| e[1] < 0.5 * e[0]), "errors must fall: {errors:?}");
     assert!(errors[2] < 2e-3, "16k triangles: {:.2e}", errors[2]);
+}
+
+#[test]
+fn quadratic_elements_converge_to_the_fourier_solution_faster() {
+    let protocol = Protocol::adjacent(16, true).unwrap();
+    let mut truth_spec = disk(1000);
+    truth_spec.protocol = eitskin::ProtocolSpec::Custom(protocol.clone());
+    let truth = disk_values(&truth_spec).unwrap().expect("a disk with complete electrodes has an analytic answer");
+    let (mut linear, mut quadratic) = (Vec::new(), Vec::new());
+    for n in [1000, 4000, 16000] {
+        let mut spec = disk(n);
+        spec.protocol = eitskin::ProtocolSpec::Custom(protocol.clone());
+        let model = spec.forward_model().unwrap();
+        let sigma = spec.homogeneous(model.mesh());
+        linear.push(relative_error(&model.measure(&sigma).unwrap(), &truth));
+        quadratic.push(relative_error(&model.measure_quadratic(&sigma).unwrap(), &truth));
+    }
+    eprintln!("disk adjacent, P1 {linear:?}, P2 {quadratic:?}");
+    assert!(quadratic.windows(2).all(|e| e[1] < 0.5 * e[0]), "P2 errors must fall: {quadratic:?}");
+    assert!(quadratic.iter().zip(&linear).all(|(q, l)| q < l), "P2 {quadratic:?} against P1 {linear:?}");
 }
 
 #[test]

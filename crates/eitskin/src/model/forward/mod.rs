@@ -12,6 +12,7 @@
 mod assemble;
 mod jacobian;
 mod low_rank;
+mod quadratic;
 
 pub use jacobian::JacobianFactors;
 pub use low_rank::{ChangeScratch, LowRankUpdate, DENSE_LIMIT};
@@ -96,6 +97,10 @@ pub enum ForwardError {
     /// The sparse solver failed for a reason other than the matrix (e.g. memory).
     #[error("sparse factorisation failed: {0}")]
     Solver(String),
+    /// Quadratic elements are for complete electrodes only (a point electrode's potential is
+    /// singular, which no higher order helps).
+    #[error("quadratic elements need complete electrodes, and this model's are points")]
+    QuadraticNeedsCompleteElectrodes,
 }
 
 /// How electrodes meet the sheet.
