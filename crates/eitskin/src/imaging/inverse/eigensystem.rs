@@ -143,7 +143,6 @@ fn eigen(lower: Mat<f64>) -> Result<(Vec<f64>, Mat<f64>), InverseError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::SensorSpec;
 
     /// The whitened Gram matrix's quadratic form and the filtered energy of a vector, as the
     /// noise figure and the data's criteria read them, at λ².
@@ -165,14 +164,7 @@ mod tests {
     /// the same image of a target and the same residual of a frame at every λ.
     #[test]
     fn the_range_alone_holds_every_nonzero_eigenpair() {
-        let mut spec = SensorSpec::square_hydrogel();
-        spec.outline = crate::Outline::Circle { radius: 0.1 };
-        spec.electrodes.count = 32;
-        spec.electrodes.width = 0.008;
-        spec.electrodes.placement = crate::Placement::Equal { start_angle_deg: 0.0 };
-        spec.protocol = crate::ProtocolSpec::AdjacentAll;
-        spec.mesh.triangles = 1500;
-        let lin = Linearisation::new(&spec.forward_model().unwrap(), 1.0).unwrap();
+        let lin = super::super::linearisation::thirty_two_electrode_disc();
         let m = lin.measurements();
         let variance: Vec<f64> = (0..m).map(|i| 1.0 + (i % 5) as f64).collect();
         let channels = Channels::all(m).with_variance(variance);
