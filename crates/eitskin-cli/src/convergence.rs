@@ -77,6 +77,11 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.protocol {
         spec.protocol = eitskin_io::protocol_by_name(p, std::path::Path::new("."), spec.electrodes.count)?;
     }
+    if args.elements == ElementsArg::P2 && spec.electrodes.point {
+        bail!(
+            "--elements p2: the sensor has point electrodes, and quadratic elements are for complete electrodes only"
+        );
+    }
     load::sized(spec.clone(), args.triangles.iter().max().copied(), Stage::ForwardModel)?;
     let inclusion = match &args.inclusion {
         Some(text) => load::inclusion(text, &spec)?,
@@ -84,11 +89,6 @@ pub fn run(args: Args) -> Result<()> {
     };
     let finest = check_levels(&args.triangles, &spec)?;
     check_inclusion(args.inclusion.as_deref(), &inclusion, finest, &spec)?;
-    if args.elements == ElementsArg::P2 && spec.electrodes.point {
-        bail!(
-            "--elements p2: the sensor has point electrodes, and quadratic elements are for complete electrodes only"
-        );
-    }
     let elements = match args.elements {
         ElementsArg::P1 => Elements::Linear,
         ElementsArg::P2 => Elements::Quadratic,

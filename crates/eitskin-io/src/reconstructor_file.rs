@@ -178,7 +178,7 @@ pub fn decode_linearisation(bytes: &[u8], key: &[u8; 32]) -> Option<Linearisatio
     }
     let background = r.f64s(measurements)?;
     let values = r.f64s(measurements.checked_mul(triangles)?)?;
-    let pairs = electrodes.saturating_sub(1) * electrodes / 2;
+    let pairs = eitskin::forward::JacobianFactors::pairs(electrodes);
     let patterns = r.f64s(measurements.checked_mul(pairs)?)?;
     let basis = r.f64s(pairs.checked_mul(triangles)?)?;
     if !r.0.is_empty() {

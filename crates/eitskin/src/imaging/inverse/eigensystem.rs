@@ -56,7 +56,7 @@ impl Eigensystem {
         let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
         let std: Vec<f64> = channels.relative_variance().iter().map(|v| v.sqrt()).collect();
         let basis = lin.factors().basis.as_ref();
-        let range = if on_range && basis.nrows() < jacobian.nrows() {
+        let range = if on_range && lin.factored_for(jacobian.nrows()) {
             Range::factored(lin.pattern_rows(&channels.used(), normalised)?.as_ref(), basis, &std, &r)?
         } else {
             Range::whole(jacobian.as_ref(), &std, &r)?

@@ -103,7 +103,7 @@ impl FromStr for Hyperparameter {
 struct NoiseFigure {
     /// Eigenvalues e of the whitened system.
     eigenvalues: Vec<f64>,
-    /// CᵀC, channels × channels, for C = A R⁻¹ J_wᵀ U (triangles × channels): the image of each
+    /// CᵀC, eigenvalues × eigenvalues, for C = A R⁻¹ J_wᵀ U (triangles × eigenvalues): the image of each
     /// eigenvector, area-weighted.
     gram: Mat<f64>,
     /// Uᵀ Σ^-½ z₀.

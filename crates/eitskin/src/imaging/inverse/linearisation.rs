@@ -69,8 +69,7 @@ impl Linearisation {
         mesh: Mesh,
     ) -> Option<Linearisation> {
         let (m, k) = (background.len(), mesh.triangles().len());
-        let electrodes = mesh.electrodes().len();
-        let pairs = electrodes.saturating_sub(1) * electrodes / 2;
+        let pairs = JacobianFactors::pairs(mesh.electrodes().len());
         let consistent = m > 0
             && m.checked_mul(k) == Some(jacobian.len())
             && m.checked_mul(pairs) == Some(patterns.len())
@@ -90,6 +89,11 @@ impl Linearisation {
     /// The Jacobian ∂v/∂σ, measurements × triangles, in V per S/m (at 1 A).
     pub fn jacobian(&self) -> MatRef<'_, f64> {
         self.jacobian.as_ref()
+    }
+
+    /// Whether `used` channels are decomposed through J's factors: they are more than the pairs.
+    pub(crate) fn factored_for(&self, used: usize) -> bool {
+        self.factors.basis.nrows() < used
     }
 
     /// The Jacobian's factors P·B (see [`JacobianFactors`]).
@@ -183,14 +187,17 @@ impl Linearisation {
         let basis = self.factors.basis.as_ref();
         let mut compact = match params.prior.diagonal(jacobian.as_ref()) {
             // Fewer pairs than channels: through the range's eigenpairs, at the pairs' count.
-            Some(r) if by_factors && basis.nrows() < used.len() => {
+            Some(r) if by_factors && self.factored_for(used.len()) => {
                 let mut patterns = self.pattern_rows(&used, params.normalised)?;
                 if let Some(global) = &global {
                     global.project_patterns(&mut patterns);
                 }
                 factored(patterns.as_ref(), basis, &r, params.hyperparameter, &variance)?
             }
-            _ => weighted(jacobian.as_ref(), &params.prior, params.hyperparameter, &variance, &self.mesh)?,
+            Some(r) => measurement_sized(jacobian.as_ref(), &r, params.hyperparameter, &variance)?,
+            None => {
+                weighted_element_sized(jacobian.as_ref(), &params.prior, params.hyperparameter, &variance, &self.mesh)?
+            }
         };
         if let Some(global) = &global {
             global.project_data(&mut compact);
@@ -352,6 +359,10 @@ pub(crate) fn factored(
     let std: Vec<f64> = variance.iter().map(|v| v.sqrt()).collect();
     let Range { q, s, eigenvalues, v } = Range::factored(patterns, basis, &std, r)?;
     let lambda2 = hyperparameter * hyperparameter;
+    // A λ whose square underflows leaves the range's null directions unregularised.
+    if eigenvalues.first().is_some_and(|e| e.max(0.0) + lambda2 <= 0.0) {
+        return Err(InverseError::NotPositiveDefinite);
+    }
     let filtered = Mat::from_fn(v.nrows(), v.ncols(), |i, k| v[(i, k)] / (eigenvalues[k].max(0.0) + lambda2));
     let filter = filtered * v.transpose();
     let data = Mat::from_fn(q.ncols(), q.nrows(), |p, i| q[(i, p)] / std[i]);

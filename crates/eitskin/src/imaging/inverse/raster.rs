@@ -260,8 +260,10 @@ impl Reconstructor {
 
     /// The pixel values of the images of several `frames` against one reference `v_ref`, in
     /// S/m (pixels × frames; 0 outside the outline): one matrix product, the matrix read once
-    /// for all of them. An error names the first frame refused (see [`Reconstructor::image`]).
+    /// for all of them. Refuses what [`Reconstructor::image`] refuses, the reference first, then
+    /// the first frame refused (the error names its channel, not the frame).
     pub fn image_values_of(&self, v_ref: &[f64], frames: &[&[f64]]) -> Result<Mat<f32>, InverseError> {
+        self.check(v_ref, v_ref)?;
         for v in frames {
             self.check(v_ref, v)?;
         }

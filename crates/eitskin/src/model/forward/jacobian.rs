@@ -26,6 +26,13 @@ pub struct JacobianFactors {
     pub basis: Mat<f64>,
 }
 
+impl JacobianFactors {
+    /// The pairs of basis fields of `electrodes` electrodes, L(L−1)/2: the rows of B.
+    pub fn pairs(electrodes: usize) -> usize {
+        electrodes.saturating_sub(1) * electrodes / 2
+    }
+}
+
 /// The pairs (p, a), p ≤ a, of `basis` basis patterns, in the order of [`JacobianFactors`]' rows.
 fn pairs(basis: usize) -> impl Iterator<Item = (usize, usize)> {
     (0..basis).flat_map(move |a| (0..=a).map(move |p| (p, a)))

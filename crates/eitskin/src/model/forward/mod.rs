@@ -258,6 +258,14 @@ impl ForwardModel {
 
     /// Assembles the system matrix for one conductivity per triangle, in S/m.
     pub fn assemble(&self, conductivity: &[f64]) -> Result<SystemMatrix, ForwardError> {
+        self.check_conductivity(conductivity)?;
+        let mut values = vec![0.0; self.pattern.row_idx.len()];
+        self.pattern.assemble_into(conductivity, &mut values);
+        Ok(SystemMatrix { values })
+    }
+
+    /// Refuses a conductivity that is not one positive, finite value (S/m) per triangle.
+    fn check_conductivity(&self, conductivity: &[f64]) -> Result<(), ForwardError> {
         let expected = self.mesh.triangles().len();
         if conductivity.len() != expected {
             return Err(ForwardError::ConductivityCount { expected, got: conductivity.len() });
@@ -265,9 +273,7 @@ impl ForwardModel {
         if let Some(t) = conductivity.iter().position(|s| !(*s > 0.0 && s.is_finite())) {
             return Err(ForwardError::Conductivity { triangle: t, value: conductivity[t] });
         }
-        let mut values = vec![0.0; self.pattern.row_idx.len()];
-        self.pattern.assemble_into(conductivity, &mut values);
-        Ok(SystemMatrix { values })
+        Ok(())
     }
 
     /// Numeric Cholesky factorisation of an assembled matrix, reusing the symbolic one.
@@ -286,19 +292,8 @@ impl ForwardModel {
 
     /// Solves the L−1 current patterns e_l − e_L (1 A in at electrode l, out at the last).
     pub fn solve_patterns(&self, factor: &Factor) -> ForwardSolution {
-        let l = self.mesh.electrodes().len();
-        let mut rhs = Mat::<f64>::zeros(self.pattern.size, l - 1);
-        for p in 0..l - 1 {
-            for (e, sign) in [(p, 1.0), (l - 1, -1.0)] {
-                if let Some(r) = self.electrode_row(e) {
-                    rhs[(r, p)] += sign;
-                }
-            }
-        }
-        factor.llt.solve_in_place(rhs.as_mut());
-        let electrode_voltages =
-            (0..l).map(|e| (0..l - 1).map(|p| self.electrode_row(e).map_or(0.0, |r| rhs[(r, p)])).collect()).collect();
-        ForwardSolution { fields: rhs, electrode_voltages }
+        let rows: Vec<Option<usize>> = (0..self.mesh.electrodes().len()).map(|e| self.electrode_row(e)).collect();
+        basis_solution(self.pattern.size, &rows, |rhs| factor.llt.solve_in_place(rhs))
     }
 
     /// Assembles, factors and solves for one conductivity per triangle (S/m).
@@ -333,6 +328,25 @@ impl ForwardModel {
             .map(|&r| if r == GROUNDED { 0.0 } else { (0..l - 1).map(|p| current[p] * solution.fields[(r, p)]).sum() })
             .collect()
     }
+}
+
+/// The L−1 basis patterns e_p − e_L (1 A in at electrode p, out at the last) of a system of
+/// `size` unknowns where electrode e's voltage is unknown `rows[e]` (`None`: ground), solved in
+/// place by `solve`.
+fn basis_solution(size: usize, rows: &[Option<usize>], solve: impl FnOnce(faer::MatMut<'_, f64>)) -> ForwardSolution {
+    let l = rows.len();
+    let mut rhs = Mat::<f64>::zeros(size, l - 1);
+    for p in 0..l - 1 {
+        for (e, sign) in [(p, 1.0), (l - 1, -1.0)] {
+            if let Some(r) = rows[e] {
+                rhs[(r, p)] += sign;
+            }
+        }
+    }
+    solve(rhs.as_mut());
+    let electrode_voltages =
+        rows.iter().map(|r| (0..l - 1).map(|p| r.map_or(0.0, |r| rhs[(r, p)])).collect()).collect();
+    ForwardSolution { fields: rhs, electrode_voltages }
 }
 
 /// The ground: the node nearest the centre of the bounding box that is not on an electrode.

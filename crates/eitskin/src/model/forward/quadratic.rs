@@ -17,9 +17,9 @@ use std::collections::HashMap;
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
-use faer::{Mat, Side};
+use faer::Side;
 
-use super::{ElectrodeModel, ForwardError, ForwardModel, ForwardSolution, GROUNDED};
+use super::{basis_solution, ElectrodeModel, ForwardError, ForwardModel, ForwardSolution, GROUNDED};
 use crate::geometry::dist;
 
 /// The midpoint of the edge opposite each corner: local unknowns 3, 4, 5.
@@ -70,13 +70,7 @@ impl ForwardModel {
     /// The quadratic model's solution: `fields` holds its unknowns (corners without the ground,
     /// then edge midpoints, then electrodes) per basis pattern.
     fn solve_quadratic(&self, conductivity: &[f64]) -> Result<ForwardSolution, ForwardError> {
-        let expected = self.mesh.triangles().len();
-        if conductivity.len() != expected {
-            return Err(ForwardError::ConductivityCount { expected, got: conductivity.len() });
-        }
-        if let Some(t) = conductivity.iter().position(|s| !(*s > 0.0 && s.is_finite())) {
-            return Err(ForwardError::Conductivity { triangle: t, value: conductivity[t] });
-        }
+        self.check_conductivity(conductivity)?;
         let ElectrodeModel::Complete { contact_impedance } = &self.electrodes else {
             return Err(ForwardError::QuadraticNeedsCompleteElectrodes);
         };
@@ -137,16 +131,8 @@ impl ForwardModel {
         let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(size, size, &triplets)
             .map_err(|e| ForwardError::Solver(format!("{e:?}")))?;
         let llt = matrix.sp_cholesky(Side::Lower).map_err(|e| ForwardError::Solver(format!("{e:?}")))?;
-        let l = electrodes;
-        let mut fields = Mat::<f64>::zeros(size, l - 1);
-        for p in 0..l - 1 {
-            fields[(first_electrode + p, p)] += 1.0;
-            fields[(first_electrode + l - 1, p)] -= 1.0;
-        }
-        llt.solve_in_place(fields.as_mut());
-        let electrode_voltages =
-            (0..l).map(|e| (0..l - 1).map(|p| fields[(first_electrode + e, p)]).collect()).collect();
-        Ok(ForwardSolution { fields, electrode_voltages })
+        let rows: Vec<Option<usize>> = (0..electrodes).map(|e| Some(first_electrode + e)).collect();
+        Ok(basis_solution(size, &rows, |rhs| llt.solve_in_place(rhs)))
     }
 }
 
