@@ -94,9 +94,12 @@ fn bench_json_has_every_stage() {
         "measurements",
         "total",
         "jacobian",
+        "forward_p2_graded",
         "reconstructor",
         "drop_channel",
         "auto_hyperparameter",
+        "auto_hyperparameter_2356",
+        "reconstructor_2356",
         "frame_image",
         "frame_touches",
     ] {
