@@ -152,7 +152,18 @@ pub fn triangle_box(corners: [[f64; 2]; 3]) -> [f64; 4] {
 /// triangle, in m²: the sum over the edges of the signed disk ∩ (centre, a, b) areas.
 pub fn circle_triangle_area(centre: [f64; 2], radius: f64, corners: [[f64; 2]; 3]) -> f64 {
     let rel = corners.map(|p| [p[0] - centre[0], p[1] - centre[1]]);
-    (0..3).map(|i| sector_triangle(rel[i], rel[(i + 1) % 3], radius)).sum()
+    (0..3).map(|i| sector_triangle(rel[i], rel[(i + 1) % 3], radius, None)).sum()
+}
+
+/// [`circle_triangle_area`] (m²) with its derivatives along the centre's x and y and the
+/// radius (m² per m), exact: moving the disk's boundary sweeps area only along the arcs of it
+/// inside the triangle, so ∂A/∂centre = ∫ n ds and ∂A/∂r = ∫ ds over those arcs (n the
+/// circle's outward normal), read off the same sectors as the area.
+pub fn circle_triangle_area_gradient(centre: [f64; 2], radius: f64, corners: [[f64; 2]; 3]) -> (f64, [f64; 3]) {
+    let rel = corners.map(|p| [p[0] - centre[0], p[1] - centre[1]]);
+    let mut gradient = [0.0; 3];
+    let area = (0..3).map(|i| sector_triangle(rel[i], rel[(i + 1) % 3], radius, Some(&mut gradient))).sum();
+    (area, gradient)
 }
 
 fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -163,9 +174,23 @@ fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[0] + a[1] * b[1]
 }
 
-/// Signed area of the disk of radius `r` at the origin intersected with triangle (0, a, b).
-fn sector_triangle(a: [f64; 2], b: [f64; 2], r: f64) -> f64 {
-    let sector = |u: [f64; 2], v: [f64; 2]| 0.5 * r * r * cross(u, v).atan2(dot(u, v));
+/// Signed area of the disk of radius `r` at the origin intersected with triangle (0, a, b);
+/// with `gradient`, adds to it the area's derivatives along the disk's centre (x, y) and `r`.
+fn sector_triangle(a: [f64; 2], b: [f64; 2], r: f64, mut gradient: Option<&mut [f64; 3]>) -> f64 {
+    // The arc at radius r from direction u to v (signed), its area and, if asked, its sweep.
+    let mut sector = |u: [f64; 2], v: [f64; 2]| {
+        let angle = cross(u, v).atan2(dot(u, v));
+        if let Some(g) = gradient.as_deref_mut() {
+            let (nu, nv) = (u[0].hypot(u[1]), v[0].hypot(v[1]));
+            if nu > 0.0 && nv > 0.0 {
+                // ∫ (cos θ, sin θ) r dθ from θ_u to θ_v.
+                g[0] += r * (v[1] / nv - u[1] / nu);
+                g[1] += r * (u[0] / nu - v[0] / nv);
+            }
+            g[2] += r * angle;
+        }
+        0.5 * r * r * angle
+    };
     let d = [b[0] - a[0], b[1] - a[1]];
     let qa = dot(d, d);
     if qa == 0.0 {
@@ -256,5 +281,33 @@ mod tests {
         let sampled = inside as f64 / (n * n) as f64;
         let exact = circle_triangle_area(c, r, TRI);
         assert!((exact - sampled).abs() < 2e-4, "exact {exact}, sampled {sampled}");
+    }
+
+    /// The gradient against central differences of the area itself, for a disk across one
+    /// corner, across an edge, over a whole corner-free triangle's side, inside and outside;
+    /// and against two facts: a half-plane's chord (2r along x) and a disk inside (0, 0, 2πr).
+    #[test]
+    fn the_overlaps_gradient_is_its_central_difference() {
+        let cases = [([0.0, 0.0], 0.5), ([0.6, 0.3], 0.35), ([0.5, -0.1], 0.3), ([0.3, 0.3], 0.9), ([2.0, 2.0], 0.3)];
+        let h = 1e-6;
+        for (c, r) in cases {
+            let (area, g) = circle_triangle_area_gradient(c, r, TRI);
+            assert_eq!(area, circle_triangle_area(c, r, TRI));
+            let by_x = (circle_triangle_area([c[0] + h, c[1]], r, TRI)
+                - circle_triangle_area([c[0] - h, c[1]], r, TRI))
+                / (2.0 * h);
+            let by_y = (circle_triangle_area([c[0], c[1] + h], r, TRI)
+                - circle_triangle_area([c[0], c[1] - h], r, TRI))
+                / (2.0 * h);
+            let by_r = (circle_triangle_area(c, r + h, TRI) - circle_triangle_area(c, r - h, TRI)) / (2.0 * h);
+            for (analytic, difference) in g.iter().zip([by_x, by_y, by_r]) {
+                assert!((analytic - difference).abs() < 1e-7, "{c:?} {r}: {g:?} vs {:?}", [by_x, by_y, by_r]);
+            }
+        }
+        let big = [[0.0, -10.0], [10.0, 0.0], [0.0, 10.0]];
+        let (_, g) = circle_triangle_area_gradient([0.0, 0.0], 0.5, big);
+        assert!((g[0] - 1.0).abs() < 1e-12 && g[1].abs() < 1e-12 && (g[2] - PI * 0.5).abs() < 1e-12, "{g:?}");
+        let (_, g) = circle_triangle_area_gradient([0.25, 0.25], 0.1, TRI);
+        assert!(g[0].abs() < 1e-15 && g[1].abs() < 1e-15 && (g[2] - 2.0 * PI * 0.1).abs() < 1e-14, "{g:?}");
     }
 }

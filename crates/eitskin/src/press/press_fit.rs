@@ -73,7 +73,7 @@ pub use detect::PressDetection;
 pub use exact::{Disk, DiskParameter, ExactPresses, ExactScratch, JOINT_PRESSES};
 pub use locate::{Locator, STRIDE};
 pub use refine::{refine, RefineParams, RefineScratch, DEEPEST};
-pub use track::{PressTrack, Tracked, NONLINEAR};
+pub use track::{PressTrack, Tracked, WINDOW};
 
 /// A square grid of points over a box: the first at `lo`, row-major.
 #[derive(Debug, Clone, Copy, PartialEq)]

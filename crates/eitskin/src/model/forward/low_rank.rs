@@ -318,7 +318,7 @@ impl LowRankUpdate {
         scratch: &mut ChangeScratch,
         out: &mut [f64],
     ) -> Result<(), ForwardError> {
-        let ChangeScratch { rows, green, dk, fields, system, x, change, lu, solved } = scratch;
+        let ChangeScratch { rows, green, dk, nonzeros, fields, system, x, change, lu, solved } = scratch;
         *solved = false;
         rows.clear();
         for &(t, _) in changes {
@@ -355,18 +355,29 @@ impl LowRankUpdate {
             }
         }
         self.stiffness_change(changes, rows, dk);
-        // X = (I + G·ΔK)⁻¹·U_R by an LU in place, then ΔV = −U_Rᵀ·ΔK·X.
+        nonzeros.gather(dk.as_ref());
+        // X = (I + G·ΔK)⁻¹·U_R by an LU in place, then ΔV = −U_Rᵀ·ΔK·X. ΔK has a few entries
+        // per column (a node's neighbours), so both of its products are sums of a few columns.
         grow(system, s, s);
-        matmul(system.as_mut(), Accum::Replace, green.as_ref(), dk.as_ref(), 1.0, Par::Seq);
-        for i in 0..s {
-            system[(i, i)] += 1.0;
+        for j in 0..s {
+            system.col_mut(j).fill(0.0);
+            system[(j, j)] = 1.0;
+            for &(i, value) in nonzeros.column(j) {
+                system.col_mut(j).iter_mut().zip(green.col(i).iter()).for_each(|(c, g)| *c += value * g);
+            }
         }
         grow(x, s, basis);
         x.copy_from(fields.as_ref());
         lu.solve_in_place(system.as_mut(), x.as_mut());
-        // ΔK·X into `green` (no longer needed), then the basis change.
+        // ΔK·X into `green` (no longer needed; ΔK is symmetric, so its columns are its rows),
+        // then the basis change.
         grow(green, s, basis);
-        matmul(green.as_mut(), Accum::Replace, dk.as_ref(), x.as_ref(), 1.0, Par::Seq);
+        for p in 0..basis {
+            let x = x.col(p);
+            for i in 0..s {
+                green[(i, p)] = nonzeros.column(i).iter().map(|&(j, value)| value * x[j]).sum();
+            }
+        }
         grow(change, basis, basis);
         matmul(change.as_mut(), Accum::Replace, fields.transpose(), green.as_ref(), -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
@@ -491,12 +502,45 @@ impl LowRankUpdate {
     }
 }
 
+/// The nonzero entries of a small dense matrix, column by column.
+#[derive(Debug, Default)]
+struct Nonzeros {
+    /// Per column, where its entries start (one more than columns).
+    start: Vec<usize>,
+    /// (row, value).
+    entries: Vec<(usize, f64)>,
+}
+
+impl Nonzeros {
+    fn gather(&mut self, matrix: MatRef<'_, f64>) {
+        self.start.clear();
+        self.entries.clear();
+        self.start.push(0);
+        for j in 0..matrix.ncols() {
+            let column = matrix.col(j);
+            self.entries.extend(column.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(i, v)| (i, *v)));
+            self.start.push(self.entries.len());
+        }
+    }
+
+    fn column(&self, j: usize) -> &[(usize, f64)] {
+        &self.entries[self.start[j]..self.start[j + 1]]
+    }
+
+    fn reserve(&mut self, columns: usize) {
+        room(&mut self.start, columns + 1);
+        // A node of a triangulation has about six neighbours.
+        room(&mut self.entries, 8 * columns);
+    }
+}
+
 /// Buffers of [`LowRankUpdate::measurement_change_into`].
 #[derive(Debug)]
 pub struct ChangeScratch {
     rows: Vec<usize>,
     green: Mat<f64>,
     dk: Mat<f64>,
+    nonzeros: Nonzeros,
     fields: Mat<f64>,
     system: Mat<f64>,
     x: Mat<f64>,
@@ -510,6 +554,7 @@ impl ChangeScratch {
     /// Room for changes touching up to `rows` rows of the system.
     pub fn reserve(&mut self, rows: usize) {
         room(&mut self.rows, rows);
+        self.nonzeros.reserve(rows);
         self.lu.reserve(rows);
     }
 }
@@ -518,7 +563,18 @@ impl Default for ChangeScratch {
     fn default() -> Self {
         let empty = || Mat::zeros(0, 0);
         let (green, dk, fields, system, x, change) = (empty(), empty(), empty(), empty(), empty(), empty());
-        ChangeScratch { rows: Vec::new(), green, dk, fields, system, x, change, lu: DenseLu::default(), solved: false }
+        ChangeScratch {
+            rows: Vec::new(),
+            green,
+            dk,
+            nonzeros: Nonzeros::default(),
+            fields,
+            system,
+            x,
+            change,
+            lu: DenseLu::default(),
+            solved: false,
+        }
     }
 }
 

@@ -9,7 +9,7 @@
 //! another, weak one, and biases every other press's drop. The exact response leaves nothing
 //! of a flat press.
 
-use crate::conductivity::circle_triangle_area;
+use crate::conductivity::{circle_triangle_area, circle_triangle_area_gradient};
 use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
 use crate::mesh::TriangleBuckets;
 use crate::scratch::room;
@@ -88,9 +88,6 @@ pub enum DiskParameter {
 /// presses 50 mm apart change each other's Δv by about 1 %).
 pub const JOINT_PRESSES: usize = 4;
 
-/// Step of the central difference of a triangle's covered share along a length, in m.
-const SHARE_STEP: f64 = 1e-6;
-
 impl ExactPresses {
     /// The exact responses of `model`'s presses at the homogeneous `background` (S/m), from
     /// `update` (made at that background).
@@ -146,18 +143,12 @@ impl ExactPresses {
         self.joint() && count <= JOINT_PRESSES
     }
 
-    /// Calls `push` with each triangle (index, corners, area) whose bounding box may meet `disk`
-    /// grown by `margin` (m), each once; `near` is a buffer.
-    fn each_triangle(
-        &self,
-        disk: &Disk,
-        margin: f64,
-        near: &mut Vec<usize>,
-        mut push: impl FnMut(usize, [[f64; 2]; 3], f64),
-    ) {
+    /// Calls `push` with each triangle (index, corners, area) whose bounding box may meet `disk`,
+    /// each once; `near` is a buffer.
+    fn each_triangle(&self, disk: &Disk, near: &mut Vec<usize>, mut push: impl FnMut(usize, [[f64; 2]; 3], f64)) {
         let mesh = self.update.model().mesh();
         let [x, y] = disk.centre;
-        let r = disk.radius + margin;
+        let r = disk.radius;
         self.buckets.near_into([x - r, y - r], [x + r, y + r], near);
         near.sort_unstable();
         near.dedup();
@@ -188,8 +179,12 @@ impl ExactPresses {
             let members = if together { disks } else { &disks[g..g + 1] };
             changes.clear();
             for disk in members {
-                self.each_triangle(disk, 0.0, near, |t, corners, area| {
-                    let share = (circle_triangle_area(disk.centre, disk.radius, corners) / area).min(1.0);
+                self.each_triangle(disk, near, |t, corners, area| {
+                    let share = match Overlap::of(corners, disk) {
+                        Overlap::Inside => 1.0,
+                        Overlap::Outside => return,
+                        Overlap::Crossing => (circle_triangle_area(disk.centre, disk.radius, corners) / area).min(1.0),
+                    };
                     // Rounding leaves a share of about 1e-16 on some triangles the disk misses.
                     if share > 1e-9 {
                         changes.push((t, -self.background * disk.drop * share));
@@ -208,8 +203,9 @@ impl ExactPresses {
 
     /// The derivative of Δv (V per unit of the parameter, protocol order) along `parameter`
     /// of `disks[i]`, into `out`, at the `disks` the last [`ExactPresses::response_into`] with
-    /// `scratch` was given (exact: the adjoint Jacobian from that solve; the covered shares by
-    /// a central difference). `false` if that solve was done in full, not by the update.
+    /// `scratch` was given (exact: the adjoint Jacobian from that solve, and the covered shares'
+    /// own derivatives, [`circle_triangle_area_gradient`]). `false` if that solve was done in
+    /// full, not by the update.
     pub fn derivative_into(
         &self,
         disks: &[Disk],
@@ -223,22 +219,20 @@ impl ExactPresses {
         let Some(group) = groups.get_mut(if self.together(disks.len()) { 0 } else { i }) else { return false };
         let scale = -self.background;
         changes.clear();
-        let h = SHARE_STEP;
-        self.each_triangle(&disk, h, near, |t, corners, area| {
-            let share = |centre: [f64; 2], radius: f64| (circle_triangle_area(centre, radius, corners) / area).min(1.0);
-            let [x, y] = disk.centre;
-            let rate = match parameter {
-                DiskParameter::Drop => share(disk.centre, disk.radius),
-                // A triangle the disk's edge does not cross, within the step, keeps its share.
-                _ if !crosses(corners, disk.centre, disk.radius, h) => 0.0,
-                DiskParameter::X => {
-                    disk.drop * (share([x + h, y], disk.radius) - share([x - h, y], disk.radius)) / (2.0 * h)
-                }
-                DiskParameter::Y => {
-                    disk.drop * (share([x, y + h], disk.radius) - share([x, y - h], disk.radius)) / (2.0 * h)
-                }
-                DiskParameter::Radius => {
-                    disk.drop * (share(disk.centre, disk.radius + h) - share(disk.centre, disk.radius - h)) / (2.0 * h)
+        self.each_triangle(&disk, near, |t, corners, area| {
+            let rate = match (Overlap::of(corners, &disk), parameter) {
+                (Overlap::Outside, _) => 0.0,
+                (Overlap::Inside, DiskParameter::Drop) => 1.0,
+                // A triangle the disk's edge does not cross keeps its share.
+                (Overlap::Inside, _) => 0.0,
+                (Overlap::Crossing, parameter) => {
+                    let (overlap, gradient) = circle_triangle_area_gradient(disk.centre, disk.radius, corners);
+                    match parameter {
+                        DiskParameter::Drop => (overlap / area).min(1.0),
+                        DiskParameter::X => disk.drop * gradient[0] / area,
+                        DiskParameter::Y => disk.drop * gradient[1] / area,
+                        DiskParameter::Radius => disk.drop * gradient[2] / area,
+                    }
                 }
             };
             if rate.abs() > 0.0 {
@@ -251,21 +245,37 @@ impl ExactPresses {
     }
 }
 
-/// Whether the circle (`centre`, `radius`), grown or shrunk by up to `margin` (m), can cross the
-/// triangle `corners`: neither all its corners well inside, nor all of it well outside.
-fn crosses(corners: [[f64; 2]; 3], centre: [f64; 2], radius: f64, margin: f64) -> bool {
-    let distance = |p: [f64; 2]| (p[0] - centre[0]).hypot(p[1] - centre[1]);
-    if corners.iter().all(|&c| distance(c) < radius - margin) {
-        return false; // inside
+/// Where a triangle lies against a disk's edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Overlap {
+    /// Every corner inside the disk: the whole triangle is covered.
+    Inside,
+    /// Nothing of the triangle is within the disk.
+    Outside,
+    /// The disk's edge crosses the triangle (or touches it).
+    Crossing,
+}
+
+impl Overlap {
+    fn of(corners: [[f64; 2]; 3], disk: &Disk) -> Overlap {
+        let (centre, squared) = (disk.centre, disk.radius * disk.radius);
+        let distance2 = |p: [f64; 2]| (p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2);
+        if corners.iter().all(|&c| distance2(c) < squared) {
+            return Overlap::Inside;
+        }
+        // Outside: the centre is farther than the radius from each edge and not in the triangle.
+        let edge_distance2 = |a: [f64; 2], b: [f64; 2]| {
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let t = (((centre[0] - a[0]) * dx + (centre[1] - a[1]) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
+            distance2([a[0] + t * dx, a[1] + t * dy])
+        };
+        let near_edge = (0..3).any(|k| edge_distance2(corners[k], corners[(k + 1) % 3]) <= squared);
+        if near_edge || crate::mesh::barycentric(corners, centre).iter().all(|&w| w >= 0.0) {
+            Overlap::Crossing
+        } else {
+            Overlap::Outside
+        }
     }
-    // Outside: the centre is farther than the radius from each edge and not in the triangle.
-    let edge_distance = |a: [f64; 2], b: [f64; 2]| {
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let t = (((centre[0] - a[0]) * dx + (centre[1] - a[1]) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
-        distance([a[0] + t * dx, a[1] + t * dy])
-    };
-    let near_edge = (0..3).any(|k| edge_distance(corners[k], corners[(k + 1) % 3]) <= radius + margin);
-    near_edge || crate::mesh::barycentric(corners, centre).iter().all(|&w| w >= 0.0)
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! Presses carried from frame to frame of a stream: see [`PressTrack`].
 
 use faer::linalg::matmul::matmul;
-use faer::{Accum, ColMut, ColRef, Mat, Par};
+use faer::{Accum, Mat, Par};
 
 use super::detect::{Exact, PressDetection, Scan, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter, ExactScratch};
@@ -11,17 +11,28 @@ use super::{PressFit, PressScratch};
 use crate::inverse::InverseError;
 use crate::scratch::{grow, room, DenseLu};
 
-/// The largest shift of the fitted parameters the second-order term a carried step leaves out
-/// may cause, in standard deviations of the fit (whitened: the term's part in the span of the
-/// Jacobian): half of one.
-pub const NONLINEAR: f64 = 0.5;
-
 /// The parameters carried per press, in the order of the Jacobian's rows (the radius stays
 /// as the last fit found it).
 const CARRIED: [DiskParameter; 3] = [DiskParameter::X, DiskParameter::Y, DiskParameter::Drop];
 
-/// Steps of the second differences, per parameter of [`CARRIED`]: 1 mm, 1 mm, 0.05.
-const STEPS: [f64; 3] = [1e-3, 1e-3, 0.05];
+/// The half-width of each press's local model along each parameter, in the fit's standard
+/// deviations at the linearisation: a step past it is fitted again exactly.
+pub const WINDOW: f64 = 4.0;
+
+/// Bounds of that half-width per parameter of [`CARRIED`]: for the centre in the press's radii
+/// (a cubic in its centre holds for about two), for the drop in drop.
+const WIDTHS: [[f64; 2]; 3] = [[0.02, 2.0], [0.02, 2.0], [0.01, 0.3]];
+
+/// Gauss–Newton iterations of a carried frame on the local model, at most.
+const ITERATIONS: usize = 6;
+
+/// A carried frame's iterations stop once a step would lower the misfit by less than this (χ²:
+/// a tenth of the fit's standard deviation, as [`super::RefineParams::converged_below`]).
+const SETTLED: f64 = 0.01;
+
+/// Rows of one press's local model: its Jacobian, second derivatives along each parameter,
+/// third along each, and the three mixed second derivatives (xy, x·drop, y·drop).
+const MODEL_ROWS: usize = 12;
 
 /// How a frame's presses were found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -37,30 +48,33 @@ pub enum Tracked {
 /// The presses of one stream carried from frame to frame ([`PressDetection::track_into`]), and
 /// the buffers of that; [`PressTrack::clear`] when the reference or the detection changes.
 ///
-/// A press held on the sheet changes Δv by
-/// little more than the noise between frames, so the joint exact fit of the last frame
-/// ([`super::PressDetection::detect_into`]) is linearised once, and each new frame is one
-/// Gauss–Newton step from it, read off that linearisation: a product with (JJᵀ)⁻¹J instead of a
-/// Levenberg–Marquardt fit of rank-hundreds updates. The presses are fitted again, or found
-/// afresh, as soon as the step cannot be trusted or the frame does not fit them:
-/// - **the linearisation no longer holds** — each press's own response is known to second order
-///   along each parameter (a difference of exact responses at linearisation), and the step's
-///   second-order term e = ½·Σₚ ∂²F/∂θₚ²·δθₚ², whitened, may move the parameters (its part in
-///   the span of the Jacobian) by at most [`NONLINEAR`] of their standard deviation; the rest of
-///   it is taken off the misfit the tests below read; past it the presses are fitted again
-///   exactly from where the step put them, and linearised there;
+/// A press held on the sheet changes Δv by little more than the noise between frames, so the
+/// joint exact fit of the last frame ([`super::PressDetection::detect_into`]) is modelled once
+/// around where it ended, and each new frame is fitted to that model (a few Gauss–Newton steps
+/// on 9 parameters) instead of by Levenberg–Marquardt on rank-hundreds exact updates:
+///
+///   F(θ₀ + δ) ≈ F(θ₀) + (J − Σᵢ Jᵢ)·δ + Σᵢ [Tᵢ(δᵢ) − Tᵢ(0)],
+///
+/// F the presses' joint exact response, J its Jacobian at θ₀ (so their fields on each other
+/// enter to first order), and Tᵢ press i's own exact response as a cubic in its centre and drop:
+/// exact at θ₀ with its exact first derivatives, and through exact responses at ±h along each
+/// parameter and at +h along each pair, h [`WINDOW`] of the fit's standard deviation there.
+/// The presses are fitted again, or found afresh, as soon as the model cannot be trusted or the
+/// frame does not fit them:
+/// - **a step leaves the model's box** (farther than h along any parameter, where the cubic
+///   would extrapolate), or the steps do not settle: the presses are fitted again exactly from
+///   where the model put them, and modelled there;
 /// - **a press is gone** — its z against the misfit with its own response put back, or its
 ///   drop, fails as in the detection;
 /// - **a new press is there** — the largest z of the misfit over the scan grid, against the part
 ///   of each point's response the presses cannot take up, passes the detection's threshold.
 ///
-/// A frame carried so is what the exact fit would give to within a fraction of the spread the
-/// noise gives the fit, 0.2–0.46 (`presses_held_are_carried_as_the_exact_fit_finds_them`), in
-/// microseconds: what is left is the Jacobian held at the linearisation, not the second-order
-/// term (bounding that tighter carries fewer frames no closer). Where the noise moves a weak
-/// press's fit by millimetres from frame to frame, the step goes past the linearisation in
-/// most frames, and those are fitted again (`eitskin bench`, `frame_three_presses_carried` at
-/// 0.05 % noise against `frame_three_presses_carried_80db` at 0.01 %).
+/// A frame carried so is what the exact fit would give to within a small part of the spread the
+/// noise gives the fit (`presses_held_are_carried_as_the_exact_fit_finds_them`), in
+/// microseconds; a weak press whose fit the noise moves by millimetres from frame to frame
+/// stays inside its box, whose width follows that spread (`eitskin bench`,
+/// `frame_three_presses_carried` at 0.05 % noise against `frame_three_presses_carried_80db` at
+/// 0.01 %).
 #[derive(Debug)]
 pub struct PressTrack {
     /// Whether a linearisation is held.
@@ -72,19 +86,26 @@ pub struct PressTrack {
     response: Vec<f64>,
     /// Its whitened Jacobian, one row per press and parameter of [`CARRIED`].
     jacobian: Mat<f64>,
-    /// (JJᵀ)⁻¹J: the step's map from the misfit.
-    solver: Mat<f64>,
+    /// J − Σᵢ Jᵢ: how the presses' fields on each other move with them, to first order (per
+    /// channel, one entry per press and parameter).
+    coupling: Vec<f64>,
+    /// The normal matrix of the model's Jacobian at the current step, and the step.
     normal: Mat<f64>,
+    increment: Mat<f64>,
     lu: DenseLu,
-    /// Each press's own response (rows), its Jacobian and second derivatives (rows per press
-    /// and parameter), whitened.
+    /// Each press's own response (rows), whitened.
     own: Vec<f64>,
-    own_jacobian: Mat<f64>,
-    curvature: Mat<f64>,
+    /// Each press's local model, whitened: per press and channel, [`MODEL_ROWS`] entries.
+    local: Vec<f64>,
+    /// Per press and parameter, the model's half-width h.
+    widths: Vec<f64>,
     /// The rank of the Jacobian's orthonormal basis (its first rows in `basis`).
     rank: usize,
-    /// The step's second-order term, whitened.
-    second: Vec<f64>,
+    /// The model's response at the current step, whitened, J·r there and JJᵀ's lower
+    /// triangle, row by row.
+    model: Vec<f64>,
+    gradient: Vec<f64>,
+    packed: Vec<f64>,
     /// Per scan point, the part of its gᵀg the presses cannot take up.
     unexplained: Vec<f64>,
     basis: Mat<f64>,
@@ -107,14 +128,17 @@ impl Default for PressTrack {
             current: Vec::new(),
             response: Vec::new(),
             jacobian: empty(),
-            solver: empty(),
+            coupling: Vec::new(),
             normal: empty(),
+            increment: empty(),
             lu: DenseLu::default(),
             own: Vec::new(),
-            own_jacobian: empty(),
-            curvature: empty(),
+            local: Vec::new(),
+            widths: Vec::new(),
             rank: 0,
-            second: Vec::new(),
+            model: Vec::new(),
+            gradient: Vec::new(),
+            packed: Vec::new(),
             unexplained: Vec::new(),
             basis: empty(),
             projections: empty(),
@@ -142,22 +166,26 @@ impl PressTrack {
         self.linearised = false;
     }
 
-    /// Linearises the exact responses at `presses` (whitened by `weights`); false (and nothing
-    /// held) where a press is solved in full, without the update's derivatives.
+    /// Models the exact responses around `presses` (whitened by the weights) as [`PressTrack`]
+    /// says; false (and nothing held) where a press is solved in full, without the update's
+    /// derivatives, or the fit's Jacobian is singular.
     fn linearise(&mut self, exact: Exact<'_>, scan: &Scan, presses: &[PressFit]) -> Result<bool, InverseError> {
         self.linearised = false;
         let (m, k) = (exact.dv.len(), presses.len());
         let n = CARRIED.len() * k;
         let model = exact.presses;
         model.reserve(&mut self.exact);
-        for buffer in [&mut self.response, &mut self.residual, &mut self.row, &mut self.second] {
+        for buffer in [&mut self.response, &mut self.residual, &mut self.row, &mut self.model] {
             room(buffer, m);
             buffer.resize(m, 0.0);
         }
         room(&mut self.own, MAX_PRESSES * m);
         self.own.resize(k * m, 0.0);
-        room(&mut self.step, CARRIED.len() * MAX_PRESSES);
-        self.step.resize(n, 0.0);
+        for buffer in [&mut self.step, &mut self.widths, &mut self.gradient] {
+            room(buffer, CARRIED.len() * MAX_PRESSES);
+            buffer.clear();
+            buffer.resize(n, 0.0);
+        }
         for buffer in [&mut self.at, &mut self.current] {
             room(buffer, MAX_PRESSES);
         }
@@ -166,11 +194,16 @@ impl PressTrack {
         room(&mut self.correlations, scan.points.len());
         room(&mut self.unexplained, scan.points.len());
         grow(&mut self.jacobian, n, m);
-        grow(&mut self.own_jacobian, n, m);
-        grow(&mut self.curvature, n, m);
-        grow(&mut self.solver, n, m);
+        room(&mut self.coupling, CARRIED.len() * MAX_PRESSES * m);
+        self.coupling.resize(n * m, 0.0);
+        let most = CARRIED.len() * MAX_PRESSES;
+        room(&mut self.packed, most * (most + 1) / 2);
+        room(&mut self.local, MODEL_ROWS * MAX_PRESSES * m);
+        self.local.resize(MODEL_ROWS * k * m, 0.0);
         grow(&mut self.normal, n, n);
-        let weigh = |out: &mut [f64]| out.iter_mut().zip(exact.weights).for_each(|(o, w)| *o *= w);
+        grow(&mut self.increment, n, n);
+        let weights = exact.weights;
+        let weigh = |out: &mut [f64]| out.iter_mut().zip(weights).for_each(|(o, w)| *o *= w);
         // The joint response and its Jacobian, from one solve.
         self.disks.clear();
         self.disks.extend(presses.iter().map(disk_of));
@@ -185,52 +218,78 @@ impl PressTrack {
                 self.row.iter().enumerate().for_each(|(q, d)| self.jacobian[(3 * i + p, q)] = *d);
             }
         }
-        // Each press alone: its response, Jacobian and second differences.
+        // The fit's standard deviations, √diag (JJᵀ)⁻¹, set each model's width.
+        let j = self.jacobian.as_ref();
+        matmul(self.normal.as_mut(), Accum::Replace, j, j.transpose(), 1.0, Par::Seq);
+        self.increment.fill(0.0);
+        (0..n).for_each(|a| self.increment[(a, a)] = 1.0);
+        if n > 0 {
+            self.lu.solve_in_place(self.normal.as_mut(), self.increment.as_mut());
+        }
+        for a in 0..n {
+            let radius = if a % 3 < 2 { presses[a / 3].radius } else { 1.0 };
+            let [lo, hi] = WIDTHS[a % 3].map(|w| w * radius);
+            let variance = self.increment[(a, a)];
+            if !(variance.is_finite() && variance > 0.0) {
+                return Ok(false);
+            }
+            self.widths[a] = (WINDOW * variance.sqrt()).clamp(lo, hi);
+        }
+        // Each press alone: its response, Jacobian and the exact responses its cubic goes through.
         for i in 0..k {
-            let disk = [self.disks[i]];
+            let disk = self.disks[i];
+            let drop_width = &mut self.widths[3 * i + 2];
+            *drop_width = drop_width.min(disk.drop).min(DEEPEST + 0.01 - disk.drop).max(1e-3);
+            let h = [self.widths[3 * i], self.widths[3 * i + 1], self.widths[3 * i + 2]];
+            let at = |q: usize, t: usize| (i * m + q) * MODEL_ROWS + t;
             let own = &mut self.own[i * m..(i + 1) * m];
-            model.response_into(&disk, &mut self.exact, own)?;
+            model.response_into(&[disk], &mut self.exact, own)?;
             weigh(own);
             for (p, &parameter) in CARRIED.iter().enumerate() {
-                if !model.derivative_into(&disk, 0, parameter, &mut self.exact, &mut self.row) {
+                if !model.derivative_into(&[disk], 0, parameter, &mut self.exact, &mut self.row) {
                     return Ok(false);
                 }
                 weigh(&mut self.row);
-                self.row.iter().enumerate().for_each(|(q, d)| self.own_jacobian[(3 * i + p, q)] = *d);
-            }
-            for (p, &parameter) in CARRIED.iter().enumerate() {
-                let mut moved = disk;
-                let h = match parameter {
-                    DiskParameter::X => STEPS[0],
-                    DiskParameter::Y => -STEPS[1],
-                    _ if disk[0].drop + STEPS[2] <= DEEPEST => STEPS[2],
-                    _ => -STEPS[2],
-                };
-                match parameter {
-                    DiskParameter::X => moved[0].centre[0] += h,
-                    DiskParameter::Y => moved[0].centre[1] += h,
-                    _ => moved[0].drop += h,
+                for (q, d) in self.row.iter().enumerate() {
+                    self.local[at(q, p)] = *d;
+                    self.coupling[q * n + 3 * i + p] = self.jacobian[(3 * i + p, q)] - d;
                 }
-                model.response_into(&moved, &mut self.exact, &mut self.row)?;
+            }
+            // Along each parameter: F(±h) give the second and third derivatives,
+            // F(h) + F(−h) − 2F = h²·F″ and F(h) − F(−h) − 2h·F′ = h³·F‴/3.
+            for (p, &hp) in h.iter().enumerate() {
+                model.response_into(&[moved(disk, &[(p, hp)])], &mut self.exact, &mut self.row)?;
                 weigh(&mut self.row);
-                // F(θ + h) − F(θ) − h·∂F/∂θ ≈ ½h²·∂²F/∂θ².
+                for q in 0..m {
+                    self.local[at(q, 3 + p)] = self.row[q];
+                }
+                model.response_into(&[moved(disk, &[(p, -hp)])], &mut self.exact, &mut self.row)?;
+                weigh(&mut self.row);
                 let own = &self.own[i * m..(i + 1) * m];
-                for (q, (moved, own)) in self.row.iter().zip(own).enumerate() {
-                    let left = moved - own - h * self.own_jacobian[(3 * i + p, q)];
-                    self.curvature[(3 * i + p, q)] = 2.0 * left / (h * h);
+                for (q, (minus, own)) in self.row.iter().zip(own).enumerate() {
+                    let (plus, slope) = (self.local[at(q, 3 + p)], self.local[at(q, p)]);
+                    self.local[at(q, 3 + p)] = (plus + minus - 2.0 * own) / (hp * hp);
+                    self.local[at(q, 6 + p)] = 3.0 * (plus - minus - 2.0 * hp * slope) / hp.powi(3);
+                }
+            }
+            // Along each pair, F(h_p, h_q) less the model along each alone gives the mixed term.
+            for (c, (p, r)) in PAIRS.into_iter().enumerate() {
+                model.response_into(&[moved(disk, &[(p, h[p]), (r, h[r])])], &mut self.exact, &mut self.row)?;
+                weigh(&mut self.row);
+                let mut delta = [0.0; 3];
+                (delta[p], delta[r]) = (h[p], h[r]);
+                let (terms, _) = local_terms(delta);
+                let own = &self.own[i * m..(i + 1) * m];
+                for (q, (both, own)) in self.row.iter().zip(own).enumerate() {
+                    let alone: f64 = (0..9).map(|t| terms[t] * self.local[at(q, t)]).sum();
+                    self.local[at(q, 9 + c)] = (both - own - alone) / (h[p] * h[r]);
                 }
             }
         }
-        // (JJᵀ)⁻¹J, once; and what of each scan point's response the presses can take up.
-        let j = self.jacobian.as_ref();
-        matmul(self.normal.as_mut(), Accum::Replace, j, j.transpose(), 1.0, Par::Seq);
-        self.solver.copy_from(j);
-        if n > 0 {
-            self.lu.solve_in_place(self.normal.as_mut(), self.solver.as_mut());
-        }
-        if (0..n).any(|a| (0..m).any(|q| !self.solver[(a, q)].is_finite())) {
+        if !self.local.iter().all(|l| l.is_finite()) {
             return Ok(false);
         }
+        // What of each scan point's response the presses can take up.
         self.rank = orthonormal_rows(self.jacobian.as_ref(), &mut self.basis);
         unexplained_into(scan, &self.basis, self.rank, &mut self.projections, &mut self.unexplained);
         self.at.clear();
@@ -238,69 +297,175 @@ impl PressTrack {
         self.linearised = true;
         Ok(true)
     }
+
+    /// The model's response at the step `self.step` into `model`; with `whitened`, the
+    /// misfit there into `residual`, and the normal equations of its Jacobian, JJᵀ and J·r,
+    /// into `normal` and `gradient` (one pass over the channels).
+    fn evaluate(&mut self, whitened: Option<&[f64]>) {
+        let (k, m) = (self.at.len(), self.model.len());
+        let n = CARRIED.len() * k;
+        let (mut terms, mut slopes) = ([[0.0; MODEL_ROWS]; MAX_PRESSES], [[[0.0; MODEL_ROWS]; 3]; MAX_PRESSES]);
+        for (i, d) in self.step.chunks_exact(3).enumerate() {
+            (terms[i], slopes[i]) = local_terms([d[0], d[1], d[2]]);
+        }
+        if whitened.is_some() {
+            self.packed.clear();
+            self.packed.resize(n * (n + 1) / 2, 0.0);
+            self.gradient.fill(0.0);
+        }
+        let mut column = [0.0; CARRIED.len() * MAX_PRESSES];
+        for q in 0..m {
+            let coupling = &self.coupling[q * n..(q + 1) * n];
+            let mut f = self.response[q] + coupling.iter().zip(&self.step).map(|(c, d)| c * d).sum::<f64>();
+            for i in 0..k {
+                let local = &self.local[(i * m + q) * MODEL_ROWS..][..MODEL_ROWS];
+                f += dot(&terms[i], local);
+                if whitened.is_some() {
+                    for p in 0..3 {
+                        column[3 * i + p] = coupling[3 * i + p] + dot(&slopes[i][p], local);
+                    }
+                }
+            }
+            self.model[q] = f;
+            if let Some(whitened) = whitened {
+                let r = whitened[q] - f;
+                self.residual[q] = r;
+                let mut row = 0;
+                for (a, &ja) in column[..n].iter().enumerate() {
+                    self.gradient[a] += ja * r;
+                    let packed = &mut self.packed[row..row + a + 1];
+                    packed.iter_mut().zip(&column[..=a]).for_each(|(e, jb)| *e += ja * jb);
+                    row += a + 1;
+                }
+            }
+        }
+        if whitened.is_some() {
+            let mut row = 0;
+            for a in 0..n {
+                for b in 0..=a {
+                    (self.normal[(a, b)], self.normal[(b, a)]) = (self.packed[row + b], self.packed[row + b]);
+                }
+                row += a + 1;
+            }
+        }
+    }
 }
 
-/// What one step from the linearisation found.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+impl PressTrack {
+    /// The presses at the linearisation moved by the step, into `current` (their centres, on
+    /// the sheet, into `centres`).
+    fn carry(&mut self, detection: &PressDetection) {
+        let [lo, hi] = detection.model.grid.bounds();
+        self.current.clear();
+        self.centres.clear();
+        for (press, d) in self.at.iter().zip(self.step.chunks_exact(3)) {
+            let mut carried = *press;
+            carried.centre =
+                [(press.centre[0] + d[0]).clamp(lo[0], hi[0]), (press.centre[1] + d[1]).clamp(lo[1], hi[1])];
+            carried.drop = press.drop + d[2];
+            self.centres.push(carried.centre);
+            self.current.push(carried);
+        }
+    }
+}
+
+/// The pairs of [`CARRIED`] with a mixed term, in the order of the model's rows.
+const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+/// The coefficients of a press's model rows at step δ (T(δ) − T(0) = Σ cₜ·rowₜ), and their
+/// derivatives along each parameter.
+fn local_terms(d: [f64; 3]) -> ([f64; MODEL_ROWS], [[f64; MODEL_ROWS]; 3]) {
+    let mut terms = [0.0; MODEL_ROWS];
+    let mut slopes = [[0.0; MODEL_ROWS]; 3];
+    for p in 0..3 {
+        terms[p] = d[p];
+        terms[3 + p] = 0.5 * d[p] * d[p];
+        terms[6 + p] = d[p].powi(3) / 6.0;
+        slopes[p][p] = 1.0;
+        slopes[p][3 + p] = d[p];
+        slopes[p][6 + p] = 0.5 * d[p] * d[p];
+    }
+    for (c, (p, r)) in PAIRS.into_iter().enumerate() {
+        terms[9 + c] = d[p] * d[r];
+        slopes[p][9 + c] = d[r];
+        slopes[r][9 + c] = d[p];
+    }
+    (terms, slopes)
+}
+
+/// `disk` moved by each (parameter of [`CARRIED`], amount).
+fn moved(mut disk: Disk, steps: &[(usize, f64)]) -> Disk {
+    for &(p, h) in steps {
+        match p {
+            0 => disk.centre[0] += h,
+            1 => disk.centre[1] += h,
+            _ => disk.drop += h,
+        }
+    }
+    disk
+}
+
+/// What one carried frame found.
 enum Step {
     /// The presses, carried: in the track's `current`.
     Held,
-    /// The step went past what the linearisation holds for; the presses passed.
+    /// The step left the model's box, or did not settle.
     TooFar,
     /// A press is gone or a new one is there.
     Changed,
 }
 
 impl PressTrack {
-    /// One Gauss–Newton step from the linearisation to whitened Δv `whitened`, tested as
-    /// [`PressTrack`] says; the presses into `current`.
+    /// The presses fitted to whitened Δv `whitened` on the model, tested as [`PressTrack`]
+    /// says; into `current`.
     fn step(&mut self, detection: &PressDetection, whitened: &[f64]) -> Step {
         let (m, k) = (whitened.len(), self.at.len());
         let n = CARRIED.len() * k;
-        self.residual.iter_mut().zip(whitened).zip(&self.response).for_each(|((r, v), f)| *r = v - f);
-        // δθ = (JJᵀ)⁻¹J·r; the misfit left, r − Jᵀδθ.
-        let step = ColMut::from_slice_mut(&mut self.step[..n]);
-        let residual = ColRef::from_slice(&self.residual);
-        matmul(step.as_mat_mut(), Accum::Replace, self.solver.as_ref(), residual.as_mat(), 1.0, Par::Seq);
-        let left = ColMut::from_slice_mut(&mut self.residual);
-        let step = ColRef::from_slice(&self.step[..n]);
-        matmul(left.as_mat_mut(), Accum::Add, self.jacobian.transpose(), step.as_mat(), -1.0, Par::Seq);
-        // The second-order term the step leaves out, e = ½·Σₚ ∂²F/∂θₚ²·δθₚ²: its part in the span
-        // of the Jacobian is what it would move the parameters by (in standard deviations of the
-        // fit); the rest stays in the misfit.
-        self.second.fill(0.0);
-        for (a, d) in self.step[..n].iter().enumerate() {
-            self.second.iter_mut().enumerate().for_each(|(q, e)| *e += 0.5 * d * d * self.curvature[(a, q)]);
+        // From the last frame's step (0 at a new model): presses held move little.
+        grow(&mut self.increment, n, 1);
+        self.gradient.resize(n, 0.0);
+        let mut settled = n == 0;
+        for _ in 0..if settled { 0 } else { ITERATIONS } {
+            // Gauss–Newton: (JJᵀ)·ε = J·r.
+            self.evaluate(Some(whitened));
+            (0..n).for_each(|a| self.increment[(a, 0)] = self.gradient[a]);
+            self.lu.solve_in_place(self.normal.as_mut(), self.increment.as_mut());
+            let fall: f64 = (0..n).map(|a| self.increment[(a, 0)] * self.gradient[a]).sum();
+            (0..n).for_each(|a| self.step[a] += self.increment[(a, 0)]);
+            if !fall.is_finite() {
+                return Step::TooFar;
+            }
+            if fall < SETTLED {
+                settled = true;
+                break;
+            }
         }
-        let second_order = (0..self.rank)
-            .map(|k| (0..m).map(|q| self.basis[(k, q)] * self.second[q]).sum::<f64>().powi(2))
-            .sum::<f64>()
-            .sqrt();
-        // Within the linearisation's reach the misfit the tests read is the better for it; past
-        // it the term is no estimate of anything, and the step is refitted anyway.
-        if second_order <= NONLINEAR {
-            self.residual.iter_mut().zip(&self.second).for_each(|(r, e)| *r -= e);
+        let outside = self.step[..n].iter().zip(&self.widths).any(|(d, h)| d.abs() > *h);
+        if !settled || outside {
+            // The exact fit starts from where the model put them, within its box.
+            self.step[..n].iter_mut().zip(&self.widths).for_each(|(d, h)| *d = d.clamp(-h, *h));
+            self.carry(detection);
+            return Step::TooFar;
         }
-        let [lo, hi] = detection.model.grid.bounds();
+        self.evaluate(None);
+        self.residual.iter_mut().zip(whitened).zip(&self.model).for_each(|((r, v), f)| *r = v - f);
+        self.carry(detection);
         let mut changed = false;
-        self.current.clear();
-        self.centres.clear();
-        for (i, press) in self.at.iter().enumerate() {
-            let d = &self.step[3 * i..3 * i + 3];
-            let mut carried = *press;
-            carried.centre =
-                [(press.centre[0] + d[0]).clamp(lo[0], hi[0]), (press.centre[1] + d[1]).clamp(lo[1], hi[1])];
-            carried.drop = press.drop + d[2];
-            // Its z against the misfit with its own response (to first order) put back.
-            self.row.copy_from_slice(&self.own[i * m..(i + 1) * m]);
-            for (p, dp) in d.iter().enumerate() {
-                self.row.iter_mut().enumerate().for_each(|(q, g)| *g += dp * self.own_jacobian[(3 * i + p, q)]);
+        for (i, carried) in self.current.iter_mut().enumerate() {
+            let d = [self.step[3 * i], self.step[3 * i + 1], self.step[3 * i + 2]];
+            // Its z against the misfit with its own response put back.
+            let (terms, _) = local_terms(d);
+            for (q, g) in self.row.iter_mut().enumerate() {
+                *g = self.own[i * m + q] + dot(&terms, &self.local[(i * m + q) * MODEL_ROWS..][..MODEL_ROWS]);
             }
             let gg: f64 = self.row.iter().map(|g| g * g).sum();
             let gr: f64 = self.row.iter().zip(&self.residual).map(|(g, r)| g * (r + g)).sum();
             carried.z = if gg > 0.0 { gr / gg.sqrt() } else { 0.0 };
             changed |= carried.z < detection.threshold || carried.drop < MIN_DROP || carried.drop > DEEPEST;
-            self.centres.push(carried.centre);
-            self.current.push(carried);
         }
         if changed {
             return Step::Changed;
@@ -315,9 +480,6 @@ impl PressTrack {
         );
         if best.is_some_and(|(_, z)| z >= detection.threshold) {
             return Step::Changed;
-        }
-        if second_order > NONLINEAR {
-            return Step::TooFar;
         }
         Step::Held
     }
@@ -378,76 +540,132 @@ impl PressDetection {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::press_fit::{PressModel, PressModelParams};
+    use crate::press_fit::{ExactPresses, PressModel, PressModelParams};
     use crate::SeededRng;
     use crate::SensorSpec;
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
 
-    /// Three presses held still for 40 frames of fresh 0.01 % noise, then a fourth pressed, then
-    /// two lifted: half the held frames are carried without a fit at all, each what the exact fit
-    /// finds afresh to within half the spread the noise gives the fit (0.46 in centre, 0.34 in
-    /// drop here; 0.31 and 0.38 when only the frames whose second-order term was under half a
-    /// standard deviation in full were carried, 10 of 40); a press pressed or lifted is found
-    /// afresh.
-    #[test]
-    fn presses_held_are_carried_as_the_exact_fit_finds_them() {
-        let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 1500;
-        let model = spec.forward_model().unwrap();
-        let values = model.measure(&spec.homogeneous(model.mesh())).unwrap();
-        let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
-        let std: Vec<f64> = values.iter().map(|v| 1e-4 * v.abs()).collect();
-        let detection = PressDetection::new(&press_model, &std, f64::INFINITY, 1e-3).unwrap();
-        let exact = press_model.exact().unwrap();
-        let disk = |centre, drop| Disk { centre, radius: 0.01, drop };
-        let held = [disk([-0.03, 0.04], 0.25), disk([0.04, -0.02], 0.5), disk([0.06, 0.07], 0.6)];
-        let mut rng = SeededRng::seed_from_u64(3);
-        let mut frame = |disks: &[Disk]| {
-            let mut dv = vec![0.0; values.len()];
-            exact.response_into(disks, &mut ExactScratch::default(), &mut dv).unwrap();
-            for (d, s) in dv.iter_mut().zip(&std) {
-                let normal: f64 = StandardNormal.sample(&mut rng);
+    /// Three presses held on the test's sensor; `level` of noise per value, as a fraction.
+    struct Held {
+        detection: PressDetection,
+        exact: ExactPresses,
+        std: Vec<f64>,
+        rng: SeededRng,
+    }
+
+    const HELD: [Disk; 3] = [
+        Disk { centre: [-0.03, 0.04], radius: 0.01, drop: 0.25 },
+        Disk { centre: [0.04, -0.02], radius: 0.01, drop: 0.5 },
+        Disk { centre: [0.06, 0.07], radius: 0.01, drop: 0.6 },
+    ];
+
+    impl Held {
+        fn new(level: f64) -> Held {
+            let mut spec = SensorSpec::square_hydrogel();
+            spec.mesh.triangles = 1500;
+            let model = spec.forward_model().unwrap();
+            let values = model.measure(&spec.homogeneous(model.mesh())).unwrap();
+            let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
+            let std: Vec<f64> = values.iter().map(|v| level * v.abs()).collect();
+            let detection = PressDetection::new(&press_model, &std, f64::INFINITY, 1e-3).unwrap();
+            let exact = press_model.exact().unwrap().clone();
+            Held { detection, exact, std, rng: SeededRng::seed_from_u64(3) }
+        }
+
+        /// Δv of `disks` with fresh noise.
+        fn frame(&mut self, disks: &[Disk]) -> Vec<f64> {
+            let mut dv = vec![0.0; self.std.len()];
+            self.exact.response_into(disks, &mut ExactScratch::default(), &mut dv).unwrap();
+            for (d, s) in dv.iter_mut().zip(&self.std) {
+                let normal: f64 = StandardNormal.sample(&mut self.rng);
                 *d += s * normal;
             }
             dv
-        };
-        let (mut whitened, mut scratch, mut track) = (Vec::new(), PressScratch::default(), PressTrack::default());
-        let (mut carried, mut full) = (Vec::new(), Vec::new());
-        let (mut how, mut off, mut spread) = (Vec::new(), [0.0; 2], [0.0; 2]);
-        for _ in 0..40 {
-            let dv = frame(&held);
-            how.push(detection.track_into(&dv, &mut whitened, &mut scratch, &mut track, &mut carried).unwrap());
-            detection.detect_into(&dv, &mut whitened, &mut PressScratch::default(), &mut full).unwrap();
-            assert_eq!((carried.len(), full.len()), (3, 3), "{how:?}");
-            if how.last() != Some(&Tracked::Carried) {
-                continue;
-            }
-            for ((c, f), truth) in carried.iter().zip(&full).zip(held.iter().rev()) {
-                off[0] += (c.centre[0] - f.centre[0]).powi(2) + (c.centre[1] - f.centre[1]).powi(2);
-                off[1] += (c.drop - f.drop).powi(2);
-                spread[0] += (f.centre[0] - truth.centre[0]).powi(2) + (f.centre[1] - truth.centre[1]).powi(2);
-                spread[1] += (f.drop - truth.drop).powi(2);
-            }
         }
-        for k in 0..2 {
-            let ratio = (off[k] / spread[k]).sqrt();
-            assert!(ratio < 0.5, "{k}: carried frames off the exact fit by {ratio} of its spread");
+
+        /// `frames` frames of the three presses held, carried and found afresh: how each was
+        /// carried, the carried frames' distance from the fresh fit over the fresh fit's from
+        /// the truth (centre, drop: root mean squares), and the carried and fresh fits' root
+        /// mean square distances from the truth in centre (m).
+        fn stream(&mut self, frames: usize, track: &mut PressTrack) -> (Vec<Tracked>, [f64; 2], [f64; 2]) {
+            let (mut whitened, mut scratch) = (Vec::new(), PressScratch::default());
+            let (mut carried, mut full) = (Vec::new(), Vec::new());
+            let (mut how, mut off, mut spread, mut errors, mut count) = (Vec::new(), [0.0; 2], [0.0; 2], [0.0; 2], 0);
+            let nearest = |set: &[PressFit], truth: &Disk| {
+                let distance = |p: &PressFit| (p.centre[0] - truth.centre[0]).hypot(p.centre[1] - truth.centre[1]);
+                *set.iter().min_by(|a, b| distance(a).total_cmp(&distance(b))).unwrap()
+            };
+            for _ in 0..frames {
+                let dv = self.frame(&HELD);
+                let detection = &self.detection;
+                how.push(detection.track_into(&dv, &mut whitened, &mut scratch, track, &mut carried).unwrap());
+                detection.detect_into(&dv, &mut whitened, &mut PressScratch::default(), &mut full).unwrap();
+                assert_eq!((carried.len(), full.len()), (3, 3), "{how:?}");
+                if how.last() != Some(&Tracked::Carried) {
+                    continue;
+                }
+                for truth in &HELD {
+                    let (c, f) = (nearest(&carried, truth), nearest(&full, truth));
+                    off[0] += (c.centre[0] - f.centre[0]).powi(2) + (c.centre[1] - f.centre[1]).powi(2);
+                    off[1] += (c.drop - f.drop).powi(2);
+                    spread[0] += (f.centre[0] - truth.centre[0]).powi(2) + (f.centre[1] - truth.centre[1]).powi(2);
+                    spread[1] += (f.drop - truth.drop).powi(2);
+                    errors[0] += (c.centre[0] - truth.centre[0]).powi(2) + (c.centre[1] - truth.centre[1]).powi(2);
+                    errors[1] += (f.centre[0] - truth.centre[0]).powi(2) + (f.centre[1] - truth.centre[1]).powi(2);
+                    count += 1;
+                }
+            }
+            let ratio = [0, 1].map(|k| (off[k] / spread[k]).sqrt());
+            (how, ratio, errors.map(|e| (e / count as f64).sqrt()))
         }
+    }
+
+    /// Three presses held still for 40 frames of fresh 0.01 % noise, then a fourth pressed, then
+    /// two lifted: nearly every held frame is carried without an exact fit at all, each what the
+    /// exact fit finds afresh to within a quarter of the spread the noise gives that fit (0.22
+    /// in centre, 0.20 in drop, 37 of 40 frames carried; 0.46 and 0.34 on 20 of 40 when a
+    /// carried frame was one linear step with a second-order bound); a press pressed or lifted
+    /// is found afresh.
+    #[test]
+    fn presses_held_are_carried_as_the_exact_fit_finds_them() {
+        let mut held = Held::new(1e-4);
+        let mut track = PressTrack::default();
+        let (how, ratio, _) = held.stream(40, &mut track);
+        assert!(ratio[0] < 0.3 && ratio[1] < 0.3, "carried frames off the exact fit by {ratio:?} of its spread");
         assert_eq!(how[0], Tracked::Found);
-        // Half the frames: the second-order term's part in the span of the Jacobian, not its
-        // whole norm, is what is bounded (its whole norm carried 10 of these 40).
-        assert!(how.iter().filter(|h| **h == Tracked::Carried).count() >= 20, "{how:?}");
-        let four = [held[0], held[1], held[2], disk([-0.06, -0.05], 0.4)];
+        assert!(how.iter().filter(|h| **h == Tracked::Carried).count() >= 34, "{how:?}");
+        let (mut whitened, mut scratch, mut carried) = (Vec::new(), PressScratch::default(), Vec::new());
+        let four = [HELD[0], HELD[1], HELD[2], Disk { centre: [-0.06, -0.05], radius: 0.01, drop: 0.4 }];
+        let dv = held.frame(&four);
+        let detection = &held.detection;
         assert_eq!(
-            detection.track_into(&frame(&four), &mut whitened, &mut scratch, &mut track, &mut carried),
+            detection.track_into(&dv, &mut whitened, &mut scratch, &mut track, &mut carried),
             Ok(Tracked::Found)
         );
         assert_eq!(carried.len(), 4);
+        let dv = held.frame(&four[2..]);
+        let detection = &held.detection;
         assert_eq!(
-            detection.track_into(&frame(&four[2..]), &mut whitened, &mut scratch, &mut track, &mut carried),
+            detection.track_into(&dv, &mut whitened, &mut scratch, &mut track, &mut carried),
             Ok(Tracked::Found)
         );
         assert_eq!(carried.len(), 2);
+    }
+
+    /// At 0.05 % noise, where the weak press's fit moves by millimetres from frame to frame: most
+    /// frames are still carried (37 of 40), and the carried presses are as close to where they
+    /// were pressed as the exact fit's (4.8 mm and 5.2 mm root mean square over the three).
+    #[test]
+    fn presses_held_under_a_real_boards_noise_are_carried() {
+        let mut held = Held::new(5e-4);
+        let (how, _, errors) = held.stream(40, &mut PressTrack::default());
+        assert!(how.iter().filter(|h| **h == Tracked::Carried).count() >= 30, "{how:?}");
+        assert!(
+            errors[0] < 1.1 * errors[1],
+            "carried {} mm from the truth, the exact fit {} mm",
+            errors[0] * 1e3,
+            errors[1] * 1e3
+        );
     }
 }
