@@ -126,7 +126,8 @@ pub struct PipelineParams {
     /// Frames averaged into each frame imaged (a moving average; 1 = none).
     pub average: usize,
     /// Carry the presses found in Δv from frame to frame ([`PressTrack`](crate::press_fit::PressTrack)):
-    /// a held press costs one step instead of a fit. Off where each frame is a scene of its own.
+    /// a held press costs a few steps on a model of it made once, instead of an exact fit. Off
+    /// where each frame is a scene of its own.
     pub carry_presses: bool,
 }
 
