@@ -118,7 +118,7 @@ pub struct Args {
     #[arg(long)]
     fit: bool,
     /// Find the presses in Δv afresh in every frame, instead of carrying those of the last frame
-    /// by one step while they explain it (a press held costs microseconds, not milliseconds).
+    /// on a model of them while they explain it (a press held costs microseconds, not milliseconds).
     #[arg(long)]
     fresh_presses: bool,
     /// Seed of the virtual sensor's noise and random presses, 0 to 2⁶⁴ − 1.

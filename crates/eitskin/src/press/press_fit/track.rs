@@ -37,9 +37,10 @@ const MODEL_ROWS: usize = 12;
 /// How a frame's presses were found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Tracked {
-    /// Carried from the last fit's linearisation by one step.
+    /// Carried: fitted to the local model of the last exact fit.
     Carried,
-    /// Fitted again exactly from where the step put them (the step went past the linearisation).
+    /// Fitted again exactly from where the model put them (a step left the model's box, or did
+    /// not settle).
     Refitted,
     /// Found afresh in Δv.
     Found,
@@ -51,14 +52,16 @@ pub enum Tracked {
 /// A press held on the sheet changes Δv by little more than the noise between frames, so the
 /// joint exact fit of the last frame ([`super::PressDetection::detect_into`]) is modelled once
 /// around where it ended, and each new frame is fitted to that model (a few Gauss–Newton steps
-/// on 9 parameters) instead of by Levenberg–Marquardt on rank-hundreds exact updates:
+/// on 3 parameters a press) instead of by Levenberg–Marquardt on rank-hundreds exact updates:
 ///
 ///   F(θ₀ + δ) ≈ F(θ₀) + (J − Σᵢ Jᵢ)·δ + Σᵢ [Tᵢ(δᵢ) − Tᵢ(0)],
 ///
 /// F the presses' joint exact response, J its Jacobian at θ₀ (so their fields on each other
-/// enter to first order), and Tᵢ press i's own exact response as a cubic in its centre and drop:
-/// exact at θ₀ with its exact first derivatives, and through exact responses at ±h along each
-/// parameter and at +h along each pair, h [`WINDOW`] of the fit's standard deviation there.
+/// enter to first order), and Tᵢ press i's own exact response as a polynomial in its centre and
+/// drop, cubic along each and bilinear across each pair: exact at θ₀ with its exact first
+/// derivatives, and through exact responses at ±h along each parameter and at +h along each pair,
+/// h [`WINDOW`] of the fit's standard deviation there (within 0.02 to 2 radii for the centre,
+/// 0.01 to 0.3 for the drop, and not past a drop of 0 or [`DEEPEST`]).
 /// The presses are fitted again, or found afresh, as soon as the model cannot be trusted or the
 /// frame does not fit them:
 /// - **a step leaves the model's box** (farther than h along any parameter, where the cubic
@@ -89,7 +92,8 @@ pub struct PressTrack {
     /// J − Σᵢ Jᵢ: how the presses' fields on each other move with them, to first order (per
     /// channel, one entry per press and parameter).
     coupling: Vec<f64>,
-    /// The normal matrix of the model's Jacobian at the current step, and the step.
+    /// The normal matrix of the model's Jacobian at the current step, and the Gauss–Newton
+    /// increment (at a new model, the fit's covariance).
     normal: Mat<f64>,
     increment: Mat<f64>,
     lu: DenseLu,
@@ -168,7 +172,7 @@ impl PressTrack {
 
     /// Models the exact responses around `presses` (whitened by the weights) as [`PressTrack`]
     /// says; false (and nothing held) where a press is solved in full, without the update's
-    /// derivatives, or the fit's Jacobian is singular.
+    /// derivatives, the fit's Jacobian is singular, or the model is not finite.
     fn linearise(&mut self, exact: Exact<'_>, scan: &Scan, presses: &[PressFit]) -> Result<bool, InverseError> {
         self.linearised = false;
         let (m, k) = (exact.dv.len(), presses.len());
@@ -435,10 +439,13 @@ impl PressTrack {
             (0..n).for_each(|a| self.increment[(a, 0)] = self.gradient[a]);
             self.lu.solve_in_place(self.normal.as_mut(), self.increment.as_mut());
             let fall: f64 = (0..n).map(|a| self.increment[(a, 0)] * self.gradient[a]).sum();
-            (0..n).for_each(|a| self.step[a] += self.increment[(a, 0)]);
             if !fall.is_finite() {
+                // Fitted again exactly from where the model was made.
+                self.step[..n].fill(0.0);
+                self.carry(detection);
                 return Step::TooFar;
             }
+            (0..n).for_each(|a| self.step[a] += self.increment[(a, 0)]);
             if fall < SETTLED {
                 settled = true;
                 break;
@@ -487,7 +494,7 @@ impl PressTrack {
 
 impl PressDetection {
     /// [`PressDetection::detect_into`] for the frames of one stream: the presses of the last
-    /// frame carried by one step while they explain Δv (see [`PressTrack`]), else
+    /// frame carried on a model of them while they explain Δv (see [`PressTrack`]), else
     /// fitted again or found afresh; how. `track` holds what is carried, `whitened` and
     /// `scratch` are buffers. Allocates nothing once they have grown. Without exact responses,
     /// each frame's presses are found afresh.
