@@ -289,7 +289,7 @@ pub struct PressScratch {
     responses: Vec<f64>,
     /// Detection: the centres of the other presses, and each scan point's correlation with Δv.
     centres: Vec<[f64; 2]>,
-    correlations: Vec<f64>,
+    correlations: Vec<f32>,
     /// The exact fit: the presses as disks, its buffers, and a set of presses kept aside.
     disks: Vec<Disk>,
     refine: RefineScratch,

@@ -26,14 +26,13 @@
 //! nearly the same vector), or a press much larger than the indenter.
 
 use crate::SeededRng;
-use faer::linalg::matmul::matmul;
-use faer::{Accum, ColMut, ColRef, Mat, Par};
+use faer::Mat;
 use rand::SeedableRng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 use super::exact::ExactPresses;
 use super::{PressFit, PressModel, PressScratch, MAX_DROP, SWEEPS};
-use crate::inverse::InverseError;
+use crate::inverse::{BlockedMatrix, InverseError};
 use crate::noise::{threshold_of, CALIBRATION_SAMPLES};
 
 /// The most presses found in one frame.
@@ -52,6 +51,9 @@ pub(crate) struct Scan {
     /// The response-grid index of each row.
     pub(crate) points: Vec<usize>,
     pub(crate) matrix: Mat<f64>,
+    /// The same matrix in f32, in the image product's blocks: every frame's correlations read
+    /// it at the memory limit (half the bytes of f64; a z needs no more than f32's 7 digits).
+    blocked: BlockedMatrix,
     pub(crate) norms: Vec<f64>,
 }
 
@@ -70,8 +72,12 @@ impl Scan {
             .collect();
         let m = model.measurements;
         let matrix = Mat::from_fn(points.len(), m, |i, k| model.responses[points[i] * m + k]);
+        let mut blocked = BlockedMatrix::zeros(points.len(), m);
+        for i in 0..points.len() {
+            (0..m).for_each(|k| blocked.set(i, k, matrix[(i, k)] as f32));
+        }
         let norms = points.iter().map(|&j| model.norms[j]).collect();
-        Scan { points, matrix, norms }
+        Scan { points, matrix, blocked, norms }
     }
 
     /// The row of response-grid point `point`, if it is a scan point.
@@ -216,7 +222,7 @@ impl PressModel {
         scan: &Scan,
         dv: &[f64],
         found: &[[f64; 2]],
-        correlations: &mut Vec<f64>,
+        correlations: &mut Vec<f32>,
     ) -> Option<(usize, f64)> {
         self.best_point_in(scan, dv, found, &scan.norms, correlations)
     }
@@ -229,15 +235,15 @@ impl PressModel {
         dv: &[f64],
         found: &[[f64; 2]],
         unexplained: &[f64],
-        correlations: &mut Vec<f64>,
+        correlations: &mut Vec<f32>,
     ) -> Option<(usize, f64)> {
         correlations.resize(scan.points.len(), 0.0);
-        let c = ColMut::from_slice_mut(correlations);
-        matmul(c.as_mat_mut(), Accum::Replace, scan.matrix.as_ref(), ColRef::from_slice(dv).as_mat(), 1.0, Par::Seq);
+        scan.blocked.mul_into(correlations, |k| dv[k] as f32);
         let apart = 2.0 * self.radius;
         let mut best: Option<(usize, f64)> = None;
         let points = scan.points.iter().zip(correlations.iter()).zip(scan.norms.iter().zip(unexplained));
         for ((&j, &c), (&norm, &left)) in points {
+            let c = f64::from(c);
             if c <= 0.0 || best.is_some_and(|(_, b)| c * c <= b * b * left) {
                 continue;
             }

@@ -120,7 +120,7 @@ pub struct PressTrack {
     step: Vec<f64>,
     row: Vec<f64>,
     centres: Vec<[f64; 2]>,
-    correlations: Vec<f64>,
+    correlations: Vec<f32>,
 }
 
 impl Default for PressTrack {
