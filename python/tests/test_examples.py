@@ -35,3 +35,35 @@ def test_the_pyeit_migration_reproduces_pyeit():
 def test_the_live_loop_runs_on_the_virtual_sensor():
     out = run("live_serial.py", "sim", "--frames", "120", "--fast")
     assert re.search(r"frame \d+: touch at \(-?\d+, -?\d+\) mm, peak \S+ S/m", out), out
+
+
+def test_the_zenoh_example_prints_the_touches_eitskin_publishes(tmp_path):
+    """eclipse-zenoh alone, on loopback: the example listens, `eitskin run` connects to it."""
+    import os
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    endpoint = f"tcp/127.0.0.1:{port}"
+    script = tmp_path / "script.txt"
+    script.write_text("1.0 2.0 -50 40 9\n")
+    example = subprocess.Popen(
+        [sys.executable, str(EXAMPLES / "zenoh_touches.py"), "--listen", endpoint, "--no-multicast-scouting",
+         "--key", "demo/*/touches", "--frames", "50", "--timeout", "120"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        assert "listening" in example.stderr.readline()
+        published = subprocess.run(
+            [os.environ["EITSKIN_BIN"], "run", "--source", f"sim:{script}", "--fast", "--frames", "50",
+             "--triangles", "1500", "--publish", "zenoh:demo", "--sensor", "palm", "--wait-for-subscriber", "60",
+             "--zenoh-mode", "client", "--connect", endpoint, "--no-multicast-scouting"],
+            capture_output=True, text=True, timeout=300,
+        )
+        assert published.returncode == 0, published.stderr
+        out, err = example.communicate(timeout=120)
+    finally:
+        example.kill()
+    assert example.returncode == 0, err
+    assert re.search(r"demo/palm/touches frame \d+: touch at \(-?\d+, -?\d+\), peak \S+ S/m", out), out

@@ -49,6 +49,10 @@ const TEXT: &[(&str, &str)] = &[
     ("run", "calibration"),
     ("run", "model"),
     ("run", "record"),
+    ("run", "sensor"),
+    ("run", "zenoh-config"),
+    ("run", "connect"),
+    ("run", "listen"),
     ("convergence", "protocol"),
     ("convergence", "inclusion"),
 ];

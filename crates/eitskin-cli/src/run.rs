@@ -24,6 +24,7 @@ mod events;
 mod imaging;
 mod learned;
 mod process;
+mod publish;
 mod setup;
 mod sink;
 
@@ -55,7 +56,8 @@ pub struct Args {
     /// as a script of `start end x y force` lines says), `file:PATH` (a recording made with
     /// --record, replayed at its pace, or a capture of a board's bytes, decoded with --codec, at
     /// --rate), or `serial:PATH[@BAUD]` (a board on a serial port, 8N1 at 115200 bit/s unless told,
-    /// e.g. serial:/dev/ttyACM0@921600; frames decoded with --codec).
+    /// e.g. serial:/dev/ttyACM0@921600; frames decoded with --codec), or `zenoh:KEY` (frames a
+    /// board's bridge publishes on Zenoh: {"seq", "t_s", "values"} in JSON or CBOR; see --connect).
     #[arg(long, value_name = "SOURCE", default_value = "sim")]
     source: SourceSpec,
     /// Frames per second of the virtual sensor, or of a capture file, which has no times, in
@@ -163,6 +165,8 @@ pub struct Args {
     /// For complex values, the part imaged: real, imaginary, magnitude (signed by the model) or phase.
     #[arg(long, default_value = "real")]
     component: Component,
+    #[command(flatten)]
+    zenoh: publish::ZenohArgs,
 }
 
 /// Refuses a recording path before any work: one that exists (a recording is never written
@@ -192,6 +196,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(path) = &args.record {
         check_record(path, &args)?;
     }
+    let zenoh = args.zenoh.check(&args.source)?;
     let reference_frames = args.reference_frames.saturating_mul(args.average);
     if let (Some(frames), None) = (args.frames, &args.record) {
         if frames <= reference_frames {
@@ -219,8 +224,15 @@ pub fn run(args: Args) -> Result<()> {
         seed: args.seed,
         values_per_measurement: kind.per_measurement(),
     };
-    let source = Source::open(&args.source, &spec, &settings)?;
-    let mut sinks = sinks(&args, &spec, &pipeline, kind)?;
+    let session = if zenoh { Some(args.zenoh.open()?) } else { None };
+    let source = match (&args.source, &session) {
+        (SourceSpec::Zenoh { key }, Some(session)) => {
+            let measurements = spec.protocol()?.len() * kind.per_measurement();
+            publish::source(session, key, measurements, settings.frames)?
+        }
+        _ => Source::open(&args.source, &spec, &settings)?,
+    };
+    let mut sinks = sinks(&args, &spec, &pipeline, kind, session.as_ref())?;
     let (items, acquisition) = acquire::start(source);
     eprintln!("eitskin run: reading {}", args.source);
     let start = start_line(&args, &spec, spec.protocol()?.len(), &params, imaging.normalised);
@@ -264,8 +276,14 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// The run's sinks, in the order they take each frame: the recording (on disk before anything
-/// shows it), the viewer, stdout's lines.
-fn sinks(args: &Args, spec: &SensorSpec, pipeline: &Pipeline, kind: ValueKind) -> Result<Vec<Box<dyn Sink>>> {
+/// shows it), the viewer, the Zenoh publisher, stdout's lines.
+fn sinks(
+    args: &Args,
+    spec: &SensorSpec,
+    pipeline: &Pipeline,
+    kind: ValueKind,
+    session: Option<&eitskin_io::middleware::Session>,
+) -> Result<Vec<Box<dyn Sink>>> {
     let mut sinks: Vec<Box<dyn Sink>> = Vec::new();
     if let Some(path) = &args.record {
         // As the board sent them: complex pairs are two numbers per measurement.
@@ -275,6 +293,9 @@ fn sinks(args: &Args, spec: &SensorSpec, pipeline: &Pipeline, kind: ValueKind) -
     }
     if let Some(addr) = args.viewer {
         sinks.push(Box::new(Viewing::start(addr, spec, pipeline)?));
+    }
+    if let Some(publishing) = args.zenoh.sink(session, spec.length_unit.metres())? {
+        sinks.push(Box::new(publishing));
     }
     sinks.push(Box::new(Lines::new(std::io::stdout().lock())));
     Ok(sinks)

@@ -43,6 +43,8 @@ mod frame_file;
 mod learned_model_file;
 mod memory;
 mod mesh_file;
+#[cfg(feature = "zenoh")]
+pub mod middleware;
 mod output_name;
 mod press_model_file;
 mod protocol_file;

@@ -126,6 +126,22 @@ pub enum BadFrame {
         /// How many bytes were skipped while hunting for sync.
         bytes: usize,
     },
+    /// A message from the network that is not a frame (`--source zenoh:`).
+    #[error("a sample on {key} is not a frame: {reason}")]
+    Message {
+        /// The key expression it came on.
+        key: String,
+        /// Why, with the place.
+        reason: String,
+    },
+    /// A frame older than one already taken (reordered on the way), dropped: it is stale.
+    #[error("frame seq {seq} came after frame seq {last} and is dropped as stale (reordered on the way)")]
+    OutOfOrder {
+        /// Its counter.
+        seq: u64,
+        /// The newest frame's counter.
+        last: u64,
+    },
 }
 
 impl BadFrame {
@@ -137,8 +153,9 @@ impl BadFrame {
             | BadFrame::TooLong { seq, .. }
             | BadFrame::Crc { seq, .. }
             | BadFrame::Gap { seq, .. }
-            | BadFrame::Torn { seq, .. } => Some(*seq),
-            BadFrame::Garbage { .. } => None,
+            | BadFrame::Torn { seq, .. }
+            | BadFrame::OutOfOrder { seq, .. } => Some(*seq),
+            BadFrame::Garbage { .. } | BadFrame::Message { .. } => None,
         }
     }
 }

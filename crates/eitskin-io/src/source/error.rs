@@ -13,9 +13,9 @@ use eitskin::{ForwardError, SpecError};
 pub enum SourceError {
     /// Text that names no kind of source.
     #[error(
-        "{spec:?} is not a frame source{}; write `sim` (the virtual sensor, random presses), `sim:SCRIPT` (the \
-         virtual sensor pressed by a script), `file:PATH` (a recording, or a capture of one frame per text line) \
-         or `serial:PATH[@BAUD]` (a board on a serial port, e.g. `serial:/dev/ttyACM0@921600`)",
+        "{spec:?} is not a frame source{}; write `sim` (the virtual sensor), `sim:SCRIPT` (pressed by a script), \
+         `file:PATH` (a recording or a capture), `serial:PATH[@BAUD]` (a board, e.g. `serial:/dev/ttyACM0@921600`) \
+         or `zenoh:KEY` (frames published on Zenoh)",
         path_hint(spec)
     )]
     Unknown {
@@ -40,6 +40,21 @@ pub enum SourceError {
     NoFile {
         /// The text as written.
         spec: String,
+    },
+    /// `zenoh:` without a key expression.
+    #[error("{spec:?} names no key expression; write `zenoh:KEY`, e.g. `zenoh:robot/skin/frames`")]
+    NoKey {
+        /// The text as written.
+        spec: String,
+    },
+    /// A Zenoh source asked of a build without Zenoh, or of [`Source::open`](super::Source::open),
+    /// which has no session: open it with `middleware::ZenohSource` on the session.
+    #[error("{spec}: {reason}")]
+    Zenoh {
+        /// The source as written.
+        spec: String,
+        /// Why it cannot be opened here.
+        reason: String,
     },
     /// A source spec that does not start with `serial:`.
     #[error("{spec:?} is not a serial source; write `serial:PATH` or `serial:PATH@BAUD`, e.g. `serial:/dev/ttyACM0`")]

@@ -262,6 +262,14 @@ impl Source {
                 let codec = settings.codec;
                 Box::new(SerialSource::open(path, *baud, move || codec.decoder(measurements))?)
             }
+            SourceSpec::Zenoh { .. } => {
+                let reason = if cfg!(feature = "zenoh") {
+                    "a Zenoh source is opened on its session (middleware::ZenohSource::open)"
+                } else {
+                    "this build of eitskin-io has no Zenoh (its `zenoh` feature is off); the eitskin program has it"
+                };
+                return Err(SourceError::Zenoh { spec: spec.to_string(), reason: reason.to_owned() });
+            }
         };
         Ok(Source::new(inner, settings.frames))
     }

@@ -15,6 +15,7 @@ use super::SourceError;
 /// | `sim:SCRIPT`         | the virtual sensor, pressed as the script says (`start end x y force` lines) |
 /// | `file:PATH`          | a recording (its JSON header tells), or a capture of the board's bytes |
 /// | `serial:PATH[@BAUD]` | a board on a serial port, 8N1, at 115200 bit/s unless told          |
+/// | `zenoh:KEY`          | frames a board's bridge publishes on a Zenoh key expression          |
 ///
 /// It only names the source: nothing is opened or checked on disk until
 /// [`Source::open`](super::Source::open). It implements [`FromStr`], so clap takes it as a
@@ -46,6 +47,11 @@ pub enum SourceSpec {
         /// The baud rate, in bit/s.
         baud: u32,
     },
+    /// Frames published on Zenoh (`zenoh:KEY`), as `crate::middleware` reads them.
+    Zenoh {
+        /// The key expression, as written.
+        key: String,
+    },
 }
 
 impl FromStr for SourceSpec {
@@ -75,6 +81,12 @@ impl FromStr for SourceSpec {
                 parse_serial_spec(if text == "serial" { "serial:" } else { text }).map_err(|e| with_spec(e, text))?;
             return Ok(SourceSpec::Serial { path, baud });
         }
+        if let Some(key) = text.strip_prefix("zenoh:").or((text == "zenoh").then_some("")) {
+            if key.is_empty() {
+                return Err(SourceError::NoKey { spec: text.to_owned() });
+            }
+            return Ok(SourceSpec::Zenoh { key: key.to_owned() });
+        }
         Err(SourceError::Unknown { spec: text.to_owned() })
     }
 }
@@ -94,6 +106,7 @@ impl fmt::Display for SourceSpec {
             SourceSpec::Sim { script: Some(path) } => write!(f, "sim:{}", path.display()),
             SourceSpec::File(path) => write!(f, "file:{}", path.display()),
             SourceSpec::Serial { path, baud } => write!(f, "serial:{}@{baud}", path.display()),
+            SourceSpec::Zenoh { key } => write!(f, "zenoh:{key}"),
         }
     }
 }
@@ -114,6 +127,7 @@ mod tests {
         assert_eq!(parse("file:/tmp/run.jsonl"), Ok(SourceSpec::File("/tmp/run.jsonl".into())));
         assert_eq!(parse("file:C:\\runs\\a.csv"), Ok(SourceSpec::File("C:\\runs\\a.csv".into())));
         assert_eq!(parse("serial:COM3"), Ok(SourceSpec::Serial { path: "COM3".into(), baud: DEFAULT_BAUD }));
+        assert_eq!(parse("zenoh:robot/skin/0/frames"), Ok(SourceSpec::Zenoh { key: "robot/skin/0/frames".into() }));
         assert_eq!(
             parse("serial:/dev/ttyUSB0@9600"),
             Ok(SourceSpec::Serial { path: "/dev/ttyUSB0".into(), baud: 9600 })
@@ -122,7 +136,7 @@ mod tests {
 
     #[test]
     fn display_writes_what_parses_back() {
-        for text in ["sim", "sim:s.txt", "file:/tmp/x y.csv", "serial:/dev/ttyACM0@921600"] {
+        for text in ["sim", "sim:s.txt", "file:/tmp/x y.csv", "serial:/dev/ttyACM0@921600", "zenoh:a/*/frames"] {
             let spec = parse(text).unwrap();
             assert_eq!(spec.to_string(), text);
             assert_eq!(parse(&spec.to_string()), Ok(spec));
@@ -135,7 +149,7 @@ mod tests {
         let unknown = parse("Sim").unwrap_err();
         assert_eq!(unknown, SourceError::Unknown { spec: "Sim".into() });
         let message = unknown.to_string();
-        for accepted in ["\"Sim\"", "`sim`", "`sim:SCRIPT`", "`file:PATH`", "`serial:PATH[@BAUD]`"] {
+        for accepted in ["\"Sim\"", "`sim`", "`sim:SCRIPT`", "`file:PATH`", "`serial:PATH[@BAUD]`", "`zenoh:KEY`"] {
             assert!(message.contains(accepted), "{message:?} does not say {accepted}");
         }
         assert!(!message.contains("a file?"), "no path hint for a word: {message}");
@@ -143,6 +157,8 @@ mod tests {
         assert_eq!(parse("sim:"), Err(SourceError::NoScript { spec: "sim:".into() }));
         assert_eq!(parse("file:"), Err(SourceError::NoFile { spec: "file:".into() }));
         assert_eq!(parse("file"), Err(SourceError::NoFile { spec: "file".into() }));
+        assert_eq!(parse("zenoh:"), Err(SourceError::NoKey { spec: "zenoh:".into() }));
+        assert_eq!(parse("zenoh"), Err(SourceError::NoKey { spec: "zenoh".into() }));
         assert_eq!(parse("serial"), Err(SourceError::EmptyPath { spec: "serial".into() }));
         assert_eq!(parse("serial:@9600"), Err(SourceError::EmptyPath { spec: "serial:@9600".into() }));
         let bad_baud = parse("serial:/dev/ttyUSB0@fast").unwrap_err();

@@ -1,0 +1,140 @@
+//! [`ZenohSource`]: raw frames from a key that a board's bridge publishes on.
+
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::pubsub::Subscriber;
+use zenoh::sample::Sample;
+use zenoh::{Session, Wait};
+
+use super::{FrameMessage, MiddlewareError};
+use crate::codec::BadFrame;
+use crate::source::{Acquired, FrameSource, SourceError};
+
+/// Samples held while the processing is busy (about 10 s of a board at 100 frames/s); a
+/// reader that falls further behind holds up Zenoh's delivery rather than losing frames.
+const QUEUE: usize = 1024;
+
+/// How far back a counter may go and still be a late frame of the same stream; further back,
+/// the bridge started again (its counter from 0), and the frame is taken.
+const RESTART: u64 = 1000;
+
+/// Frames of [`FrameMessage`]s on one key: each checked for its count, the counter followed as
+/// a serial board's is (frames missing before one are reported as a gap, a frame older than
+/// the newest is dropped as stale), a sample that is not a frame reported with its key. A live
+/// source: it waits for the next sample, however long, and ends only with the session.
+pub struct ZenohSource {
+    subscriber: Subscriber<FifoChannelHandler<Sample>>,
+    key: String,
+    measurements: usize,
+    counter: Counter,
+    /// A frame to deliver after the gap reported before it.
+    pending: Option<Acquired>,
+}
+
+impl ZenohSource {
+    /// Subscribes on `session` to `key` (wildcards allowed: several bridges' frames on one
+    /// stream are then one counter's, so give one key per board) for frames of `measurements`
+    /// values.
+    pub fn open(session: &Session, key: &str, measurements: usize) -> Result<ZenohSource, MiddlewareError> {
+        zenoh::key_expr::KeyExpr::try_from(key).map_err(|e| MiddlewareError::Key {
+            what: "--source zenoh:",
+            key: key.to_owned(),
+            use_: "subscribe to",
+            reason: e.to_string(),
+        })?;
+        let subscriber = session
+            .declare_subscriber(key.to_owned())
+            .with(zenoh::handlers::FifoChannel::new(QUEUE))
+            .wait()
+            .map_err(|e| MiddlewareError::Zenoh { key: key.to_owned(), reason: e.to_string() })?;
+        Ok(ZenohSource { subscriber, key: key.to_owned(), measurements, counter: Counter::default(), pending: None })
+    }
+
+    /// The item a decoded message makes, and the gap before it, if any.
+    fn take(&mut self, message: FrameMessage) -> Acquired {
+        let FrameMessage { seq, t, values } = message;
+        let gap = match self.counter.admit(seq) {
+            Ok(gap) => gap,
+            Err(last) => return Acquired::Bad(BadFrame::OutOfOrder { seq, last }),
+        };
+        let item = if values.len() == self.measurements {
+            Acquired::Frame { seq, t, values }
+        } else {
+            Acquired::Bad(BadFrame::WrongCount { seq, expected: self.measurements, got: values.len() })
+        };
+        match (gap > 0).then_some(gap) {
+            Some(missing) => {
+                self.pending = Some(item);
+                Acquired::Bad(BadFrame::Gap { seq, missing })
+            }
+            None => item,
+        }
+    }
+}
+
+impl FrameSource for ZenohSource {
+    fn acquire(&mut self) -> Option<Result<Acquired, SourceError>> {
+        if let Some(item) = self.pending.take() {
+            return Some(Ok(item));
+        }
+        // An error here is the session closing: the source ends.
+        let sample = self.subscriber.recv().ok()?;
+        let payload = sample.payload().to_bytes();
+        Some(Ok(match FrameMessage::decode(&payload) {
+            Ok(message) => self.take(message),
+            Err(error) => {
+                let reason = error.to_string();
+                Acquired::Bad(BadFrame::Message { key: sample.key_expr().as_str().to_owned(), reason })
+            }
+        }))
+    }
+
+    fn is_live(&self) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for ZenohSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ZenohSource").field("key", &self.key).field("last", &self.counter.last).finish_non_exhaustive()
+    }
+}
+
+/// A stream's frame counter, followed.
+#[derive(Debug, Clone, Copy, Default)]
+struct Counter {
+    /// The newest counter taken.
+    last: Option<u64>,
+}
+
+impl Counter {
+    /// Takes counter `seq`: how many frames were missed before it, or, for a frame older than
+    /// the newest (and not so much older that the stream started again), the newest's counter.
+    fn admit(&mut self, seq: u64) -> Result<u64, u64> {
+        let missing = match self.last {
+            Some(last) if seq <= last && last - seq < RESTART => return Err(last),
+            Some(last) if seq > last => seq - last - 1,
+            _ => 0,
+        };
+        self.last = Some(seq);
+        Ok(missing)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_counter_tells_gaps_stale_frames_and_a_restarted_stream() {
+        let mut counter = Counter::default();
+        assert_eq!(counter.admit(5), Ok(0), "the first frame starts the count");
+        assert_eq!(counter.admit(6), Ok(0));
+        assert_eq!(counter.admit(9), Ok(2), "7 and 8 are missing");
+        assert_eq!(counter.admit(8), Err(9), "8 came late: stale");
+        assert_eq!(counter.admit(9), Err(9), "a repeat is stale too");
+        assert_eq!(counter.admit(10), Ok(0), "the stream goes on from the newest");
+        let mut restarted = Counter { last: Some(50_000) };
+        assert_eq!(restarted.admit(0), Ok(0), "far back: the bridge started again");
+        assert_eq!(restarted.admit(1), Ok(0));
+    }
+}
