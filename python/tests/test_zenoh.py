@@ -3,6 +3,8 @@
 - What `eitskin run --publish zenoh` publishes equals the JSON lines of the same run, frame for
   frame and event for event, in JSON (byte for byte) and in CBOR (field for field); each imaged
   frame's image comes with it.
+- A subscriber that joins late gets the start line by a query, and sees the sensor's liveliness
+  token appear while it runs and vanish when it ends.
 - Frames a bridge publishes (`--source zenoh:KEY`) give the same touches as the recording they
   came from, replayed from the file; a sample that is not a frame is reported and the stream
   goes on.
@@ -127,6 +129,35 @@ def test_what_is_published_equals_the_json_lines_frame_for_frame(tmp_path):
         y = y1 - (k // raster["nx"] + 0.5) * (y1 - y0) / raster["ny"]
         touch = frame["touches"][0]
         assert math.hypot(x - touch["x"], y - touch["y"]) < 15, (x, y, touch)
+
+
+def test_a_late_subscriber_gets_the_start_line_and_sees_the_sensor_come_and_go(tmp_path):
+    port = free_port()
+    with peer(port) as session:
+        alive = queue.Queue()
+        watcher = session.liveliness().declare_subscriber("test/*/alive", alive.put)
+        frames = queue.Queue()
+        subscriber = session.declare_subscriber("test/right/touches", frames.put)
+        eitskin = subprocess.Popen(
+            [EITSKIN, "run", "--frames", "60", "--rate", "20", "--triangles", "1500", "--publish", "zenoh:test",
+             "--sensor", "right", *client_flags(port)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )
+        try:
+            came = alive.get(timeout=WAIT_S)
+            assert str(came.key_expr) == "test/right/alive" and came.kind == zenoh.SampleKind.PUT
+            frames.get(timeout=WAIT_S)  # running: a frame came
+            replies = list(session.get("test/right/start", timeout=10.0))
+            assert len(replies) == 1 and replies[0].ok is not None, replies
+            start = json.loads(replies[0].ok.payload.to_bytes())
+            out, err = eitskin.communicate(timeout=WAIT_S)
+            went = alive.get(timeout=WAIT_S)
+        finally:
+            eitskin.kill()
+        del watcher, subscriber
+    assert eitskin.returncode == 0, err
+    assert str(went.key_expr) == "test/right/alive" and went.kind == zenoh.SampleKind.DELETE
+    assert start == json.loads(out.splitlines()[0]) and start["length_unit"] == "mm"
 
 
 def test_frames_from_a_bridge_give_the_touches_of_the_recording_they_came_from(tmp_path):

@@ -135,7 +135,7 @@ pub struct Publishing {
 
 impl Sink for Publishing {
     fn start(&mut self, start: &Start) -> Result<Flow> {
-        self.publisher.event(&Event::Start(start.clone()))?;
+        self.publisher.start(start)?;
         Ok(Flow::Go)
     }
     fn event(&mut self, event: &Event) -> Result<Flow> {

@@ -8,6 +8,8 @@
 //! | `PREFIX/SENSOR/touches` | every processed frame: the JSON line's [`FrameLine`](crate::stream::FrameLine) | [`Encoding`] |
 //! | `PREFIX/SENSOR/events`  | every event: the start line first, then [`Event`](crate::stream::Event)s | [`Encoding`] |
 //! | `PREFIX/SENSOR/image`   | with images on: each frame's raster ([`ImageMessage`])  | [`Encoding`] |
+//! | `PREFIX/SENSOR/start`   | a query's answer: the start line, for a late subscriber | [`Encoding`] |
+//! | `PREFIX/SENSOR/alive`   | a liveliness token, held while the sensor runs           | —       |
 //! | any (`--source zenoh:KEY`) | raw frames in: [`FrameMessage`] (seq, t_s, values)   | JSON or CBOR |
 //!
 //! The payloads are the schema of the JSON lines ([`crate::stream`]), field for field, encoded as
@@ -135,6 +137,14 @@ impl Encoding {
             Encoding::Cbor => ciborium::into_writer(value, &mut *out).map_err(|e| e.to_string()),
         }
         .map_err(|reason| MiddlewareError::Encode { encoding: self, reason })
+    }
+
+    /// Zenoh's tag for it.
+    pub(crate) fn zenoh(self) -> zenoh::bytes::Encoding {
+        match self {
+            Encoding::Json => zenoh::bytes::Encoding::APPLICATION_JSON,
+            Encoding::Cbor => zenoh::bytes::Encoding::APPLICATION_CBOR,
+        }
     }
 
     /// The media type Zenoh tags each sample with.

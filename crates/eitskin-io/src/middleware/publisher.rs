@@ -3,15 +3,18 @@
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
+use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
+use zenoh::query::Queryable;
 use zenoh::{Session, Wait};
 
 use super::{publish_key, Encoding, MiddlewareError};
-use crate::stream::{Event, FrameLine, Raster};
+use crate::stream::{Event, FrameLine, Raster, Start};
 
-/// The keys under `PREFIX/SENSOR/`: each frame's line, the events, the image.
-pub const TOPICS: [&str; 3] = ["touches", "events", "image"];
+/// The keys under `PREFIX/SENSOR/`: each frame's line, the events, the image (published); the
+/// start line (answered to a query) and the sensor's liveliness token.
+pub const TOPICS: [&str; 5] = ["touches", "events", "image", "start", "alive"];
 
 /// An imaged frame's raster, as published on `PREFIX/SENSOR/image`.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -27,10 +30,17 @@ pub struct ImageMessage<'a> {
 /// One sensor's publishers: frames, events and (optionally) images, each sample encoded as
 /// chosen, sent reliably, waiting rather than dropping when the network is congested.
 pub struct SensorPublisher {
+    session: Session,
+    /// `PREFIX/SENSOR`.
+    base: String,
     touches: Publisher<'static>,
     events: Publisher<'static>,
     image: Option<Publisher<'static>>,
     encoding: Encoding,
+    /// Answers `PREFIX/SENSOR/start` with the start line, once it is known.
+    start: Option<Queryable<()>>,
+    /// Held while the sensor runs: `PREFIX/SENSOR/alive`'s token, gone when the process is.
+    _alive: LivelinessToken,
     /// The last sample's bytes, reused.
     buffer: Vec<u8>,
 }
@@ -46,24 +56,31 @@ impl SensorPublisher {
         image: bool,
     ) -> Result<SensorPublisher, MiddlewareError> {
         Self::check_keys(prefix, sensor)?;
+        let base = format!("{prefix}/{sensor}");
         let declare = |topic: &str| -> Result<Publisher<'static>, MiddlewareError> {
-            let key = format!("{prefix}/{sensor}/{topic}");
-            let encoding = match encoding {
-                Encoding::Json => zenoh::bytes::Encoding::APPLICATION_JSON,
-                Encoding::Cbor => zenoh::bytes::Encoding::APPLICATION_CBOR,
-            };
+            let key = format!("{base}/{topic}");
             session
                 .declare_publisher(key.clone())
-                .encoding(encoding)
+                .encoding(encoding.zenoh())
                 .congestion_control(CongestionControl::Block)
                 .wait()
                 .map_err(|e| MiddlewareError::Zenoh { key, reason: e.to_string() })
         };
+        let alive_key = format!("{base}/{}", TOPICS[4]);
+        let alive = session
+            .liveliness()
+            .declare_token(alive_key.clone())
+            .wait()
+            .map_err(|e| MiddlewareError::Zenoh { key: alive_key, reason: e.to_string() })?;
         Ok(SensorPublisher {
+            session: session.clone(),
             touches: declare(TOPICS[0])?,
             events: declare(TOPICS[1])?,
             image: if image { Some(declare(TOPICS[2])?) } else { None },
+            base,
             encoding,
+            start: None,
+            _alive: alive,
             buffer: Vec::new(),
         })
     }
@@ -112,12 +129,33 @@ impl SensorPublisher {
         }
     }
 
+    /// Publishes the run's start line on the events, and answers queries on `PREFIX/SENSOR/start`
+    /// with it from now on, so that a subscriber that joins late learns the unit and settings.
+    pub fn start(&mut self, start: &Start) -> Result<(), MiddlewareError> {
+        let event = Event::Start(start.clone());
+        self.encoding.encode_into(&event, &mut self.buffer)?;
+        let (key, bytes, encoding) =
+            (format!("{}/{}", self.base, TOPICS[3]), self.buffer.clone(), self.encoding.zenoh());
+        let reply_key = key.clone();
+        let queryable = self
+            .session
+            .declare_queryable(key.clone())
+            .callback(move |query| {
+                // A querier that went away is no error of the sensor's.
+                let _ = query.reply(reply_key.as_str(), bytes.as_slice()).encoding(encoding.clone()).wait();
+            })
+            .wait()
+            .map_err(|e| MiddlewareError::Zenoh { key, reason: e.to_string() })?;
+        self.start = Some(queryable);
+        self.event(&event)
+    }
+
     /// Publishes a frame's line.
     pub fn frame(&mut self, line: &FrameLine) -> Result<(), MiddlewareError> {
         Self::put(&self.touches, self.encoding, &mut self.buffer, line)
     }
 
-    /// Publishes an event (the start line is [`Event::Start`]).
+    /// Publishes an event (the start line goes through [`SensorPublisher::start`]).
     pub fn event(&mut self, event: &Event) -> Result<(), MiddlewareError> {
         Self::put(&self.events, self.encoding, &mut self.buffer, event)
     }
