@@ -26,17 +26,18 @@ pub struct ZenohArgs {
     publish: Option<String>,
     /// The sensor's name in the keys published on: one chunk of a key expression (no `/`, no
     /// wildcard).
-    #[arg(long, default_value = "skin")]
+    #[arg(long, default_value = "skin", requires = "publish")]
     sensor: String,
     /// How published samples are encoded: `json` (the JSON lines' schema) or `cbor` (RFC 8949,
     /// the same fields).
-    #[arg(long, default_value = "json")]
+    #[arg(long, default_value = "json", requires = "publish")]
     publish_encoding: Encoding,
     /// Publish each imaged frame's raster too (PREFIX/SENSOR/image; about 4,000 numbers a frame).
     #[arg(long, requires = "publish")]
     publish_image: bool,
     /// Before the first frame, wait up to this many seconds, in (0, 3600], for a subscriber to
-    /// PREFIX/SENSOR/touches, and fail if none comes (a replay whose every frame must be read).
+    /// PREFIX/SENSOR/touches, and fail if none comes: for a replay whose every frame must be read
+    /// (a serial board's frames are not read meanwhile).
     #[arg(long, value_name = "SECONDS", requires = "publish",
           value_parser = ranges::number("a wait", "(0, 3600] s", "10", |s| s > 0.0 && s <= 3600.0))]
     wait_for_subscriber: Option<f64>,

@@ -103,7 +103,10 @@ pub enum BadFrame {
         got: u16,
     },
     /// Frames missing from the board's counter that were not reported otherwise.
-    #[error("{missing} frames were lost before frame seq {seq}; the link drops data (lower the frame rate or raise the baud rate)")]
+    #[error(
+        "{missing} frames were lost before frame seq {seq}; the link drops data (on a serial line, lower the frame \
+         rate or raise the baud rate)"
+    )]
     Gap {
         /// The counter of the frame after the gap (that frame is still delivered).
         seq: u64,
@@ -127,7 +130,7 @@ pub enum BadFrame {
         bytes: usize,
     },
     /// A message from the network that is not a frame (`--source zenoh:`).
-    #[error("a sample on {key} is not a frame: {reason}")]
+    #[error("a sample on {key}: {reason}")]
     Message {
         /// The key expression it came on.
         key: String,

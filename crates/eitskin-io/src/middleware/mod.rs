@@ -9,14 +9,15 @@
 //! | `PREFIX/SENSOR/events`  | every event: the start line first, then [`Event`](crate::stream::Event)s | [`Encoding`] |
 //! | `PREFIX/SENSOR/image`   | with images on: each frame's raster ([`ImageMessage`])  | [`Encoding`] |
 //! | `PREFIX/SENSOR/start`   | a query's answer: the start line, for a late subscriber | [`Encoding`] |
-//! | `PREFIX/SENSOR/alive`   | a liveliness token, held while the sensor runs           | —       |
+//! | `PREFIX/SENSOR/alive`   | a liveliness token, held from the start line while the sensor runs | — |
 //! | any (`--source zenoh:KEY`) | raw frames in: [`FrameMessage`] (seq, t_s, values)   | JSON or CBOR |
 //!
 //! The payloads are the schema of the JSON lines ([`crate::stream`]), field for field, encoded as
 //! JSON (`application/json`) or CBOR (RFC 8949, `application/cbor`: the same fields in about
 //! half the bytes; f32 fields stay f32), so that a reader needs a JSON or CBOR library and the
 //! schema, not eitskin. Results are published reliably, and a publisher waits rather than drop
-//! a sample when the network is congested: a subscriber gets every frame, in order.
+//! a sample when the network is congested: a subscriber gets every frame, in order (a subscriber
+//! that stalls holds the sensor up, until Zenoh gives its link up; 5 s by default).
 //!
 //! ```
 //! use eitskin_io::middleware::{Encoding, FrameMessage};
@@ -41,7 +42,7 @@ mod source;
 
 use serde::{Deserialize, Serialize};
 
-pub use publisher::{ImageMessage, SensorPublisher, TOPICS};
+pub use publisher::{ImageMessage, SensorPublisher, ALIVE, EVENTS, IMAGE, START, TOUCHES};
 pub use session::{open, Mode, ZenohSettings};
 pub use source::ZenohSource;
 /// The session publishers and sources are declared on (Zenoh's own).
@@ -196,12 +197,20 @@ impl FrameMessage {
     /// A frame message from its payload: JSON if it starts with `{` (after white space), else CBOR.
     pub fn decode(payload: &[u8]) -> Result<FrameMessage, MiddlewareError> {
         let json = payload.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{');
-        let decoded = if json {
+        let decoded: Result<FrameMessage, String> = if json {
             serde_json::from_slice(payload).map_err(|e| format!("JSON: {e}"))
         } else {
-            ciborium::from_reader(payload).map_err(|e| format!("CBOR: {e}"))
+            let mut rest = payload;
+            match ciborium::from_reader(&mut rest) {
+                Ok(_) if !rest.is_empty() => Err(format!("CBOR: {} bytes after the frame", rest.len())),
+                decoded => decoded.map_err(|e| format!("CBOR: {e}")),
+            }
         };
-        decoded.map_err(|reason| MiddlewareError::Decode { reason })
+        match decoded {
+            Ok(frame) if !frame.t.is_finite() => Err(format!("its time t_s is {}", frame.t)),
+            decoded => decoded,
+        }
+        .map_err(|reason| MiddlewareError::Decode { reason })
     }
 }
 
@@ -234,6 +243,8 @@ mod tests {
             (b"{\"seq\": 1, \"t_s\": 0, \"values\": [1, \"2\"]", "JSON"),
             (b"", "CBOR"),
             (b"\xa1\x63seq\x01", "CBOR"),
+            (b"\xa3\x63seq\x01\x63t_s\xf9\x7e\x00\x66values\x80", "t_s is NaN"),
+            (b"\xa3\x63seq\x01\x63t_s\xf9\x00\x00\x66values\x80\x00", "1 bytes after the frame"),
         ] {
             let error = FrameMessage::decode(payload).unwrap_err().to_string();
             assert!(error.contains(says) && error.contains("not a frame message"), "{error}");

@@ -12,9 +12,16 @@ use zenoh::{Session, Wait};
 use super::{publish_key, Encoding, MiddlewareError};
 use crate::stream::{Event, FrameLine, Raster, Start};
 
-/// The keys under `PREFIX/SENSOR/`: each frame's line, the events, the image (published); the
-/// start line (answered to a query) and the sensor's liveliness token.
-pub const TOPICS: [&str; 5] = ["touches", "events", "image", "start", "alive"];
+/// The key under `PREFIX/SENSOR/` of each frame's line.
+pub const TOUCHES: &str = "touches";
+/// The key of the events (the start line first).
+pub const EVENTS: &str = "events";
+/// The key of the images.
+pub const IMAGE: &str = "image";
+/// The key a query for the start line is answered on.
+pub const START: &str = "start";
+/// The key of the sensor's liveliness token.
+pub const ALIVE: &str = "alive";
 
 /// An imaged frame's raster, as published on `PREFIX/SENSOR/image`.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -39,8 +46,9 @@ pub struct SensorPublisher {
     encoding: Encoding,
     /// Answers `PREFIX/SENSOR/start` with the start line, once it is known.
     start: Option<Queryable<()>>,
-    /// Held while the sensor runs: `PREFIX/SENSOR/alive`'s token, gone when the process is.
-    _alive: LivelinessToken,
+    /// Held while the sensor runs, from its start line on: `PREFIX/SENSOR/alive`'s token, gone
+    /// when the process is.
+    alive: Option<LivelinessToken>,
     /// The last sample's bytes, reused.
     buffer: Vec<u8>,
 }
@@ -66,21 +74,15 @@ impl SensorPublisher {
                 .wait()
                 .map_err(|e| MiddlewareError::Zenoh { key, reason: e.to_string() })
         };
-        let alive_key = format!("{base}/{}", TOPICS[4]);
-        let alive = session
-            .liveliness()
-            .declare_token(alive_key.clone())
-            .wait()
-            .map_err(|e| MiddlewareError::Zenoh { key: alive_key, reason: e.to_string() })?;
         Ok(SensorPublisher {
             session: session.clone(),
-            touches: declare(TOPICS[0])?,
-            events: declare(TOPICS[1])?,
-            image: if image { Some(declare(TOPICS[2])?) } else { None },
+            touches: declare(TOUCHES)?,
+            events: declare(EVENTS)?,
+            image: if image { Some(declare(IMAGE)?) } else { None },
             base,
             encoding,
             start: None,
-            _alive: alive,
+            alive: None,
             buffer: Vec::new(),
         })
     }
@@ -129,13 +131,13 @@ impl SensorPublisher {
         }
     }
 
-    /// Publishes the run's start line on the events, and answers queries on `PREFIX/SENSOR/start`
-    /// with it from now on, so that a subscriber that joins late learns the unit and settings.
+    /// Publishes the run's start line on the events, answers queries on `PREFIX/SENSOR/start`
+    /// with it from now on (a subscriber that joins late learns the unit and settings), then
+    /// declares the sensor alive: whoever sees the token can fetch the start line.
     pub fn start(&mut self, start: &Start) -> Result<(), MiddlewareError> {
         let event = Event::Start(start.clone());
         self.encoding.encode_into(&event, &mut self.buffer)?;
-        let (key, bytes, encoding) =
-            (format!("{}/{}", self.base, TOPICS[3]), self.buffer.clone(), self.encoding.zenoh());
+        let (key, bytes, encoding) = (format!("{}/{START}", self.base), self.buffer.clone(), self.encoding.zenoh());
         let reply_key = key.clone();
         let queryable = self
             .session
@@ -147,6 +149,9 @@ impl SensorPublisher {
             .wait()
             .map_err(|e| MiddlewareError::Zenoh { key, reason: e.to_string() })?;
         self.start = Some(queryable);
+        let key = format!("{}/{ALIVE}", self.base);
+        let token = self.session.liveliness().declare_token(key.clone()).wait();
+        self.alive = Some(token.map_err(|e| MiddlewareError::Zenoh { key, reason: e.to_string() })?);
         self.event(&event)
     }
 

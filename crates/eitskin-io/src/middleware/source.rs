@@ -10,17 +10,19 @@ use crate::codec::BadFrame;
 use crate::source::{Acquired, FrameSource, SourceError};
 
 /// Samples held while the processing is busy (about 10 s of a board at 100 frames/s); a
-/// reader that falls further behind holds up Zenoh's delivery rather than losing frames.
+/// reader that falls further behind holds up Zenoh's delivery (the queue is full, and the
+/// source is not live: its reader waits for the processing too) rather than losing frames.
 const QUEUE: usize = 1024;
 
-/// How far back a counter may go and still be a late frame of the same stream; further back,
-/// the bridge started again (its counter from 0), and the frame is taken.
-const RESTART: u64 = 1000;
+/// How far back a counter may go and still be a late frame of the same stream (a sample of one
+/// publisher comes in order over TCP; several publishers on one key may interleave); further
+/// back, or back to 0, the bridge started again, and the frame is taken.
+const RESTART: u64 = 16;
 
 /// Frames of [`FrameMessage`]s on one key: each checked for its count, the counter followed as
 /// a serial board's is (frames missing before one are reported as a gap, a frame older than
 /// the newest is dropped as stale), a sample that is not a frame reported with its key. A live
-/// source: it waits for the next sample, however long, and ends only with the session.
+/// source waits for the next sample, however long, and ends only with the session.
 pub struct ZenohSource {
     subscriber: Subscriber<FifoChannelHandler<Sample>>,
     key: String,
@@ -88,8 +90,9 @@ impl FrameSource for ZenohSource {
         }))
     }
 
+    /// Not live: Zenoh holds what is not read yet (1,024 samples), so the reader may wait.
     fn is_live(&self) -> bool {
-        true
+        false
     }
 }
 
@@ -108,10 +111,10 @@ struct Counter {
 
 impl Counter {
     /// Takes counter `seq`: how many frames were missed before it, or, for a frame older than
-    /// the newest (and not so much older that the stream started again), the newest's counter.
+    /// the newest (and not so much older, nor 0, that the stream started again), the newest's counter.
     fn admit(&mut self, seq: u64) -> Result<u64, u64> {
         let missing = match self.last {
-            Some(last) if seq <= last && last - seq < RESTART => return Err(last),
+            Some(last) if seq <= last && last - seq <= RESTART && seq > 0 => return Err(last),
             Some(last) if seq > last => seq - last - 1,
             _ => 0,
         };
@@ -134,7 +137,11 @@ mod tests {
         assert_eq!(counter.admit(9), Err(9), "a repeat is stale too");
         assert_eq!(counter.admit(10), Ok(0), "the stream goes on from the newest");
         let mut restarted = Counter { last: Some(50_000) };
-        assert_eq!(restarted.admit(0), Ok(0), "far back: the bridge started again");
-        assert_eq!(restarted.admit(1), Ok(0));
+        assert_eq!(restarted.admit(49_000), Ok(0), "far back: the bridge started again");
+        assert_eq!(restarted.admit(49_001), Ok(0));
+        let mut early = Counter { last: Some(5) };
+        assert_eq!(early.admit(0), Ok(0), "back to 0, however soon: started again");
+        assert_eq!(early.admit(1), Ok(0));
+        assert_eq!(early.admit(3), Ok(1));
     }
 }
