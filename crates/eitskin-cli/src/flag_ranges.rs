@@ -67,6 +67,7 @@ const ACCEPTED: &[(&str, &str, &str)] = &[
     ("run", "rate", "0"),               // a capture as fast as possible
     ("run", "baseline-rate", "0"),      // no baseline update
     ("run", "viewer", "0"),             // any free port
+    ("run", "ros-domain", "0"),         // ROS's default domain
     ("robot-presses", "seed", "0"),
     ("robot-presses", "held-out-count", "0"), // no held-out file
     ("robot-presses", "noise", "0"),          // noise-free presses

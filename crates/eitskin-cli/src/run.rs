@@ -276,7 +276,7 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// The run's sinks, in the order they take each frame: the recording (on disk before anything
-/// shows it), the viewer, the Zenoh publisher, stdout's lines.
+/// shows it), the viewer, the Zenoh and ROS 2 publishers, stdout's lines.
 fn sinks(
     args: &Args,
     spec: &SensorSpec,
@@ -294,7 +294,7 @@ fn sinks(
     if let Some(addr) = args.viewer {
         sinks.push(Box::new(Viewing::start(addr, spec, pipeline)?));
     }
-    if let Some(publishing) = args.zenoh.sink(session, spec.length_unit.metres())? {
+    if let Some(publishing) = args.zenoh.sink(session, spec)? {
         sinks.push(Box::new(publishing));
     }
     sinks.push(Box::new(Lines::new(std::io::stdout().lock())));

@@ -1,8 +1,8 @@
 //! The Python package (`python/`, PyO3 + maturin) built and tested as its users install it: a
 //! fresh virtual environment under `target/`, `pip install ./python`, then its pytest suite
 //! (every class, bad input raising, pyEIT's reference numbers from Python, eitskin's Zenoh
-//! samples read by eclipse-zenoh). Needs `python3` with `venv`, and PyPI for maturin, numpy,
-//! pytest, matplotlib, eclipse-zenoh and cbor2 on the first run; without them this test
+//! samples read by eclipse-zenoh, its ROS 2 messages by rosbags). Needs `python3` with `venv`, and PyPI for maturin, numpy,
+//! pytest, matplotlib, eclipse-zenoh, cbor2 and rosbags on the first run; without them this test
 //! fails and says which step it could not take.
 
 use std::path::{Path, PathBuf};
@@ -47,10 +47,11 @@ fn the_python_package_installs_and_passes_its_tests() {
         step(what, python, &[&quiet[..], arguments].concat(), &bin);
     };
     // eclipse-zenoh (the release of the zenoh crate eitskin links) and cbor2: the independent
-    // client that reads what `eitskin run --publish zenoh` sends (tests/test_zenoh.py).
+    // client that reads what `eitskin run --publish zenoh` sends (tests/test_zenoh.py); rosbags:
+    // ROS 2's message definitions, type hashes and CDR, without ROS (tests/test_ros2.py).
     pip(
-        "installing maturin, numpy, pytest, matplotlib, eclipse-zenoh and cbor2",
-        &["maturin>=1.5,<2", "numpy", "pytest", "matplotlib", "eclipse-zenoh==1.10.2", "cbor2"],
+        "installing maturin, numpy, pytest, matplotlib, eclipse-zenoh, cbor2 and rosbags",
+        &["maturin>=1.5,<2", "numpy", "pytest", "matplotlib", "eclipse-zenoh==1.10.2", "cbor2", "rosbags==0.11.9"],
     );
     pip("pip install ./python", &["--no-build-isolation", "--force-reinstall", "--no-deps", "./python"]);
     step("pytest python/tests", python, &["-m", "pytest", "-q", "python/tests"], &bin);

@@ -1,9 +1,10 @@
-//! `eitskin run` on Zenoh, through the real binary: bad Zenoh flags refused before any work,
+//! `eitskin run` on Zenoh, through the real binary: bad Zenoh and ROS 2 flags refused before any work,
 //! with the flag and the value as written; a replay that waits for a subscriber fails, saying
 //! so, when none comes; frames from a bridge counted as a serial board's are (frames lost
 //! before one are a gap, a late one is dropped as stale, a wrong count is bad), the rest
 //! imaged. The equality of what is published with the JSON lines is checked by an independent
-//! client, Python's eclipse-zenoh (python/tests/test_zenoh.py).
+//! client, Python's eclipse-zenoh (python/tests/test_zenoh.py); that of the ROS 2 messages by
+//! eclipse-zenoh with rosbags' definitions, type hashes and CDR (python/tests/test_ros2.py).
 //!
 //! Traffic stays on loopback: the test's peer listens on 127.0.0.1 only, eitskin connects to it
 //! as a client, multicast scouting is off on both.
@@ -49,7 +50,16 @@ fn bad_zenoh_flags_are_refused_with_the_flag_and_the_value_as_written() {
         (&["--publish", "zenoh", "--listen", "udp/127.0.0.1:7447"], "TCP links only"),
         (&["--publish", "zenoh:robot/*"], "\"robot/*\" is not a key expression to publish on"),
         (&["--publish", "zenoh", "--sensor", "arm/left"], "holds a `/`"),
-        (&["--publish", "mqtt"], "write `zenoh` or `zenoh:PREFIX`"),
+        (&["--publish", "mqtt"], "write `zenoh`, `zenoh:PREFIX`, `ros2` or `ros2:NAMESPACE`"),
+        (&["--publish", "ros2", "--sensor", "palm-1"], "the sensor's name \"palm-1\" is not one ROS takes"),
+        (&["--publish", "ros2:robot//skin"], "empty part"),
+        (
+            &["--publish", "ros2", "--ros-domain", "233"],
+            "\"233\" is not a ROS domain: give a whole number from 0 to 232",
+        ),
+        (&["--publish", "zenoh", "--ros-domain", "3"], "--ros-domain 3 applies to --publish ros2"),
+        (&["--publish", "ros2", "--publish", "ros2:other"], "more than once"),
+        (&["--publish", "ros2", "--publish-encoding", "cbor"], "--publish-encoding applies to --publish zenoh"),
         (&["--publish-image"], "--publish"),
         (&["--publish", "zenoh", "--wait-for-subscriber", "0"], "(0, 3600] s"),
         (&["--publish", "zenoh", "--zenoh-mode", "router"], "\"router\" is not a Zenoh mode"),

@@ -37,8 +37,9 @@ pub fn cache_key(spec: &SensorSpec) -> Result<[u8; 32], Error> {
 pub(crate) fn key_of(spec: &SensorSpec, extra: &str) -> Result<[u8; 32], Error> {
     let mut hash = Sha256::new();
     hash.update(env!("CARGO_PKG_VERSION"));
-    // The mask only selects channels of the linearisation: one cache file serves every mask.
-    let unmasked = SensorSpec { mask: eitskin::ChannelMask::default(), ..spec.clone() };
+    // The mask only selects channels of the linearisation, and the mount places the sensor on a
+    // robot: one cache file serves every mask and mount.
+    let unmasked = SensorSpec { mask: eitskin::ChannelMask::default(), mount: None, ..spec.clone() };
     hash.update(crate::spec_to_toml(&unmasked));
     // Custom protocols are not in the TOML: hash the patterns themselves.
     hash.update(format!("{:?}", spec.protocol()?));

@@ -6,6 +6,7 @@
 
 use std::path::Path;
 
+use eitskin::mount::Mount;
 use eitskin::spec::Numbering;
 use eitskin::{ChannelMask, ElectrodeSpec, LengthUnit, MeshParams, Outline, Placement, ProtocolSpec, SensorSpec};
 use serde::{Deserialize, Serialize};
@@ -26,6 +27,24 @@ struct SpecFile {
     protocol: ProtocolFile,
     #[serde(default)]
     mesh: MeshFile,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    mount: Option<MountFile>,
+}
+
+/// `[mount]`: the sensor's frame and its pose on a robot's link; the position in `units`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MountFile {
+    frame_id: String,
+    parent: String,
+    #[serde(default)]
+    position: [f64; 3],
+    #[serde(default = "identity")]
+    orientation: [f64; 4],
+}
+
+fn identity() -> [f64; 4] {
+    [0.0, 0.0, 0.0, 1.0]
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -187,6 +206,12 @@ pub fn spec_to_toml(spec: &SensorSpec) -> String {
             grading: spec.mesh.grading,
             min_angle_deg: spec.mesh.min_angle_deg,
         },
+        mount: spec.mount.as_ref().map(|m| MountFile {
+            frame_id: m.frame_id.clone(),
+            parent: m.parent.clone(),
+            position: m.position.map(|c| c * k),
+            orientation: m.orientation,
+        }),
     };
     // Serialising plain structs of numbers and strings cannot fail.
     toml::to_string(&file).unwrap_or_default()
@@ -342,6 +367,12 @@ impl SpecFile {
                 grading: self.mesh.grading,
                 min_angle_deg: self.mesh.min_angle_deg,
             },
+            mount: self.mount.map(|m| Mount {
+                frame_id: m.frame_id,
+                parent: m.parent,
+                position: m.position.map(|c| c * k),
+                orientation: m.orientation,
+            }),
         })
     }
 }
@@ -444,5 +475,25 @@ drop_electrodes = [3]
         assert!(err.contains("`protocol.kind`") && err.contains("skip-S"), "{err}");
         let err = message(&spec.replace("kind = \"two-terminal\"", "kind = \"skip-15\""));
         assert!(err.contains("skip-15 pairs electrode k with k + 16"), "{err}");
+    }
+
+    /// `[mount]` is read with its position in the spec's unit, written back the same, and a bad
+    /// value is refused with its key and value as written.
+    #[test]
+    fn mount_reads_in_the_spec_unit_and_round_trips() {
+        let spec = spec_to_toml(&SensorSpec::square_hydrogel())
+            + "\n[mount]\nframe_id = \"skin_palm\"\nparent = \"hand_link\"\nposition = [10.0, 0.0, 250.0]\n";
+        let read = parse_spec(&spec, Path::new(".")).unwrap();
+        let mount = read.mount.clone().unwrap();
+        assert_eq!((mount.frame_id.as_str(), mount.parent.as_str()), ("skin_palm", "hand_link"));
+        assert_eq!((mount.position, mount.orientation), ([0.01, 0.0, 0.25], [0.0, 0.0, 0.0, 1.0]));
+        assert_eq!(parse_spec(&spec_to_toml(&read), Path::new(".")).unwrap(), read);
+        let message = |text: &str| crate::full_message(&parse_spec(text, Path::new(".")).unwrap_err());
+        let err = message(&(spec.clone() + "orientation = [0.0, 0.0, 0.7, 0.0]\n"));
+        assert!(err.contains("`mount.orientation` = [0, 0, 0.7, 0]: it must be a unit quaternion"), "{err}");
+        let err = message(&spec.replace("parent = \"hand_link\"\n", ""));
+        assert!(err.contains("parent"), "{err}");
+        let err = message(&spec.replace("\"skin_palm\"", "\"/skin\""));
+        assert!(err.contains("`mount.frame_id` = \"/skin\""), "{err}");
     }
 }

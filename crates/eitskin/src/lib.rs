@@ -46,7 +46,7 @@ mod press;
 pub use imaging::{colour, image, inverse, noise, segmentation, sensitivity, touch, values};
 pub(crate) use live::scratch;
 pub use live::{chain, labelled, memory, parallel, pipeline};
-pub use model::{analytic, conductivity, forward, geometry, mesh, protocol, sim, spec};
+pub use model::{analytic, conductivity, forward, geometry, mesh, mount, protocol, sim, spec};
 pub use press::{calibration, contrast_map, learn, press_fit, pseudo_array, strength};
 
 pub use forward::{ElectrodeModel, ForwardError, ForwardModel, ForwardSolution};

@@ -7,6 +7,7 @@ pub mod conductivity;
 pub mod forward;
 pub mod geometry;
 pub mod mesh;
+pub mod mount;
 pub mod protocol;
 pub mod sim;
 pub mod spec;

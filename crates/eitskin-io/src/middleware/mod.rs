@@ -34,9 +34,11 @@
 //! Sessions are opened as Zenoh's own tools open them ([`ZenohSettings`]: a configuration file,
 //! a mode, endpoints to connect to and listen on, multicast scouting on or off).
 //!
-//! Not for: ROS 2's own message types (CDR), which are a later layer on the same session.
+//! ROS 2's own messages (CDR, laid out as `rmw_zenoh` lays them) go on the same session: see
+//! [`ros2`].
 
 mod publisher;
+pub mod ros2;
 mod session;
 mod source;
 
@@ -110,6 +112,16 @@ pub enum MiddlewareError {
         encoding: Encoding,
         /// Why.
         reason: String,
+    },
+    /// A ROS name or domain that ROS would refuse.
+    #[error("{what} {name:?} is not one ROS takes: {reason}")]
+    RosName {
+        /// Which, e.g. `the ROS namespace`.
+        what: &'static str,
+        /// The value as written.
+        name: String,
+        /// Why.
+        reason: &'static str,
     },
     /// A payload that is not a frame message.
     #[error("not a frame message ({{\"seq\", \"t_s\", \"values\"}} in JSON or CBOR): {reason}")]

@@ -111,24 +111,7 @@ impl SensorPublisher {
 
     /// Waits until a subscriber to the frames' key is there, up to `timeout`.
     pub fn wait_for_subscriber(&self, timeout: Duration) -> Result<(), MiddlewareError> {
-        let start = Instant::now();
-        loop {
-            let status = self
-                .touches
-                .matching_status()
-                .wait()
-                .map_err(|e| MiddlewareError::Zenoh { key: self.touches_key().to_owned(), reason: e.to_string() })?;
-            if status.matching() {
-                return Ok(());
-            }
-            if start.elapsed() >= timeout {
-                return Err(MiddlewareError::NoSubscriber {
-                    key: self.touches_key().to_owned(),
-                    waited_s: timeout.as_secs_f64(),
-                });
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
+        wait_for_subscriber(&self.touches, timeout)
     }
 
     /// Publishes the run's start line on the events, answers queries on `PREFIX/SENSOR/start`
@@ -199,5 +182,24 @@ impl std::fmt::Debug for SensorPublisher {
             .field("encoding", &self.encoding)
             .field("image", &self.image.is_some())
             .finish_non_exhaustive()
+    }
+}
+
+/// Waits until `publisher` has a subscriber, up to `timeout`.
+pub(crate) fn wait_for_subscriber(publisher: &Publisher<'_>, timeout: Duration) -> Result<(), MiddlewareError> {
+    let start = Instant::now();
+    let key = || publisher.key_expr().as_str().to_owned();
+    loop {
+        let status = publisher
+            .matching_status()
+            .wait()
+            .map_err(|e| MiddlewareError::Zenoh { key: key(), reason: e.to_string() })?;
+        if status.matching() {
+            return Ok(());
+        }
+        if start.elapsed() >= timeout {
+            return Err(MiddlewareError::NoSubscriber { key: key(), waited_s: timeout.as_secs_f64() });
+        }
+        std::thread::sleep(Duration::from_millis(5));
     }
 }

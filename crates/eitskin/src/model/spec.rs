@@ -154,6 +154,16 @@ pub enum SpecError {
     /// Meshing failed.
     #[error("the outline could not be meshed")]
     Mesh(#[from] MeshError),
+    /// The sensor's mount on a robot (`mount.*`) is not one.
+    #[error("`{key}` = {value}: {reason}")]
+    Mount {
+        /// The spec key, e.g. `mount.orientation`.
+        key: &'static str,
+        /// The value as written (lengths in the spec's unit).
+        value: String,
+        /// What it must be.
+        reason: &'static str,
+    },
     /// The forward model could not be built.
     #[error("the forward model could not be built")]
     Forward(#[from] ForwardError),
@@ -428,6 +438,8 @@ pub struct SensorSpec {
     pub mask: ChannelMask,
     /// How finely to mesh.
     pub mesh: MeshParams,
+    /// Where the sensor sits on a robot (its frame's name and pose on a link), if said.
+    pub mount: Option<crate::mount::Mount>,
 }
 
 impl Default for SensorSpec {
@@ -456,12 +468,16 @@ impl SensorSpec {
             protocol: ProtocolSpec::TwoTerminal,
             mask: ChannelMask::default(),
             mesh: MeshParams::default(),
+            mount: None,
         }
     }
 
     /// Checks every value, the protocol and its mask included; the error names the spec key at fault.
     pub fn validate(&self) -> Result<(), SpecError> {
         self.electrode_positions()?;
+        if let Some(mount) = &self.mount {
+            mount.check(self.length_unit)?;
+        }
         self.used_channels()?;
         Ok(())
     }
