@@ -53,6 +53,9 @@ const TEXT: &[(&str, &str)] = &[
     ("run", "zenoh-config"),
     ("run", "connect"),
     ("run", "listen"),
+    ("serve", "zenoh-config"),
+    ("serve", "connect"),
+    ("serve", "listen"),
     ("convergence", "protocol"),
     ("convergence", "inclusion"),
 ];
@@ -95,8 +98,10 @@ fn every_flag_refuses_numbers_out_of_its_range_or_documents_them() {
             .collect();
         for arg in sub.get_arguments().filter(|a| a.get_action().takes_values()) {
             let Some(flag) = arg.get_long() else {
-                // The one positional argument of every command: the spec file's path.
-                assert_eq!(arg.get_id(), "spec", "{name}");
+                // The one positional argument of every command: the spec file's path (serve's:
+                // the fleet's).
+                let expected = if name == "serve" { "fleet" } else { "spec" };
+                assert_eq!(arg.get_id(), expected, "{name}");
                 continue;
             };
             if TEXT.contains(&(name, flag)) {

@@ -20,6 +20,7 @@ mod report;
 mod run;
 mod segment;
 mod sensitivity;
+mod serve;
 mod study;
 mod viewer;
 
@@ -74,6 +75,8 @@ enum Command {
     RobotPresses(learn::PressesArgs),
     /// Run a sensor live: frames from the virtual sensor, a file or a serial port; touches and forces as JSON lines.
     Run(run::Args),
+    /// Serve a fleet of sensors in one process: each an `eitskin run` (FLEET.toml), one Zenoh session, one pool of threads.
+    Serve(serve::Args),
     /// Time each stage of the setup chain and print the medians.
     Bench(bench::Args),
     /// Refine the mesh step by step and report how the measurements converge.
@@ -104,6 +107,7 @@ fn main() {
         Command::Learn(args) => learn::run(args),
         Command::RobotPresses(args) => learn::presses_run(args),
         Command::Run(args) => run::run(args),
+        Command::Serve(args) => serve::serve(args),
         Command::Bench(args) => bench::run(args),
         Command::Convergence(args) => convergence::run(args),
     };

@@ -19,14 +19,14 @@
 //! [`imaging`]). A channel that goes bad (not finite) is dropped and named on stderr and in a
 //! `channels_dropped` event, until the reference is re-taken; see [`eitskin::pipeline`].
 
-mod acquire;
+pub(crate) mod acquire;
 mod events;
 mod imaging;
 mod learned;
 mod process;
-mod publish;
+pub(crate) mod publish;
 mod setup;
-mod sink;
+pub(crate) mod sink;
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -42,7 +42,7 @@ use eitskin_io::source::{Codec, Source, SourceSettings, SourceSpec};
 use eitskin_io::stream::Start;
 
 pub(crate) use process::fill_frame_line;
-use process::{Processing, Tally};
+pub(crate) use process::{Processing, Tally};
 use sink::{to_all, Flow, Lines, Recording, Sink, Viewing};
 
 use crate::{load, outputs, ranges, viewer};
@@ -166,7 +166,7 @@ pub struct Args {
     #[arg(long, default_value = "real")]
     component: Component,
     #[command(flatten)]
-    zenoh: publish::ZenohArgs,
+    pub(crate) zenoh: publish::ZenohArgs,
 }
 
 /// Refuses a recording path before any work: one that exists (a recording is never written
@@ -193,8 +193,38 @@ fn check_record(path: &Path, args: &Args) -> Result<()> {
 /// Runs `eitskin run`: the source opened, the pipeline built, the sinks (recording, viewer,
 /// stdout's lines) started, then every item through them until the source ends.
 pub fn run(args: Args) -> Result<()> {
+    let zenoh = check(&args)?;
+    let session = if zenoh { Some(args.zenoh.open()?) } else { None };
+    let Sensor { spec, mut processing, source, start, params } = prepare(&args, session.as_ref())?;
+    let mut sinks = sinks(&args, &spec, &processing.pipeline, processing.kind(), session.as_ref())?;
+    sinks.push(Box::new(Lines::new(std::io::stdout())));
+    let (items, acquisition) = acquire::start(source);
+    eprintln!("eitskin run: reading {}", args.source);
+    if to_all(&mut sinks, |s| s.start(&start))? == Flow::Stop {
+        return Ok(());
+    }
+    let tally = processing.drive(&items, &mut sinks)?;
+    if tally.stopped {
+        return Ok(());
+    }
+    // The source ended: its thread has returned, or panicked.
+    if acquisition.join().is_err() {
+        bail!("the acquisition thread panicked");
+    }
+    ended(&args, tally, &processing, &params)
+}
+
+impl Args {
+    /// Whether the run's results go anywhere but stdout: published, or recorded.
+    pub(crate) fn publishes(&self) -> bool {
+        self.zenoh.publishes() || self.record.is_some()
+    }
+}
+
+/// Checks the flags before any work; whether a Zenoh session is needed.
+pub(crate) fn check(args: &Args) -> Result<bool> {
     if let Some(path) = &args.record {
-        check_record(path, &args)?;
+        check_record(path, args)?;
     }
     let zenoh = args.zenoh.check(&args.source)?;
     let reference_frames = args.reference_frames.saturating_mul(args.average);
@@ -208,8 +238,29 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
     }
+    Ok(zenoh)
+}
+
+/// A sensor ready to run: its spec, its processing (the pipeline and a frame's buffers), its
+/// source (not yet read) and the start line of its stream.
+pub(crate) struct Sensor {
+    /// The spec, sized as asked.
+    pub spec: SensorSpec,
+    /// Frames through the pipeline to the sinks.
+    pub processing: Processing,
+    /// Where frames come from.
+    pub source: Source,
+    /// The stream's first line.
+    pub start: Start,
+    /// The pipeline's settings.
+    pub params: PipelineParams,
+}
+
+/// Builds everything `args` asks for but the sinks: the spec, the pipeline, the source (frames
+/// from Zenoh on `session`), the start line.
+pub(crate) fn prepare(args: &Args, session: Option<&eitskin_io::middleware::Session>) -> Result<Sensor> {
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
-    let setup::Built { pipeline, params, imaging, learned } = setup::build(&args, &spec)?;
+    let setup::Built { pipeline, params, imaging, learned } = setup::build(args, &spec)?;
     crate::ranges::warn_raised_triangles(
         args.triangles,
         pipeline.chain().reconstructor().linearisation().mesh(),
@@ -224,21 +275,14 @@ pub fn run(args: Args) -> Result<()> {
         seed: args.seed,
         values_per_measurement: kind.per_measurement(),
     };
-    let session = if zenoh { Some(args.zenoh.open()?) } else { None };
-    let source = match (&args.source, &session) {
+    let source = match (&args.source, session) {
         (SourceSpec::Zenoh { key }, Some(session)) => {
             let measurements = spec.protocol()?.len() * kind.per_measurement();
             publish::source(session, key, measurements, settings.frames)?
         }
         _ => Source::open(&args.source, &spec, &settings)?,
     };
-    let mut sinks = sinks(&args, &spec, &pipeline, kind, session.as_ref())?;
-    let (items, acquisition) = acquire::start(source);
-    eprintln!("eitskin run: reading {}", args.source);
-    let start = start_line(&args, &spec, spec.protocol()?.len(), &params, imaging.normalised);
-    if to_all(&mut sinks, |s| s.start(&start))? == Flow::Stop {
-        return Ok(());
-    }
+    let start = start_line(args, &spec, spec.protocol()?.len(), &params, imaging.normalised);
     let settings = process::Settings {
         kind,
         metres: spec.length_unit.metres(),
@@ -247,15 +291,14 @@ pub fn run(args: Args) -> Result<()> {
         recorded: args.record.is_some(),
         masked: spec.used_channels()?.iter().enumerate().filter(|(_, used)| !**used).map(|(m, _)| m).collect(),
     };
-    let mut processing = Processing::new(pipeline, learned, settings);
-    let Tally { frames, bad, stopped } = processing.drive(&items, &mut sinks)?;
-    if stopped {
-        return Ok(());
-    }
-    // The source ended: its thread has returned, or panicked.
-    if acquisition.join().is_err() {
-        bail!("the acquisition thread panicked");
-    }
+    let processing = Processing::new(pipeline, learned, settings);
+    Ok(Sensor { spec, processing, source, start, params })
+}
+
+/// What a source that ended without being stopped answered: an error when it gave no frame, or
+/// ended before the reference was taken (unless it was recorded: the recording is the work).
+pub(crate) fn ended(args: &Args, tally: Tally, processing: &Processing, params: &PipelineParams) -> Result<()> {
+    let Tally { frames, bad, .. } = tally;
     // An end before anything was imaged is said, not left to an empty stream.
     if frames == 0 {
         bail!("{}: the source ended without a frame ({bad} bad or skipped)", args.source);
@@ -276,8 +319,8 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// The run's sinks, in the order they take each frame: the recording (on disk before anything
-/// shows it), the viewer, the Zenoh and ROS 2 publishers, stdout's lines.
-fn sinks(
+/// shows it), the viewer, the Zenoh and ROS 2 publishers (stdout's lines go last, `run`'s own).
+pub(crate) fn sinks(
     args: &Args,
     spec: &SensorSpec,
     pipeline: &Pipeline,
@@ -297,7 +340,6 @@ fn sinks(
     if let Some(publishing) = args.zenoh.sink(session, spec)? {
         sinks.push(Box::new(publishing));
     }
-    sinks.push(Box::new(Lines::new(std::io::stdout().lock())));
     Ok(sinks)
 }
 

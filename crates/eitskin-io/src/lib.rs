@@ -39,6 +39,7 @@ pub mod build;
 mod calibration_file;
 pub mod codec;
 mod contrast_map_file;
+mod fleet_file;
 mod frame_file;
 mod learned_model_file;
 mod memory;
@@ -66,6 +67,7 @@ pub use calibration_file::{
     read_calibration_file, spec_key, CalibrationFile, Imaging,
 };
 pub use contrast_map_file::{contrast_map_path, decode_contrast_map, encode_contrast_map, load_or_build_contrast_map};
+pub use fleet_file::{parse_fleet, read_fleet, Fleet, FleetSensor, MAX_SENSORS};
 pub use frame_file::{parse_frame, read_frame};
 pub use learned_model_file::{learned_model_to_json, nominal_sensor, parse_learned_model, read_learned_model};
 pub use memory::{available_memory, peak_memory};

@@ -16,16 +16,29 @@ const QUEUE_WAIT: std::time::Duration = std::time::Duration::from_millis(1);
 /// blocked sender is woken by every item taken, two context switches a frame (8 µs of a
 /// replay's 48 µs here).
 pub fn start(source: Source) -> (mpsc::Receiver<Result<Acquired, SourceError>>, std::thread::JoinHandle<()>) {
-    fn pump(source: Source, mut send: impl FnMut(Result<Acquired, SourceError>) -> bool) {
+    start_notifying(source, || {})
+}
+
+/// [`start`], calling `notify` after each item handed over, and once when the source ended
+/// (`serve` schedules the sensor then).
+pub fn start_notifying(
+    source: Source,
+    notify: impl Fn() + Send + 'static,
+) -> (mpsc::Receiver<Result<Acquired, SourceError>>, std::thread::JoinHandle<()>) {
+    let pump = move |source: Source, mut send: Box<dyn FnMut(Result<Acquired, SourceError>) -> bool + Send>| {
         for item in source {
             if !send(item) {
                 break;
             }
+            notify();
         }
-    }
+        // The sender is dropped here, before the last call: whoever is notified sees the end.
+        drop(send);
+        notify();
+    };
     if source.is_live() {
         let (tx, rx) = mpsc::channel();
-        (rx, std::thread::spawn(move || pump(source, |item| tx.send(item).is_ok())))
+        (rx, std::thread::spawn(move || pump(source, Box::new(move |item| tx.send(item).is_ok()))))
     } else {
         let (tx, rx) = mpsc::sync_channel(QUEUE_ITEMS);
         let send = move |mut item| loop {
@@ -38,6 +51,6 @@ pub fn start(source: Source) -> (mpsc::Receiver<Result<Acquired, SourceError>>, 
                 Err(mpsc::TrySendError::Disconnected(_)) => return false,
             }
         };
-        (rx, std::thread::spawn(move || pump(source, send)))
+        (rx, std::thread::spawn(move || pump(source, Box::new(send))))
     }
 }

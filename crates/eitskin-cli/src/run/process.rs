@@ -64,6 +64,11 @@ impl Processing {
         Processing { pipeline, learned, settings, model, signed, line: FrameLine::default(), tally: Tally::default() }
     }
 
+    /// What the board's numbers are.
+    pub fn kind(&self) -> ValueKind {
+        self.settings.kind
+    }
+
     /// Takes every item of `items` until the source ends or a sink stops the run.
     pub fn drive(
         &mut self,
@@ -83,20 +88,7 @@ impl Processing {
                 },
                 Err(mpsc::TryRecvError::Disconnected) => break,
             };
-            let flow = self.requests(sinks)?.and(match item? {
-                Acquired::Frame { seq, t, values } => self.frame(seq, t, &values, sinks)?,
-                other => {
-                    if matches!(other, Acquired::Bad(_) | Acquired::Skipped { .. }) {
-                        self.tally.bad += 1;
-                    }
-                    // Only frames have no event line, and this is not one.
-                    match Event::of(&other) {
-                        Some(event) => to_all(sinks, |s| s.event(&event))?,
-                        None => Flow::Go,
-                    }
-                }
-            });
-            if flow == Flow::Stop {
+            if self.take(item, sinks)? == Flow::Stop {
                 return Ok(self.stopped());
             }
         }
@@ -104,6 +96,49 @@ impl Processing {
             return Ok(self.stopped());
         }
         Ok(self.tally)
+    }
+
+    /// Takes the items `items` holds now, without waiting for more: `None` while the source
+    /// goes on, the tally once it ended or a sink stopped the run (`serve`'s step of a sensor).
+    pub fn drain(
+        &mut self,
+        items: &mpsc::Receiver<Result<Acquired, SourceError>>,
+        sinks: &mut [Box<dyn Sink>],
+    ) -> Result<Option<Tally>> {
+        loop {
+            match items.try_recv() {
+                Ok(item) => {
+                    if self.take(item, sinks)? == Flow::Stop {
+                        return Ok(Some(self.stopped()));
+                    }
+                }
+                Err(mpsc::TryRecvError::Empty) => {
+                    return Ok(if to_all(sinks, |s| s.idle())? == Flow::Stop { Some(self.stopped()) } else { None });
+                }
+                Err(mpsc::TryRecvError::Disconnected) => {
+                    let flow = to_all(sinks, |s| s.idle())?;
+                    return Ok(Some(if flow == Flow::Stop { self.stopped() } else { self.tally }));
+                }
+            }
+        }
+    }
+
+    /// One item through the pipeline (a frame) or straight to the sinks (an event), after the
+    /// sinks' requests.
+    fn take(&mut self, item: Result<Acquired, SourceError>, sinks: &mut [Box<dyn Sink>]) -> Result<Flow> {
+        Ok(self.requests(sinks)?.and(match item? {
+            Acquired::Frame { seq, t, values } => self.frame(seq, t, &values, sinks)?,
+            other => {
+                if matches!(other, Acquired::Bad(_) | Acquired::Skipped { .. }) {
+                    self.tally.bad += 1;
+                }
+                // Only frames have no event line, and this is not one.
+                match Event::of(&other) {
+                    Some(event) => to_all(sinks, |s| s.event(&event))?,
+                    None => Flow::Go,
+                }
+            }
+        }))
     }
 
     fn stopped(&self) -> Tally {

@@ -41,7 +41,7 @@ pub struct ZenohArgs {
     /// The sensor's name in what is published: one chunk of a key expression (no `/`, no
     /// wildcard), and with ros2 a ROS name (letters, digits, `_`).
     #[arg(long, default_value = "skin", requires = "publish")]
-    sensor: String,
+    pub sensor: String,
     /// The ROS domain published in with --publish ros2, in [0, 232] (ROS_DOMAIN_ID, else 0).
     #[arg(long, value_name = "ID",
           value_parser = ranges::whole("a ROS domain", 0, MAX_DOMAIN as usize))]
@@ -60,6 +60,13 @@ pub struct ZenohArgs {
     #[arg(long, value_name = "SECONDS", requires = "publish",
           value_parser = ranges::number("a wait", "(0, 3600] s", "10", |s| s > 0.0 && s <= 3600.0))]
     wait_for_subscriber: Option<f64>,
+    #[command(flatten)]
+    pub session: SessionArgs,
+}
+
+/// The Zenoh session's flags, as Zenoh's own tools take them.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SessionArgs {
     /// A Zenoh configuration file (JSON5, as zenohd and Zenoh's tools read), applied first.
     #[arg(long, value_name = "FILE")]
     zenoh_config: Option<PathBuf>,
@@ -75,6 +82,51 @@ pub struct ZenohArgs {
     /// Do not look for Zenoh peers by multicast: reach only the endpoints given.
     #[arg(long)]
     no_multicast_scouting: bool,
+}
+
+impl SessionArgs {
+    /// The flags given, by name.
+    pub fn given(&self) -> Vec<&'static str> {
+        [
+            (self.zenoh_config.is_some(), "--zenoh-config"),
+            (self.zenoh_mode.is_some(), "--zenoh-mode"),
+            (!self.connect.is_empty(), "--connect"),
+            (!self.listen.is_empty(), "--listen"),
+            (self.no_multicast_scouting, "--no-multicast-scouting"),
+        ]
+        .into_iter()
+        .filter_map(|(set, flag)| set.then_some(flag))
+        .collect()
+    }
+
+    /// Checks the settings (endpoints parsed, TCP only) before any work.
+    pub fn check(&self) -> Result<()> {
+        self.settings().config()?;
+        Ok(())
+    }
+
+    /// The session, opened as the flags say.
+    pub fn open(&self) -> Result<middleware::Session> {
+        Ok(middleware::open(&self.settings())?)
+    }
+
+    /// The configuration file as given, made absolute (before `serve` moves into its fleet's folder).
+    pub fn absolute(mut self) -> Result<SessionArgs> {
+        if let Some(path) = &self.zenoh_config {
+            self.zenoh_config = Some(std::path::absolute(path)?);
+        }
+        Ok(self)
+    }
+
+    fn settings(&self) -> ZenohSettings {
+        ZenohSettings {
+            config: self.zenoh_config.clone(),
+            mode: self.zenoh_mode,
+            connect: self.connect.clone(),
+            listen: self.listen.clone(),
+            multicast_scouting: !self.no_multicast_scouting,
+        }
+    }
 }
 
 /// `zenoh[:PREFIX]` or `ros2[:NAMESPACE]` → where to publish.
@@ -97,14 +149,7 @@ impl ZenohArgs {
     /// endpoints checked before any work; session flags without either are refused.
     pub fn check(&self, source: &SourceSpec) -> Result<bool> {
         let needed = !self.publish.is_empty() || matches!(source, SourceSpec::Zenoh { .. });
-        let given = [
-            (self.zenoh_config.is_some(), "--zenoh-config"),
-            (self.zenoh_mode.is_some(), "--zenoh-mode"),
-            (!self.connect.is_empty(), "--connect"),
-            (!self.listen.is_empty(), "--listen"),
-            (self.no_multicast_scouting, "--no-multicast-scouting"),
-        ];
-        if let (false, Some((_, flag))) = (needed, given.iter().find(|(set, _)| *set)) {
+        if let (false, Some(flag)) = (needed, self.session.given().first()) {
             bail!("{flag} sets up Zenoh, which this run does not use; add --publish zenoh or --source zenoh:KEY");
         }
         let (zenoh, ros2) = (self.zenoh_prefix(), self.ros_namespace());
@@ -124,24 +169,19 @@ impl ZenohArgs {
             (None, None) => {}
         }
         if needed {
-            self.settings().config()?;
+            self.session.check()?;
         }
         Ok(needed)
     }
 
     /// The session, opened as the flags say.
     pub fn open(&self) -> Result<middleware::Session> {
-        Ok(middleware::open(&self.settings())?)
+        self.session.open()
     }
 
-    fn settings(&self) -> ZenohSettings {
-        ZenohSettings {
-            config: self.zenoh_config.clone(),
-            mode: self.zenoh_mode,
-            connect: self.connect.clone(),
-            listen: self.listen.clone(),
-            multicast_scouting: !self.no_multicast_scouting,
-        }
+    /// Whether anything is published.
+    pub fn publishes(&self) -> bool {
+        !self.publish.is_empty()
     }
 
     fn zenoh_prefix(&self) -> Option<&str> {

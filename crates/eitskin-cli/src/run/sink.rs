@@ -53,8 +53,8 @@ pub struct Processed<'a> {
     pub pipeline: &'a Pipeline,
 }
 
-/// A receiver of a run's results.
-pub trait Sink {
+/// A receiver of a run's results; Send, so that `serve` runs each sensor on any thread of its pool.
+pub trait Sink: Send {
     /// Takes the run's first line (nothing else comes before it).
     fn start(&mut self, _start: &Start) -> Result<Flow> {
         Ok(Flow::Go)
@@ -105,7 +105,7 @@ impl<W: Write> Lines<W> {
     }
 }
 
-impl<W: Write> Sink for Lines<W> {
+impl<W: Write + Send> Sink for Lines<W> {
     fn start(&mut self, start: &Start) -> Result<Flow> {
         self.write(&Event::Start(start.clone()))
     }

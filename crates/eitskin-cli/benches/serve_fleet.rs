@@ -1,0 +1,184 @@
+//! `eitskin serve` under load: a fleet of replayed sensors, each fed at 100 frames/s by a
+//! bridge on Zenoh, measured from each frame's put by its bridge to its line's arrival at a
+//! subscriber (so the figure includes both Zenoh hops around eitskin), with every sequence
+//! number checked at the subscriber. Everything on loopback: this process is the bridges, the
+//! subscriber and the Zenoh peer they reach (127.0.0.1 only, no multicast); `serve` is a client.
+//!
+//! ```text
+//! cargo bench -p eitskin-cli --bench serve_fleet -- [SENSORS] [SECONDS] [THREADS]   (100, 10, the cores)
+//! ```
+//!
+//! Frames are a recording of the virtual sensor pressed twice (a press found afresh costs
+//! milliseconds; one held, microseconds), each sensor's stream shifted in time so that the
+//! boards are not in step. The first 100 frames of each sensor (reference, noise measurement)
+//! are reported apart from the rest, the steady state.
+
+use std::collections::HashMap;
+use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use zenoh::qos::CongestionControl;
+use zenoh::Wait;
+
+const RATE_HZ: f64 = 100.0;
+const WARM_UP: u64 = 100;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let number = |k: usize, default: usize| args.get(k).and_then(|a| a.parse().ok()).unwrap_or(default);
+    let (sensors, seconds) = (number(0, 100), number(1, 10));
+    let threads = args.get(2).cloned();
+    let frames = seconds as u64 * RATE_HZ as u64;
+    let eitskin = env!("CARGO_BIN_EXE_eitskin");
+    let dir = tempfile::tempdir().expect("a scratch folder");
+
+    // The frames: the virtual sensor pressed twice, recorded once.
+    let script = dir.path().join("script.txt");
+    std::fs::write(&script, "# start end x y force\n2.0 4.0 -50 40 9\n5.0 7.0 30 -20 6\n").expect("the script");
+    let recording = dir.path().join("frames.jsonl");
+    let made = Command::new(eitskin)
+        .args(["run", "--fast", "--frames", &frames.to_string(), "--record"])
+        .arg(&recording)
+        .arg("--source")
+        .arg(format!("sim:{}", script.display()))
+        .stdout(Stdio::null())
+        .status()
+        .expect("eitskin runs");
+    assert!(made.success(), "the recording");
+    let records: Vec<Vec<f64>> = std::fs::read_to_string(&recording)
+        .expect("the recording")
+        .lines()
+        .skip(1)
+        .map(|line| {
+            let record: serde_json::Value = serde_json::from_str(line).expect("a record");
+            record["values"].as_array().expect("values").iter().map(|v| v.as_f64().expect("a number")).collect()
+        })
+        .collect();
+
+    // The peer: loopback only, no multicast.
+    let port = std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a port").port();
+    let mut config = zenoh::Config::default();
+    config.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]")).expect("config");
+    config.insert_json5("scouting/multicast/enabled", "false").expect("config");
+    let session = zenoh::open(config).wait().expect("a Zenoh session");
+
+    // The subscriber: when each (sensor, seq) came.
+    let arrived: Arc<Mutex<HashMap<(usize, u64), Instant>>> = Arc::default();
+    let sink = Arc::clone(&arrived);
+    let _subscriber = session
+        .declare_subscriber("bench/*/touches")
+        .callback(move |sample| {
+            let now = Instant::now();
+            let sensor = sample.key_expr().as_str().split('/').nth(1).and_then(|s| s[1..].parse().ok());
+            let line: Result<serde_json::Value, _> = serde_json::from_slice(&sample.payload().to_bytes());
+            if let (Some(sensor), Ok(line)) = (sensor, line) {
+                if let Some(seq) = line["seq"].as_u64() {
+                    sink.lock().expect("the map").insert((sensor, seq), now);
+                }
+            }
+        })
+        .wait()
+        .expect("a subscriber");
+
+    // The fleet: each sensor's frames from its bridge's key, published under bench/.
+    let fleet = dir.path().join("fleet.toml");
+    let mut text = String::new();
+    for k in 0..sensors {
+        text += &format!(
+            "[[sensor]]\nname = \"s{k}\"\nrun = [\"--source\", \"zenoh:board/s{k}\", \"--frames\", \"{frames}\", \
+             \"--publish\", \"zenoh:bench\", \"--wait-for-subscriber\", \"600\"]\n\n"
+        );
+    }
+    std::fs::write(&fleet, text).expect("the fleet");
+    let mut serve = Command::new(eitskin);
+    serve.arg("serve").arg(&fleet).args(["--zenoh-mode", "client", "--no-multicast-scouting", "--connect"]);
+    serve.arg(format!("tcp/127.0.0.1:{port}"));
+    if let Some(threads) = &threads {
+        serve.args(["--threads", threads]);
+    }
+    let setup = Instant::now();
+    let mut child = serve.stderr(Stdio::null()).spawn().expect("eitskin serve");
+
+    let publishers: Vec<_> = (0..sensors)
+        .map(|k| {
+            session
+                .declare_publisher(format!("board/s{k}"))
+                .congestion_control(CongestionControl::Block)
+                .wait()
+                .expect("a bridge")
+        })
+        .collect();
+    for publisher in &publishers {
+        while !publisher.matching_status().wait().map(|s| s.matching()).unwrap_or(false) {
+            assert!(child.try_wait().expect("serve").is_none(), "serve ended during its setup");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+    let setup_s = setup.elapsed().as_secs_f64();
+
+    // 100 frames/s a sensor, sensor k shifted by k/sensors of a period.
+    let period = Duration::from_secs_f64(1.0 / RATE_HZ);
+    let mut sent = HashMap::with_capacity(sensors * frames as usize);
+    let start = Instant::now() + Duration::from_millis(100);
+    let mut late_puts = 0usize;
+    let mut due: Vec<(Instant, usize, u64)> = (0..sensors)
+        .flat_map(|k| {
+            let shift = period.mul_f64(k as f64 / sensors as f64);
+            (0..frames).map(move |seq| (start + period * seq as u32 + shift, k, seq))
+        })
+        .collect();
+    due.sort();
+    for (at, k, seq) in due {
+        let now = Instant::now();
+        if at > now {
+            std::thread::sleep(at - now);
+        } else if now - at > period {
+            late_puts += 1;
+        }
+        let values = &records[seq as usize % records.len()];
+        let message = serde_json::json!({"seq": seq, "t_s": seq as f64 / RATE_HZ, "values": values});
+        let bytes = serde_json::to_vec(&message).expect("a frame");
+        sent.insert((k, seq), Instant::now());
+        publishers[k].put(bytes).wait().expect("a put");
+    }
+    let status = child.wait().expect("serve ends");
+    std::thread::sleep(Duration::from_millis(500));
+
+    let arrived = arrived.lock().expect("the map");
+    let (mut warm, mut steady, mut lost) = (Vec::new(), Vec::new(), 0usize);
+    for (&(k, seq), &put) in &sent {
+        match arrived.get(&(k, seq)) {
+            Some(&came) => {
+                let ms = came.duration_since(put).as_secs_f64() * 1e3;
+                if seq < WARM_UP {
+                    warm.push(ms)
+                } else {
+                    steady.push(ms)
+                }
+            }
+            None => lost += 1,
+        }
+    }
+    let summary = |name: &str, mut ms: Vec<f64>| {
+        ms.sort_by(f64::total_cmp);
+        let at = |q: f64| ms.get(((ms.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(f64::NAN);
+        println!(
+            "{name}: {} frames, latency p50 {:.2} ms, p99 {:.2} ms, p99.9 {:.2} ms, max {:.2} ms",
+            ms.len(),
+            at(0.5),
+            at(0.99),
+            at(0.999),
+            at(1.0)
+        );
+    };
+    println!(
+        "serve_fleet: {sensors} sensors × {RATE_HZ} frames/s for {seconds} s on {} threads (serve {}); setup {setup_s:.1} s; \
+         puts more than a period late: {late_puts}",
+        threads.as_deref().unwrap_or("all"),
+        if status.success() { "ended well" } else { "FAILED" }
+    );
+    summary(&format!("first {WARM_UP} frames a sensor (reference, noise)"), warm);
+    summary("steady state", steady);
+    println!("lost (put, never at the subscriber): {lost} of {}", sent.len());
+}

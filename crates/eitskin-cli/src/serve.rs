@@ -1,0 +1,269 @@
+//! `eitskin serve FLEET.toml`: many sensors in one process, each an `eitskin run` of its own
+//! (spec, source, calibration or learned model, what it publishes), on one Zenoh session and
+//! one pool of threads.
+//!
+//! Each sensor's source is read on a thread of its own, as `run` reads it; a sensor with items
+//! waiting is put on a queue, and the pool's threads take sensors from it, each taking every
+//! item its sensor has (in order: a sensor is on one thread at a time) through its pipeline to
+//! its sinks. A sensor that fails (an error of its sinks, a panic) is reported and dropped;
+//! the others go on. A source's own troubles are its events, as in `run` (a serial port
+//! unplugged, reconnected; a gap in a bridge's frames). `serve` ends when every source has, and
+//! fails if any sensor did.
+//!
+//! Scaling past one machine: run more `serve`s, each with its share of the sensors; Zenoh routes.
+
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{mpsc, Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::FromArgMatches;
+use eitskin::pipeline::PipelineParams;
+use eitskin_io::source::{Acquired, SourceError};
+use eitskin_io::stream::Event;
+
+use crate::ranges;
+use crate::run::publish::SessionArgs;
+use crate::run::sink::{to_all, Flow, Processed, Sink};
+use crate::run::{self, acquire, Processing, Sensor};
+
+/// Flags of `eitskin serve`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The fleet (TOML): `[[sensor]]` tables, each a `name` and `run`, the arguments of an
+    /// `eitskin run` of it (paths relative to the fleet file's folder).
+    fleet: PathBuf,
+    /// Threads of the pool every sensor's frames are processed on, 1 to 256 (default: the cores).
+    #[arg(long, value_parser = ranges::whole("a number of threads", 1, 256))]
+    threads: Option<usize>,
+    #[command(flatten)]
+    session: SessionArgs,
+}
+
+/// A sensor being served: what `run` drives, stepped by the pool.
+struct Running {
+    args: run::Args,
+    processing: Processing,
+    sinks: Vec<Box<dyn Sink>>,
+    items: mpsc::Receiver<Result<Acquired, SourceError>>,
+    acquisition: Option<JoinHandle<()>>,
+    params: PipelineParams,
+}
+
+/// One sensor's place in the pool.
+struct Slot {
+    name: String,
+    /// Whether it is on the queue (or about to be): set by its source, cleared by the thread that takes it.
+    queued: AtomicBool,
+    /// `None` once it ended.
+    running: Mutex<Option<Running>>,
+}
+
+/// The fleet's sensors, the queue of those with items waiting, and how many still run.
+struct Pool {
+    slots: Vec<Slot>,
+    queue: Mutex<VecDeque<usize>>,
+    wake: Condvar,
+    left: AtomicUsize,
+    failed: Mutex<Vec<String>>,
+}
+
+impl Pool {
+    /// Puts sensor `k` on the queue, unless it is there.
+    fn schedule(&self, k: usize) {
+        if !self.slots[k].queued.swap(true, Ordering::AcqRel) {
+            lock(&self.queue).push_back(k);
+            self.wake.notify_one();
+        }
+    }
+
+    /// The next sensor with items waiting; `None` once every sensor ended.
+    fn next(&self) -> Option<usize> {
+        let mut queue = lock(&self.queue);
+        loop {
+            if let Some(k) = queue.pop_front() {
+                return Some(k);
+            }
+            if self.left.load(Ordering::Acquire) == 0 {
+                return None;
+            }
+            queue = self.wake.wait(queue).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+
+    /// A pool thread: takes sensors off the queue and their items through them, until all ended.
+    fn work(&self) {
+        while let Some(k) = self.next() {
+            let slot = &self.slots[k];
+            let mut running = lock(&slot.running);
+            // Cleared before taking the items: one that comes meanwhile queues the sensor again.
+            slot.queued.store(false, Ordering::Release);
+            let Some(sensor) = running.as_mut() else { continue };
+            let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                sensor.processing.drain(&sensor.items, &mut sensor.sinks)
+            }));
+            let outcome = match step {
+                Ok(Ok(None)) => continue,
+                Ok(Ok(Some(tally))) if tally.stopped => Ok(()),
+                Ok(Ok(Some(tally))) => {
+                    let joined = sensor.acquisition.take().map_or(Ok(()), JoinHandle::join);
+                    match joined {
+                        Ok(()) => run::ended(&sensor.args, tally, &sensor.processing, &sensor.params),
+                        Err(_) => Err(anyhow!("the acquisition thread panicked")),
+                    }
+                }
+                Ok(Err(e)) => Err(e),
+                Err(_) => Err(anyhow!("its processing panicked")),
+            };
+            *running = None;
+            match outcome {
+                Ok(()) => eprintln!("eitskin serve: {}: its source ended", slot.name),
+                Err(e) => {
+                    eprintln!("eitskin serve: {}: failed, the others go on: {e:#}", slot.name);
+                    lock(&self.failed).push(slot.name.clone());
+                }
+            }
+            drop(running);
+            if self.left.fetch_sub(1, Ordering::AcqRel) == 1 {
+                // The last one: every thread waiting on the queue goes home.
+                let _queue = lock(&self.queue);
+                self.wake.notify_all();
+            }
+        }
+    }
+}
+
+/// A lock, taken even from a thread that panicked holding it (a sensor's panic is caught and the
+/// sensor dropped; the pool's own state stays whole).
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A sensor's events on stderr, with its name: the fleet's log.
+struct Reporting(String);
+
+impl Sink for Reporting {
+    fn event(&mut self, event: &Event) -> Result<Flow> {
+        if !matches!(event, Event::Start(_)) {
+            eprintln!("eitskin serve: {}: {}", self.0, serde_json::to_string(event).unwrap_or_default());
+        }
+        Ok(Flow::Go)
+    }
+    fn frame(&mut self, _frame: &Processed<'_>) -> Result<Flow> {
+        Ok(Flow::Go)
+    }
+}
+
+/// The flags `serve` holds for the whole fleet, which a sensor's `run` must not give.
+const FLEET_FLAGS: [&str; 6] =
+    ["--sensor", "--zenoh-config", "--zenoh-mode", "--connect", "--listen", "--no-multicast-scouting"];
+
+/// A sensor's `run` arguments parsed as `eitskin run` parses its own, with its name as `--sensor`.
+fn parse_run(name: &str, run: &[String]) -> Result<run::Args> {
+    if let Some(flag) = run.iter().find(|a| FLEET_FLAGS.iter().any(|f| a == f || a.starts_with(&format!("{f}=")))) {
+        bail!("{flag} is the fleet's: a sensor's name is its `name`, and the Zenoh session is serve's flags");
+    }
+    let command = <run::Args as clap::Args>::augment_args(clap::Command::new("run").no_binary_name(true))
+        .mut_args(|arg| if arg.get_action().takes_values() { arg.allow_negative_numbers(true) } else { arg });
+    let said = |e: clap::Error| anyhow!("{}", e.render().to_string().trim_start_matches("error: ").trim_end());
+    let matches = command.try_get_matches_from(run).map_err(said)?;
+    let mut args = run::Args::from_arg_matches(&matches).map_err(said)?;
+    args.zenoh.sensor = name.to_owned();
+    Ok(args)
+}
+
+/// A sensor's pipeline, sinks (its start line taken), source and settings.
+type Built = (Processing, Vec<Box<dyn Sink>>, eitskin_io::source::Source, PipelineParams);
+
+/// Builds sensor `name` as `run` would, its events reported on stderr.
+fn build(args: &run::Args, name: &str, session: Option<&eitskin_io::middleware::Session>) -> Result<Built> {
+    let Sensor { spec, processing, source, start, params } = run::prepare(args, session)?;
+    let mut sinks = run::sinks(args, &spec, &processing.pipeline, processing.kind(), session)?;
+    sinks.push(Box::new(Reporting(name.to_owned())));
+    to_all(&mut sinks, |s| s.start(&start))?;
+    Ok((processing, sinks, source, params))
+}
+
+/// Runs `eitskin serve`.
+pub fn serve(args: Args) -> Result<()> {
+    let fleet = eitskin_io::read_fleet(&args.fleet)?;
+    let session_flags = args.session.absolute()?;
+    if let Some(folder) = args.fleet.parent().filter(|f| !f.as_os_str().is_empty()) {
+        std::env::set_current_dir(folder).with_context(|| format!("cannot move into {}", folder.display()))?;
+    }
+    let file = args.fleet.display();
+    // Every sensor's flags checked before any work.
+    let mut parsed = Vec::with_capacity(fleet.sensors.len());
+    let mut zenoh = false;
+    for sensor in &fleet.sensors {
+        let said = |e: anyhow::Error| e.context(format!("{file}: sensor {}", sensor.name));
+        let run_args = parse_run(&sensor.name, &sensor.run).map_err(said)?;
+        zenoh |= run::check(&run_args).map_err(said)?;
+        if !run_args.publishes() {
+            return Err(said(anyhow!(
+                "it publishes nothing and records nothing: add --publish zenoh or ros2 (or --record FILE) to its run"
+            )));
+        }
+        parsed.push(run_args);
+    }
+    if zenoh {
+        session_flags.check()?;
+    }
+    let session = if zenoh { Some(session_flags.open()?) } else { None };
+    let slots = fleet
+        .sensors
+        .iter()
+        .map(|s| Slot { name: s.name.clone(), queued: AtomicBool::new(false), running: Mutex::new(None) })
+        .collect();
+    let pool = Arc::new(Pool {
+        slots,
+        queue: Mutex::new(VecDeque::new()),
+        wake: Condvar::new(),
+        left: AtomicUsize::new(parsed.len()),
+        failed: Mutex::new(Vec::new()),
+    });
+    // Every sensor built (its pipeline, its publishers) before any source is read; one that
+    // cannot be (a port missing, a file unreadable) is reported, and the others go on.
+    let mut built = Vec::with_capacity(parsed.len());
+    for (k, run_args) in parsed.into_iter().enumerate() {
+        let name = &fleet.sensors[k].name;
+        match build(&run_args, name, session.as_ref()) {
+            Ok((processing, sinks, source, params)) => built.push((k, run_args, processing, sinks, source, params)),
+            Err(e) => {
+                eprintln!("eitskin serve: {name}: failed to start, the others go on: {e:#}");
+                lock(&pool.failed).push(name.clone());
+                pool.left.fetch_sub(1, Ordering::AcqRel);
+            }
+        }
+    }
+    let threads = args.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    // The pool spreads the sensors over the cores: each sensor's products stay on its thread.
+    eitskin::parallel::set_par(eitskin::parallel::Par::Seq);
+    eprintln!("eitskin serve: {} sensors on {threads} threads", built.len());
+    for (k, run_args, processing, sinks, source, params) in built {
+        let notify = Arc::clone(&pool);
+        let (items, acquisition) = acquire::start_notifying(source, move || notify.schedule(k));
+        *lock(&pool.slots[k].running) =
+            Some(Running { args: run_args, processing, sinks, items, acquisition: Some(acquisition), params });
+        // Items that came before the sensor was in place are taken now.
+        pool.schedule(k);
+    }
+    let workers: Vec<_> = (0..threads)
+        .map(|_| {
+            let pool = Arc::clone(&pool);
+            std::thread::spawn(move || pool.work())
+        })
+        .collect();
+    for worker in workers {
+        if worker.join().is_err() {
+            bail!("a thread of the pool panicked");
+        }
+    }
+    let failed = lock(&pool.failed);
+    if !failed.is_empty() {
+        bail!("{} of {} sensors failed: {}", failed.len(), fleet.sensors.len(), failed.join(", "));
+    }
+    Ok(())
+}

@@ -1,0 +1,166 @@
+//! `eitskin serve FLEET.toml`, through the real binary: a fleet's mistakes refused before any
+//! work, naming the sensor; a sensor whose bridge stops sending holds none of the others up
+//! (every one of their frames reaches the subscriber, in order), and goes on when its bridge
+//! comes back; a sensor that cannot start is reported, the others served, and `serve` fails at
+//! the end saying which. The latency of 100 sensors at 100 frames/s is a benchmark
+//! (`cargo bench -p eitskin-cli --bench serve_fleet`), not a test.
+//!
+//! Traffic stays on loopback: the test's peer listens on 127.0.0.1 only, serve connects to it as
+//! a client, multicast scouting is off on both.
+
+mod binary;
+
+use std::collections::BTreeMap;
+use std::process::Stdio;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use binary::scratch;
+use eitskin_io::middleware::FrameMessage;
+use zenoh::qos::CongestionControl;
+use zenoh::Wait;
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+fn peer(port: u16) -> zenoh::Session {
+    let mut config = zenoh::Config::default();
+    config.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]")).unwrap();
+    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
+    zenoh::open(config).wait().unwrap()
+}
+
+fn sensor(name: &str, run: &[&str]) -> String {
+    let run: Vec<String> = run.iter().map(|a| format!("{a:?}")).collect();
+    format!("[[sensor]]\nname = \"{name}\"\nrun = [{}]\n\n", run.join(", "))
+}
+
+#[test]
+fn a_fleets_mistakes_are_refused_before_any_work_naming_the_sensor() {
+    let dir = scratch("serve-flags");
+    let good = sensor("palm", &["--frames", "20", "--publish", "zenoh"]);
+    for (fleet, says) in [
+        (good.clone() + &good, "2: name \"palm\" is sensor 1's already"),
+        (sensor("palm", &["--frames", "20"]), "sensor palm: it publishes nothing and records nothing"),
+        (
+            sensor("palm", &["--publish", "zenoh", "--connect", "tcp/127.0.0.1:7447"]),
+            "sensor palm: --connect is the fleet's",
+        ),
+        (sensor("palm", &["--publish", "zenoh", "--sensor", "x"]), "sensor palm: --sensor is the fleet's"),
+        (sensor("palm", &["--publish", "zenoh", "--frames", "x"]), "sensor palm: invalid value 'x' for '--frames"),
+        (sensor("palm", &["--publish", "ros2:a//b"]), "sensor palm: the ROS namespace"),
+        (sensor("9palm", &["--publish", "zenoh"]), "\"9palm\" is not a sensor's name"),
+    ] {
+        let path = dir.join("fleet.toml");
+        std::fs::write(&path, &fleet).unwrap();
+        let started = Instant::now();
+        let out = dir.eitskin(&["serve", path.to_str().unwrap(), "--zenoh-mode", "client", "--no-multicast-scouting"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(says), "{fleet}: {err}");
+        assert!(started.elapsed() < Duration::from_secs(30), "{fleet} was refused only after {:?}", started.elapsed());
+    }
+    let out = dir.eitskin(&["serve", dir.join("fleet.toml").to_str().unwrap(), "--threads", "0"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("\"0\" is not a number of threads"));
+}
+
+#[test]
+fn a_sensor_whose_bridge_stops_holds_none_of_the_others_up() {
+    const FRAMES: u64 = 40;
+    let dir = scratch("serve-fleet");
+    let recording = dir.join("sim.jsonl");
+    let frames = FRAMES.to_string();
+    let made = dir.eitskin(&[
+        "run",
+        "--fast",
+        "--frames",
+        &frames,
+        "--triangles",
+        "500",
+        "--record",
+        recording.to_str().unwrap(),
+    ]);
+    binary::ok(made);
+    let recorded: Vec<Vec<f64>> = std::fs::read_to_string(&recording)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            serde_json::from_value(serde_json::from_str::<serde_json::Value>(l).unwrap()["values"].clone()).unwrap()
+        })
+        .collect();
+    let names = ["a", "b", "c"];
+    let mut fleet = String::new();
+    for name in names {
+        let source = format!("zenoh:board/{name}");
+        let run = ["--source", &source, "--frames", &frames, "--triangles", "500", "--publish", "zenoh:fleet"];
+        fleet += &sensor(name, &run);
+    }
+    fleet += &sensor("d", &["--source", "file:missing.jsonl", "--publish", "zenoh:fleet"]);
+    std::fs::write(dir.join("fleet.toml"), fleet).unwrap();
+
+    let port = free_port();
+    let session = peer(port);
+    let lines: Arc<Mutex<BTreeMap<String, Vec<u64>>>> = Arc::default();
+    let sink = Arc::clone(&lines);
+    let _subscriber = session
+        .declare_subscriber("fleet/*/touches")
+        .callback(move |sample| {
+            let name = sample.key_expr().as_str().split('/').nth(1).unwrap().to_owned();
+            let line: serde_json::Value = serde_json::from_slice(&sample.payload().to_bytes()).unwrap();
+            sink.lock().unwrap().entry(name).or_default().push(line["seq"].as_u64().unwrap());
+        })
+        .wait()
+        .unwrap();
+    let bridges: Vec<_> = names
+        .iter()
+        .map(|n| {
+            session.declare_publisher(format!("board/{n}")).congestion_control(CongestionControl::Block).wait().unwrap()
+        })
+        .collect();
+    let child = dir
+        .command()
+        .args(["serve", "fleet.toml", "--zenoh-mode", "client", "--no-multicast-scouting", "--connect"])
+        .arg(format!("tcp/127.0.0.1:{port}"))
+        .current_dir(&*dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let wait_until = |what: &str, done: &dyn Fn() -> bool| {
+        while !done() {
+            assert!(Instant::now() < deadline, "timed out waiting for {what}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    wait_until("the sensors to subscribe", &|| bridges.iter().all(|b| b.matching_status().wait().unwrap().matching()));
+    let put = |k: usize, seq: u64| {
+        let message = FrameMessage { seq, t: seq as f64 * 0.01, values: recorded[seq as usize].clone() };
+        bridges[k].put(serde_json::to_vec(&message).unwrap()).wait().unwrap();
+    };
+    // All three for half the frames, then c's bridge stops while a and b go on to the end.
+    for seq in 0..FRAMES / 2 {
+        (0..3).for_each(|k| put(k, seq));
+    }
+    for seq in FRAMES / 2..FRAMES {
+        (0..2).for_each(|k| put(k, seq));
+    }
+    let count = |name: &str| lines.lock().unwrap().get(name).map_or(0, Vec::len) as u64;
+    wait_until("a and b to be served to the end", &|| count("a") == FRAMES && count("b") == FRAMES);
+    wait_until("c's first half", &|| count("c") == FRAMES / 2);
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(count("c"), FRAMES / 2, "c had no more frames");
+    // c's bridge comes back: c goes on where it was.
+    for seq in FRAMES / 2..FRAMES {
+        put(2, seq);
+    }
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines = lines.lock().unwrap();
+    for name in names {
+        assert_eq!(lines[name], (0..FRAMES).collect::<Vec<_>>(), "{name}: every frame, in order");
+    }
+    assert!(err.contains("d: failed to start, the others go on") && err.contains("missing.jsonl"), "{err}");
+    assert!(!out.status.success() && err.contains("1 of 4 sensors failed: d"), "{err}");
+}
