@@ -11,7 +11,8 @@
 //! Frames are a recording of the virtual sensor pressed twice (a press found afresh costs
 //! milliseconds; one held, microseconds), each sensor's stream shifted in time so that the
 //! boards are not in step. The first 100 frames of each sensor (reference, noise measurement)
-//! are reported apart from the rest, the steady state.
+//! are reported apart from the rest, and the run's second half apart again (once the backlog of
+//! the fleet's start, every sensor taking its reference at once, is gone).
 
 use std::collections::HashMap;
 use std::process::{Command, Stdio};
@@ -146,7 +147,7 @@ fn main() {
     std::thread::sleep(Duration::from_millis(500));
 
     let arrived = arrived.lock().expect("the map");
-    let (mut warm, mut steady, mut lost) = (Vec::new(), Vec::new(), 0usize);
+    let (mut warm, mut steady, mut late, mut lost) = (Vec::new(), Vec::new(), Vec::new(), 0usize);
     for (&(k, seq), &put) in &sent {
         match arrived.get(&(k, seq)) {
             Some(&came) => {
@@ -155,6 +156,9 @@ fn main() {
                     warm.push(ms)
                 } else {
                     steady.push(ms)
+                }
+                if seq >= frames / 2 {
+                    late.push(ms);
                 }
             }
             None => lost += 1,
@@ -179,6 +183,7 @@ fn main() {
         if status.success() { "ended well" } else { "FAILED" }
     );
     summary(&format!("first {WARM_UP} frames a sensor (reference, noise)"), warm);
-    summary("steady state", steady);
+    summary(&format!("after the first {WARM_UP}"), steady);
+    summary("second half of the run", late);
     println!("lost (put, never at the subscriber): {lost} of {}", sent.len());
 }

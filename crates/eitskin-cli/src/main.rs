@@ -86,9 +86,12 @@ enum Command {
 /// The command line, with every flag that takes a value also taking a negative number, so that
 /// `--rate -1` reaches the flag's range check instead of reading as an unknown flag `-1`.
 fn command() -> clap::Command {
-    Cli::command().mut_subcommands(|sub| {
-        sub.mut_args(|arg| if arg.get_action().takes_values() { arg.allow_negative_numbers(true) } else { arg })
-    })
+    Cli::command().mut_subcommands(negative_numbers)
+}
+
+/// `command` with every flag that takes a value also taking a negative number (see [`command`]).
+pub(crate) fn negative_numbers(command: clap::Command) -> clap::Command {
+    command.mut_args(|arg| if arg.get_action().takes_values() { arg.allow_negative_numbers(true) } else { arg })
 }
 
 fn main() {

@@ -42,7 +42,7 @@ use eitskin_io::source::{Codec, Source, SourceSettings, SourceSpec};
 use eitskin_io::stream::Start;
 
 pub(crate) use process::fill_frame_line;
-pub(crate) use process::{Processing, Tally};
+pub(crate) use process::{Drained, Processing, Tally};
 use sink::{to_all, Flow, Lines, Recording, Sink, Viewing};
 
 use crate::{load, outputs, ranges, viewer};
@@ -194,8 +194,9 @@ fn check_record(path: &Path, args: &Args) -> Result<()> {
 /// stdout's lines) started, then every item through them until the source ends.
 pub fn run(args: Args) -> Result<()> {
     let zenoh = check(&args)?;
+    let Sensor { spec, mut processing, start, params } = prepare(&args)?;
     let session = if zenoh { Some(args.zenoh.open()?) } else { None };
-    let Sensor { spec, mut processing, source, start, params } = prepare(&args, session.as_ref())?;
+    let source = open_source(&args, &spec, processing.kind(), session.as_ref())?;
     let mut sinks = sinks(&args, &spec, &processing.pipeline, processing.kind(), session.as_ref())?;
     sinks.push(Box::new(Lines::new(std::io::stdout())));
     let (items, acquisition) = acquire::start(source);
@@ -241,24 +242,22 @@ pub(crate) fn check(args: &Args) -> Result<bool> {
     Ok(zenoh)
 }
 
-/// A sensor ready to run: its spec, its processing (the pipeline and a frame's buffers), its
-/// source (not yet read) and the start line of its stream.
+/// A sensor ready to run but for its source: its spec, its processing (the pipeline and a
+/// frame's buffers) and the start line of its stream.
 pub(crate) struct Sensor {
     /// The spec, sized as asked.
     pub spec: SensorSpec,
     /// Frames through the pipeline to the sinks.
     pub processing: Processing,
-    /// Where frames come from.
-    pub source: Source,
     /// The stream's first line.
     pub start: Start,
     /// The pipeline's settings.
     pub params: PipelineParams,
 }
 
-/// Builds everything `args` asks for but the sinks: the spec, the pipeline, the source (frames
-/// from Zenoh on `session`), the start line.
-pub(crate) fn prepare(args: &Args, session: Option<&eitskin_io::middleware::Session>) -> Result<Sensor> {
+/// Builds everything `args` asks for but the source and the sinks: the spec, the pipeline, the
+/// start line.
+pub(crate) fn prepare(args: &Args) -> Result<Sensor> {
     let spec = load::sized(load::spec(args.spec.as_deref())?, args.triangles, Stage::Reconstructor)?;
     let setup::Built { pipeline, params, imaging, learned } = setup::build(args, &spec)?;
     crate::ranges::warn_raised_triangles(
@@ -267,21 +266,6 @@ pub(crate) fn prepare(args: &Args, session: Option<&eitskin_io::middleware::Sess
         &spec,
     )?;
     let kind = args.values.kind(args.component);
-    let settings = SourceSettings {
-        rate: args.rate,
-        speed: if args.fast || args.rate <= 0.0 { Speed::AsFastAsPossible } else { Speed::Recorded },
-        frames: args.frames.map(|n| n as u64),
-        codec: args.codec,
-        seed: args.seed,
-        values_per_measurement: kind.per_measurement(),
-    };
-    let source = match (&args.source, session) {
-        (SourceSpec::Zenoh { key }, Some(session)) => {
-            let measurements = spec.protocol()?.len() * kind.per_measurement();
-            publish::source(session, key, measurements, settings.frames)?
-        }
-        _ => Source::open(&args.source, &spec, &settings)?,
-    };
     let start = start_line(args, &spec, spec.protocol()?.len(), &params, imaging.normalised);
     let settings = process::Settings {
         kind,
@@ -292,7 +276,32 @@ pub(crate) fn prepare(args: &Args, session: Option<&eitskin_io::middleware::Sess
         masked: spec.used_channels()?.iter().enumerate().filter(|(_, used)| !**used).map(|(m, _)| m).collect(),
     };
     let processing = Processing::new(pipeline, learned, settings);
-    Ok(Sensor { spec, processing, source, start, params })
+    Ok(Sensor { spec, processing, start, params })
+}
+
+/// Opens the source `args` names for frames of `spec` whose numbers are `kind` (frames from Zenoh
+/// on `session`), not yet read.
+pub(crate) fn open_source(
+    args: &Args,
+    spec: &SensorSpec,
+    kind: ValueKind,
+    session: Option<&eitskin_io::middleware::Session>,
+) -> Result<Source> {
+    let settings = SourceSettings {
+        rate: args.rate,
+        speed: if args.fast || args.rate <= 0.0 { Speed::AsFastAsPossible } else { Speed::Recorded },
+        frames: args.frames.map(|n| n as u64),
+        codec: args.codec,
+        seed: args.seed,
+        values_per_measurement: kind.per_measurement(),
+    };
+    Ok(match (&args.source, session) {
+        (SourceSpec::Zenoh { key }, Some(session)) => {
+            let measurements = spec.protocol()?.len() * kind.per_measurement();
+            publish::source(session, key, measurements, settings.frames)?
+        }
+        _ => Source::open(&args.source, spec, &settings)?,
+    })
 }
 
 /// What a source that ended without being stopped answered: an error when it gave no frame, or

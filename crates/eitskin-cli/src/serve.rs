@@ -27,7 +27,7 @@ use eitskin_io::stream::Event;
 use crate::ranges;
 use crate::run::publish::SessionArgs;
 use crate::run::sink::{to_all, Flow, Processed, Sink};
-use crate::run::{self, acquire, Processing, Sensor};
+use crate::run::{self, acquire, Drained, Processing, Sensor};
 
 /// Flags of `eitskin serve`.
 #[derive(Debug, clap::Args)]
@@ -55,7 +55,9 @@ struct Running {
 /// One sensor's place in the pool.
 struct Slot {
     name: String,
-    /// Whether it is on the queue (or about to be): set by its source, cleared by the thread that takes it.
+    /// Items came since its last step began (set by its source).
+    pending: AtomicBool,
+    /// On the queue or being stepped: a sensor is on one thread at a time, and on the queue once.
     queued: AtomicBool,
     /// `None` once it ended.
     running: Mutex<Option<Running>>,
@@ -70,13 +72,23 @@ struct Pool {
     failed: Mutex<Vec<String>>,
 }
 
+/// Items a sensor takes in one step before the others' turn.
+const STEP_ITEMS: usize = 16;
+
 impl Pool {
-    /// Puts sensor `k` on the queue, unless it is there.
+    /// Sensor `k`'s source handed items over: on the queue with it, unless it is there or being
+    /// stepped (whoever steps it sees `pending` after its step).
     fn schedule(&self, k: usize) {
-        if !self.slots[k].queued.swap(true, Ordering::AcqRel) {
-            lock(&self.queue).push_back(k);
-            self.wake.notify_one();
+        let slot = &self.slots[k];
+        slot.pending.store(true, Ordering::SeqCst);
+        if !slot.queued.swap(true, Ordering::SeqCst) {
+            self.enqueue(k);
         }
+    }
+
+    fn enqueue(&self, k: usize) {
+        lock(&self.queue).push_back(k);
+        self.wake.notify_one();
     }
 
     /// The next sensor with items waiting; `None` once every sensor ended.
@@ -86,47 +98,67 @@ impl Pool {
             if let Some(k) = queue.pop_front() {
                 return Some(k);
             }
-            if self.left.load(Ordering::Acquire) == 0 {
+            if self.left.load(Ordering::SeqCst) == 0 {
                 return None;
             }
             queue = self.wake.wait(queue).unwrap_or_else(|e| e.into_inner());
         }
     }
 
-    /// A pool thread: takes sensors off the queue and their items through them, until all ended.
+    /// A pool thread: takes sensors off the queue and up to [`STEP_ITEMS`] of their items
+    /// through them, until all ended.
     fn work(&self) {
         while let Some(k) = self.next() {
             let slot = &self.slots[k];
+            slot.pending.store(false, Ordering::SeqCst);
             let mut running = lock(&slot.running);
-            // Cleared before taking the items: one that comes meanwhile queues the sensor again.
-            slot.queued.store(false, Ordering::Release);
-            let Some(sensor) = running.as_mut() else { continue };
-            let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                sensor.processing.drain(&sensor.items, &mut sensor.sinks)
+            let mut more = false;
+            // Everything of the step, the sensor's end included, under one catch: a panic drops
+            // the sensor, never the thread.
+            let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Option<Result<&'static str>> {
+                let sensor = running.as_mut()?;
+                let outcome = match sensor.processing.drain(&sensor.items, &mut sensor.sinks, STEP_ITEMS) {
+                    Ok(Drained::Waiting) => return None,
+                    Ok(Drained::More) => {
+                        more = true;
+                        return None;
+                    }
+                    Ok(Drained::Ended(tally)) if tally.stopped => Ok("a sink stopped it"),
+                    Ok(Drained::Ended(tally)) => match sensor.acquisition.take().map_or(Ok(()), JoinHandle::join) {
+                        Ok(()) => run::ended(&sensor.args, tally, &sensor.processing, &sensor.params)
+                            .map(|()| "its source ended"),
+                        Err(_) => Err(anyhow!("the acquisition thread panicked")),
+                    },
+                    Err(e) => Err(e),
+                };
+                *running = None;
+                Some(outcome)
             }));
             let outcome = match step {
-                Ok(Ok(None)) => continue,
-                Ok(Ok(Some(tally))) if tally.stopped => Ok(()),
-                Ok(Ok(Some(tally))) => {
-                    let joined = sensor.acquisition.take().map_or(Ok(()), JoinHandle::join);
-                    match joined {
-                        Ok(()) => run::ended(&sensor.args, tally, &sensor.processing, &sensor.params),
-                        Err(_) => Err(anyhow!("the acquisition thread panicked")),
-                    }
-                }
-                Ok(Err(e)) => Err(e),
-                Err(_) => Err(anyhow!("its processing panicked")),
+                Ok(None) => None,
+                Ok(Some(outcome)) => Some(outcome),
+                Err(_) => Some(Err(anyhow!("its processing panicked"))),
             };
+            let Some(outcome) = outcome else {
+                drop(running);
+                // Its turn is over: back on the queue if items came meanwhile (or are left).
+                slot.queued.store(false, Ordering::SeqCst);
+                if more || slot.pending.load(Ordering::SeqCst) {
+                    self.schedule(k);
+                }
+                continue;
+            };
+            // A panic while dropping it leaves it dropped or poisoned: either way, it is over.
             *running = None;
+            drop(running);
             match outcome {
-                Ok(()) => eprintln!("eitskin serve: {}: its source ended", slot.name),
+                Ok(why) => eprintln!("eitskin serve: {}: ended, {why}", slot.name),
                 Err(e) => {
                     eprintln!("eitskin serve: {}: failed, the others go on: {e:#}", slot.name);
                     lock(&self.failed).push(slot.name.clone());
                 }
             }
-            drop(running);
-            if self.left.fetch_sub(1, Ordering::AcqRel) == 1 {
+            if self.left.fetch_sub(1, Ordering::SeqCst) == 1 {
                 // The last one: every thread waiting on the queue goes home.
                 let _queue = lock(&self.queue);
                 self.wake.notify_all();
@@ -179,7 +211,8 @@ type Built = (Processing, Vec<Box<dyn Sink>>, eitskin_io::source::Source, Pipeli
 
 /// Builds sensor `name` as `run` would, its events reported on stderr.
 fn build(args: &run::Args, name: &str, session: Option<&eitskin_io::middleware::Session>) -> Result<Built> {
-    let Sensor { spec, processing, source, start, params } = run::prepare(args, session)?;
+    let Sensor { spec, processing, start, params } = run::prepare(args)?;
+    let source = run::open_source(args, &spec, processing.kind(), session)?;
     let mut sinks = run::sinks(args, &spec, &processing.pipeline, processing.kind(), session)?;
     sinks.push(Box::new(Reporting(name.to_owned())));
     to_all(&mut sinks, |s| s.start(&start))?;
@@ -210,12 +243,19 @@ pub fn serve(args: Args) -> Result<()> {
     }
     if zenoh {
         session_flags.check()?;
+    } else if let Some(flag) = session_flags.given().first() {
+        bail!("{flag} sets up Zenoh, which no sensor of {file} uses");
     }
     let session = if zenoh { Some(session_flags.open()?) } else { None };
     let slots = fleet
         .sensors
         .iter()
-        .map(|s| Slot { name: s.name.clone(), queued: AtomicBool::new(false), running: Mutex::new(None) })
+        .map(|s| Slot {
+            name: s.name.clone(),
+            pending: AtomicBool::new(false),
+            queued: AtomicBool::new(false),
+            running: Mutex::new(None),
+        })
         .collect();
     let pool = Arc::new(Pool {
         slots,

@@ -246,6 +246,8 @@ fn legacy_spec_key(spec: &SensorSpec) -> Result<String, Error> {
     let protocol = spec.protocol()?;
     let mut geometry = spec.clone();
     geometry.mesh = eitskin::MeshParams::default();
+    // Where the sensor is mounted changes nothing it measures (and postdates these versions).
+    geometry.mount = None;
     let measurements: Vec<String> = protocol
         .measurements()
         .iter()
@@ -510,6 +512,18 @@ mod tests {
         let spec = SensorSpec::square_hydrogel();
         assert_eq!(legacy_spec_key(&spec).unwrap(), LEGACY_KEY);
         assert_eq!(spec_key(&spec).unwrap(), CANONICAL_KEY);
+        // A mount on a robot is no other sensor.
+        let mount = eitskin::mount::Mount {
+            frame_id: "skin".into(),
+            parent: "link".into(),
+            position: [0.1, 0.0, 0.0],
+            orientation: [0.0, 0.0, 0.0, 1.0],
+        };
+        let mounted = SensorSpec { mount: Some(mount), ..spec.clone() };
+        assert_eq!(
+            (legacy_spec_key(&mounted).unwrap(), spec_key(&mounted).unwrap()),
+            (LEGACY_KEY.into(), CANONICAL_KEY.into())
+        );
         let (array, calibration) = fitted(&spec);
         let v3 = version_3(&calibration_to_json(&spec, &array, &calibration).unwrap());
         let v2 = v3.replace("\"version\": 3", "\"version\": 2").replace(CANONICAL_KEY, LEGACY_KEY);

@@ -42,6 +42,17 @@ pub struct Tally {
     pub stopped: bool,
 }
 
+/// Where a [`Processing::drain`] left a source.
+#[derive(Debug, Clone, Copy)]
+pub enum Drained {
+    /// Every item taken; the source goes on.
+    Waiting,
+    /// The most asked for taken; more may wait.
+    More,
+    /// The source ended, or a sink stopped the run.
+    Ended(Tally),
+}
+
 /// The pipeline, the learned model's answers, and the buffers of a frame (allocated once).
 pub struct Processing {
     /// The pipeline every frame goes through.
@@ -98,29 +109,32 @@ impl Processing {
         Ok(self.tally)
     }
 
-    /// Takes the items `items` holds now, without waiting for more: `None` while the source
-    /// goes on, the tally once it ended or a sink stopped the run (`serve`'s step of a sensor).
+    /// Takes up to `most` of the items `items` holds now, without waiting for more (`serve`'s
+    /// step of a sensor).
     pub fn drain(
         &mut self,
         items: &mpsc::Receiver<Result<Acquired, SourceError>>,
         sinks: &mut [Box<dyn Sink>],
-    ) -> Result<Option<Tally>> {
-        loop {
+        most: usize,
+    ) -> Result<Drained> {
+        for _ in 0..most {
             match items.try_recv() {
                 Ok(item) => {
                     if self.take(item, sinks)? == Flow::Stop {
-                        return Ok(Some(self.stopped()));
+                        return Ok(Drained::Ended(self.stopped()));
                     }
                 }
                 Err(mpsc::TryRecvError::Empty) => {
-                    return Ok(if to_all(sinks, |s| s.idle())? == Flow::Stop { Some(self.stopped()) } else { None });
+                    let flow = to_all(sinks, |s| s.idle())?;
+                    return Ok(if flow == Flow::Stop { Drained::Ended(self.stopped()) } else { Drained::Waiting });
                 }
                 Err(mpsc::TryRecvError::Disconnected) => {
                     let flow = to_all(sinks, |s| s.idle())?;
-                    return Ok(Some(if flow == Flow::Stop { self.stopped() } else { self.tally }));
+                    return Ok(Drained::Ended(if flow == Flow::Stop { self.stopped() } else { self.tally }));
                 }
             }
         }
+        Ok(Drained::More)
     }
 
     /// One item through the pipeline (a frame) or straight to the sinks (an event), after the

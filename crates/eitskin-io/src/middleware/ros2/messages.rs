@@ -146,7 +146,7 @@ impl Marker<'_> {
     pub const CYLINDER: i32 = 3;
     /// Add or replace.
     pub const ADD: i32 = 0;
-    /// Remove every marker of the namespace.
+    /// Remove every marker (RViz clears its display's).
     pub const DELETEALL: i32 = 3;
 }
 
@@ -216,7 +216,11 @@ pub fn touches_of(line: &FrameLine, metres: f64, out: &mut Vec<Touch>) {
             force_std: t.force_std.unwrap_or(f64::NAN),
             saturated: t.saturated.unwrap_or(false),
             has_press: press.is_some(),
-            press_position: press.map_or(Point::default(), |p| Point { x: p.x * metres, y: p.y * metres, z: 0.0 }),
+            press_position: press.map_or(Point { x: f64::NAN, y: f64::NAN, z: f64::NAN }, |p| Point {
+                x: p.x * metres,
+                y: p.y * metres,
+                z: 0.0,
+            }),
             press_drop: press.map_or(f64::NAN, |p| p.drop),
             press_radius: press.and_then(|p| p.radius).map_or(f64::NAN, |r| r * metres),
         }

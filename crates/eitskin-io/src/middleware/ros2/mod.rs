@@ -18,10 +18,11 @@
 //! Touches and wrenches are in the sensor's frame (`[mount] frame_id` of the spec, else the
 //! sensor's name); markers are in the link the sensor is mounted on (`[mount] parent`), placed
 //! by the mount's pose, so RViz draws them on the robot with the robot's own transforms. The
-//! header's stamp is this host's clock when the frame was processed; the frame's own counter and
-//! time are in `Touches`. Messages are sent reliably and in order, as `rmw_zenoh` sends a
-//! reliable publisher's, each with the attachment it requires (sequence number, time, publisher
-//! id).
+//! header's stamp is this host's clock when the frame was processed (one stamp for all of a
+//! frame's messages); the frame's own counter and time are in `Touches`. Messages go reliably
+//! and in order, each with the attachment `rmw_zenoh` requires (sequence number, time, publisher
+//! id); as `rmw_zenoh` does for ROS 2's default QoS (keep the last 10), a message a congested
+//! link cannot take is dropped rather than hold the sensor (and, in `serve`, the fleet) up.
 //!
 //! ```
 //! use eitskin_io::middleware::ros2::{topic_key, Ros2Settings, TOUCHES};
@@ -36,6 +37,7 @@
 mod messages;
 mod rmw;
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use byteorder::LittleEndian;
@@ -125,6 +127,9 @@ fn ros_token(what: &'static str, name: &str, part: &str) -> Result<(), Middlewar
     }
 }
 
+/// Node and entity ids, each given once in this process (rmw_zenoh gives each once a session).
+static NEXT_ID: AtomicU64 = AtomicU64::new(0);
+
 /// One declared ROS 2 publisher: its Zenoh publisher, its liveliness token, its id and count.
 struct Topic {
     publisher: Publisher<'static>,
@@ -144,6 +149,8 @@ pub struct Ros2Publisher {
     image: Option<Topic>,
     /// The markers' namespace, `eitskin/SENSOR`.
     marker_ns: String,
+    /// The stamp of the last frame's messages (ns since the UNIX epoch), its image's too.
+    stamp: i64,
     /// Reused: the touches in m, a message's bytes, an image's pixels.
     touch_buffer: Vec<Touch>,
     bytes: Vec<u8>,
@@ -156,7 +163,8 @@ impl Ros2Publisher {
         settings.check()?;
         let zid = session.zid().to_string();
         let (domain, node) = (settings.domain, settings.node());
-        let node_key = node_token(domain, &zid, 0, &node);
+        let node_id = NEXT_ID.fetch_add(1, Ordering::Relaxed);
+        let node_key = node_token(domain, &zid, node_id, &node);
         let liveliness = |key: String| {
             session
                 .liveliness()
@@ -165,17 +173,16 @@ impl Ros2Publisher {
                 .map_err(|e| MiddlewareError::Zenoh { key, reason: e.to_string() })
         };
         let node_alive = liveliness(node_key)?;
-        let mut next_id = 0;
-        let mut declare = |leaf: &str, kind: &MessageType| -> Result<Topic, MiddlewareError> {
-            next_id += 1;
+        let declare = |leaf: &str, kind: &MessageType| -> Result<Topic, MiddlewareError> {
+            let entity_id = NEXT_ID.fetch_add(1, Ordering::Relaxed);
             let topic = settings.topic(leaf);
             let key = topic_key(domain, &topic, kind);
             let publisher = session
                 .declare_publisher(key.clone())
-                .congestion_control(CongestionControl::Block)
+                .congestion_control(CongestionControl::Drop)
                 .wait()
                 .map_err(|e| MiddlewareError::Zenoh { key, reason: e.to_string() })?;
-            let token = publisher_token(domain, &zid, 0, next_id, &node, &topic, kind);
+            let token = publisher_token(domain, &zid, node_id, entity_id, &node, &topic, kind);
             Ok(Topic { publisher, gid: gid(&token), _token: liveliness(token)?, sent: 0 })
         };
         let touches = declare("touches", &TOUCHES)?;
@@ -190,6 +197,7 @@ impl Ros2Publisher {
             wrench,
             markers,
             image,
+            stamp: 0,
             touch_buffer: Vec::new(),
             bytes: Vec::new(),
             pixels: Vec::new(),
@@ -209,6 +217,7 @@ impl Ros2Publisher {
     /// Publishes a frame's touches, wrench and markers; `metres` is the length unit of `line`.
     pub fn frame(&mut self, line: &FrameLine, metres: f64) -> Result<(), MiddlewareError> {
         let now = now_ns();
+        self.stamp = now;
         let frame_id = self.settings.frame_id();
         let header = Header { stamp: Time::from_nanos(now), frame_id };
         touches_of(line, metres, &mut self.touch_buffer);
@@ -235,10 +244,11 @@ impl Ros2Publisher {
         self.image.is_some()
     }
 
-    /// Publishes an imaged frame's raster, if images were asked for.
+    /// Publishes an imaged frame's raster, if images were asked for, with the stamp of the
+    /// frame's other messages ([`Ros2Publisher::frame`] first).
     pub fn image(&mut self, raster: &Raster) -> Result<(), MiddlewareError> {
         let Some(topic) = &mut self.image else { return Ok(()) };
-        let now = now_ns();
+        let now = self.stamp;
         pixels_of(raster, &mut self.pixels);
         let image = Image {
             header: Header { stamp: Time::from_nanos(now), frame_id: self.settings.frame_id() },
@@ -259,7 +269,7 @@ impl std::fmt::Debug for Ros2Publisher {
     }
 }
 
-/// The markers of `touches` (m): one that clears the namespace, then a cylinder a touch, on the
+/// The markers of `touches` (m): one that clears the last (RViz's DELETEALL), then a cylinder a touch, on the
 /// sheet, as high as 2 mm a newton (5 mm without a force), as wide as the fitted press (20 mm
 /// without one); presses red, increases blue.
 fn markers<'a>(
