@@ -9,6 +9,7 @@
 //! a client, multicast scouting is off on both.
 
 mod binary;
+mod loopback;
 
 use std::collections::BTreeMap;
 use std::process::Stdio;
@@ -17,19 +18,9 @@ use std::time::{Duration, Instant};
 
 use binary::scratch;
 use eitskin_io::middleware::FrameMessage;
+use loopback::{free_port, peer};
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
-}
-
-fn peer(port: u16) -> zenoh::Session {
-    let mut config = zenoh::Config::default();
-    config.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]")).unwrap();
-    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
-    zenoh::open(config).wait().unwrap()
-}
 
 fn sensor(name: &str, run: &[&str]) -> String {
     let run: Vec<String> = run.iter().map(|a| format!("{a:?}")).collect();

@@ -10,27 +10,16 @@
 //! as a client, multicast scouting is off on both.
 
 mod binary;
+mod loopback;
 
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use binary::scratch;
 use eitskin_io::middleware::FrameMessage;
+use loopback::{free_port, peer};
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
-
-/// A free port on loopback (released for the peer to take).
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
-}
-
-/// The test's Zenoh peer, listening on loopback only, without multicast.
-fn peer(port: u16) -> zenoh::Session {
-    let mut config = zenoh::Config::default();
-    config.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]")).unwrap();
-    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
-    zenoh::open(config).wait().unwrap()
-}
 
 fn client(port: u16) -> Vec<String> {
     ["--zenoh-mode", "client", "--connect", &format!("tcp/127.0.0.1:{port}"), "--no-multicast-scouting"]
