@@ -8,6 +8,9 @@
 //! cargo bench -p eitskin-cli --bench serve_fleet -- [SENSORS] [SECONDS] [THREADS]   (100, 10, the cores)
 //! ```
 //!
+//! `SERVE_FLEET_RUN` adds flags to every sensor's `run` (e.g. `--hyperparameter 1`, to see what
+//! the automatic λ's refreshes cost); the figures of the docs are without it.
+//!
 //! Frames are a recording of the virtual sensor pressed twice (a press found afresh costs
 //! milliseconds; one held, microseconds), each sensor's stream shifted in time so that the
 //! boards are not in step. The first 100 frames of each sensor (reference, noise measurement)
@@ -84,11 +87,16 @@ fn main() {
 
     // The fleet: each sensor's frames from its bridge's key, published under bench/.
     let fleet = dir.path().join("fleet.toml");
+    let extra: String = std::env::var("SERVE_FLEET_RUN")
+        .unwrap_or_default()
+        .split_whitespace()
+        .map(|flag| format!(", {flag:?}"))
+        .collect();
     let mut text = String::new();
     for k in 0..sensors {
         text += &format!(
             "[[sensor]]\nname = \"s{k}\"\nrun = [\"--source\", \"zenoh:board/s{k}\", \"--frames\", \"{frames}\", \
-             \"--publish\", \"zenoh:bench\", \"--wait-for-subscriber\", \"600\"]\n\n"
+             \"--publish\", \"zenoh:bench\", \"--wait-for-subscriber\", \"600\"{extra}]\n\n"
         );
     }
     std::fs::write(&fleet, text).expect("the fleet");

@@ -274,6 +274,7 @@ pub(crate) fn prepare(args: &Args) -> Result<Sensor> {
         hyperparameter: imaging.hyperparameter,
         recorded: args.record.is_some(),
         masked: spec.used_channels()?.iter().enumerate().filter(|(_, used)| !**used).map(|(m, _)| m).collect(),
+        say: true,
     };
     let processing = Processing::new(pipeline, learned, settings);
     Ok(Sensor { spec, processing, start, params })

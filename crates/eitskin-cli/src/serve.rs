@@ -211,7 +211,8 @@ type Built = (Processing, Vec<Box<dyn Sink>>, eitskin_io::source::Source, Pipeli
 
 /// Builds sensor `name` as `run` would, its events reported on stderr.
 fn build(args: &run::Args, name: &str, session: Option<&eitskin_io::middleware::Session>) -> Result<Built> {
-    let Sensor { spec, processing, start, params } = run::prepare(args)?;
+    let Sensor { spec, mut processing, start, params } = run::prepare(args)?;
+    processing.quiet();
     let source = run::open_source(args, &spec, processing.kind(), session)?;
     let mut sinks = run::sinks(args, &spec, &processing.pipeline, processing.kind(), session)?;
     sinks.push(Box::new(Reporting(name.to_owned())));

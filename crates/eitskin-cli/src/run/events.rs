@@ -5,7 +5,17 @@ use eitskin::inverse::Hyperparameter;
 use eitskin::pipeline::{Pipeline, Status};
 use eitskin_io::stream::Event;
 
-/// The event a frame's status calls for, also said on stderr: the reference taken (with λ and
+/// Says a [`channel_event`] on stderr, for whoever watches `run` (`serve` reports its sensors'
+/// events itself, with their names).
+pub fn say(event: &Event) {
+    match event {
+        Event::ReferenceTaken { detail, .. } | Event::NoiseUpdated { detail, .. } => eprintln!("eitskin run: {detail}"),
+        Event::ChannelsDropped { seq, detail, .. } => eprintln!("warning: frame seq {seq}: {detail}"),
+        _ => {}
+    }
+}
+
+/// The event a frame's status calls for (said on stderr by [`say`]): the reference taken (with λ and
 /// the channels left out, those of the spec's mask, from 0, named apart), or channels dropped;
 /// `None` for any other frame.
 pub fn channel_event(
@@ -44,7 +54,6 @@ pub fn channel_event(
                 None => String::new(),
             };
             let detail = format!("reference taken; λ = {lambda:.4}{how}{left_out}{test}");
-            eprintln!("eitskin run: {detail}");
             Some(Event::ReferenceTaken {
                 hyperparameter: lambda,
                 chosen,
@@ -67,7 +76,6 @@ pub fn channel_event(
                 "noise measured on {frames:.0} frames, reference the mean of {reference}: {:.3} % per value; λ = {lambda:.4}{z}",
                 100.0 * noise
             );
-            eprintln!("eitskin run: {detail}");
             let image_noise = pipeline.significance().map(|s| s.typical_std());
             Some(Event::NoiseUpdated { seq, frames, hyperparameter: lambda, threshold, noise, image_noise, detail })
         }
@@ -78,7 +86,6 @@ pub fn channel_event(
                 "channel(s) {channels:?} went bad (not finite) and are dropped until the reference is \
                  re-taken ({dropped} dropped in all); imaging goes on without them"
             );
-            eprintln!("warning: frame seq {seq}: {detail}");
             Some(Event::ChannelsDropped { seq, channels, dropped, detail })
         }
         _ => None,

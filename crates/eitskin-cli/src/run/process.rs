@@ -10,7 +10,7 @@ use eitskin::values::ValueKind;
 use eitskin_io::source::{Acquired, SourceError};
 use eitskin_io::stream::{Counters, Event, FrameLine, Raster};
 
-use super::events::channel_event;
+use super::events::{channel_event, say};
 use super::learned::LearnedAnswers;
 use super::sink::{to_all, Flow, Processed, Sink};
 use crate::viewer;
@@ -29,6 +29,9 @@ pub struct Settings {
     pub recorded: bool,
     /// The channels the spec's mask drops, from 0.
     pub masked: Vec<usize>,
+    /// Whether the reference, noise and channel events and refused frames are also said on
+    /// stderr (`run`'s; `serve` reports its sensors' events itself).
+    pub say: bool,
 }
 
 /// What came of a run: frames processed, input refused, and whether a sink's reader went away.
@@ -73,6 +76,11 @@ impl Processing {
         let model = pipeline.chain().reconstructor().linearisation().background().to_vec();
         let signed = vec![0.0; model.len()];
         Processing { pipeline, learned, settings, model, signed, line: FrameLine::default(), tally: Tally::default() }
+    }
+
+    /// Says nothing on stderr: its events go to its sinks only (`serve`'s sensors).
+    pub fn quiet(&mut self) {
+        self.settings.say = false;
     }
 
     /// What the board's numbers are.
@@ -185,7 +193,7 @@ impl Processing {
         let (status, frame) = match processed {
             Ok(done) => done,
             Err(e) => {
-                if let eitskin::InverseError::TooManyBadChannels { .. } = e {
+                if let (true, eitskin::InverseError::TooManyBadChannels { .. }) = (self.settings.say, &e) {
                     eprintln!("warning: frame seq {seq}: {e}");
                 }
                 self.tally.bad += 1;
@@ -197,6 +205,9 @@ impl Processing {
         if let Some(event) =
             channel_event(seq, status, &self.pipeline, self.settings.hyperparameter, &self.settings.masked)
         {
+            if self.settings.say {
+                say(&event);
+            }
             flow = to_all(sinks, |s| s.event(&event))?;
         }
         self.tally.frames += 1;
