@@ -220,6 +220,16 @@ impl Args {
     pub(crate) fn publishes(&self) -> bool {
         self.zenoh.publishes() || self.record.is_some()
     }
+
+    /// The recording's path, if recording.
+    pub(crate) fn record(&self) -> Option<&Path> {
+        self.record.as_deref()
+    }
+
+    /// The viewer's address, if serving one.
+    pub(crate) fn viewer(&self) -> Option<SocketAddr> {
+        self.viewer
+    }
 }
 
 /// Checks the flags before any work; whether a Zenoh session is needed.

@@ -229,7 +229,7 @@ pub fn serve(args: Args) -> Result<()> {
     }
     let file = args.fleet.display();
     // Every sensor's flags checked before any work.
-    let mut parsed = Vec::with_capacity(fleet.sensors.len());
+    let mut parsed: Vec<run::Args> = Vec::with_capacity(fleet.sensors.len());
     let mut zenoh = false;
     for sensor in &fleet.sensors {
         let said = |e: anyhow::Error| e.context(format!("{file}: sensor {}", sensor.name));
@@ -239,6 +239,16 @@ pub fn serve(args: Args) -> Result<()> {
             return Err(said(anyhow!(
                 "it publishes nothing and records nothing: add --publish zenoh or ros2 (or --record FILE) to its run"
             )));
+        }
+        // Two sensors cannot record into one file, or serve their pages on one address.
+        let (record, viewer) = (run_args.record(), run_args.viewer().filter(|a| a.port() != 0));
+        for (other, taken) in fleet.sensors.iter().zip(&parsed) {
+            if let Some(path) = record.filter(|p| taken.record() == Some(*p)) {
+                return Err(said(anyhow!("--record {} is sensor {}'s already", path.display(), other.name)));
+            }
+            if let Some(addr) = viewer.filter(|a| taken.viewer() == Some(*a)) {
+                return Err(said(anyhow!("--viewer {addr} is sensor {}'s already", other.name)));
+            }
         }
         parsed.push(run_args);
     }

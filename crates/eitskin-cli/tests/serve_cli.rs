@@ -42,6 +42,10 @@ fn a_fleets_mistakes_are_refused_before_any_work_naming_the_sensor() {
         (sensor("palm", &["--publish", "zenoh", "--frames", "x"]), "sensor palm: invalid value 'x' for '--frames"),
         (sensor("palm", &["--publish", "ros2:a//b"]), "sensor palm: the ROS namespace"),
         (sensor("9palm", &["--publish", "zenoh"]), "\"9palm\" is not a sensor's name"),
+        (
+            sensor("palm", &["--record", "x.jsonl"]) + &sensor("back", &["--record", "x.jsonl"]),
+            "sensor back: --record x.jsonl is sensor palm's already",
+        ),
     ] {
         let path = dir.join("fleet.toml");
         std::fs::write(&path, &fleet).unwrap();
