@@ -55,6 +55,10 @@ fn a_fleets_mistakes_are_refused_before_any_work_naming_the_sensor() {
         assert!(!out.status.success() && err.contains(says), "{fleet}: {err}");
         assert!(started.elapsed() < Duration::from_secs(30), "{fleet} was refused only after {:?}", started.elapsed());
     }
+    let missing = dir.join("no-such-fleet.toml");
+    let out = dir.eitskin(&["serve", missing.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("no-such-fleet.toml"), "{err}");
     let out = dir.eitskin(&["serve", dir.join("fleet.toml").to_str().unwrap(), "--threads", "0"]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("\"0\" is not a number of threads"));
 }

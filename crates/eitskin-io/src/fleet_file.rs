@@ -91,5 +91,12 @@ mod tests {
         assert!(message(&one.replace("palm", "1palm")).contains("\"1palm\" is not a sensor's name"));
         assert!(message(&one.replace("run = []", "run = []\nspec = \"x\"")).contains("spec"));
         assert!(message(&one.replace("run = []\n", "")).contains("run"));
+        // Not TOML, the wrong types, another kind of file.
+        assert!(message("[[sensor]\nname = \"palm\"").contains("line 1"));
+        assert!(message(&one.replace("run = []", "run = \"--fast\"")).contains("run"));
+        assert!(message(&one.replace("name = \"palm\"", "name = 3")).contains("name"));
+        assert!(message("{\"sensor\": []}").contains("line 1"));
+        let too_many = one.repeat(MAX_SENSORS + 1);
+        assert!(message(&too_many).contains(&format!("lists {} sensors", MAX_SENSORS + 1)));
     }
 }
