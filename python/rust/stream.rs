@@ -203,6 +203,13 @@ impl Source {
                 event("reconnected", format!("{} is back after {:.1} s", path.display(), outage.as_secs_f64())),
             )?
             .into_any(),
+            Acquired::Silent { source, after } => {
+                Py::new(py, event("silent", format!("{source}: no frame for {:.1} s", after.as_secs_f64())))?.into_any()
+            }
+            Acquired::Resumed { source, outage } => {
+                Py::new(py, event("resumed", format!("{source}: frames again after {:.1} s", outage.as_secs_f64())))?
+                    .into_any()
+            }
         }))
     }
 
@@ -512,7 +519,7 @@ impl Pipeline {
         let pipeline = &mut self.0;
         let status = py.detach(|| pipeline.process(frame)).map_err(error)?;
         Ok(match status {
-            Status::Referencing { .. } => "referencing",
+            Status::Referencing { .. } | Status::Deriving => "referencing",
             Status::Processed => "processed",
             Status::ChannelsDropped { .. } => "channels dropped",
             _ => "noise updated",

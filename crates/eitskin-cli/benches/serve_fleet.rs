@@ -11,11 +11,13 @@
 //! `SERVE_FLEET_RUN` adds flags to every sensor's `run` (e.g. `--hyperparameter 1`, to see what
 //! the automatic λ's refreshes cost); the figures of the docs are without it.
 //!
-//! Frames are a recording of the virtual sensor pressed twice (a press found afresh costs
-//! milliseconds; one held, microseconds), each sensor's stream shifted in time so that the
-//! boards are not in step. The first 100 frames of each sensor (reference, noise measurement)
-//! are reported apart from the rest, and the run's second half apart again (once the backlog of
-//! the fleet's start, every sensor taking its reference at once, is gone).
+//! Frames are a recording of the virtual sensor: 2 s at rest, then a press every 3 s (held
+//! 2 s, each at another place and force), 14 s in all. Every sensor plays the rest first (its
+//! reference), then loops over the presses from a point of its own, so that presses come and go
+//! on some sensor all the time, never on all at once; each sensor's puts are shifted within the
+//! frame period too. The first 100 frames of each sensor (its reference, taken while every
+//! sensor takes its own) are reported apart from the rest, and the run's second half apart
+//! again; and when each sensor's first imaged line came.
 
 use std::collections::HashMap;
 use std::process::{Command, Stdio};
@@ -27,6 +29,8 @@ use zenoh::Wait;
 
 const RATE_HZ: f64 = 100.0;
 const WARM_UP: u64 = 100;
+/// Frames of the recording: 2 s at rest, then four presses 3 s apart, 1 s at rest after the last.
+const RECORDED: u64 = 1400;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
@@ -39,10 +43,11 @@ fn main() {
 
     // The frames: the virtual sensor pressed twice, recorded once.
     let script = dir.path().join("script.txt");
-    std::fs::write(&script, "# start end x y force\n2.0 4.0 -50 40 9\n5.0 7.0 30 -20 6\n").expect("the script");
+    let presses = "# start end x y force\n2 4 -50 40 9\n5 7 30 -20 6\n8 10 60 60 3\n11 13 -20 -60 12\n";
+    std::fs::write(&script, presses).expect("the script");
     let recording = dir.path().join("frames.jsonl");
     let made = Command::new(eitskin)
-        .args(["run", "--fast", "--frames", &frames.to_string(), "--record"])
+        .args(["run", "--fast", "--frames", &RECORDED.to_string(), "--record"])
         .arg(&recording)
         .arg("--source")
         .arg(format!("sim:{}", script.display()))
@@ -67,9 +72,10 @@ fn main() {
     config.insert_json5("scouting/multicast/enabled", "false").expect("config");
     let session = zenoh::open(config).wait().expect("a Zenoh session");
 
-    // The subscriber: when each (sensor, seq) came.
+    // The subscriber: when each (sensor, seq) came, and each sensor's first imaged line.
     let arrived: Arc<Mutex<HashMap<(usize, u64), Instant>>> = Arc::default();
-    let sink = Arc::clone(&arrived);
+    let first_imaged: Arc<Mutex<HashMap<usize, u64>>> = Arc::default();
+    let (sink, imaged) = (Arc::clone(&arrived), Arc::clone(&first_imaged));
     let _subscriber = session
         .declare_subscriber("bench/*/touches")
         .callback(move |sample| {
@@ -79,6 +85,9 @@ fn main() {
             if let (Some(sensor), Ok(line)) = (sensor, line) {
                 if let Some(seq) = line["seq"].as_u64() {
                     sink.lock().expect("the map").insert((sensor, seq), now);
+                    if line["status"] == "ok" {
+                        imaged.lock().expect("the map").entry(sensor).or_insert(seq);
+                    }
                 }
             }
         })
@@ -145,7 +154,14 @@ fn main() {
         } else if now - at > period {
             late_puts += 1;
         }
-        let values = &records[seq as usize % records.len()];
+        // The rest first; then the presses, looped, from sensor k's own point.
+        let pressing = records.len() as u64 - WARM_UP;
+        let at = if seq < WARM_UP {
+            seq
+        } else {
+            WARM_UP + (seq - WARM_UP + k as u64 * pressing / sensors as u64) % pressing
+        };
+        let values = &records[at as usize];
         let message = serde_json::json!({"seq": seq, "t_s": seq as f64 / RATE_HZ, "values": values});
         let bytes = serde_json::to_vec(&message).expect("a frame");
         sent.insert((k, seq), Instant::now());
@@ -194,4 +210,7 @@ fn main() {
     summary(&format!("after the first {WARM_UP}"), steady);
     summary("second half of the run", late);
     println!("lost (put, never at the subscriber): {lost} of {}", sent.len());
+    let imaged = first_imaged.lock().expect("the map");
+    let latest = imaged.values().max().map_or(f64::NAN, |seq| *seq as f64 / RATE_HZ);
+    println!("sensors imaging: {} of {sensors}, the last from {latest:.1} s (its frame time)", imaged.len());
 }

@@ -10,6 +10,13 @@
 //! unplugged, reconnected; a gap in a bridge's frames). `serve` ends when every source has, and
 //! fails if any sensor did.
 //!
+//! What a sensor derives from its noise (its λ and noise tests, when its reference is taken and
+//! when its noise changes: tens of milliseconds each) is done off the frame path, by as many
+//! derivation threads as the pool has, at the lowest priority the system gives
+//! (`SCHED_IDLE` on Linux): a hundred sensors taking their references at once do not hold up
+//! the frames of those already imaging. A sensor's frames are reported as referencing until its
+//! reference's derivation is in.
+//!
 //! Scaling past one machine: run more `serve`s, each with its share of the sensors; Zenoh routes.
 
 use std::collections::VecDeque;
@@ -20,7 +27,7 @@ use std::thread::JoinHandle;
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::FromArgMatches;
-use eitskin::pipeline::PipelineParams;
+use eitskin::pipeline::{Derivation, Derived, PipelineParams};
 use eitskin_io::source::{Acquired, SourceError};
 use eitskin_io::stream::Event;
 
@@ -61,6 +68,8 @@ struct Slot {
     queued: AtomicBool,
     /// `None` once it ended.
     running: Mutex<Option<Running>>,
+    /// A derivation done for it, to give its pipeline at its next step.
+    derived: Mutex<Option<Derived>>,
 }
 
 /// The fleet's sensors, the queue of those with items waiting, and how many still run.
@@ -70,6 +79,9 @@ struct Pool {
     wake: Condvar,
     left: AtomicUsize,
     failed: Mutex<Vec<String>>,
+    /// Derivations the sensors asked for, with whose they are, for the derivation threads.
+    derivations: Mutex<VecDeque<(usize, Derivation)>>,
+    derivation_wake: Condvar,
 }
 
 /// Items a sensor takes in one step before the others' turn.
@@ -117,7 +129,15 @@ impl Pool {
             // the sensor, never the thread.
             let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Option<Result<&'static str>> {
                 let sensor = running.as_mut()?;
-                let outcome = match sensor.processing.drain(&sensor.items, &mut sensor.sinks, STEP_ITEMS) {
+                if let Some(derived) = lock(&slot.derived).take() {
+                    sensor.processing.pipeline.deliver(derived);
+                }
+                let drained = sensor.processing.drain(&sensor.items, &mut sensor.sinks, STEP_ITEMS);
+                if let Some(job) = sensor.processing.pipeline.take_derivation() {
+                    lock(&self.derivations).push_back((k, job));
+                    self.derivation_wake.notify_one();
+                }
+                let outcome = match drained {
                     Ok(Drained::Waiting) => return None,
                     Ok(Drained::More) => {
                         more = true;
@@ -159,10 +179,57 @@ impl Pool {
                 }
             }
             if self.left.fetch_sub(1, Ordering::SeqCst) == 1 {
-                // The last one: every thread waiting on the queue goes home.
+                // The last one: every thread waiting on a queue goes home.
                 let _queue = lock(&self.queue);
                 self.wake.notify_all();
+                let _derivations = lock(&self.derivations);
+                self.derivation_wake.notify_all();
             }
+        }
+    }
+
+    /// A derivation thread: runs the sensors' derivations as they are asked for, each result
+    /// left for its sensor's next step, until all sensors ended.
+    fn derive(&self) {
+        lowest_priority();
+        loop {
+            let (k, job) = {
+                let mut queue = lock(&self.derivations);
+                loop {
+                    if self.left.load(Ordering::SeqCst) == 0 {
+                        return;
+                    }
+                    if let Some(next) = queue.pop_front() {
+                        break next;
+                    }
+                    queue = self.derivation_wake.wait(queue).unwrap_or_else(|e| e.into_inner());
+                }
+            };
+            // A panic in it is the sensor's: its pipeline never gets the result and keeps what
+            // it had (a reference never derived stays referencing).
+            match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| job.run())) {
+                Ok(derived) => *lock(&self.slots[k].derived) = Some(derived),
+                Err(_) => {
+                    eprintln!("eitskin serve: {}: a derivation panicked; it keeps what it had", self.slots[k].name)
+                }
+            }
+        }
+    }
+}
+
+/// Puts the calling thread at the lowest priority the system gives (`SCHED_IDLE` on Linux: it
+/// runs only on a core nothing else wants), so that derivations never delay a frame. Elsewhere,
+/// or if refused, it stays as it was.
+fn lowest_priority() {
+    #[cfg(target_os = "linux")]
+    {
+        let param = libc::sched_param { sched_priority: 0 };
+        // SAFETY: `sched_setscheduler` reads `param`, a valid `sched_param` that outlives the
+        // call; pid 0 is the calling thread, and SCHED_IDLE with priority 0 is a valid policy.
+        #[allow(unsafe_code, reason = "the one call that sets a thread's scheduling policy")]
+        let refused = unsafe { libc::sched_setscheduler(0, libc::SCHED_IDLE, &param) } != 0;
+        if refused {
+            eprintln!("eitskin serve: derivations run at the normal priority (SCHED_IDLE refused)");
         }
     }
 }
@@ -213,6 +280,7 @@ type Built = (Processing, Vec<Box<dyn Sink>>, eitskin_io::source::Source, Pipeli
 fn build(args: &run::Args, name: &str, session: Option<&eitskin_io::middleware::Session>) -> Result<Built> {
     let Sensor { spec, mut processing, start, params } = run::prepare(args)?;
     processing.quiet();
+    processing.pipeline.defer_derivations(true);
     let source = run::open_source(args, &spec, processing.kind(), session)?;
     let mut sinks = run::sinks(args, &spec, &processing.pipeline, processing.kind(), session)?;
     sinks.push(Box::new(Reporting(name.to_owned())));
@@ -266,6 +334,7 @@ pub fn serve(args: Args) -> Result<()> {
             pending: AtomicBool::new(false),
             queued: AtomicBool::new(false),
             running: Mutex::new(None),
+            derived: Mutex::new(None),
         })
         .collect();
     let pool = Arc::new(Pool {
@@ -274,6 +343,8 @@ pub fn serve(args: Args) -> Result<()> {
         wake: Condvar::new(),
         left: AtomicUsize::new(parsed.len()),
         failed: Mutex::new(Vec::new()),
+        derivations: Mutex::new(VecDeque::new()),
+        derivation_wake: Condvar::new(),
     });
     // Every sensor built (its pipeline, its publishers) before any source is read; one that
     // cannot be (a port missing, a file unreadable) is reported, and the others go on.
@@ -292,6 +363,9 @@ pub fn serve(args: Args) -> Result<()> {
     let threads = args.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     // The pool spreads the sensors over the cores: each sensor's products stay on its thread.
     eitskin::parallel::set_par(eitskin::parallel::Par::Seq);
+    // And the derivations' products stay on their (lowest-priority) threads: a parallel
+    // product would wake threads of the normal priority, which wait for each other, spinning.
+    eitskin::faer::set_global_parallelism(eitskin::faer::Par::Seq);
     eprintln!("eitskin serve: {} sensors on {threads} threads", built.len());
     for (k, run_args, processing, sinks, source, params) in built {
         let notify = Arc::clone(&pool);
@@ -307,7 +381,13 @@ pub fn serve(args: Args) -> Result<()> {
             std::thread::spawn(move || pool.work())
         })
         .collect();
-    for worker in workers {
+    let deriving: Vec<_> = (0..threads)
+        .map(|_| {
+            let pool = Arc::clone(&pool);
+            std::thread::spawn(move || pool.derive())
+        })
+        .collect();
+    for worker in workers.into_iter().chain(deriving) {
         if worker.join().is_err() {
             bail!("a thread of the pool panicked");
         }

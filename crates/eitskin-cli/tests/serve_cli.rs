@@ -148,9 +148,10 @@ fn a_sensor_whose_bridge_stops_holds_none_of_the_others_up() {
     let count = |name: &str| lines.lock().unwrap().get(name).map_or(0, Vec::len) as u64;
     wait_until("a and b to be served to the end", &|| count("a") == FRAMES && count("b") == FRAMES);
     wait_until("c's first half", &|| count("c") == FRAMES / 2);
-    std::thread::sleep(Duration::from_millis(300));
+    // Past a second without frames, c's source is silent, and says so.
+    std::thread::sleep(Duration::from_millis(1500));
     assert_eq!(count("c"), FRAMES / 2, "c had no more frames");
-    // c's bridge comes back: c goes on where it was.
+    // c's bridge comes back: c goes on where it was, and says after how long.
     for seq in FRAMES / 2..FRAMES {
         put(2, seq);
     }
@@ -161,5 +162,14 @@ fn a_sensor_whose_bridge_stops_holds_none_of_the_others_up() {
         assert_eq!(lines[name], (0..FRAMES).collect::<Vec<_>>(), "{name}: every frame, in order");
     }
     assert!(err.contains("d: failed to start, the others go on") && err.contains("missing.jsonl"), "{err}");
+    let events = |name: &str, kind: &str| {
+        let said = format!("eitskin serve: {name}: {{\"event\":\"{kind}\"");
+        err.lines().filter(|l| l.starts_with(&said)).map(str::to_owned).collect::<Vec<_>>()
+    };
+    let (silent, resumed) = (events("c", "silent"), events("c", "resumed"));
+    assert!(silent.len() == 1 && silent[0].contains("\"source\":\"zenoh:board/c\""), "{err}");
+    let outage: serde_json::Value = serde_json::from_str(&resumed[0][resumed[0].find('{').unwrap()..]).unwrap();
+    assert!(outage["outage_s"].as_f64().unwrap() >= 1.5, "{}", resumed[0]);
+    assert!(events("a", "silent").is_empty() && events("b", "silent").is_empty(), "{err}");
     assert!(!out.status.success() && err.contains("1 of 4 sensors failed: d"), "{err}");
 }

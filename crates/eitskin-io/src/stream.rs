@@ -21,7 +21,8 @@
 //! event also when the grown reference gave the threshold anew.
 //! Version 6 added each touch's `force_std` (`null` before); with presses fitted to Δv, a
 //! touch's `force` is since then the mean of its posterior over the calibrated range, no longer
-//! the curve's inverse clamped to it.
+//! the curve's inverse clamped to it. Version 7 named a touch's pseudo-array area
+//! `calibration_area`. Version 8 added the `silent` and `resumed` events of a network source.
 //!
 //! # Lines
 //!
@@ -41,7 +42,7 @@
 //! |-------------|---------------------------------------------------------------------------------|
 //! | `seq`       | the frame's sequence number from the source (board counter; lines or table rows counted from 0; as recorded); messages call it "frame seq" |
 //! | `t`         | the frame's time, in s (the source's clock, as recorded, or since the port opened) |
-//! | `status`    | `"referencing"` (the frame went into the reference; no touches) or `"ok"` (imaged) |
+//! | `status`    | `"referencing"` (the reference is being taken, or what it gives derived; no touches) or `"ok"` (imaged) |
 //! | `touches`   | the touches found, strongest first; each a [`Touch`], below                      |
 //! | `counters`  | `frames`: frames processed so far, this one included; `bad`: input skipped so far (bad frames, damaged records); `viewer_dropped`: messages that did not reach a viewer page, only when a viewer runs |
 //! | `recorded`  | `true` once the frame is in the recording; absent when not recording            |
@@ -77,6 +78,8 @@
 //! | `skipped`      | a damaged record of a recording: `line` (from 1, the header is line 1), `torn` (the last record, torn by a crash), `reason` |
 //! | `disconnected` | `path` (the port), `detail` (why, as the operating system said it)            |
 //! | `reconnected`  | `path`, `outage_s` (how long the port was away, in s), `detail`               |
+//! | `silent`       | a network source's frames stopped: `source` (as given), `after_s` (s since its last frame), `detail` |
+//! | `resumed`      | they came again: `source`, `outage_s` (s from the last frame before to the first after), `detail` |
 //! | `reference`    | the reference is taken again from the next frames; `detail` (who asked)       |
 //!
 //! Reading a stream back:
@@ -117,7 +120,7 @@ pub fn single_precision<S: serde::Serializer>(value: &f64, serializer: S) -> Res
 pub const FORMAT: &str = "eitskin-run";
 
 /// The version of the stream this crate writes and reads.
-pub const VERSION: u32 = 7;
+pub const VERSION: u32 = 8;
 
 /// Any line of the stream, for readers: an event if it has an `event` field, else a frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -271,7 +274,7 @@ pub enum Status {
 impl From<eitskin::pipeline::Status> for Status {
     fn from(status: eitskin::pipeline::Status) -> Status {
         match status {
-            eitskin::pipeline::Status::Referencing { .. } => Status::Referencing,
+            eitskin::pipeline::Status::Referencing { .. } | eitskin::pipeline::Status::Deriving => Status::Referencing,
             eitskin::pipeline::Status::Processed
             | eitskin::pipeline::Status::ChannelsDropped { .. }
             | eitskin::pipeline::Status::NoiseUpdated => Status::Ok,
@@ -427,6 +430,24 @@ pub enum Event {
         /// What happened, as a sentence.
         detail: String,
     },
+    /// A network source's frames stopped.
+    Silent {
+        /// The source, as given.
+        source: String,
+        /// Time since its last frame, in s.
+        after_s: f64,
+        /// What happened, as a sentence.
+        detail: String,
+    },
+    /// A network source's frames came again.
+    Resumed {
+        /// The source, as given.
+        source: String,
+        /// Time from its last frame before to the first after, in s.
+        outage_s: f64,
+        /// What happened, as a sentence.
+        detail: String,
+    },
     /// The reference is taken again from the next frames.
     Reference {
         /// Who asked, as a sentence.
@@ -505,6 +526,16 @@ impl Event {
                 path: path.display().to_string(),
                 outage_s: outage.as_secs_f64(),
                 detail: format!("{} is back after {:.2} s", path.display(), outage.as_secs_f64()),
+            },
+            Acquired::Silent { source, after } => Event::Silent {
+                source: source.clone(),
+                after_s: after.as_secs_f64(),
+                detail: format!("{source}: no frame for {:.2} s; waiting for them to come again", after.as_secs_f64()),
+            },
+            Acquired::Resumed { source, outage } => Event::Resumed {
+                source: source.clone(),
+                outage_s: outage.as_secs_f64(),
+                detail: format!("{source}: frames again, after {:.2} s without", outage.as_secs_f64()),
             },
         })
     }
@@ -672,6 +703,8 @@ mod tests {
             Event::Skipped { line: 4, torn: true, reason: "cut".into() },
             Event::Disconnected { path: "/dev/ttyACM0".into(), detail: "gone".into() },
             Event::Reconnected { path: "/dev/ttyACM0".into(), outage_s: 0.25, detail: "back".into() },
+            Event::Silent { source: "zenoh:board/a".into(), after_s: 1.0, detail: "gone".into() },
+            Event::Resumed { source: "zenoh:board/a".into(), outage_s: 4.5, detail: "back".into() },
             Event::Reference { detail: "asked".into() },
             Event::ReferenceTaken {
                 hyperparameter: 0.03,

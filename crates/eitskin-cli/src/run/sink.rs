@@ -166,6 +166,8 @@ impl Sink for Viewing {
     fn frame(&mut self, frame: &Processed<'_>) -> Result<Flow> {
         let referencing = match frame.status {
             Status::Referencing { collected, needed } => Some([collected, needed]),
+            // Every frame is in; what they give is being derived.
+            Status::Deriving => Some([frame.pipeline.params().frames_in_reference(); 2]),
             Status::Processed | Status::ChannelsDropped { .. } | Status::NoiseUpdated => None,
         };
         let image = &frame.pipeline.image().values;

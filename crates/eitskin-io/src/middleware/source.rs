@@ -1,5 +1,8 @@
 //! [`ZenohSource`]: raw frames from a key that a board's bridge publishes on.
 
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::Sample;
@@ -19,17 +22,29 @@ const QUEUE: usize = 1024;
 /// back, or back to 0, the bridge started again, and the frame is taken.
 const RESTART: u64 = 16;
 
+/// The shortest silence reported, and how many of its frame intervals a source may miss
+/// before it is: a board at 100 frames/s is silent after 1 s, one at 1 frame/s after 10 s.
+const SILENCE_MIN: Duration = Duration::from_secs(1);
+const SILENCE_INTERVALS: f64 = 10.0;
+
 /// Frames of [`FrameMessage`]s on one key: each checked for its count, the counter followed as
 /// a serial board's is (frames missing before one are reported as a gap, a frame older than
 /// the newest is dropped as stale), a sample that is not a frame reported with its key. A live
-/// source waits for the next sample, however long, and ends only with the session.
+/// source waits for the next sample, however long, and ends only with the session; once frames
+/// have come, a pause of ten of their intervals (at least a second) is reported
+/// ([`Acquired::Silent`]), and so are the frames coming again ([`Acquired::Resumed`]).
 pub struct ZenohSource {
     subscriber: Subscriber<FifoChannelHandler<Sample>>,
     key: String,
     measurements: usize,
     counter: Counter,
-    /// A frame to deliver after the gap reported before it.
-    pending: Option<Acquired>,
+    /// Items to deliver after the one reported before them (a gap, frames again).
+    pending: VecDeque<Acquired>,
+    /// When the last sample came, the typical interval between samples (s, a running mean),
+    /// and whether the silence after it was reported.
+    last: Option<Instant>,
+    interval: Option<f64>,
+    silent: bool,
 }
 
 impl ZenohSource {
@@ -48,7 +63,38 @@ impl ZenohSource {
             .with(zenoh::handlers::FifoChannel::new(QUEUE))
             .wait()
             .map_err(|e| MiddlewareError::Zenoh { key: key.to_owned(), reason: e.to_string() })?;
-        Ok(ZenohSource { subscriber, key: key.to_owned(), measurements, counter: Counter::default(), pending: None })
+        Ok(ZenohSource {
+            subscriber,
+            key: key.to_owned(),
+            measurements,
+            counter: Counter::default(),
+            pending: VecDeque::with_capacity(2),
+            last: None,
+            interval: None,
+            silent: false,
+        })
+    }
+
+    /// How long without a sample is a silence: ten typical intervals, at least [`SILENCE_MIN`].
+    fn silence(&self) -> Duration {
+        let typical = self.interval.map_or(Duration::ZERO, |s| Duration::from_secs_f64(s * SILENCE_INTERVALS));
+        typical.max(SILENCE_MIN)
+    }
+
+    /// Notes a sample's arrival at `now`: the typical interval follows it; the end of a silence
+    /// is reported (how long none came), before the sample's own items.
+    fn arrived(&mut self, now: Instant) -> Option<Acquired> {
+        let since = self.last.map(|last| now.duration_since(last));
+        self.last = Some(now);
+        if std::mem::take(&mut self.silent) {
+            let source = format!("zenoh:{}", self.key);
+            return since.map(|outage| Acquired::Resumed { source, outage });
+        }
+        if let Some(since) = since {
+            let s = since.as_secs_f64();
+            self.interval = Some(self.interval.map_or(s, |mean| mean + (s - mean) / 16.0));
+        }
+        None
     }
 
     /// The item a decoded message makes, and the gap before it, if any.
@@ -65,7 +111,7 @@ impl ZenohSource {
         };
         match (gap > 0).then_some(gap) {
             Some(missing) => {
-                self.pending = Some(item);
+                self.pending.push_back(item);
                 Acquired::Bad(BadFrame::Gap { seq, missing })
             }
             None => item,
@@ -75,18 +121,38 @@ impl ZenohSource {
 
 impl FrameSource for ZenohSource {
     fn acquire(&mut self) -> Option<Result<Acquired, SourceError>> {
-        if let Some(item) = self.pending.take() {
+        if let Some(item) = self.pending.pop_front() {
             return Some(Ok(item));
         }
-        // An error here is the session closing: the source ends.
-        let sample = self.subscriber.recv().ok()?;
+        // An error here is the session closing: the source ends. Before the first sample, and
+        // once a silence is reported, it waits however long.
+        let sample = match self.last.filter(|_| !self.silent) {
+            Some(last) => match self.subscriber.recv_deadline(last + self.silence()) {
+                Ok(Some(sample)) => sample,
+                Ok(None) => {
+                    self.silent = true;
+                    let source = format!("zenoh:{}", self.key);
+                    return Some(Ok(Acquired::Silent { source, after: last.elapsed() }));
+                }
+                Err(_) => return None,
+            },
+            None => self.subscriber.recv().ok()?,
+        };
+        let resumed = self.arrived(Instant::now());
         let payload = sample.payload().to_bytes();
-        Some(Ok(match FrameMessage::decode(&payload) {
+        let item = match FrameMessage::decode(&payload) {
             Ok(message) => self.take(message),
             Err(error) => {
                 let reason = error.to_string();
                 Acquired::Bad(BadFrame::Message { key: sample.key_expr().as_str().to_owned(), reason })
             }
+        };
+        Some(Ok(match resumed {
+            Some(resumed) => {
+                self.pending.push_front(item);
+                resumed
+            }
+            None => item,
         }))
     }
 

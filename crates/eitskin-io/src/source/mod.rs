@@ -11,7 +11,8 @@
 //! * [`Acquired::Frame`]: a frame, with its sequence number, its time in s and its values;
 //! * [`Acquired::Bad`]: input the codec refused ([`BadFrame`], with its place);
 //! * [`Acquired::Skipped`]: a damaged record of a recording, with its line;
-//! * [`Acquired::Disconnected`], [`Acquired::Reconnected`]: a serial port went away, or came back.
+//! * [`Acquired::Disconnected`], [`Acquired::Reconnected`]: a serial port went away, or came back;
+//! * [`Acquired::Silent`], [`Acquired::Resumed`]: a network source's frames stopped, or came again.
 //!
 //! ```
 //! use eitskin_io::replay::Speed;
@@ -124,6 +125,21 @@ pub enum Acquired {
         /// The port, as named.
         path: std::path::PathBuf,
         /// How long it was away.
+        outage: Duration,
+    },
+    /// A network source's frames stopped: none came for `after` (its bridge or board is gone,
+    /// or the network between); it waits for them to come again.
+    Silent {
+        /// The source, as given (`zenoh:KEY`).
+        source: String,
+        /// How long since its last frame.
+        after: Duration,
+    },
+    /// A network source's frames came again after it was [`Acquired::Silent`].
+    Resumed {
+        /// The source, as given.
+        source: String,
+        /// How long none came, from its last frame before to the first after.
         outage: Duration,
     },
 }

@@ -38,6 +38,8 @@
 //! (that is [`Pipeline`](crate::pipeline::Pipeline)). After it has grown, [`Chain::process`]
 //! allocates nothing.
 
+use std::sync::Arc;
+
 use thiserror::Error;
 
 use crate::calibration::{Calibration, ForceEstimate, Sample};
@@ -129,10 +131,11 @@ pub struct TouchForce {
 /// contrast map and calibration, and the buffers of the frame path.
 #[derive(Debug, Clone)]
 pub struct Chain {
-    recon: Reconstructor,
+    /// Shared with the derivations that replace it ([`crate::pipeline::Derivation`]).
+    recon: Arc<Reconstructor>,
     touch: TouchParams,
     strength: Strength,
-    press_model: Option<PressModel>,
+    press_model: Option<Arc<PressModel>>,
     /// The press model blind to the reconstructor's dropped channels, while any are dropped.
     masked_press: Option<PressModel>,
     contrast_map: Option<ContrastMap>,
@@ -165,7 +168,7 @@ impl Chain {
         Chain {
             whitened: Vec::with_capacity(recon.measurements()),
             difference: vec![0.0; recon.measurements()],
-            recon,
+            recon: Arc::new(recon),
             touch,
             strength: Strength::Peak,
             press_model: None,
@@ -190,7 +193,7 @@ impl Chain {
 
     /// The same chain, fitting a press to Δv from each touch.
     pub fn with_press_model(mut self, model: PressModel) -> Chain {
-        self.press_model = Some(model.with_every_radius(self.strength == Strength::SizedDrop));
+        self.press_model = Some(Arc::new(model.with_every_radius(self.strength == Strength::SizedDrop)));
         self.mask_press_model();
         self
     }
@@ -203,7 +206,7 @@ impl Chain {
     pub fn set_reconstructor(&mut self, recon: Reconstructor) {
         assert_eq!(recon.measurements(), self.recon.measurements(), "the same protocol");
         assert_eq!(recon.blank_image().size, self.image.size, "the same raster");
-        self.recon = recon;
+        self.recon = Arc::new(recon);
         self.mask_press_model();
     }
 
@@ -234,9 +237,9 @@ impl Chain {
         self.strength = strength;
         // The sized drop fits every press's radius; the others fit it where the misfit asks.
         let every_radius = strength == Strength::SizedDrop;
-        for slot in [&mut self.press_model, &mut self.masked_press] {
-            *slot = slot.take().map(|model| model.with_every_radius(every_radius));
-        }
+        self.press_model =
+            self.press_model.take().map(|model| Arc::new(Arc::unwrap_or_clone(model).with_every_radius(every_radius)));
+        self.masked_press = self.masked_press.take().map(|model| model.with_every_radius(every_radius));
         Ok(self)
     }
 
@@ -253,6 +256,11 @@ impl Chain {
 
     /// The reconstructor.
     pub fn reconstructor(&self) -> &Reconstructor {
+        &self.recon
+    }
+
+    /// The reconstructor, shared: for work that derives its successor off the frame path.
+    pub fn shared_reconstructor(&self) -> &Arc<Reconstructor> {
         &self.recon
     }
 
@@ -316,6 +324,11 @@ impl Chain {
 
     /// The press model, if one was given.
     pub fn press_model(&self) -> Option<&PressModel> {
+        self.press_model.as_deref()
+    }
+
+    /// The press model, shared: for work that derives its noise test off the frame path.
+    pub fn shared_press_model(&self) -> Option<&Arc<PressModel>> {
         self.press_model.as_ref()
     }
 
@@ -371,7 +384,7 @@ impl Chain {
         self.recon.image_into(reference, frame, &mut self.image)?;
         self.fits.clear();
         let channels = self.recon.channels();
-        let model = self.masked_press.as_ref().or(self.press_model.as_ref());
+        let model = self.masked_press.as_ref().or(self.press_model.as_deref());
         if model.is_some() || self.press_detection.is_some() {
             // Δv in the model's volts: each channel's relative change times the model's own
             // value (v/v_ref − 1)·v₀, so a board's unit and gains do not scale the fitted drop.

@@ -40,9 +40,20 @@
 //! press: refused ([`InverseError::FrameScale`]) and changes nothing; while the reference is
 //! taken, such a frame (against the first, or a first frame of zeros) starts it again.
 //!
+//! Derivations off the frame path. Taking the reference and each refresh derive λ, the weights
+//! and the noise tests again (tens of milliseconds on the paper's sensor). By default
+//! [`Pipeline::process`] does that work on the frame that asks for it; after
+//! [`Pipeline::defer_derivations`] it hands the work out instead ([`Pipeline::take_derivation`],
+//! a [`Derivation`] to run on any thread, its result given back by [`Pipeline::deliver`]) and
+//! puts it in at the next frame after it came: frames go on meanwhile, imaged with what was
+//! derived before ([`Status::Deriving`] until a new reference's first derivation is in). A
+//! server of many sensors runs them at a lower priority than frames, so that every sensor
+//! taking its reference at once does not hold the others' frames up.
+//!
 //! Plain data and no threads or I/O: the caller feeds frames (from a port, a file, the virtual
 //! sensor) and reads the results. After the reference is taken, [`Pipeline::process`]
-//! allocates nothing, except on the frame that drops a channel (an event, not the frame path).
+//! allocates nothing, except on the frame that drops a channel (an event, not the frame path)
+//! and, unless deferred, on the frames that derive.
 
 use std::ops::RangeInclusive;
 
@@ -50,11 +61,15 @@ use crate::chain::Chain;
 pub use crate::chain::TouchForce;
 use crate::image::Image;
 use crate::inverse::{
-    mean_of_finite, plausible_ratio, typical_ratio_in, Channels, InverseError, Reconstructor, DEFAULT_RELATIVE_NOISE,
+    mean_of_finite, plausible_ratio, typical_ratio_in, Channels, InverseError, DEFAULT_RELATIVE_NOISE,
 };
 use crate::noise::{NoiseModel, Significance};
-use crate::press_fit::PressDetection;
 use crate::pseudo_array::PseudoArray;
+
+mod derivation;
+
+use derivation::Rederive;
+pub use derivation::{Derivation, Derived};
 
 /// The most bad channels an error names.
 const NAMED: usize = 8;
@@ -235,17 +250,20 @@ pub enum Status {
     /// weights and threshold for the frames after it (or the reference, grown by it, a new
     /// threshold: its own noise is less of Δv's).
     NoiseUpdated,
+    /// The reference is taken and what it asks for is being derived off the frame path
+    /// ([`Pipeline::defer_derivations`]); the frame was not imaged.
+    Deriving,
 }
 
 impl Status {
     /// Whether the frame was imaged (its touches are in [`Pipeline::touches`]).
     pub fn imaged(self) -> bool {
-        !matches!(self, Status::Referencing { .. })
+        !matches!(self, Status::Referencing { .. } | Status::Deriving)
     }
 }
 
 /// The frame path of one sensor: the [`Chain`], its reference and the noise it measured.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Pipeline {
     chain: Chain,
     params: PipelineParams,
@@ -286,6 +304,16 @@ pub struct Pipeline {
     ring: Vec<f64>,
     ring_next: usize,
     averaged: Vec<f64>,
+    /// Whether derivations are handed out rather than done on the frame path.
+    deferred: bool,
+    /// Counts the reference re-taken and channels dropped: a derivation asked for before is stale.
+    generation: u64,
+    /// A derivation asked for and not yet in; the one not yet taken; the one given back.
+    in_flight: bool,
+    asked: Option<Derivation>,
+    delivered: Option<Derived>,
+    /// The reference is taken, its first derivation not yet in: frames are not imaged.
+    deriving_reference: bool,
 }
 
 impl Pipeline {
@@ -317,7 +345,45 @@ impl Pipeline {
             ring: vec![0.0; count * params.average.max(1)],
             ring_next: 0,
             averaged: vec![0.0; count],
+            deferred: false,
+            generation: 0,
+            in_flight: false,
+            asked: None,
+            delivered: None,
+            deriving_reference: false,
         }
+    }
+
+    /// From now on, hands the derivations out ([`Pipeline::take_derivation`]) instead of doing
+    /// them on the frame that asks (see the module doc); `false` goes back to the frame path.
+    pub fn defer_derivations(&mut self, defer: bool) {
+        self.deferred = defer;
+    }
+
+    /// The derivation asked for and not yet taken, if any: run it ([`Derivation::run`]) and give
+    /// the result to [`Pipeline::deliver`]. Only with [`Pipeline::defer_derivations`].
+    pub fn take_derivation(&mut self) -> Option<Derivation> {
+        self.asked.take()
+    }
+
+    /// Gives back a derivation's result; the next [`Pipeline::process`] puts it in (a new
+    /// reference's first is then [`Status::Referencing`] with every frame collected, a refresh's
+    /// [`Status::NoiseUpdated`]). One asked for before the reference was re-taken or a channel
+    /// dropped is stale, and dropped.
+    pub fn deliver(&mut self, derived: Derived) {
+        if derived.generation == self.generation && self.in_flight {
+            self.delivered = Some(derived);
+        }
+    }
+
+    /// Whether a derivation is asked for and not yet in.
+    pub fn deriving(&self) -> bool {
+        self.in_flight
+    }
+
+    /// The frame path's settings.
+    pub fn params(&self) -> &PipelineParams {
+        &self.params
     }
 
     /// Forgets the reference, and with it every dropped channel; the next frames build a new one.
@@ -326,6 +392,13 @@ impl Pipeline {
         self.collected.clear();
         self.missing.fill(false);
         self.newly_dropped.clear();
+        self.forget_derivation();
+    }
+
+    /// Makes any derivation asked for so far stale.
+    fn forget_derivation(&mut self) {
+        self.generation += 1;
+        (self.in_flight, self.asked, self.delivered, self.deriving_reference) = (false, None, None, false);
     }
 
     /// The reference frame, once taken (NaN on a channel no reference frame had).
@@ -406,12 +479,23 @@ impl Pipeline {
             return Err(InverseError::FrameLength { expected: count, got: frame.len() });
         }
         self.newly_dropped.clear();
+        let installed = match self.delivered.take() {
+            Some(derived) => Some(self.install(derived)?),
+            None => None,
+        };
         if self.reference.is_empty() {
             return self.collect(frame);
         }
         if let Some(ratio) = typical_ratio_in(frame, &self.reference, &mut self.ratios).filter(|r| !plausible_ratio(*r))
         {
             return Err(InverseError::FrameScale { ratio, restarted: false });
+        }
+        if installed == Some(true) {
+            let needed = self.params.frames_in_reference();
+            return Ok(Status::Referencing { collected: needed, needed });
+        }
+        if self.deriving_reference {
+            return Ok(Status::Deriving);
         }
         let channels = self.chain.reconstructor().channels();
         self.newly_dropped.extend((0..count).filter(|&m| channels.is_used(m) && !frame[m].is_finite()));
@@ -438,9 +522,10 @@ impl Pipeline {
         self.since_reference += 1;
         let touched = !self.chain.process(&self.reference, imaged)?.is_empty();
         self.quiet = if touched { 0 } else { self.quiet + 1 };
-        let mut status = match self.newly_dropped.len() {
-            0 => Status::Processed,
-            count => Status::ChannelsDropped { count },
+        let mut status = match (self.newly_dropped.len(), installed) {
+            (0, Some(false)) => Status::NoiseUpdated,
+            (0, _) => Status::Processed,
+            (count, _) => Status::ChannelsDropped { count },
         };
         if !touched {
             if let Some(noise) = self.noise.as_mut() {
@@ -448,6 +533,7 @@ impl Pipeline {
                 self.since_refresh += 1.0;
                 if self.since_refresh >= self.refreshed_at.clamp(1.0, REFRESH_MAX)
                     && status == Status::Processed
+                    && !self.in_flight
                     && self.refresh()?
                 {
                     status = Status::NoiseUpdated;
@@ -475,9 +561,10 @@ impl Pipeline {
 
     /// λ, the channel weights and the threshold again, from the noise model as it is now, when
     /// the noise has changed since they were last derived ([`noise_changed`]), or the threshold
-    /// alone when the reference has doubled or reached its limit since; whether either did.
-    /// Deriving takes a fifth of a second on the paper's sensor, so a steady sensor is not made
-    /// to wait for it every [`REFRESH_MAX`] frames.
+    /// alone when the reference has doubled or reached its limit since; whether they were
+    /// (deferred: whether they were asked for; they come in later). Deriving takes a fifth of a
+    /// second on the paper's sensor, so a steady sensor is not made to wait for it every
+    /// [`REFRESH_MAX`] frames.
     fn refresh(&mut self) -> Result<bool, InverseError> {
         let Some(noise) = &self.noise else { return Ok(false) };
         self.refreshed_at = noise.frames();
@@ -489,45 +576,88 @@ impl Pipeline {
         if !changed && !grown {
             return Ok(false);
         }
-        if changed {
-            self.refreshed_variance = variance;
-            if self.params.auto_hyperparameter {
-                let recon = self.chain.reconstructor();
-                let (derived, _) =
-                    recon.with_auto_hyperparameter(recon.channels().clone(), Some(noise.relative_variance()))?;
-                self.chain.set_reconstructor(derived);
-            }
-        }
-        self.derived_reference_count = count;
-        self.set_significance()?;
-        Ok(true)
+        let rederive = match (changed, self.params.auto_hyperparameter) {
+            (true, true) => Rederive::Auto {
+                channels: self.chain.reconstructor().channels().clone(),
+                variance: Some(variance.clone()),
+            },
+            _ => Rederive::Keep,
+        };
+        let mut job = self.derivation(rederive, Vec::new());
+        (job.variance, job.reference_count) = (changed.then_some(variance), Some(count));
+        self.ask(job)?;
+        Ok(!self.deferred)
     }
 
-    /// The noise test of the chain's reconstructor under the noise model, for the floor asked;
-    /// with a press model, presses are then found in Δv itself against the same noise.
-    fn set_significance(&mut self) -> Result<(), InverseError> {
-        let detection = match (self.params.noise_floor, &self.noise, self.chain.press_model()) {
-            (NoiseFloor::FalseAlarm { rate }, Some(noise), Some(model)) => {
-                let channels = self.chain.reconstructor().channels();
-                // In the model's volts, as the chain gives the press fit its Δv.
-                let model_values = self.chain.reconstructor().linearisation().background();
-                let mut std = noise.difference_std(model_values, false, self.params.average);
-                std.iter_mut().enumerate().filter(|(m, _)| !channels.is_used(*m)).for_each(|(_, s)| *s = f64::INFINITY);
-                Some(PressDetection::new(model, &std, noise.frames(), rate)?)
+    /// A derivation of `rederive` and the noise tests from the reference and noise as they are
+    /// now (`frames`: the reference's own, to image for their peak).
+    fn derivation(&self, rederive: Rederive, frames: Vec<Vec<f64>>) -> Derivation {
+        Derivation {
+            generation: self.generation,
+            first: !frames.is_empty(),
+            recon: std::sync::Arc::clone(self.chain.shared_reconstructor()),
+            rederive,
+            reference: self.reference.clone(),
+            noise: self
+                .noise
+                .clone()
+                .unwrap_or_else(|| NoiseModel::assumed(DEFAULT_RELATIVE_NOISE, self.reference.len(), 1)),
+            params: self.params,
+            polarity: self.chain.touch_params().polarity,
+            press_model: self.chain.shared_press_model().cloned(),
+            configured: self.configured.clone(),
+            reference_frames: frames,
+            variance: None,
+            reference_count: None,
+        }
+    }
+
+    /// Does `job` now, or hands it out when deferred.
+    fn ask(&mut self, job: Derivation) -> Result<(), InverseError> {
+        self.in_flight = true;
+        self.deriving_reference = job.first;
+        if self.deferred {
+            self.asked = Some(job);
+            return Ok(());
+        }
+        self.install(job.run()).map(|_| ())
+    }
+
+    /// Puts a derivation's result in; whether it completed a reference. A new reference that
+    /// failed is dropped, and the next frames start another.
+    fn install(&mut self, derived: Derived) -> Result<bool, InverseError> {
+        self.in_flight = false;
+        self.deriving_reference = false;
+        let tests = match derived.result {
+            Ok(tests) => tests,
+            Err(e) => {
+                if derived.first {
+                    self.retake_reference();
+                }
+                return Err(e);
             }
-            _ => None,
         };
-        self.chain.set_press_detection(detection);
-        let significance = match (self.params.noise_floor, &self.noise) {
-            (NoiseFloor::FalseAlarm { rate }, Some(noise)) => {
-                let polarity = self.chain.touch_params().polarity;
-                let recon = self.chain.reconstructor();
-                Some(Significance::new(recon, &self.reference, noise, self.params.average, polarity, rate)?)
-            }
-            _ => None,
-        };
-        self.chain.set_significance(significance);
-        Ok(())
+        if let Some(variance) = derived.variance {
+            self.refreshed_variance = variance;
+        }
+        if let Some(count) = derived.reference_count {
+            self.derived_reference_count = count;
+        }
+        if let Some(recon) = tests.recon {
+            self.chain.set_reconstructor(recon);
+        }
+        if derived.first {
+            self.noise_peak = tests.noise_peak;
+            let floor = match self.params.noise_floor {
+                NoiseFloor::Auto { factor } => factor * self.noise_peak,
+                NoiseFloor::Fixed(value) => value,
+                NoiseFloor::FalseAlarm { .. } => 0.0,
+            };
+            self.chain.set_min_peak(self.min_peak.max(floor));
+        }
+        self.chain.set_press_detection(tests.detection);
+        self.chain.set_significance(tests.significance);
+        Ok(derived.first)
     }
 
     /// Derives the reconstructor again without the channels of `newly_dropped`.
@@ -536,9 +666,16 @@ impl Pipeline {
         let mut used = recon.channels().used_mask().to_vec();
         self.newly_dropped.iter().for_each(|&m| used[m] = false);
         too_many_dropped(&used, &self.configured, self.newly_dropped.len())?;
-        let derived = recon.derive(recon.params().hyperparameter, recon.channels().clone().masked(&used))?;
-        self.chain.set_reconstructor(derived);
-        self.set_significance()
+        let rederive = Rederive::Fixed {
+            hyperparameter: recon.params().hyperparameter,
+            channels: recon.channels().clone().masked(&used),
+        };
+        // On this frame, whatever the mode: the frame is imaged without them. A derivation
+        // asked for before is stale (it has them).
+        self.forget_derivation();
+        let job = self.derivation(rederive, Vec::new());
+        self.in_flight = true;
+        self.install(job.run()).map(|_| ())
     }
 
     /// Adds a frame to the reference, and takes it once enough are collected.
@@ -567,9 +704,11 @@ impl Pipeline {
             self.retake_reference();
             return Err(e);
         }
-        Ok(Status::Referencing { collected: needed, needed })
+        Ok(if self.deriving_reference { Status::Deriving } else { Status::Referencing { collected: needed, needed } })
     }
 
+    /// Takes the mean of the frames collected as the reference, measures their noise, and asks
+    /// for what they give ([`Derivation`]: λ, the weights, the noise tests).
     fn take_reference(&mut self) -> Result<(), InverseError> {
         self.reference = mean_of_finite(&self.collected);
         self.derived_reference_count = self.collected.len();
@@ -583,25 +722,7 @@ impl Pipeline {
         self.since_refresh = 0.0;
         self.refreshed_variance = noise.relative_variance();
         self.noise = Some(noise);
-        if let Some(recon) = self.reference_reconstructor()? {
-            too_many_dropped(recon.channels().used_mask(), &self.configured, 0)?;
-            self.chain.set_reconstructor(recon);
-        }
         self.noise_peak = 0.0;
-        for frame in &self.collected {
-            // Channels missing from any reference frame are dropped, so imaging cannot fail.
-            if let Ok(image) = self.chain.image_only(&self.reference, frame) {
-                let peak = image.peak().map_or(0.0, |(_, v)| f64::from(v.abs()));
-                self.noise_peak = self.noise_peak.max(peak);
-            }
-        }
-        let floor = match self.params.noise_floor {
-            NoiseFloor::Auto { factor } => factor * self.noise_peak,
-            NoiseFloor::Fixed(value) => value,
-            NoiseFloor::FalseAlarm { .. } => 0.0,
-        };
-        self.chain.set_min_peak(self.min_peak.max(floor));
-        self.set_significance()?;
         // The moving average starts from the last reference frames (the reference itself where
         // there are fewer).
         let n = self.params.average.max(1);
@@ -611,27 +732,23 @@ impl Pipeline {
             slot.copy_from_slice(past.unwrap_or(&self.reference));
         }
         self.ring_next = 0;
-        self.collected.clear();
-        Ok(())
+        let frames = std::mem::take(&mut self.collected);
+        let job = self.derivation(self.reference_rederive(), frames);
+        self.ask(job)
     }
 
     /// The reconstructor for the new reference: without the channels it lacks or whose
-    /// reference is zero, with λ given or chosen from the reference frames' noise; `None` when
-    /// the chain's already is that one.
-    fn reference_reconstructor(&self) -> Result<Option<Reconstructor>, InverseError> {
-        let recon = self.chain.reconstructor();
+    /// reference is zero, with λ given or chosen from the reference frames' noise.
+    fn reference_rederive(&self) -> Rederive {
         // A reference of exactly zero is a dead channel (a board prints 0 for a broken contact).
         let alive: Vec<bool> = self.reference.iter().map(|r| *r != 0.0).collect();
         let keep: Vec<bool> = self.missing.iter().map(|missing| !missing).collect();
         let channels = Channels::all(self.reference.len()).masked(&self.configured).masked(&keep).masked(&alive);
         if self.params.auto_hyperparameter {
             let variance = self.noise.as_ref().filter(|_| self.noise_measured).map(NoiseModel::relative_variance);
-            return Ok(Some(recon.with_auto_hyperparameter(channels, variance)?.0));
+            return Rederive::Auto { channels, variance };
         }
-        if recon.channels() == &channels && recon.params().hyperparameter == self.given_hyperparameter {
-            return Ok(None);
-        }
-        recon.derive(self.given_hyperparameter, channels).map(Some)
+        Rederive::Fixed { hyperparameter: self.given_hyperparameter, channels }
     }
 }
 

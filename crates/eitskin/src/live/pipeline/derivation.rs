@@ -1,0 +1,259 @@
+//! What a pipeline derives from its reference and measured noise: λ and the channels' weights
+//! (a new reconstructor), the noise test of touches ([`Significance`]) and the detection of
+//! presses in Δv ([`PressDetection`]). Milliseconds to a fifth of a second of work, asked for
+//! when the reference is taken and when the noise changes; a [`Derivation`] holds all it needs
+//! (shared, not copied), so it can run on another thread while frames go on
+//! ([`Pipeline::defer_derivations`](super::Pipeline::defer_derivations)).
+
+use std::sync::Arc;
+
+use crate::image::{Image, Polarity};
+use crate::inverse::{Channels, InverseError, Reconstructor};
+use crate::noise::{NoiseModel, Significance};
+use crate::press_fit::{PressDetection, PressModel};
+
+use super::{too_many_dropped, NoiseFloor, PipelineParams};
+
+/// The reconstructor a derivation makes.
+#[derive(Debug, Clone)]
+pub(super) enum Rederive {
+    /// The one the chain has.
+    Keep,
+    /// Derived for `channels`, λ chosen from their noise (`variance` relative, per channel;
+    /// `None`: assumed), the channels weighted by it.
+    Auto { channels: Channels, variance: Option<Vec<f64>> },
+    /// Derived for `channels` at λ `hyperparameter`, unless the chain's already is that one.
+    Fixed { hyperparameter: f64, channels: Channels },
+}
+
+/// Work a pipeline asks for: run it ([`Derivation::run`], on any thread) and hand the result
+/// back ([`Pipeline::deliver`](super::Pipeline::deliver)).
+#[derive(Debug, Clone)]
+pub struct Derivation {
+    pub(super) generation: u64,
+    /// Whether it completes a reference just taken (frames are not imaged until it is in).
+    pub(super) first: bool,
+    pub(super) recon: Arc<Reconstructor>,
+    pub(super) rederive: Rederive,
+    pub(super) reference: Vec<f64>,
+    pub(super) noise: NoiseModel,
+    pub(super) params: PipelineParams,
+    pub(super) polarity: Polarity,
+    pub(super) press_model: Option<Arc<PressModel>>,
+    /// The channels the chain came with, which a new reference may not lose more than a quarter of.
+    pub(super) configured: Vec<bool>,
+    /// The reference's own frames, imaged for their largest peak (the first derivation only).
+    pub(super) reference_frames: Vec<Vec<f64>>,
+    /// The relative noise variances and reference count it was asked for, which the pipeline
+    /// records as derived once it is in (`None`: not a refresh of the noise).
+    pub(super) variance: Option<Vec<f64>>,
+    pub(super) reference_count: Option<usize>,
+}
+
+/// A derivation's result, for the pipeline that asked for it.
+#[derive(Debug)]
+pub struct Derived {
+    pub(super) generation: u64,
+    pub(super) first: bool,
+    pub(super) variance: Option<Vec<f64>>,
+    pub(super) reference_count: Option<usize>,
+    pub(super) result: Result<Tests, InverseError>,
+}
+
+/// What a derivation made.
+#[derive(Debug)]
+pub(super) struct Tests {
+    /// The new reconstructor; `None`: the chain's stays.
+    pub(super) recon: Option<Reconstructor>,
+    pub(super) significance: Option<Significance>,
+    pub(super) detection: Option<PressDetection>,
+    /// The largest |peak| of the reference frames' own images, S/m (0 when none were given).
+    pub(super) noise_peak: f64,
+}
+
+impl Derivation {
+    /// Does the work (milliseconds to a fifth of a second on the paper's sensor; allocates).
+    pub fn run(self) -> Derived {
+        let result = self.derive();
+        let Derivation { generation, first, variance, reference_count, .. } = self;
+        Derived { generation, first, variance, reference_count, result }
+    }
+
+    /// Whether it completes a reference just taken.
+    pub fn is_reference(&self) -> bool {
+        self.first
+    }
+
+    fn derive(&self) -> Result<Tests, InverseError> {
+        let recon = match &self.rederive {
+            Rederive::Keep => None,
+            Rederive::Auto { channels, variance } => {
+                Some(self.recon.with_auto_hyperparameter(channels.clone(), variance.clone())?.0)
+            }
+            Rederive::Fixed { hyperparameter, channels } => {
+                let same = self.recon.channels() == channels && self.recon.params().hyperparameter == *hyperparameter;
+                if same {
+                    None
+                } else {
+                    Some(self.recon.derive(*hyperparameter, channels.clone())?)
+                }
+            }
+        };
+        if let (true, Some(recon)) = (self.first, &recon) {
+            too_many_dropped(recon.channels().used_mask(), &self.configured, 0)?;
+        }
+        let recon_now = recon.as_ref().unwrap_or(&self.recon);
+        let mut noise_peak = 0.0_f64;
+        if !self.reference_frames.is_empty() {
+            let mut image: Image = recon_now.blank_image();
+            for frame in &self.reference_frames {
+                // Channels missing from any reference frame are dropped, so imaging cannot fail.
+                if recon_now.image_into(&self.reference, frame, &mut image).is_ok() {
+                    noise_peak = noise_peak.max(image.peak().map_or(0.0, |(_, v)| f64::from(v.abs())));
+                }
+            }
+        }
+        let (significance, detection) = self.tests(recon_now)?;
+        Ok(Tests { recon, significance, detection, noise_peak })
+    }
+
+    /// The noise test of `recon`'s images under the noise model, for the floor asked; with a
+    /// press model, the detection of presses in Δv against the same noise.
+    fn tests(&self, recon: &Reconstructor) -> Result<(Option<Significance>, Option<PressDetection>), InverseError> {
+        let NoiseFloor::FalseAlarm { rate } = self.params.noise_floor else { return Ok((None, None)) };
+        let detection = match &self.press_model {
+            Some(model) => {
+                let channels = recon.channels();
+                // In the model's volts, as the chain gives the press fit its Δv.
+                let model_values = recon.linearisation().background();
+                let mut std = self.noise.difference_std(model_values, false, self.params.average);
+                std.iter_mut().enumerate().filter(|(m, _)| !channels.is_used(*m)).for_each(|(_, s)| *s = f64::INFINITY);
+                Some(PressDetection::new(model, &std, self.noise.frames(), rate)?)
+            }
+            None => None,
+        };
+        let significance =
+            Significance::new(recon, &self.reference, &self.noise, self.params.average, self.polarity, rate)?;
+        Ok((Some(significance), detection))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Pipeline, PipelineParams, Status};
+    use crate::chain::Chain;
+    use crate::sim::VirtualSensor;
+    use crate::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
+
+    /// Two pipelines of one chain, λ chosen from the noise: one deriving on its frame path, one
+    /// deferring; and frames of the virtual sensor at rest.
+    fn pair() -> (Pipeline, Pipeline, VirtualSensor) {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 800;
+        let recon = Reconstructor::new(&spec.forward_model().unwrap(), 1.0, &ReconstructorParams::default()).unwrap();
+        let chain = Chain::new(recon, TouchParams::default());
+        let params = PipelineParams { auto_hyperparameter: true, ..PipelineParams::default() };
+        let mut deferred = Pipeline::new(chain.clone(), params);
+        deferred.defer_derivations(true);
+        (Pipeline::new(chain, params), deferred, VirtualSensor::new(&spec, 3).unwrap())
+    }
+
+    #[test]
+    fn deferred_frames_go_on_while_derived_elsewhere_and_end_as_on_the_frame_path() {
+        let (mut inline, mut deferred, mut skin) = pair();
+        for k in 1..=10 {
+            let frame = skin.frame().unwrap();
+            inline.process(&frame).unwrap();
+            let status = deferred.process(&frame).unwrap();
+            assert_eq!(
+                status,
+                if k < 10 { Status::Referencing { collected: k, needed: 10 } } else { Status::Deriving }
+            );
+        }
+        let job = deferred.take_derivation().expect("the reference's derivation is asked for");
+        assert!(job.is_reference() && deferred.deriving() && deferred.take_derivation().is_none());
+        // Frames while it runs elsewhere: not imaged, and nothing asked twice.
+        for _ in 0..3 {
+            assert_eq!(deferred.process(&skin.frame().unwrap()).unwrap(), Status::Deriving);
+            assert!(deferred.take_derivation().is_none());
+        }
+        deferred.deliver(job.run());
+        let status = deferred.process(&skin.frame().unwrap()).unwrap();
+        assert_eq!(status, Status::Referencing { collected: 10, needed: 10 }, "the reference's event, once it is in");
+        assert!(!deferred.deriving());
+        assert_eq!(deferred.hyperparameter(), inline.hyperparameter(), "λ from the same frames' noise");
+        let threshold = |p: &Pipeline| p.significance().map(|s| s.threshold());
+        assert_eq!(threshold(&deferred), threshold(&inline));
+
+        // A refresh (the reference doubles at 20 frames): asked for, frames imaged meanwhile
+        // with what was derived before, then it comes in on the frame after it is given back.
+        let mut refresh = None;
+        for _ in 0..30 {
+            assert_eq!(deferred.process(&skin.frame().unwrap()).unwrap(), Status::Processed);
+            refresh = deferred.take_derivation();
+            if refresh.is_some() {
+                break;
+            }
+        }
+        let refresh = refresh.expect("a refresh within 30 frames");
+        assert!(!refresh.is_reference());
+        assert_eq!(deferred.process(&skin.frame().unwrap()).unwrap(), Status::Processed);
+        deferred.deliver(refresh.run());
+        assert_eq!(deferred.process(&skin.frame().unwrap()).unwrap(), Status::NoiseUpdated);
+
+        // A press: found at the same place as on the frame path.
+        for _ in 0..20 {
+            let frame = skin.frame().unwrap();
+            inline.process(&frame).unwrap();
+            deferred.process(&frame).unwrap();
+            if let Some(job) = deferred.take_derivation() {
+                deferred.deliver(job.run());
+            }
+        }
+        skin.press([0.04, -0.03], 10.0);
+        let frame = skin.frame().unwrap();
+        inline.process(&frame).unwrap();
+        deferred.process(&frame).unwrap();
+        assert_eq!((inline.touches().len(), deferred.touches().len()), (1, 1));
+        let [a, b] = [&inline, &deferred].map(|p| p.touches()[0].touch.centre);
+        assert!((a[0] - b[0]).hypot(a[1] - b[1]) < 1e-3, "{a:?} against {b:?}");
+    }
+
+    #[test]
+    fn a_derivation_asked_before_the_reference_was_retaken_or_a_channel_dropped_is_dropped() {
+        let (_, mut pipeline, mut skin) = pair();
+        for _ in 0..10 {
+            pipeline.process(&skin.frame().unwrap()).unwrap();
+        }
+        let stale = pipeline.take_derivation().expect("asked for");
+        pipeline.retake_reference();
+        pipeline.deliver(stale.run());
+        assert!(!pipeline.deriving());
+        let status = pipeline.process(&skin.frame().unwrap()).unwrap();
+        assert_eq!(status, Status::Referencing { collected: 1, needed: 10 }, "a new reference");
+
+        for _ in 0..9 {
+            pipeline.process(&skin.frame().unwrap()).unwrap();
+        }
+        let job = pipeline.take_derivation().expect("asked for");
+        pipeline.deliver(job.run());
+        let mut refresh = None;
+        for _ in 0..40 {
+            pipeline.process(&skin.frame().unwrap()).unwrap();
+            refresh = pipeline.take_derivation();
+            if refresh.is_some() {
+                break;
+            }
+        }
+        let refresh = refresh.expect("a refresh within 40 frames");
+        // Channel 6 goes bad while the refresh is away: dropped at once; the refresh, derived
+        // with it, would bring it back, so it is dropped when it comes.
+        let mut frame = skin.frame().unwrap();
+        frame[5] = f64::NAN;
+        assert_eq!(pipeline.process(&frame).unwrap(), Status::ChannelsDropped { count: 1 });
+        pipeline.deliver(refresh.run());
+        assert!(!pipeline.deriving());
+        assert_eq!(pipeline.process(&skin.frame().unwrap()).unwrap(), Status::Processed);
+        assert_eq!(pipeline.dropped_channels(), vec![5]);
+    }
+}
