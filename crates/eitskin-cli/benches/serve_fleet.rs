@@ -18,6 +18,10 @@
 //! frame period too. The first 100 frames of each sensor (its reference, taken while every
 //! sensor takes its own) are reported apart from the rest, and the run's second half apart
 //! again; and when each sensor's first imaged line came.
+//!
+//! Sensor 0's board dies for the middle fifth of the run (its bridge sends nothing from 40 % to
+//! 60 % of it) and comes back: the bench reports when its `silent` and `resumed` events came, its
+//! frames after the outage, and every other sensor's latency meanwhile (the 10-s windows).
 
 use std::collections::HashMap;
 use std::process::{Command, Stdio};
@@ -28,6 +32,10 @@ use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
 const RATE_HZ: f64 = 100.0;
+/// The sensor whose board dies for a while.
+const DEAD: usize = 0;
+/// The latency is also given for each window of this many seconds of the frames' times.
+const WINDOW_S: usize = 10;
 const WARM_UP: u64 = 100;
 /// Frames of the recording: 2 s at rest, then four presses 3 s apart, 1 s at rest after the last.
 const RECORDED: u64 = 1400;
@@ -38,6 +46,8 @@ fn main() {
     let (sensors, seconds) = (number(0, 100), number(1, 10));
     let threads = args.get(2).cloned();
     let frames = seconds as u64 * RATE_HZ as u64;
+    // The frames sensor DEAD's board never sends.
+    let dead = if sensors > 1 { frames * 2 / 5..frames * 3 / 5 } else { 0..0 };
     let eitskin = env!("CARGO_BIN_EXE_eitskin");
     let dir = tempfile::tempdir().expect("a scratch folder");
 
@@ -64,6 +74,8 @@ fn main() {
             record["values"].as_array().expect("values").iter().map(|v| v.as_f64().expect("a number")).collect()
         })
         .collect();
+
+    let values: Vec<String> = records.iter().map(|v| serde_json::to_string(v).expect("values")).collect();
 
     // The peer: loopback only, no multicast.
     let port = std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a port").port();
@@ -93,6 +105,26 @@ fn main() {
         })
         .wait()
         .expect("a subscriber");
+    // When each sensor's derivations (its reference's, its noise's) came in, and the dead
+    // sensor's source events.
+    let derived: Arc<Mutex<Vec<Instant>>> = Arc::default();
+    let outage: Arc<Mutex<Vec<(String, Instant)>>> = Arc::default();
+    let (events, outage_events) = (Arc::clone(&derived), Arc::clone(&outage));
+    let _events = session
+        .declare_subscriber("bench/*/events")
+        .callback(move |sample| {
+            let line: Result<serde_json::Value, _> = serde_json::from_slice(&sample.payload().to_bytes());
+            let Ok(line) = line else { return };
+            if line["event"] == "reference_taken" || line["event"] == "noise_updated" {
+                events.lock().expect("the list").push(Instant::now());
+            }
+            if line["event"] == "silent" || line["event"] == "resumed" {
+                let said = format!("{}: {}", sample.key_expr(), line["detail"].as_str().unwrap_or_default());
+                outage_events.lock().expect("the list").push((said, Instant::now()));
+            }
+        })
+        .wait()
+        .expect("a subscriber");
 
     // The fleet: each sensor's frames from its bridge's key, published under bench/.
     let fleet = dir.path().join("fleet.toml");
@@ -103,8 +135,9 @@ fn main() {
         .collect();
     let mut text = String::new();
     for k in 0..sensors {
+        let taken = if k == DEAD { frames - (dead.end - dead.start) } else { frames };
         text += &format!(
-            "[[sensor]]\nname = \"s{k}\"\nrun = [\"--source\", \"zenoh:board/s{k}\", \"--frames\", \"{frames}\", \
+            "[[sensor]]\nname = \"s{k}\"\nrun = [\"--source\", \"zenoh:board/s{k}\", \"--frames\", \"{taken}\", \
              \"--publish\", \"zenoh:bench\", \"--wait-for-subscriber\", \"600\"{extra}]\n\n"
         );
     }
@@ -148,6 +181,9 @@ fn main() {
         .collect();
     due.sort();
     for (at, k, seq) in due {
+        if k == DEAD && dead.contains(&seq) {
+            continue;
+        }
         let now = Instant::now();
         if at > now {
             std::thread::sleep(at - now);
@@ -161,9 +197,9 @@ fn main() {
         } else {
             WARM_UP + (seq - WARM_UP + k as u64 * pressing / sensors as u64) % pressing
         };
-        let values = &records[at as usize];
-        let message = serde_json::json!({"seq": seq, "t_s": seq as f64 / RATE_HZ, "values": values});
-        let bytes = serde_json::to_vec(&message).expect("a frame");
+        // The message a bridge sends, its values written once per record (so that this process,
+        // on the same cores, spends little of them on making the load).
+        let bytes = format!("{{\"seq\":{seq},\"t_s\":{},\"values\":{}}}", seq as f64 / RATE_HZ, values[at as usize]);
         sent.insert((k, seq), Instant::now());
         publishers[k].put(bytes).wait().expect("a put");
     }
@@ -172,6 +208,7 @@ fn main() {
 
     let arrived = arrived.lock().expect("the map");
     let (mut warm, mut steady, mut late, mut lost) = (Vec::new(), Vec::new(), Vec::new(), 0usize);
+    let mut windows: Vec<Vec<f64>> = vec![Vec::new(); seconds.div_ceil(WINDOW_S)];
     for (&(k, seq), &put) in &sent {
         match arrived.get(&(k, seq)) {
             Some(&came) => {
@@ -184,11 +221,15 @@ fn main() {
                 if seq >= frames / 2 {
                     late.push(ms);
                 }
+                windows[(seq as f64 / RATE_HZ) as usize / WINDOW_S].push(ms);
             }
             None => lost += 1,
         }
     }
     let summary = |name: &str, mut ms: Vec<f64>| {
+        if ms.is_empty() {
+            return;
+        }
         ms.sort_by(f64::total_cmp);
         let at = |q: f64| ms.get(((ms.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(f64::NAN);
         println!(
@@ -209,8 +250,30 @@ fn main() {
     summary(&format!("first {WARM_UP} frames a sensor (reference, noise)"), warm);
     summary(&format!("after the first {WARM_UP}"), steady);
     summary("second half of the run", late);
+    for (w, ms) in windows.into_iter().enumerate() {
+        summary(&format!("  frames of {}–{} s", w * WINDOW_S, (w + 1) * WINDOW_S), ms);
+    }
     println!("lost (put, never at the subscriber): {lost} of {}", sent.len());
     let imaged = first_imaged.lock().expect("the map");
     let latest = imaged.values().max().map_or(f64::NAN, |seq| *seq as f64 / RATE_HZ);
     println!("sensors imaging: {} of {sensors}, the last from {latest:.1} s (its frame time)", imaged.len());
+    let derived = derived.lock().expect("the list");
+    let last = derived.iter().max().map_or(f64::NAN, |at| at.saturating_duration_since(start).as_secs_f64());
+    println!(
+        "derivations in (reference taken, noise updated): {}, the last {last:.1} s after the first put",
+        derived.len()
+    );
+    let came = |seq: u64| arrived.contains_key(&(DEAD, seq));
+    let after = (dead.end..frames).filter(|seq| came(*seq)).count();
+    println!(
+        "sensor {DEAD}, its board silent for frames {}–{} ({:.1}–{:.1} s): {after} of {} frames after it served",
+        dead.start,
+        dead.end,
+        dead.start as f64 / RATE_HZ,
+        dead.end as f64 / RATE_HZ,
+        frames - dead.end
+    );
+    for (said, at) in outage.lock().expect("the list").iter() {
+        println!("  at {:.1} s: {said}", at.saturating_duration_since(start).as_secs_f64());
+    }
 }
