@@ -123,6 +123,11 @@ pub struct Args {
     /// on a model of them while they explain it (a press held costs microseconds, not milliseconds).
     #[arg(long)]
     fresh_presses: bool,
+    /// Image each frame from a half-precision copy of the reconstruction matrix: half the memory
+    /// a frame reads, each pixel within 2⁻¹¹ of the sum of its terms' magnitudes; for many
+    /// sensors on few cores (`serve`), whose matrices do not share the cache.
+    #[arg(long)]
+    half_precision: bool,
     /// Seed of the virtual sensor's noise and random presses, 0 to 2⁶⁴ − 1.
     #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     seed: u64,

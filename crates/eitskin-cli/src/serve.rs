@@ -11,8 +11,8 @@
 //! fails if any sensor did.
 //!
 //! What a sensor derives from its noise (its λ and noise tests, when its reference is taken and
-//! when its noise changes: tens of milliseconds each) is done off the frame path, by as many
-//! derivation threads as the pool has, at the lowest priority the system gives
+//! when its noise changes: tens of milliseconds each) is done off the frame path, by half as
+//! many derivation threads as the pool has (at least one), at the lowest priority the system gives
 //! (`SCHED_IDLE` on Linux): a hundred sensors taking their references at once do not hold up
 //! the frames of those already imaging. A sensor's frames are reported as referencing until its
 //! reference's derivation is in.
@@ -381,7 +381,7 @@ pub fn serve(args: Args) -> Result<()> {
             std::thread::spawn(move || pool.work())
         })
         .collect();
-    let deriving: Vec<_> = (0..threads)
+    let deriving: Vec<_> = (0..(threads / 2).max(1))
         .map(|_| {
             let pool = Arc::clone(&pool);
             std::thread::spawn(move || pool.derive())

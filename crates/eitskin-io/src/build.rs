@@ -103,13 +103,22 @@ pub struct ChainSetup {
     pub fit: bool,
     /// The pseudo-array and curves that turn strengths into forces, N.
     pub calibration: Option<(PseudoArray, Calibration)>,
+    /// Image frames from a half-precision copy of the matrix ([`Chain::set_half_precision`]).
+    pub half_precision: bool,
 }
 
 impl ChainSetup {
     /// The chain of `recon` reading each touch's peak, with the default touch settings, no fit
     /// and no calibration.
     pub fn new(recon: ReconstructorParams) -> ChainSetup {
-        ChainSetup { recon, touch: TouchParams::default(), strength: Strength::Peak, fit: false, calibration: None }
+        ChainSetup {
+            recon,
+            touch: TouchParams::default(),
+            strength: Strength::Peak,
+            fit: false,
+            calibration: None,
+            half_precision: false,
+        }
     }
 
     /// Whether building it needs the press model (seconds on the paper's sheet, unless cached).
@@ -151,6 +160,7 @@ pub fn chain(spec: &SensorSpec, setup: ChainSetup) -> Result<Chain, Error> {
     if let Some((array, calibration)) = setup.calibration {
         chain = chain.with_calibration(array, calibration)?;
     }
+    chain.set_half_precision(setup.half_precision);
     Ok(chain)
 }
 

@@ -104,7 +104,7 @@ fn chain_setup(
         );
         (file.array, file.calibration)
     });
-    ChainSetup { touch, fit: args.fit, calibration, ..ChainSetup::new(recon) }
+    ChainSetup { touch, fit: args.fit, calibration, half_precision: args.half_precision, ..ChainSetup::new(recon) }
 }
 
 /// The virtual sensor's calibration, made now as `calibrate` makes one from a board's presses

@@ -146,6 +146,8 @@ pub struct Chain {
     /// Whether presses found in Δv are carried from frame to frame, what is carried, and how
     /// the last frame's were had.
     carry_presses: bool,
+    /// Whether every reconstructor set images from a half-precision copy of its matrix.
+    half_precision: bool,
     press_track: PressTrack,
     tracked: Option<Tracked>,
     whitened: Vec<f64>,
@@ -178,6 +180,7 @@ impl Chain {
             significance: None,
             press_detection: None,
             carry_presses: false,
+            half_precision: false,
             press_track: PressTrack::default(),
             tracked: None,
             detected: Vec::with_capacity(MAX_FITTED),
@@ -203,11 +206,23 @@ impl Chain {
     /// too. Allocates (a copy of the press table while channels are dropped): an event, not the
     /// frame path.
     #[track_caller]
-    pub fn set_reconstructor(&mut self, recon: Reconstructor) {
+    pub fn set_reconstructor(&mut self, mut recon: Reconstructor) {
         assert_eq!(recon.measurements(), self.recon.measurements(), "the same protocol");
         assert_eq!(recon.blank_image().size, self.image.size, "the same raster");
+        if self.half_precision {
+            recon.set_half_precision(true);
+        }
         self.recon = Arc::new(recon);
         self.mask_press_model();
+    }
+
+    /// Images frames from a half-precision copy of the reconstructor's matrix when `on`, this
+    /// one's and every one set later ([`Reconstructor::set_half_precision`]). Allocates.
+    pub fn set_half_precision(&mut self, on: bool) {
+        self.half_precision = on;
+        if self.recon.half_precision() != on {
+            Arc::make_mut(&mut self.recon).set_half_precision(on);
+        }
     }
 
     fn mask_press_model(&mut self) {
@@ -495,5 +510,51 @@ mod tests {
             let force = found[0].force.is_some();
             assert_eq!(force, polarity == Polarity::Decrease, "{polarity:?}: {:?}", found[0]);
         }
+    }
+
+    /// Imaged from the half-precision matrix, a frame's image is within its rounding bound of
+    /// the single-precision one and its touches are the same; a reconstructor set later is
+    /// halved too, and switching back gives the single-precision image exactly.
+    #[test]
+    fn half_precision_images_keep_their_touches() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 800;
+        let model = spec.forward_model().unwrap();
+        let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
+        let reference = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let presses = [([0.04, -0.03], 0.3), ([-0.05, 0.05], 0.6)].map(|(centre, conductivity)| Inclusion {
+            centre,
+            radius: 0.012,
+            conductivity,
+        });
+        let frame = model.measure(&with_inclusions(model.mesh(), 1.0, &presses)).unwrap();
+        let mut single = Chain::new(recon.clone(), TouchParams::default());
+        let mut halved = Chain::new(recon.clone(), TouchParams::default());
+        halved.set_half_precision(true);
+        let want: Vec<[f64; 2]> = single.process(&reference, &frame).unwrap().iter().map(|t| t.touch.centre).collect();
+        let got: Vec<[f64; 2]> = halved.process(&reference, &frame).unwrap().iter().map(|t| t.touch.centre).collect();
+        assert_eq!(want.len(), 2);
+        assert_eq!(got.len(), want.len());
+        for (a, b) in want.iter().zip(&got) {
+            assert!((a[0] - b[0]).hypot(a[1] - b[1]) < 1e-4, "{a:?} against {b:?}");
+        }
+        // Each pixel within 2⁻¹¹·Σ|H·Δv| (and the sums' own f32 rounding).
+        let matrix = recon.matrix();
+        for (p, (x, y)) in single.image().values.iter().zip(&halved.image().values).enumerate() {
+            let terms: f32 =
+                (0..frame.len()).map(|m| (matrix.get(p, m) * (frame[m] - reference[m]) as f32).abs()).sum();
+            assert!((x - y).abs() <= terms / 2048.0 + 1e-5 * terms, "pixel {p}: {x} against {y}, terms {terms}");
+        }
+        halved.set_reconstructor(
+            recon
+                .rederive(&ReconstructorParams { hyperparameter: 0.2, ..*recon.params() }, recon.channels().clone())
+                .unwrap(),
+        );
+        assert!(halved.reconstructor().half_precision());
+        halved.set_half_precision(false);
+        halved.process(&reference, &frame).unwrap();
+        single.set_reconstructor(halved.reconstructor().clone());
+        single.process(&reference, &frame).unwrap();
+        assert_eq!(single.image().values, halved.image().values);
     }
 }

@@ -172,6 +172,22 @@ impl Reconstructor {
         &self.matrix
     }
 
+    /// Images frames ([`Reconstructor::image_into`]) from a half-precision copy of the matrix
+    /// when `on`: half the memory a frame reads, each pixel within 2⁻¹¹·Σ|H·Δv| of the
+    /// single-precision image (see [`BlockedMatrix::keep_half`]), on the calling core. For many
+    /// sensors on few cores, whose matrices do not share the cache. Allocates the copy.
+    pub fn set_half_precision(&mut self, on: bool) {
+        match on {
+            true => self.matrix.keep_half(),
+            false => self.matrix.drop_half(),
+        }
+    }
+
+    /// Whether frames are imaged from a half-precision copy of the matrix.
+    pub fn half_precision(&self) -> bool {
+        self.matrix.is_half()
+    }
+
     /// The same reconstructor with λ chosen from the noise (see [`choose_hyperparameter`](super::choose_hyperparameter))
     /// and the channels weighted by it ([`Linearisation::noise_weighted`]). Returns it with λ.
     pub fn with_auto_hyperparameter(
