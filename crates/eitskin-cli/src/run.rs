@@ -124,7 +124,7 @@ pub struct Args {
     #[arg(long)]
     fresh_presses: bool,
     /// Image each frame from a half-precision copy of the reconstruction matrix: half the memory
-    /// a frame reads, each pixel within 2⁻¹¹ of the sum of its terms' magnitudes; for many
+    /// a frame reads, each pixel within 2⁻¹¹ times the sum of its terms' magnitudes; for many
     /// sensors on few cores (`serve`), whose matrices do not share the cache.
     #[arg(long)]
     half_precision: bool,
@@ -328,7 +328,7 @@ pub(crate) fn ended(args: &Args, tally: Tally, processing: &Processing, params: 
     if frames == 0 {
         bail!("{}: the source ended without a frame ({bad} bad or skipped)", args.source);
     }
-    if processing.pipeline.reference().is_none() {
+    if !processing.pipeline.imaging() {
         let said = format!(
             "{}: the source ended after {frames} frames, before the reference ({} frames) was taken: nothing was imaged",
             args.source,

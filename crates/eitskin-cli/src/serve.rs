@@ -68,8 +68,11 @@ struct Slot {
     queued: AtomicBool,
     /// `None` once it ended.
     running: Mutex<Option<Running>>,
-    /// A derivation done for it, to give its pipeline at its next step.
-    derived: Mutex<Option<Derived>>,
+    /// Derivations done for it, to give its pipeline at its next step (which drops any made
+    /// stale since it asked; they may finish out of order).
+    derived: Mutex<Vec<Derived>>,
+    /// A derivation of it panicked: its next step ends it, as a panic of its own step would.
+    derivation_panicked: AtomicBool,
 }
 
 /// The fleet's sensors, the queue of those with items waiting, and how many still run.
@@ -129,9 +132,12 @@ impl Pool {
             // the sensor, never the thread.
             let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Option<Result<&'static str>> {
                 let sensor = running.as_mut()?;
-                if let Some(derived) = lock(&slot.derived).take() {
-                    sensor.processing.pipeline.deliver(derived);
+                if slot.derivation_panicked.load(Ordering::SeqCst) {
+                    *running = None;
+                    return Some(Err(anyhow!("a derivation of its noise tests panicked")));
                 }
+                let derived = std::mem::take(&mut *lock(&slot.derived));
+                derived.into_iter().for_each(|d| sensor.processing.pipeline.deliver(d));
                 let drained = sensor.processing.drain(&sensor.items, &mut sensor.sinks, STEP_ITEMS);
                 if let Some(job) = sensor.processing.pipeline.take_derivation() {
                     lock(&self.derivations).push_back((k, job));
@@ -205,14 +211,14 @@ impl Pool {
                     queue = self.derivation_wake.wait(queue).unwrap_or_else(|e| e.into_inner());
                 }
             };
-            // A panic in it is the sensor's: its pipeline never gets the result and keeps what
-            // it had (a reference never derived stays referencing).
+            // A panic in it is the sensor's: its next step ends it (its pipeline would wait for
+            // the result for ever).
+            let slot = &self.slots[k];
             match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| job.run())) {
-                Ok(derived) => *lock(&self.slots[k].derived) = Some(derived),
-                Err(_) => {
-                    eprintln!("eitskin serve: {}: a derivation panicked; it keeps what it had", self.slots[k].name)
-                }
+                Ok(derived) => lock(&slot.derived).push(derived),
+                Err(_) => slot.derivation_panicked.store(true, Ordering::SeqCst),
             }
+            self.schedule(k);
         }
     }
 }
@@ -334,7 +340,8 @@ pub fn serve(args: Args) -> Result<()> {
             pending: AtomicBool::new(false),
             queued: AtomicBool::new(false),
             running: Mutex::new(None),
-            derived: Mutex::new(None),
+            derived: Mutex::new(Vec::new()),
+            derivation_panicked: AtomicBool::new(false),
         })
         .collect();
     let pool = Arc::new(Pool {

@@ -168,6 +168,7 @@ fn a_sensor_whose_bridge_stops_holds_none_of_the_others_up() {
     };
     let (silent, resumed) = (events("c", "silent"), events("c", "resumed"));
     assert!(silent.len() == 1 && silent[0].contains("\"source\":\"zenoh:board/c\""), "{err}");
+    assert_eq!(resumed.len(), 1, "{err}");
     let outage: serde_json::Value = serde_json::from_str(&resumed[0][resumed[0].find('{').unwrap()..]).unwrap();
     assert!(outage["outage_s"].as_f64().unwrap() >= 1.5, "{}", resumed[0]);
     assert!(events("a", "silent").is_empty() && events("b", "silent").is_empty(), "{err}");

@@ -40,11 +40,13 @@ pub struct ZenohSource {
     counter: Counter,
     /// Items to deliver after the one reported before them (a gap, frames again).
     pending: VecDeque<Acquired>,
-    /// When the last sample came, the typical interval between samples (s, a running mean),
-    /// and whether the silence after it was reported.
+    /// When the last sample came, and whether the silence after it was reported.
     last: Option<Instant>,
-    interval: Option<f64>,
     silent: bool,
+    /// The last frame's time and the typical interval between frames (s, a running mean), by
+    /// the frames' own times: a backlog read at once does not shorten it.
+    last_t: Option<f64>,
+    interval: Option<f64>,
 }
 
 impl ZenohSource {
@@ -70,8 +72,9 @@ impl ZenohSource {
             counter: Counter::default(),
             pending: VecDeque::with_capacity(2),
             last: None,
-            interval: None,
             silent: false,
+            last_t: None,
+            interval: None,
         })
     }
 
@@ -81,8 +84,8 @@ impl ZenohSource {
         typical.max(SILENCE_MIN)
     }
 
-    /// Notes a sample's arrival at `now`: the typical interval follows it; the end of a silence
-    /// is reported (how long none came), before the sample's own items.
+    /// Notes a sample's arrival at `now`; the end of a silence is reported (how long none
+    /// came), before the sample's own items.
     fn arrived(&mut self, now: Instant) -> Option<Acquired> {
         let since = self.last.map(|last| now.duration_since(last));
         self.last = Some(now);
@@ -90,11 +93,15 @@ impl ZenohSource {
             let source = format!("zenoh:{}", self.key);
             return since.map(|outage| Acquired::Resumed { source, outage });
         }
-        if let Some(since) = since {
-            let s = since.as_secs_f64();
-            self.interval = Some(self.interval.map_or(s, |mean| mean + (s - mean) / 16.0));
-        }
         None
+    }
+
+    /// Follows the typical interval between frames by their times `t` (s).
+    fn timed(&mut self, t: f64) {
+        if let Some(step) = self.last_t.map(|last| t - last).filter(|s| s.is_finite() && *s > 0.0) {
+            self.interval = Some(self.interval.map_or(step, |mean| mean + (step - mean) / 16.0));
+        }
+        self.last_t = Some(t);
     }
 
     /// The item a decoded message makes, and the gap before it, if any.
@@ -104,6 +111,7 @@ impl ZenohSource {
             Ok(gap) => gap,
             Err(last) => return Acquired::Bad(BadFrame::OutOfOrder { seq, last }),
         };
+        self.timed(t);
         let item = if values.len() == self.measurements {
             Acquired::Frame { seq, t, values }
         } else {

@@ -209,7 +209,7 @@ impl Chain {
     pub fn set_reconstructor(&mut self, mut recon: Reconstructor) {
         assert_eq!(recon.measurements(), self.recon.measurements(), "the same protocol");
         assert_eq!(recon.blank_image().size, self.image.size, "the same raster");
-        if self.half_precision {
+        if self.half_precision && !recon.half_precision() {
             recon.set_half_precision(true);
         }
         self.recon = Arc::new(recon);

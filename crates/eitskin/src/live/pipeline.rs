@@ -53,7 +53,9 @@
 //! Plain data and no threads or I/O: the caller feeds frames (from a port, a file, the virtual
 //! sensor) and reads the results. After the reference is taken, [`Pipeline::process`]
 //! allocates nothing, except on the frame that drops a channel (an event, not the frame path)
-//! and, unless deferred, on the frames that derive.
+//! and on the frames that derive: the derivation itself, or, deferred, the copies of the
+//! reference and noise model it takes away (and the frame that puts its result in frees what it
+//! replaces).
 
 use std::ops::RangeInclusive;
 
@@ -231,7 +233,8 @@ impl PipelineParams {
 /// What [`Pipeline::process`] did with a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Status {
-    /// The frame went into the reference; `collected` of `needed` so far.
+    /// The frame went into the reference; `collected` of `needed` so far (deferred, `collected`
+    /// = `needed` comes on the frame that puts the reference's derivation in, not part of it).
     Referencing {
         /// Frames collected.
         collected: usize,
@@ -248,7 +251,8 @@ pub enum Status {
     },
     /// The frame was imaged, and then the noise model, grown by it, gave a new λ, channel
     /// weights and threshold for the frames after it (or the reference, grown by it, a new
-    /// threshold: its own noise is less of Δv's).
+    /// threshold: its own noise is less of Δv's); deferred, the frame was imaged with them,
+    /// derived from the noise of some frames before.
     NoiseUpdated,
     /// The reference is taken and what it asks for is being derived off the frame path
     /// ([`Pipeline::defer_derivations`]); the frame was not imaged.
@@ -314,6 +318,10 @@ pub struct Pipeline {
     delivered: Option<Derived>,
     /// The reference is taken, its first derivation not yet in: frames are not imaged.
     deriving_reference: bool,
+    /// A refresh was put in before the frames imaged since: the next one says so.
+    updated: bool,
+    /// Whether the last frame was imaged (else it has no touches).
+    imaged: bool,
 }
 
 impl Pipeline {
@@ -351,6 +359,8 @@ impl Pipeline {
             asked: None,
             delivered: None,
             deriving_reference: false,
+            updated: false,
+            imaged: false,
         }
     }
 
@@ -358,6 +368,10 @@ impl Pipeline {
     /// them on the frame that asks (see the module doc); `false` goes back to the frame path.
     pub fn defer_derivations(&mut self, defer: bool) {
         self.deferred = defer;
+        // One asked for and not taken is done now, for the next frame to put in.
+        if let (false, Some(job)) = (defer, self.asked.take()) {
+            self.deliver(job.run());
+        }
     }
 
     /// The derivation asked for and not yet taken, if any: run it ([`Derivation::run`]) and give
@@ -381,6 +395,11 @@ impl Pipeline {
         self.in_flight
     }
 
+    /// Whether frames are imaged: the reference is taken and what it gives is in.
+    pub fn imaging(&self) -> bool {
+        !self.reference.is_empty() && !self.deriving_reference
+    }
+
     /// The frame path's settings.
     pub fn params(&self) -> &PipelineParams {
         &self.params
@@ -399,6 +418,7 @@ impl Pipeline {
     fn forget_derivation(&mut self) {
         self.generation += 1;
         (self.in_flight, self.asked, self.delivered, self.deriving_reference) = (false, None, None, false);
+        self.updated = false;
     }
 
     /// The reference frame, once taken (NaN on a channel no reference frame had).
@@ -458,10 +478,10 @@ impl Pipeline {
 
     /// The touches of the last processed frame, strongest first (none while referencing).
     pub fn touches(&self) -> &[TouchForce] {
-        if self.reference.is_empty() {
-            &[]
-        } else {
+        if self.imaged {
             self.chain.touches()
+        } else {
+            &[]
         }
     }
 
@@ -479,6 +499,7 @@ impl Pipeline {
             return Err(InverseError::FrameLength { expected: count, got: frame.len() });
         }
         self.newly_dropped.clear();
+        self.imaged = false;
         let installed = match self.delivered.take() {
             Some(derived) => Some(self.install(derived)?),
             None => None,
@@ -486,13 +507,17 @@ impl Pipeline {
         if self.reference.is_empty() {
             return self.collect(frame);
         }
-        if let Some(ratio) = typical_ratio_in(frame, &self.reference, &mut self.ratios).filter(|r| !plausible_ratio(*r))
-        {
-            return Err(InverseError::FrameScale { ratio, restarted: false });
-        }
+        // A new reference's derivation put in: this frame says so (and is not imaged), whatever
+        // it holds.
         if installed == Some(true) {
             let needed = self.params.frames_in_reference();
             return Ok(Status::Referencing { collected: needed, needed });
+        }
+        // A refresh put in: the next frame imaged says so.
+        self.updated |= installed == Some(false);
+        if let Some(ratio) = typical_ratio_in(frame, &self.reference, &mut self.ratios).filter(|r| !plausible_ratio(*r))
+        {
+            return Err(InverseError::FrameScale { ratio, restarted: false });
         }
         if self.deriving_reference {
             return Ok(Status::Deriving);
@@ -521,11 +546,12 @@ impl Pipeline {
         };
         self.since_reference += 1;
         let touched = !self.chain.process(&self.reference, imaged)?.is_empty();
+        self.imaged = true;
         self.quiet = if touched { 0 } else { self.quiet + 1 };
-        let mut status = match (self.newly_dropped.len(), installed) {
-            (0, Some(false)) => Status::NoiseUpdated,
-            (0, _) => Status::Processed,
-            (count, _) => Status::ChannelsDropped { count },
+        let mut status = match self.newly_dropped.len() {
+            0 if std::mem::take(&mut self.updated) => Status::NoiseUpdated,
+            0 => Status::Processed,
+            count => Status::ChannelsDropped { count },
         };
         if !touched {
             if let Some(noise) = self.noise.as_mut() {

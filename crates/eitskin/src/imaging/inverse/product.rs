@@ -11,9 +11,10 @@
 //! column scaled so that its largest entry is 2¹⁵, halves what a frame reads. Where many
 //! sensors' matrices share the cache (a server of a whole skin), a frame's product is the
 //! matrix read from memory, so it takes about half the time. Each entry is then within 2⁻¹¹
-//! of itself (entries below 2⁻²⁹ of their column's largest become 0), so each pixel within
-//! 2⁻¹¹·Σ|H·d| of the single-precision product; conversion to f32 is exact, and the sums are
-//! the same on every path (no operation fused).
+//! of itself, so each pixel within 2⁻¹¹·Σ|H·d| of the single-precision product, except that
+//! entries below 2⁻²⁹ of their column's largest become 0 (add 2⁻²⁹·Σ_m max|H_m|·|d_m|);
+//! conversion to f32 is exact, and the sums are the same on every path (no operation fused).
+//! The vector path is AVX-512's; elsewhere the portable loop runs, on one core.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef};
@@ -54,6 +55,7 @@ impl BlockedMatrix {
     /// doc); [`set`](Self::set) drops it. Allocates the copy (a quarter of a second's worth of
     /// frames: setup, not the frame path).
     pub fn keep_half(&mut self) {
+        debug_assert!(self.data.iter().all(|h| h.is_finite()), "a finite matrix");
         let largest = (0..self.columns).map(|m| self.column(m).fold(0.0_f32, |a, h| a.max(h.abs())));
         let scales: Vec<f32> = largest.map(|l| if l > 0.0 && l.is_finite() { l / HALF_TOP } else { 1.0 }).collect();
         let bits = self
@@ -336,6 +338,7 @@ mod tests {
                 let bound: f32 = (0..columns).map(|c| (entry(r, c) * d(c)).abs()).sum::<f32>() / 1024.0;
                 assert!((halved[r] - single[r]).abs() <= bound + 1e-6, "{rows}×{columns}, row {r}");
             }
+            // (On a processor without AVX-512 both are the portable loop.)
             if let (Some(half), true) = (&matrix.half, columns > 0 && columns <= PASS) {
                 let scaled: Vec<f32> = (0..columns).map(|c| d(c) * half.scales[c]).collect();
                 let mut portable = vec![f32::NAN; rows];

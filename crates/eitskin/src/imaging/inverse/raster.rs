@@ -173,7 +173,7 @@ impl Reconstructor {
     }
 
     /// Images frames ([`Reconstructor::image_into`]) from a half-precision copy of the matrix
-    /// when `on`: half the memory a frame reads, each pixel within 2⁻¹¹·Σ|H·Δv| of the
+    /// when `on`: half the memory a frame reads, each pixel within about 2⁻¹¹·Σ|H·Δv| of the
     /// single-precision image (see [`BlockedMatrix::keep_half`]), on the calling core. For many
     /// sensors on few cores, whose matrices do not share the cache. Allocates the copy.
     pub fn set_half_precision(&mut self, on: bool) {

@@ -85,7 +85,7 @@ impl Derivation {
     }
 
     fn derive(&self) -> Result<Tests, InverseError> {
-        let recon = match &self.rederive {
+        let mut recon = match &self.rederive {
             Rederive::Keep => None,
             Rederive::Auto { channels, variance } => {
                 Some(self.recon.with_auto_hyperparameter(channels.clone(), variance.clone())?.0)
@@ -101,6 +101,11 @@ impl Derivation {
         };
         if let (true, Some(recon)) = (self.first, &recon) {
             too_many_dropped(recon.channels().used_mask(), &self.configured, 0)?;
+        }
+        // Imaged as the chain's is, its half-precision copy made here rather than on the frame
+        // that puts it in.
+        if let (true, Some(recon)) = (self.recon.half_precision(), recon.as_mut()) {
+            recon.set_half_precision(true);
         }
         let recon_now = recon.as_ref().unwrap_or(&self.recon);
         let mut noise_peak = 0.0_f64;
@@ -217,6 +222,53 @@ mod tests {
         assert_eq!((inline.touches().len(), deferred.touches().len()), (1, 1));
         let [a, b] = [&inline, &deferred].map(|p| p.touches()[0].touch.centre);
         assert!((a[0] - b[0]).hypot(a[1] - b[1]) < 1e-3, "{a:?} against {b:?}");
+    }
+
+    #[test]
+    fn a_frame_not_imaged_has_no_touches_and_no_event_is_lost_to_a_refused_frame() {
+        let (_, mut pipeline, mut skin) = pair();
+        let step = |pipeline: &mut Pipeline, skin: &mut VirtualSensor| {
+            let status = pipeline.process(&skin.frame().unwrap());
+            if let Some(job) = pipeline.take_derivation() {
+                pipeline.deliver(job.run());
+            }
+            status
+        };
+        for _ in 0..40 {
+            step(&mut pipeline, &mut skin).unwrap();
+        }
+        skin.press([0.04, -0.03], 10.0);
+        step(&mut pipeline, &mut skin).unwrap();
+        assert_eq!(pipeline.touches().len(), 1);
+        // Re-taken under the press: no frame until the new reference's derivation is in has
+        // touches (the last imaged frame's are not carried over).
+        pipeline.retake_reference();
+        for _ in 0..10 {
+            pipeline.process(&skin.frame().unwrap()).unwrap();
+            assert!(pipeline.touches().is_empty());
+        }
+        let job = pipeline.take_derivation().unwrap();
+        assert_eq!(pipeline.process(&skin.frame().unwrap()).unwrap(), Status::Deriving);
+        assert!(pipeline.touches().is_empty());
+        pipeline.deliver(job.run());
+        assert_eq!(
+            pipeline.process(&skin.frame().unwrap()).unwrap(),
+            Status::Referencing { collected: 10, needed: 10 }
+        );
+        assert!(pipeline.touches().is_empty() && pipeline.imaging());
+        // Still pressed as when re-taken, frames are quiet and grow the noise model until it
+        // asks for a refresh; it comes in on a frame that is refused (another board's scale):
+        // the next frame imaged says it.
+        let refresh = (0..2000)
+            .find_map(|_| {
+                pipeline.process(&skin.frame().unwrap()).unwrap();
+                pipeline.take_derivation()
+            })
+            .expect("quiet frames ask for a refresh");
+        pipeline.deliver(refresh.run());
+        let tenfold: Vec<f64> = skin.frame().unwrap().iter().map(|v| 10.0 * v).collect();
+        assert!(pipeline.process(&tenfold).is_err());
+        assert_eq!(pipeline.process(&skin.frame().unwrap()).unwrap(), Status::NoiseUpdated);
     }
 
     #[test]
