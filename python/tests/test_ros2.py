@@ -68,7 +68,10 @@ def test_ros2_messages_equal_the_json_lines_frame_for_frame(tmp_path):
     port = free_port()
     with peer(port) as session:
         samples = {leaf: queue.Queue() for leaf in TOPICS}
-        subscribers = [session.declare_subscriber(keys[leaf], q.put) for leaf, q in samples.items()]
+        # eitskin waits for a subscriber to the touches: declared last, after the others on the
+        # same link, it matches once they are all known.
+        order = sorted(samples.items(), key=lambda item: item[0] == "touches")
+        subscribers = [session.declare_subscriber(keys[leaf], q.put) for leaf, q in order]
         tokens = queue.Queue()
         watcher = session.liveliness().declare_subscriber("@ros2_lv/0/**", tokens.put)
         out = run(

@@ -86,7 +86,9 @@ def test_what_is_published_equals_the_json_lines_frame_for_frame(tmp_path):
     for encoding in ["json", "cbor"]:
         port = free_port()
         with peer(port) as session:
-            samples = {topic: queue.Queue() for topic in ["touches", "events", "image"]}
+            # eitskin waits for a subscriber to the touches: declared last, after the others
+            # on the same link, it matches once they are all known.
+            samples = {topic: queue.Queue() for topic in ["events", "image", "touches"]}
             subscribers = [session.declare_subscriber(f"test/left/{t}", q.put) for t, q in samples.items()]
             out = run(
                 "--source", f"sim:{script(tmp_path)}", "--fast", "--frames", str(FRAMES), "--triangles", "1500",

@@ -10,12 +10,14 @@
 //! unplugged, reconnected; a gap in a bridge's frames). `serve` ends when every source has, and
 //! fails if any sensor did.
 //!
-//! What a sensor derives from its noise (its λ and noise tests, when its reference is taken and
-//! when its noise changes: tens of milliseconds each) is done off the frame path, by half as
-//! many derivation threads as the pool has (at least one), at the lowest priority the system gives
-//! (`SCHED_IDLE` on Linux): a hundred sensors taking their references at once do not hold up
-//! the frames of those already imaging. A sensor's frames are reported as referencing until its
-//! reference's derivation is in.
+//! What a sensor derives from its noise (its λ and noise tests: tens of milliseconds each) is
+//! derived as `run` derives it, with one difference. A new reference's derivation is done at
+//! once, on the pool thread that stepped the sensor, and the sensor's frames wait for it: each
+//! is imaged, as `run` images it. Its refreshes, as its noise model grows, are done off the
+//! frame path, by half as many derivation threads as the pool has (at least one), at the
+//! lowest priority the system gives (`SCHED_IDLE` on Linux; a loaded machine delays them, never
+//! a frame): frames go on with what was derived before, and a refresh is put in at the next
+//! frame after it is done.
 //!
 //! Scaling past one machine: run more `serve`s, each with its share of the sensors; Zenoh routes.
 
@@ -27,7 +29,7 @@ use std::thread::JoinHandle;
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::FromArgMatches;
-use eitskin::pipeline::{Derivation, Derived, PipelineParams};
+use eitskin::pipeline::{Deferred, Derivation, Derived, PipelineParams};
 use eitskin_io::source::{Acquired, SourceError};
 use eitskin_io::stream::Event;
 
@@ -286,7 +288,7 @@ type Built = (Processing, Vec<Box<dyn Sink>>, eitskin_io::source::Source, Pipeli
 fn build(args: &run::Args, name: &str, session: Option<&eitskin_io::middleware::Session>) -> Result<Built> {
     let Sensor { spec, mut processing, start, params } = run::prepare(args)?;
     processing.quiet();
-    processing.pipeline.defer_derivations(true);
+    processing.pipeline.defer_derivations(Deferred::Refreshes);
     let source = run::open_source(args, &spec, processing.kind(), session)?;
     let mut sinks = run::sinks(args, &spec, &processing.pipeline, processing.kind(), session)?;
     sinks.push(Box::new(Reporting(name.to_owned())));

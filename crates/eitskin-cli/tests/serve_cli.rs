@@ -63,6 +63,9 @@ fn a_fleets_mistakes_are_refused_before_any_work_naming_the_sensor() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("\"0\" is not a number of threads"));
 }
 
+/// Each sensor's lines: seq, and whether the frame was imaged.
+type Lines = BTreeMap<String, Vec<(u64, bool)>>;
+
 #[test]
 fn a_sensor_whose_bridge_stops_holds_none_of_the_others_up() {
     const FRAMES: u64 = 40;
@@ -100,14 +103,15 @@ fn a_sensor_whose_bridge_stops_holds_none_of_the_others_up() {
 
     let port = free_port();
     let session = peer(port);
-    let lines: Arc<Mutex<BTreeMap<String, Vec<u64>>>> = Arc::default();
+    let lines: Arc<Mutex<Lines>> = Arc::default();
     let sink = Arc::clone(&lines);
     let _subscriber = session
         .declare_subscriber("fleet/*/touches")
         .callback(move |sample| {
             let name = sample.key_expr().as_str().split('/').nth(1).unwrap().to_owned();
             let line: serde_json::Value = serde_json::from_slice(&sample.payload().to_bytes()).unwrap();
-            sink.lock().unwrap().entry(name).or_default().push(line["seq"].as_u64().unwrap());
+            let said = (line["seq"].as_u64().unwrap(), line["status"] == "ok");
+            sink.lock().unwrap().entry(name).or_default().push(said);
         })
         .wait()
         .unwrap();
@@ -159,7 +163,10 @@ fn a_sensor_whose_bridge_stops_holds_none_of_the_others_up() {
     let err = String::from_utf8_lossy(&out.stderr);
     let lines = lines.lock().unwrap();
     for name in names {
-        assert_eq!(lines[name], (0..FRAMES).collect::<Vec<_>>(), "{name}: every frame, in order");
+        // Every frame, in order; each after the reference's 10 imaged (they waited for its
+        // derivation, however fast they came).
+        let expected: Vec<(u64, bool)> = (0..FRAMES).map(|seq| (seq, seq >= 10)).collect();
+        assert_eq!(lines[name], expected, "{name}: every frame, in order, imaged after the reference");
     }
     assert!(err.contains("d: failed to start, the others go on") && err.contains("missing.jsonl"), "{err}");
     let events = |name: &str, kind: &str| {

@@ -46,9 +46,10 @@
 //! [`Pipeline::defer_derivations`] it hands the work out instead ([`Pipeline::take_derivation`],
 //! a [`Derivation`] to run on any thread, its result given back by [`Pipeline::deliver`]) and
 //! puts it in at the next frame after it came: frames go on meanwhile, imaged with what was
-//! derived before ([`Status::Deriving`] until a new reference's first derivation is in). A
-//! server of many sensors runs them at a lower priority than frames, so that every sensor
-//! taking its reference at once does not hold the others' frames up.
+//! derived before ([`Status::Deriving`] until a new reference's first derivation is in, when
+//! that one is deferred too: [`Deferred`]). A server of many sensors runs the refreshes at a
+//! lower priority than frames, and each new reference's on its last frame, so that every frame
+//! after a reference is imaged as without deferring.
 //!
 //! Plain data and no threads or I/O: the caller feeds frames (from a port, a file, the virtual
 //! sensor) and reads the results. After the reference is taken, [`Pipeline::process`]
@@ -230,6 +231,31 @@ impl PipelineParams {
     }
 }
 
+/// Which derivations [`Pipeline::defer_derivations`] hands out rather than doing them on the
+/// frame that asks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Deferred {
+    /// None (the default): each is done on the frame that asks.
+    #[default]
+    None,
+    /// The refreshes as the noise model grows; a new reference's is done on its last frame, so
+    /// every frame after it is imaged, as without deferring.
+    Refreshes,
+    /// All, a new reference's too: the frames until it is in are [`Status::Deriving`].
+    All,
+}
+
+impl Deferred {
+    /// Whether a derivation (`first`: a new reference's) is handed out.
+    fn defers(self, first: bool) -> bool {
+        match self {
+            Deferred::None => false,
+            Deferred::Refreshes => !first,
+            Deferred::All => true,
+        }
+    }
+}
+
 /// What [`Pipeline::process`] did with a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Status {
@@ -309,7 +335,7 @@ pub struct Pipeline {
     ring_next: usize,
     averaged: Vec<f64>,
     /// Whether derivations are handed out rather than done on the frame path.
-    deferred: bool,
+    deferred: Deferred,
     /// Counts the reference re-taken and channels dropped: a derivation asked for before is stale.
     generation: u64,
     /// A derivation asked for and not yet in; the one not yet taken; the one given back.
@@ -353,7 +379,7 @@ impl Pipeline {
             ring: vec![0.0; count * params.average.max(1)],
             ring_next: 0,
             averaged: vec![0.0; count],
-            deferred: false,
+            deferred: Deferred::None,
             generation: 0,
             in_flight: false,
             asked: None,
@@ -364,12 +390,12 @@ impl Pipeline {
         }
     }
 
-    /// From now on, hands the derivations out ([`Pipeline::take_derivation`]) instead of doing
-    /// them on the frame that asks (see the module doc); `false` goes back to the frame path.
-    pub fn defer_derivations(&mut self, defer: bool) {
-        self.deferred = defer;
-        // One asked for and not taken is done now, for the next frame to put in.
-        if let (false, Some(job)) = (defer, self.asked.take()) {
+    /// From now on, hands the derivations `which` names out ([`Pipeline::take_derivation`])
+    /// instead of doing them on the frame that asks (see the module doc).
+    pub fn defer_derivations(&mut self, which: Deferred) {
+        self.deferred = which;
+        // One asked for, not taken and no longer deferred is done now, for the next frame.
+        if let Some(job) = self.asked.take_if(|job| !which.defers(job.first)) {
             self.deliver(job.run());
         }
     }
@@ -612,7 +638,7 @@ impl Pipeline {
         let mut job = self.derivation(rederive, Vec::new());
         (job.variance, job.reference_count) = (changed.then_some(variance), Some(count));
         self.ask(job)?;
-        Ok(!self.deferred)
+        Ok(!self.deferred.defers(false))
     }
 
     /// A derivation of `rederive` and the noise tests from the reference and noise as they are
@@ -642,7 +668,7 @@ impl Pipeline {
     fn ask(&mut self, job: Derivation) -> Result<(), InverseError> {
         self.in_flight = true;
         self.deriving_reference = job.first;
-        if self.deferred {
+        if self.deferred.defers(job.first) {
             self.asked = Some(job);
             return Ok(());
         }

@@ -145,7 +145,7 @@ impl Derivation {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Pipeline, PipelineParams, Status};
+    use super::super::{Deferred, Pipeline, PipelineParams, Status};
     use crate::chain::Chain;
     use crate::sim::VirtualSensor;
     use crate::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
@@ -159,7 +159,7 @@ mod tests {
         let chain = Chain::new(recon, TouchParams::default());
         let params = PipelineParams { auto_hyperparameter: true, ..PipelineParams::default() };
         let mut deferred = Pipeline::new(chain.clone(), params);
-        deferred.defer_derivations(true);
+        deferred.defer_derivations(Deferred::All);
         (Pipeline::new(chain, params), deferred, VirtualSensor::new(&spec, 3).unwrap())
     }
 
@@ -222,6 +222,35 @@ mod tests {
         assert_eq!((inline.touches().len(), deferred.touches().len()), (1, 1));
         let [a, b] = [&inline, &deferred].map(|p| p.touches()[0].touch.centre);
         assert!((a[0] - b[0]).hypot(a[1] - b[1]) < 1e-3, "{a:?} against {b:?}");
+    }
+
+    #[test]
+    fn deferring_only_refreshes_images_every_frame_after_the_reference_as_on_the_frame_path() {
+        let (mut inline, mut deferred, mut skin) = pair();
+        deferred.defer_derivations(Deferred::Refreshes);
+        let mut refreshes = 0;
+        for k in 1..=400 {
+            if k == 200 {
+                skin.press([0.04, -0.03], 10.0);
+            }
+            let frame = skin.frame().unwrap();
+            let (a, b) = (inline.process(&frame).unwrap(), deferred.process(&frame).unwrap());
+            // The same status on every frame, but those that put a refresh in (later, deferred).
+            if !matches!(a, Status::NoiseUpdated) && !matches!(b, Status::NoiseUpdated) {
+                assert_eq!(a, b, "frame {k}");
+            }
+            assert_eq!(a.imaged(), k > 10, "frame {k}");
+            assert_eq!(b.imaged(), k > 10, "frame {k}");
+            if let Some(job) = deferred.take_derivation() {
+                assert!(!job.is_reference(), "a reference's is done on its frame");
+                refreshes += 1;
+                deferred.deliver(job.run());
+            }
+        }
+        assert!(refreshes > 0, "the refreshes are handed out");
+        let (a, b) = (inline.touches(), deferred.touches());
+        assert!(a.len() == 1 && b.len() == 1);
+        assert!((a[0].touch.centre[0] - b[0].touch.centre[0]).abs() < 1e-3, "{a:?} against {b:?}");
     }
 
     #[test]
