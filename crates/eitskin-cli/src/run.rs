@@ -295,6 +295,15 @@ pub(crate) fn prepare(args: &Args) -> Result<Sensor> {
     Ok(Sensor { spec, processing, start, params })
 }
 
+/// How fast `args`'s source is read (a board or a bridge: as its frames come).
+pub(crate) fn speed(args: &Args) -> Speed {
+    if args.fast || args.rate <= 0.0 {
+        Speed::AsFastAsPossible
+    } else {
+        Speed::Recorded
+    }
+}
+
 /// Opens the source `args` names for frames of `spec` whose numbers are `kind` (frames from Zenoh
 /// on `session`), not yet read.
 pub(crate) fn open_source(
@@ -305,7 +314,7 @@ pub(crate) fn open_source(
 ) -> Result<Source> {
     let settings = SourceSettings {
         rate: args.rate,
-        speed: if args.fast || args.rate <= 0.0 { Speed::AsFastAsPossible } else { Speed::Recorded },
+        speed: speed(args),
         frames: args.frames.map(|n| n as u64),
         codec: args.codec,
         seed: args.seed,

@@ -10,14 +10,15 @@
 //! unplugged, reconnected; a gap in a bridge's frames). `serve` ends when every source has, and
 //! fails if any sensor did.
 //!
-//! What a sensor derives from its noise (its λ and noise tests: tens of milliseconds each) is
-//! derived as `run` derives it, with one difference. A new reference's derivation is done at
-//! once, on the pool thread that stepped the sensor, and the sensor's frames wait for it: each
-//! is imaged, as `run` images it. Its refreshes, as its noise model grows, are done off the
-//! frame path, by half as many derivation threads as the pool has (at least one), at the
-//! lowest priority the system gives (`SCHED_IDLE` on Linux; a loaded machine delays them, never
-//! a frame): frames go on with what was derived before, and a refresh is put in at the next
-//! frame after it is done.
+//! What a sensor derives from its noise (its λ and noise tests, when its reference is taken and
+//! as its noise model grows: tens of milliseconds each) is done off the frame path, by half as
+//! many derivation threads as the pool has (at least one), at the lowest priority the system
+//! gives (`SCHED_IDLE` on Linux; a loaded machine delays them, never a frame): a hundred
+//! sensors taking their references at once hold none of the frames up. Frames go on with what
+//! was derived before; a live sensor's frames until its reference's derivation is in are
+//! answered at once, as referencing. A source read as fast as it goes (`--fast`, a replay) is
+//! not live: its new reference's derivation is done on its last frame, as `run` does, so that
+//! every frame after it is imaged.
 //!
 //! Scaling past one machine: run more `serve`s, each with its share of the sensors; Zenoh routes.
 
@@ -30,6 +31,7 @@ use std::thread::JoinHandle;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::FromArgMatches;
 use eitskin::pipeline::{Deferred, Derivation, Derived, PipelineParams};
+use eitskin_io::replay::Speed;
 use eitskin_io::source::{Acquired, SourceError};
 use eitskin_io::stream::Event;
 
@@ -288,7 +290,13 @@ type Built = (Processing, Vec<Box<dyn Sink>>, eitskin_io::source::Source, Pipeli
 fn build(args: &run::Args, name: &str, session: Option<&eitskin_io::middleware::Session>) -> Result<Built> {
     let Sensor { spec, mut processing, start, params } = run::prepare(args)?;
     processing.quiet();
-    processing.pipeline.defer_derivations(Deferred::Refreshes);
+    // Frames read as fast as they go (a replay) wait for a new reference's derivation, each
+    // imaged as `run` images it; live ones are answered at once, those meanwhile referencing.
+    let deferred = match run::speed(args) {
+        Speed::AsFastAsPossible => Deferred::Refreshes,
+        Speed::Recorded => Deferred::All,
+    };
+    processing.pipeline.defer_derivations(deferred);
     let source = run::open_source(args, &spec, processing.kind(), session)?;
     let mut sinks = run::sinks(args, &spec, &processing.pipeline, processing.kind(), session)?;
     sinks.push(Box::new(Reporting(name.to_owned())));
