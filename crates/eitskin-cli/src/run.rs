@@ -214,9 +214,7 @@ pub fn run(args: Args) -> Result<()> {
         return Ok(());
     }
     // The source ended: its thread has returned, or panicked.
-    if acquisition.join().is_err() {
-        bail!("the acquisition thread panicked");
-    }
+    acquisition.finish()?;
     ended(&args, tally, &processing, &params)
 }
 

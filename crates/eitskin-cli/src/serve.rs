@@ -26,7 +26,6 @@ use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{mpsc, Arc, Condvar, Mutex};
-use std::thread::JoinHandle;
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::FromArgMatches;
@@ -36,9 +35,10 @@ use eitskin_io::source::{Acquired, SourceError};
 use eitskin_io::stream::Event;
 
 use crate::ranges;
+use crate::run::acquire::{self, Acquisition};
 use crate::run::publish::SessionArgs;
 use crate::run::sink::{to_all, Flow, Processed, Sink};
-use crate::run::{self, acquire, Drained, Processing, Sensor};
+use crate::run::{self, Drained, Processing, Sensor};
 
 /// Flags of `eitskin serve`.
 #[derive(Debug, clap::Args)]
@@ -59,7 +59,7 @@ struct Running {
     processing: Processing,
     sinks: Vec<Box<dyn Sink>>,
     items: mpsc::Receiver<Result<Acquired, SourceError>>,
-    acquisition: Option<JoinHandle<()>>,
+    acquisition: Option<Acquisition>,
     params: PipelineParams,
 }
 
@@ -154,11 +154,12 @@ impl Pool {
                         return None;
                     }
                     Ok(Drained::Ended(tally)) if tally.stopped => Ok("a sink stopped it"),
-                    Ok(Drained::Ended(tally)) => match sensor.acquisition.take().map_or(Ok(()), JoinHandle::join) {
-                        Ok(()) => run::ended(&sensor.args, tally, &sensor.processing, &sensor.params)
-                            .map(|()| "its source ended"),
-                        Err(_) => Err(anyhow!("the acquisition thread panicked")),
-                    },
+                    Ok(Drained::Ended(tally)) => sensor
+                        .acquisition
+                        .take()
+                        .map_or(Ok(()), Acquisition::finish)
+                        .and_then(|()| run::ended(&sensor.args, tally, &sensor.processing, &sensor.params))
+                        .map(|()| "its source ended"),
                     Err(e) => Err(e),
                 };
                 *running = None;

@@ -1,21 +1,16 @@
 //! [`ZenohSource`]: raw frames from a key that a board's bridge publishes on.
 
-use std::collections::VecDeque;
+use std::sync::{mpsc, Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::Sample;
 use zenoh::{Session, Wait};
 
 use super::{FrameMessage, MiddlewareError};
 use crate::codec::BadFrame;
-use crate::source::{Acquired, FrameSource, SourceError};
-
-/// Samples held while the processing is busy (about 10 s of a board at 100 frames/s); a
-/// reader that falls further behind holds up Zenoh's delivery (the queue is full, and the
-/// source is not live: its reader waits for the processing too) rather than losing frames.
-const QUEUE: usize = 1024;
+use crate::source::{Acquired, Deliver, FrameSource, Pushed, SourceError};
 
 /// How far back a counter may go and still be a late frame of the same stream (a sample of one
 /// publisher comes in order over TCP; several publishers on one key may interleave); further
@@ -33,13 +28,193 @@ const SILENCE_INTERVALS: f64 = 10.0;
 /// source waits for the next sample, however long, and ends only with the session; once frames
 /// have come, a pause of ten of their intervals (at least a second) is reported
 /// ([`Acquired::Silent`]), and so are the frames coming again ([`Acquired::Resumed`]).
+///
+/// It subscribes when started: [`FrameSource::push`] hands each sample's items over on Zenoh's
+/// own thread, as it comes (no thread of the caller's between the network and the frame's
+/// processing; a watch thread, waking once a silence is due, reports silences); read
+/// ([`FrameSource::acquire`]), it pushes to a channel of its own and reads that.
 pub struct ZenohSource {
-    subscriber: Subscriber<FifoChannelHandler<Sample>>,
+    session: Session,
+    key: String,
+    measurements: usize,
+    /// Read: the items its own push hands over, once the first is asked for.
+    read: Option<(mpsc::Receiver<Result<Acquired, SourceError>>, Pushing)>,
+}
+
+impl ZenohSource {
+    /// A source on `session` of `key` (wildcards allowed: several bridges' frames on one
+    /// stream are then one counter's, so give one key per board) for frames of `measurements`
+    /// values; the key checked now, subscribed to when started.
+    pub fn open(session: &Session, key: &str, measurements: usize) -> Result<ZenohSource, MiddlewareError> {
+        zenoh::key_expr::KeyExpr::try_from(key).map_err(|e| MiddlewareError::Key {
+            what: "--source zenoh:",
+            key: key.to_owned(),
+            use_: "subscribe to",
+            reason: e.to_string(),
+        })?;
+        Ok(ZenohSource { session: session.clone(), key: key.to_owned(), measurements, read: None })
+    }
+
+    /// Subscribes, each sample's items handed to `deliver` on Zenoh's thread, silences by a
+    /// watch thread's.
+    fn start(&self, deliver: Deliver) -> Result<Pushing, SourceError> {
+        let shared = Arc::new(Mutex::new(Shared {
+            stream: Stream::new(&self.key, self.measurements),
+            deliver: Some(deliver),
+            watch: None,
+        }));
+        let refused = |e: String| SourceError::Zenoh { spec: format!("zenoh:{}", self.key), reason: e };
+        let watching = Arc::clone(&shared);
+        let watch = std::thread::Builder::new()
+            .name(format!("zenoh-watch {}", self.key))
+            .spawn(move || watch(&watching))
+            .map_err(|e| refused(e.to_string()))?;
+        lock(&shared).watch = Some(watch.thread().clone());
+        let on_sample = OnSample(Arc::clone(&shared));
+        let subscriber =
+            self.session.declare_subscriber(self.key.clone()).callback(move |sample| on_sample.take(&sample)).wait();
+        let mut pushing = Pushing { subscriber: None, shared, watch: Some(watch) };
+        // Refused, `pushing` is dropped: the watch thread ends.
+        pushing.subscriber = Some(subscriber.map_err(|e| refused(e.to_string()))?);
+        Ok(pushing)
+    }
+}
+
+impl FrameSource for ZenohSource {
+    fn acquire(&mut self) -> Option<Result<Acquired, SourceError>> {
+        if self.read.is_none() {
+            let (tx, rx) = mpsc::channel();
+            match self.start(Box::new(move |item| tx.send(item).is_ok())) {
+                Ok(pushing) => self.read = Some((rx, pushing)),
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        // The channel ends with the subscription: the session closed.
+        self.read.as_ref().and_then(|(items, _)| items.recv().ok())
+    }
+
+    /// Not live: Zenoh's thread hands each sample over at once, never waiting for the reader.
+    fn is_live(&self) -> bool {
+        false
+    }
+
+    fn pushes(&self) -> bool {
+        true
+    }
+
+    fn push(self: Box<Self>, deliver: Deliver) -> Result<Pushed, SourceError> {
+        Ok(Pushed::new(Box::new(self.start(deliver)?)))
+    }
+}
+
+impl std::fmt::Debug for ZenohSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ZenohSource")
+            .field("key", &self.key)
+            .field("started", &self.read.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+/// A started source: its subscription and watch thread, both stopped when it is dropped.
+struct Pushing {
+    subscriber: Option<Subscriber<()>>,
+    shared: Arc<Mutex<Shared>>,
+    watch: Option<JoinHandle<()>>,
+}
+
+impl Drop for Pushing {
+    fn drop(&mut self) {
+        // Undeclared, its callback dropped: `deliver` goes, and the watch thread ends.
+        drop(self.subscriber.take());
+        close(&self.shared);
+        if let Some(watch) = self.watch.take() {
+            // A panic of the watch thread was its own; the source is over either way.
+            let _ = watch.join();
+        }
+    }
+}
+
+/// What the callback and the watch thread share: the stream followed, where its items go
+/// (`None` once it ended), and the watch thread, woken when it does.
+struct Shared {
+    stream: Stream,
+    deliver: Option<Deliver>,
+    watch: Option<std::thread::Thread>,
+}
+
+fn lock(shared: &Mutex<Shared>) -> MutexGuard<'_, Shared> {
+    shared.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Ends the source: `deliver` dropped (its reader sees the end), the watch thread woken to end.
+fn close(shared: &Mutex<Shared>) {
+    let mut shared = lock(shared);
+    shared.deliver = None;
+    if let Some(watch) = &shared.watch {
+        watch.unpark();
+    }
+}
+
+/// The subscription's callback: each sample's items delivered; dropped (the subscription
+/// undeclared, the session closed), the source ends.
+struct OnSample(Arc<Mutex<Shared>>);
+
+impl OnSample {
+    fn take(&self, sample: &Sample) {
+        let mut shared = lock(&self.0);
+        let Shared { stream, deliver, .. } = &mut *shared;
+        let Some(to) = deliver.as_mut() else { return };
+        let mut going = true;
+        stream.sample(sample, Instant::now(), |item| {
+            going = going && to(Ok(item));
+        });
+        if !going {
+            drop(shared);
+            close(&self.0);
+        }
+    }
+}
+
+impl Drop for OnSample {
+    fn drop(&mut self) {
+        close(&self.0);
+    }
+}
+
+/// The watch thread: reports a silence once it is due, until the source ends.
+fn watch(shared: &Mutex<Shared>) {
+    loop {
+        let mut guard = lock(shared);
+        let Shared { stream, deliver, .. } = &mut *guard;
+        let Some(to) = deliver.as_mut() else { return };
+        let now = Instant::now();
+        // Before the first frame, and once a silence is reported, only a frame wakes it (the
+        // callback does not: it waits a silence's shortest length and looks again).
+        let wait = match stream.silence_due() {
+            Some(due) if due <= now => {
+                let silent = stream.fall_silent(now);
+                if !to(Ok(silent)) {
+                    drop(guard);
+                    close(shared);
+                    return;
+                }
+                continue;
+            }
+            Some(due) => due - now,
+            None => SILENCE_MIN,
+        };
+        drop(guard);
+        std::thread::park_timeout(wait);
+    }
+}
+
+/// One key's frames followed as samples come: the counter, the last arrival and whether the
+/// silence after it was reported, and the frames' typical interval.
+struct Stream {
     key: String,
     measurements: usize,
     counter: Counter,
-    /// Items to deliver after the one reported before them (a gap, frames again).
-    pending: VecDeque<Acquired>,
     /// When the last sample came, and whether the silence after it was reported.
     last: Option<Instant>,
     silent: bool,
@@ -49,33 +224,10 @@ pub struct ZenohSource {
     interval: Option<f64>,
 }
 
-impl ZenohSource {
-    /// Subscribes on `session` to `key` (wildcards allowed: several bridges' frames on one
-    /// stream are then one counter's, so give one key per board) for frames of `measurements`
-    /// values.
-    pub fn open(session: &Session, key: &str, measurements: usize) -> Result<ZenohSource, MiddlewareError> {
-        zenoh::key_expr::KeyExpr::try_from(key).map_err(|e| MiddlewareError::Key {
-            what: "--source zenoh:",
-            key: key.to_owned(),
-            use_: "subscribe to",
-            reason: e.to_string(),
-        })?;
-        let subscriber = session
-            .declare_subscriber(key.to_owned())
-            .with(zenoh::handlers::FifoChannel::new(QUEUE))
-            .wait()
-            .map_err(|e| MiddlewareError::Zenoh { key: key.to_owned(), reason: e.to_string() })?;
-        Ok(ZenohSource {
-            subscriber,
-            key: key.to_owned(),
-            measurements,
-            counter: Counter::default(),
-            pending: VecDeque::with_capacity(2),
-            last: None,
-            silent: false,
-            last_t: None,
-            interval: None,
-        })
+impl Stream {
+    fn new(key: &str, measurements: usize) -> Stream {
+        let (counter, last, silent, last_t, interval) = (Counter::default(), None, false, None, None);
+        Stream { key: key.to_owned(), measurements, counter, last, silent, last_t, interval }
     }
 
     /// How long without a sample is a silence: ten typical intervals, at least [`SILENCE_MIN`].
@@ -84,16 +236,49 @@ impl ZenohSource {
         typical.max(SILENCE_MIN)
     }
 
-    /// Notes a sample's arrival at `now`; the end of a silence is reported (how long none
-    /// came), before the sample's own items.
-    fn arrived(&mut self, now: Instant) -> Option<Acquired> {
+    /// When the silence after the last sample is to be reported (`None`: none came, or it was).
+    fn silence_due(&self) -> Option<Instant> {
+        self.last.filter(|_| !self.silent).map(|last| last + self.silence())
+    }
+
+    /// Reports the silence since the last sample, at `now`.
+    fn fall_silent(&mut self, now: Instant) -> Acquired {
+        self.silent = true;
+        let after = self.last.map_or(Duration::ZERO, |last| now.duration_since(last));
+        Acquired::Silent { source: format!("zenoh:{}", self.key), after }
+    }
+
+    /// A sample's items, in order, to `out`: the end of a silence (how long none came), the
+    /// gap before its frame, and the frame (or what is wrong with it).
+    fn sample(&mut self, sample: &Sample, now: Instant, mut out: impl FnMut(Acquired)) {
         let since = self.last.map(|last| now.duration_since(last));
         self.last = Some(now);
         if std::mem::take(&mut self.silent) {
-            let source = format!("zenoh:{}", self.key);
-            return since.map(|outage| Acquired::Resumed { source, outage });
+            if let Some(outage) = since {
+                out(Acquired::Resumed { source: format!("zenoh:{}", self.key), outage });
+            }
         }
-        None
+        let message = match FrameMessage::decode(&sample.payload().to_bytes()) {
+            Ok(message) => message,
+            Err(error) => {
+                let reason = error.to_string();
+                return out(Acquired::Bad(BadFrame::Message { key: sample.key_expr().as_str().to_owned(), reason }));
+            }
+        };
+        let FrameMessage { seq, t, values } = message;
+        let gap = match self.counter.admit(seq) {
+            Ok(gap) => gap,
+            Err(last) => return out(Acquired::Bad(BadFrame::OutOfOrder { seq, last })),
+        };
+        self.timed(t);
+        if gap > 0 {
+            out(Acquired::Bad(BadFrame::Gap { seq, missing: gap }));
+        }
+        out(if values.len() == self.measurements {
+            Acquired::Frame { seq, t, values }
+        } else {
+            Acquired::Bad(BadFrame::WrongCount { seq, expected: self.measurements, got: values.len() })
+        });
     }
 
     /// Follows the typical interval between frames by their times `t` (s).
@@ -102,77 +287,6 @@ impl ZenohSource {
             self.interval = Some(self.interval.map_or(step, |mean| mean + (step - mean) / 16.0));
         }
         self.last_t = Some(t);
-    }
-
-    /// The item a decoded message makes, and the gap before it, if any.
-    fn take(&mut self, message: FrameMessage) -> Acquired {
-        let FrameMessage { seq, t, values } = message;
-        let gap = match self.counter.admit(seq) {
-            Ok(gap) => gap,
-            Err(last) => return Acquired::Bad(BadFrame::OutOfOrder { seq, last }),
-        };
-        self.timed(t);
-        let item = if values.len() == self.measurements {
-            Acquired::Frame { seq, t, values }
-        } else {
-            Acquired::Bad(BadFrame::WrongCount { seq, expected: self.measurements, got: values.len() })
-        };
-        match (gap > 0).then_some(gap) {
-            Some(missing) => {
-                self.pending.push_back(item);
-                Acquired::Bad(BadFrame::Gap { seq, missing })
-            }
-            None => item,
-        }
-    }
-}
-
-impl FrameSource for ZenohSource {
-    fn acquire(&mut self) -> Option<Result<Acquired, SourceError>> {
-        if let Some(item) = self.pending.pop_front() {
-            return Some(Ok(item));
-        }
-        // An error here is the session closing: the source ends. Before the first sample, and
-        // once a silence is reported, it waits however long.
-        let sample = match self.last.filter(|_| !self.silent) {
-            Some(last) => match self.subscriber.recv_deadline(last + self.silence()) {
-                Ok(Some(sample)) => sample,
-                Ok(None) => {
-                    self.silent = true;
-                    let source = format!("zenoh:{}", self.key);
-                    return Some(Ok(Acquired::Silent { source, after: last.elapsed() }));
-                }
-                Err(_) => return None,
-            },
-            None => self.subscriber.recv().ok()?,
-        };
-        let resumed = self.arrived(Instant::now());
-        let payload = sample.payload().to_bytes();
-        let item = match FrameMessage::decode(&payload) {
-            Ok(message) => self.take(message),
-            Err(error) => {
-                let reason = error.to_string();
-                Acquired::Bad(BadFrame::Message { key: sample.key_expr().as_str().to_owned(), reason })
-            }
-        };
-        Some(Ok(match resumed {
-            Some(resumed) => {
-                self.pending.push_front(item);
-                resumed
-            }
-            None => item,
-        }))
-    }
-
-    /// Not live: Zenoh holds what is not read yet (1,024 samples), so the reader may wait.
-    fn is_live(&self) -> bool {
-        false
-    }
-}
-
-impl std::fmt::Debug for ZenohSource {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("ZenohSource").field("key", &self.key).field("last", &self.counter.last).finish_non_exhaustive()
     }
 }
 
@@ -200,6 +314,78 @@ impl Counter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    use crate::middleware::{Encoding, ZenohSettings};
+    use crate::source::Source;
+
+    /// A session on its own (a peer listening on loopback only, no scouting): what it publishes,
+    /// its own subscribers get.
+    fn session() -> Session {
+        let settings = ZenohSettings {
+            listen: vec!["tcp/127.0.0.1:0".into()],
+            multicast_scouting: false,
+            ..ZenohSettings::default()
+        };
+        crate::middleware::session::open(&settings).unwrap()
+    }
+
+    fn put(session: &Session, key: &str, seq: u64, values: usize) {
+        let message = FrameMessage { seq, t: seq as f64 * 0.01, values: vec![1.0; values] };
+        let mut bytes = Vec::new();
+        Encoding::Cbor.encode_into(&message, &mut bytes).unwrap();
+        session.put(key, bytes).wait().unwrap();
+    }
+
+    #[test]
+    fn a_read_source_reports_gaps_wrong_counts_and_a_silence_and_its_end() {
+        let session = session();
+        let mut source = Source::new(Box::new(ZenohSource::open(&session, "test/board", 3).unwrap()), None);
+        // The subscription is made as the first item is asked for: the frames come meanwhile.
+        let putter = {
+            let session = session.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(Duration::from_millis(300));
+                [(0, 3), (1, 3), (3, 3), (4, 2)].iter().for_each(|&(seq, n)| put(&session, "test/board", seq, n));
+                // Silent for 1.5 s, past the shortest silence (the frames are 10 ms apart).
+                std::thread::sleep(Duration::from_millis(1500));
+                put(&session, "test/board", 5, 3);
+            })
+        };
+        let mut said = Vec::new();
+        for item in source.by_ref().take(7) {
+            said.push(match item.unwrap() {
+                Acquired::Frame { seq, .. } => format!("frame {seq}"),
+                Acquired::Bad(BadFrame::Gap { seq, missing }) => format!("gap {missing} before {seq}"),
+                Acquired::Bad(BadFrame::WrongCount { seq, got, .. }) => format!("{got} values in {seq}"),
+                Acquired::Silent { after, .. } => format!("silent {}", after >= SILENCE_MIN),
+                Acquired::Resumed { outage, .. } => format!("resumed {}", outage >= Duration::from_millis(1400)),
+                other => format!("{other:?}"),
+            });
+        }
+        assert_eq!(
+            said,
+            ["frame 0", "frame 1", "gap 1 before 3", "frame 3", "2 values in 4", "silent true", "resumed true"]
+        );
+        assert!(matches!(source.next(), Some(Ok(Acquired::Frame { seq: 5, .. }))));
+        putter.join().unwrap();
+        // The session closed, the source ends.
+        session.close().wait().unwrap();
+        assert!(source.next().is_none());
+    }
+
+    #[test]
+    fn a_pushing_source_hands_over_up_to_its_limit_then_ends() {
+        let session = session();
+        let source = Source::new(Box::new(ZenohSource::open(&session, "test/pushed", 2).unwrap()), Some(3));
+        assert!(source.pushes());
+        let (tx, rx) = mpsc::channel();
+        let pushed = source.push(move |item| tx.send(item.map(|a| format!("{a:?}"))).is_ok()).unwrap();
+        (0..5).for_each(|seq| put(&session, "test/pushed", seq, 2));
+        let got: Vec<String> = rx.iter().map(Result::unwrap).collect();
+        assert_eq!(got.len(), 3, "three frames, then the end: {got:?}");
+        assert!(got.iter().all(|g| g.starts_with("Frame")), "{got:?}");
+        drop(pushed);
+    }
 
     #[test]
     fn the_counter_tells_gaps_stale_frames_and_a_restarted_stream() {

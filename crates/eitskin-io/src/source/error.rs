@@ -47,6 +47,9 @@ pub enum SourceError {
         /// The text as written.
         spec: String,
     },
+    /// [`Source::push`](super::Source::push) asked of a source that is read, not pushing.
+    #[error("this source is read, it does not hand its frames over itself")]
+    CannotPush,
     /// A Zenoh source asked of a build without Zenoh, or of [`Source::open`](super::Source::open),
     /// which has no session: open it with `middleware::ZenohSource` on the session.
     #[error("{spec}: {reason}")]

@@ -234,6 +234,41 @@ pub trait FrameSource: Send {
     fn is_live(&self) -> bool {
         false
     }
+
+    /// Whether it can hand its items over from threads of its own ([`FrameSource::push`]): a
+    /// network library's callbacks. False by default.
+    fn pushes(&self) -> bool {
+        false
+    }
+
+    /// Hands the items to `deliver` from threads of its own, in order, as they come, until
+    /// `deliver` answers false or the source ends (an error, the last item, is delivered), and
+    /// then drops `deliver`: no thread of the caller's waits on the source. It stops when the
+    /// [`Pushed`] it returns is dropped. Only where [`FrameSource::pushes`]; the default refuses.
+    fn push(self: Box<Self>, deliver: Deliver) -> Result<Pushed, SourceError> {
+        drop(deliver);
+        Err(SourceError::CannotPush)
+    }
+}
+
+/// Where a pushing source hands its items ([`FrameSource::push`]): `false` stops it.
+pub type Deliver = Box<dyn FnMut(Result<Acquired, SourceError>) -> bool + Send>;
+
+/// A source handing its items over from threads of its own ([`Source::push`]); dropping it
+/// stops them.
+pub struct Pushed(Option<Box<dyn Send>>);
+
+impl Pushed {
+    /// What keeps a source's threads or callbacks going, for as long as it lives.
+    pub fn new(running: Box<dyn Send>) -> Pushed {
+        Pushed(Some(running))
+    }
+}
+
+impl fmt::Debug for Pushed {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Pushed").field("running", &self.0.is_some()).finish()
+    }
 }
 
 /// An open source with its frame limit: an iterator over what it yields. See the
@@ -303,6 +338,28 @@ impl Source {
     /// The frames delivered so far.
     pub fn frames(&self) -> u64 {
         self.frames
+    }
+
+    /// Whether it can hand its items over itself ([`Source::push`]) rather than be read.
+    pub fn pushes(&self) -> bool {
+        self.inner.pushes()
+    }
+
+    /// Hands the items to `deliver` from the source's own threads ([`FrameSource::push`]), up
+    /// to its frame limit; only where [`Source::pushes`] (else [`SourceError::CannotPush`]).
+    pub fn push(
+        self,
+        mut deliver: impl FnMut(Result<Acquired, SourceError>) -> bool + Send + 'static,
+    ) -> Result<Pushed, SourceError> {
+        let Source { inner, limit, mut frames, ended } = self;
+        if ended || limit.is_some_and(|limit| frames >= limit) {
+            return Ok(Pushed(None));
+        }
+        inner.push(Box::new(move |item| {
+            let (frame, last) = (matches!(item, Ok(Acquired::Frame { .. })), item.is_err());
+            frames += u64::from(frame);
+            deliver(item) && !last && limit.is_none_or(|limit| frames < limit)
+        }))
     }
 }
 
