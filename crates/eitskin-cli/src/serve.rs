@@ -144,7 +144,12 @@ impl Pool {
                 derived.into_iter().for_each(|d| sensor.processing.pipeline.deliver(d));
                 let drained = sensor.processing.drain(&sensor.items, &mut sensor.sinks, STEP_ITEMS);
                 if let Some(job) = sensor.processing.pipeline.take_derivation() {
-                    lock(&self.derivations).push_back((k, job));
+                    // A new reference's first: its sensor images nothing until it is in.
+                    let mut queue = lock(&self.derivations);
+                    match job.is_reference() {
+                        true => queue.push_front((k, job)),
+                        false => queue.push_back((k, job)),
+                    }
                     self.derivation_wake.notify_one();
                 }
                 let outcome = match drained {
@@ -393,18 +398,15 @@ pub fn serve(args: Args) -> Result<()> {
         // Items that came before the sensor was in place are taken now.
         pool.schedule(k);
     }
-    let workers: Vec<_> = (0..threads)
-        .map(|_| {
-            let pool = Arc::clone(&pool);
-            std::thread::spawn(move || pool.work())
-        })
-        .collect();
-    let deriving: Vec<_> = (0..(threads / 2).max(1))
-        .map(|_| {
-            let pool = Arc::clone(&pool);
-            std::thread::spawn(move || pool.derive())
-        })
-        .collect();
+    // Named, so that a profiler tells the frame path from the derivations.
+    let spawn = |name: &str, job: fn(&Pool)| {
+        let pool = Arc::clone(&pool);
+        std::thread::Builder::new().name(name.to_owned()).spawn(move || job(&pool))
+    };
+    let workers = (0..threads).map(|_| spawn("eitskin-pool", Pool::work)).collect::<std::io::Result<Vec<_>>>()?;
+    let deriving = (0..(threads / 2).max(1))
+        .map(|_| spawn("eitskin-derive", Pool::derive))
+        .collect::<std::io::Result<Vec<_>>>()?;
     for worker in workers.into_iter().chain(deriving) {
         if worker.join().is_err() {
             bail!("a thread of the pool panicked");

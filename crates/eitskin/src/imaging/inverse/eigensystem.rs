@@ -82,6 +82,15 @@ impl Eigensystem {
     }
 }
 
+impl Eigensystem {
+    /// The reconstruction matrix at λ `hyperparameter`, triangles × used channels, from the
+    /// eigenpairs already made ([`Range::matrix`]): no system formed or factored again.
+    pub(super) fn compact_matrix(&self, hyperparameter: f64) -> Result<Mat<f64>, InverseError> {
+        let (q, s, v) = (self.q.as_ref(), self.s.as_ref(), self.v.as_ref());
+        Range::matrix(q, s, &self.eigenvalues, v, &self.std, hyperparameter)
+    }
+}
+
 /// Σ^-½ J R⁻¹ = Q S (Q orthonormal columns), with the eigenpairs of T = S R Sᵀ = V diag(e) Vᵀ:
 /// the whitened system is K = (Q V) diag(e) (Q V)ᵀ.
 pub(super) struct Range {
@@ -114,6 +123,28 @@ impl Range {
         let (m, k) = (jacobian.nrows(), jacobian.ncols());
         let r_inv = inverse_diagonal(r);
         Range::of(Mat::identity(m, m), Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i] * r_inv[j]), r)
+    }
+
+    /// The reconstruction matrix at λ `hyperparameter` from Σ^-½ J R⁻¹ = Q S and T's eigenpairs
+    /// (`eigenvalues`, `v`), for channels of noise `std`: triangles × used channels,
+    /// H = R⁻¹Jᵀ(JR⁻¹Jᵀ + λ²Σ)⁻¹ = Sᵀ V diag(1/(e + λ²)) Vᵀ Qᵀ Σ^-½, the part of the data
+    /// outside Q imaging to nothing. Triangles × channels × rows of work.
+    pub(super) fn matrix(
+        q: MatRef<'_, f64>,
+        s: MatRef<'_, f64>,
+        eigenvalues: &[f64],
+        v: MatRef<'_, f64>,
+        std: &[f64],
+        hyperparameter: f64,
+    ) -> Result<Mat<f64>, InverseError> {
+        let lambda2 = hyperparameter * hyperparameter;
+        // A λ whose square underflows leaves the range's null directions unregularised.
+        if eigenvalues.first().is_some_and(|e| e.max(0.0) + lambda2 <= 0.0) {
+            return Err(InverseError::NotPositiveDefinite);
+        }
+        let filtered = Mat::from_fn(v.nrows(), v.ncols(), |i, k| v[(i, k)] / (eigenvalues[k].max(0.0) + lambda2));
+        let data = Mat::from_fn(q.ncols(), q.nrows(), |p, i| q[(i, p)] / std[i]);
+        Ok(s.transpose() * (filtered * (v.transpose() * data)))
     }
 
     fn of(q: Mat<f64>, s: Mat<f64>, r: &[f64]) -> Result<Range, InverseError> {
@@ -157,6 +188,41 @@ mod tests {
         let residual: f64 =
             system.eigenvalues.iter().zip(&b).map(|(e, b)| (lambda2 / (e.max(0.0) + lambda2) * b).powi(2)).sum();
         (signal, residual + outside)
+    }
+
+    /// The matrix from the eigenpairs is the one a Cholesky factorisation of JR⁻¹Jᵀ + λ²Σ gives,
+    /// decomposed whole or on the range alone, at every λ the search covers.
+    #[test]
+    fn the_matrix_from_the_eigenpairs_is_the_factorised_one() {
+        let mut spec = crate::SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 400;
+        let lin = Linearisation::new(&spec.forward_model().unwrap(), 1.0).unwrap();
+        let m = lin.measurements();
+        let variance: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64).collect();
+        let channels = Channels::all(m).with_variance(variance).masked(&(0..m).map(|i| i != 5).collect::<Vec<_>>());
+        let prior = Prior::default();
+        let jacobian = lin.rows(&channels.used(), false).unwrap();
+        let r = prior.diagonal(jacobian.as_ref()).unwrap();
+        for on_range in [true, false] {
+            let system = Eigensystem::build(&lin, &prior, false, &channels, on_range).unwrap();
+            for lambda in [1e-3, 0.1, 3.0, 300.0] {
+                let variance = channels.relative_variance();
+                let factorised =
+                    super::super::linearisation::measurement_sized(jacobian.as_ref(), &r, lambda, &variance).unwrap();
+                let got = system.compact_matrix(lambda).unwrap();
+                let largest =
+                    factorised.col_iter().flat_map(|c| c.iter().copied()).fold(0.0_f64, |a, h| a.max(h.abs()));
+                // Both round to the system's condition, about e_max/λ², times the precision.
+                let condition = 1.0 + system.eigenvalues.last().unwrap() / (lambda * lambda);
+                let tolerance = 1e-14 * condition.max(1e4) * largest;
+                for j in 0..got.ncols() {
+                    for i in 0..got.nrows() {
+                        let (a, b) = (got[(i, j)], factorised[(i, j)]);
+                        assert!((a - b).abs() <= tolerance, "λ {lambda} ({on_range}): {a} vs {b} at ({i}, {j})");
+                    }
+                }
+            }
+        }
     }
 
     /// On a 32-electrode disc measuring every adjacent pair (1,024 channels, rank at most 496),

@@ -119,7 +119,11 @@ impl NoiseFigure {
         normalised: bool,
         channels: &Channels,
     ) -> Result<NoiseFigure, InverseError> {
-        let system = Eigensystem::new(lin, prior, normalised, channels)?;
+        Ok(NoiseFigure::of(&Eigensystem::new(lin, prior, normalised, channels)?, lin, channels))
+    }
+
+    /// From the channels' eigensystem, already made.
+    fn of(system: &Eigensystem, lin: &Linearisation, channels: &Channels) -> NoiseFigure {
         let variance = channels.relative_variance();
         let mesh = lin.mesh();
         // CᵀC: channels² work per λ instead of triangles × channels.
@@ -131,7 +135,7 @@ impl NoiseFigure {
         let zw: Vec<f64> = z0.iter().zip(&system.std).map(|(z, s)| z / s).collect();
         let target = system.coefficients(&zw);
         let snr_z = z0.iter().map(|z| z * z).sum::<f64>() / variance.iter().sum::<f64>();
-        Ok(NoiseFigure { eigenvalues: system.eigenvalues, gram, target, snr_z })
+        NoiseFigure { eigenvalues: system.eigenvalues.clone(), gram, target, snr_z }
     }
 
     fn at(&self, hyperparameter: f64) -> f64 {
@@ -180,7 +184,20 @@ pub fn choose_hyperparameter(
     normalised: bool,
     channels: &Channels,
 ) -> Result<f64, InverseError> {
-    let from_figure = noise_figure_hyperparameter(lin, prior, normalised, channels)?;
+    let system = Eigensystem::new(lin, prior, normalised, channels)?;
+    choose_hyperparameter_on(lin, prior, normalised, channels, &system)
+}
+
+/// [`choose_hyperparameter`] on the channels' eigensystem, already made (the reconstructor at
+/// the λ chosen is then derived from it: [`Eigensystem::compact_matrix`]).
+pub(super) fn choose_hyperparameter_on(
+    lin: &Linearisation,
+    prior: &Prior,
+    normalised: bool,
+    channels: &Channels,
+    system: &Eigensystem,
+) -> Result<f64, InverseError> {
+    let from_figure = noise_figure_search(&NoiseFigure::of(system, lin, channels));
     let from_level = map_hyperparameter(lin, prior, normalised, channels)?;
     Ok(from_level.map_or(from_figure, |l| from_figure.max(l.min(SEARCH.1))))
 }
@@ -221,13 +238,17 @@ pub fn noise_figure_hyperparameter(
     normalised: bool,
     channels: &Channels,
 ) -> Result<f64, InverseError> {
-    let nf = NoiseFigure::new(lin, prior, normalised, channels)?;
+    Ok(noise_figure_search(&NoiseFigure::new(lin, prior, normalised, channels)?))
+}
+
+/// The λ where `nf` crosses [`NOISE_FIGURE_TARGET`] (see [`noise_figure_hyperparameter`]).
+fn noise_figure_search(nf: &NoiseFigure) -> f64 {
     let (lo, hi) = (SEARCH.0.log10(), SEARCH.1.log10());
     let steps = ((hi - lo) * 20.0).round() as usize;
     let at = |x: f64| nf.at(10f64.powf(x)) - NOISE_FIGURE_TARGET;
     let mut previous = (lo, at(lo));
     if previous.1 <= 0.0 {
-        return Ok(SEARCH.0);
+        return SEARCH.0;
     }
     for i in 1..=steps {
         let x = lo + (hi - lo) * i as f64 / steps as f64;
@@ -242,11 +263,11 @@ pub fn noise_figure_hyperparameter(
                     b = mid;
                 }
             }
-            return Ok(10f64.powf(0.5 * (a + b)));
+            return 10f64.powf(0.5 * (a + b));
         }
         previous = (x, value);
     }
-    Ok(SEARCH.1)
+    SEARCH.1
 }
 
 #[cfg(test)]

@@ -358,15 +358,7 @@ pub(crate) fn factored(
 ) -> Result<Mat<f64>, InverseError> {
     let std: Vec<f64> = variance.iter().map(|v| v.sqrt()).collect();
     let Range { q, s, eigenvalues, v } = Range::factored(patterns, basis, &std, r)?;
-    let lambda2 = hyperparameter * hyperparameter;
-    // A λ whose square underflows leaves the range's null directions unregularised.
-    if eigenvalues.first().is_some_and(|e| e.max(0.0) + lambda2 <= 0.0) {
-        return Err(InverseError::NotPositiveDefinite);
-    }
-    let filtered = Mat::from_fn(v.nrows(), v.ncols(), |i, k| v[(i, k)] / (eigenvalues[k].max(0.0) + lambda2));
-    let filter = filtered * v.transpose();
-    let data = Mat::from_fn(q.ncols(), q.nrows(), |p, i| q[(i, p)] / std[i]);
-    Ok(s.transpose() * (filter * data))
+    Range::matrix(q.as_ref(), s.as_ref(), &eigenvalues, v.as_ref(), &std, hyperparameter)
 }
 
 /// (JᵀΣ⁻¹J + λ²R)⁻¹JᵀΣ⁻¹ through the triangles × triangles system, for non-diagonal priors.

@@ -14,6 +14,7 @@ use std::sync::Arc;
 
 use faer::Mat;
 
+use super::eigensystem::Eigensystem;
 use super::product::BlockedMatrix;
 use super::{Channels, InverseError, Linearisation, Prior};
 use crate::forward::ForwardModel;
@@ -107,6 +108,18 @@ impl Reconstructor {
         pixels: Vec<Option<usize>>,
     ) -> Result<Reconstructor, InverseError> {
         let compact = linearisation.compact_matrix(params, &channels)?;
+        Reconstructor::assemble_compact(linearisation, params, channels, template, pixels, compact)
+    }
+
+    /// [`Reconstructor::assemble`] from its matrix on the triangles (triangles × used channels).
+    fn assemble_compact(
+        linearisation: Arc<Linearisation>,
+        params: &ReconstructorParams,
+        channels: Channels,
+        template: Image,
+        pixels: Vec<Option<usize>>,
+        compact: Mat<f64>,
+    ) -> Result<Reconstructor, InverseError> {
         let background = if params.background_change {
             let row = linearisation.compact_background_change_row(compact.as_ref(), params.normalised, &channels)?;
             let mut full = vec![0.0; channels.len()];
@@ -198,8 +211,19 @@ impl Reconstructor {
         let lin = &self.linearisation;
         let normalised = self.params.normalised;
         let channels = lin.noise_weighted(normalised, channels, relative);
-        let lambda = super::choose_hyperparameter(lin, &self.params.prior, normalised, &channels)?;
-        Ok((self.derive(lambda, channels)?, lambda))
+        let prior = &self.params.prior;
+        let system = Eigensystem::new(lin, prior, normalised, &channels)?;
+        let lambda = super::hyperparameter::choose_hyperparameter_on(lin, prior, normalised, &channels, &system)?;
+        // The matrix at λ from the eigenpairs λ was chosen on (with a global change fitted
+        // beside the image, the Jacobian projected first: derived afresh).
+        if self.params.background_change {
+            return Ok((self.derive(lambda, channels)?, lambda));
+        }
+        let params = ReconstructorParams { hyperparameter: lambda, ..self.params };
+        let (template, pixels) = (self.template.clone(), self.pixels.clone());
+        let compact = system.compact_matrix(lambda)?;
+        let recon = Reconstructor::assemble_compact(Arc::clone(lin), &params, channels, template, pixels, compact)?;
+        Ok((recon, lambda))
     }
 
     /// The linearisation it was derived from.
