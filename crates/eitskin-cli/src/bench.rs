@@ -7,7 +7,9 @@
 //! converged values: quadratic elements on the sheet graded to 0.02, 5,600 triangles; complete
 //! electrodes only), `reconstructor` (prior, the measurement-sized solve and the
 //! raster projection), `auto_hyperparameter` (λ chosen from the noise, on the sensor's
-//! reconstructor) and `auto_hyperparameter_2356` and `reconstructor_2356` (λ, then the reconstructor at it, on a
+//! reconstructor), `derive_reference`, `derive_refresh_noise` and `derive_refresh_grown` (what a
+//! live pipeline derives off its frame path, λ from the noise: when its reference is taken, when
+//! its noise has changed, and when only its reference has grown) and `auto_hyperparameter_2356` and `reconstructor_2356` (λ, then the reconstructor at it, on a
 //! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table and, by low-rank updates, the ladder
 //! of strong presses) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
@@ -27,10 +29,11 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
+use eitskin::chain::Chain;
 use eitskin::conductivity::{with_inclusions, Inclusion};
 use eitskin::inverse::Channels;
 use eitskin::memory::Stage;
-use eitskin::pipeline::PipelineParams;
+use eitskin::pipeline::{Deferred, Pipeline, PipelineParams};
 use eitskin::press_fit::{exact_model_for, PressDetection, PressModel, PressModelParams, PressScratch, PressTrack};
 use eitskin::sim::VirtualSensor;
 use eitskin::touch::{detect_into, TouchScratch};
@@ -233,6 +236,7 @@ fn inverse(
     let (t_drop, _) = time(n, || Ok(recon.derive(params.hyperparameter, channels.clone())?))?;
     let (t_auto, _) = time(n.min(3), || Ok(recon.with_auto_hyperparameter(Channels::all(mask.len()), None)?))?;
     stages.setup.extend([("reconstructor", t_recon), ("drop_channel", t_drop), ("auto_hyperparameter", t_auto)]);
+    derivations(spec, &recon, n, stages)?;
     let (lin, channels) = tank()?;
     let prior = eitskin::Prior::default();
     let choose = || Ok(eitskin::inverse::choose_hyperparameter(&lin, &prior, false, &channels)?);
@@ -242,6 +246,33 @@ fn inverse(
     let t_tank_recon = time(n.min(3), build)?.0;
     stages.setup.extend([("auto_hyperparameter_2356", t_tank), ("reconstructor_2356", t_tank_recon)]);
     Ok(recon)
+}
+
+/// The derivations a pipeline hands out ([`Deferred::All`]) on 400 frames of the virtual sensor
+/// at rest, λ chosen from the noise: the reference's, and the first refresh of each kind.
+fn derivations(spec: &eitskin::SensorSpec, recon: &Reconstructor, n: usize, stages: &mut Stages) -> Result<()> {
+    let params = PipelineParams { auto_hyperparameter: true, ..PipelineParams::default() };
+    let mut pipeline = Pipeline::new(Chain::new(recon.clone(), TouchParams::default()), params);
+    pipeline.defer_derivations(Deferred::All);
+    let mut skin = VirtualSensor::new(spec, 3)?;
+    let mut timed: Vec<(&'static str, Timing)> = Vec::new();
+    for _ in 0..400 {
+        pipeline.process(&skin.frame()?)?;
+        let Some(job) = pipeline.take_derivation() else { continue };
+        let name = match (job.is_reference(), job.rederives()) {
+            (true, _) => "derive_reference",
+            (false, true) => "derive_refresh_noise",
+            (false, false) => "derive_refresh_grown",
+        };
+        let (timing, derived) = time(n.min(5), || Ok(job.clone().run()))?;
+        pipeline.deliver(derived);
+        if timed.iter().all(|(seen, _)| *seen != name) {
+            timed.push((name, timing));
+        }
+    }
+    timed.sort_by_key(|(name, _)| *name);
+    stages.setup.extend(timed);
+    Ok(())
 }
 
 /// A 32-electrode tank with a KTC-sized protocol: 76 drives (32 adjacent, 32 skipping two, 12

@@ -40,6 +40,9 @@ pub struct Derivation {
     pub(super) params: PipelineParams,
     pub(super) polarity: Polarity,
     pub(super) press_model: Option<Arc<PressModel>>,
+    /// The chain's noise test, when the reconstructor is kept: a refresh for a grown reference
+    /// rescales it ([`Significance::rescaled`]) rather than drawing noise images again.
+    pub(super) significance: Option<Significance>,
     /// The channels the chain came with, which a new reference may not lose more than a quarter of.
     pub(super) configured: Vec<bool>,
     /// The reference's own frames, imaged for their largest peak (the first derivation only).
@@ -82,6 +85,12 @@ impl Derivation {
     /// Whether it completes a reference just taken.
     pub fn is_reference(&self) -> bool {
         self.first
+    }
+
+    /// Whether it may derive a new reconstructor (λ and the weights again); else only the noise
+    /// tests.
+    pub fn rederives(&self) -> bool {
+        !matches!(self.rederive, Rederive::Keep)
     }
 
     fn derive(&self) -> Result<Tests, InverseError> {
@@ -137,8 +146,13 @@ impl Derivation {
             }
             None => None,
         };
-        let significance =
-            Significance::new(recon, &self.reference, &self.noise, self.params.average, self.polarity, rate)?;
+        let (reference, noise, average) = (&self.reference, &self.noise, self.params.average);
+        let significance = match (&self.rederive, &self.significance) {
+            (Rederive::Keep, Some(kept)) if kept.false_alarm_rate() == rate => {
+                kept.rescaled(recon, reference, noise, average)?
+            }
+            _ => Significance::new(recon, reference, noise, average, self.polarity, rate)?,
+        };
         Ok((Some(significance), detection))
     }
 }
