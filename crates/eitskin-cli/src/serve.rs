@@ -2,7 +2,8 @@
 //! (spec, source, calibration or learned model, what it publishes), on one Zenoh session and
 //! one pool of threads.
 //!
-//! Each sensor's source is read on a thread of its own, as `run` reads it; a sensor with items
+//! Each sensor's source is read as `run` reads it (a thread of its own; a Zenoh source hands its
+//! frames over on Zenoh's thread); a sensor with items
 //! waiting is put on a queue, and the pool's threads take sensors from it, each taking every
 //! item its sensor has (in order: a sensor is on one thread at a time) through its pipeline to
 //! its sinks. A sensor that fails (an error of its sinks, a panic) is reported and dropped;

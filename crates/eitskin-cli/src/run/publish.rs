@@ -56,7 +56,8 @@ pub struct ZenohArgs {
     publish_image: bool,
     /// Before the first frame, wait up to this many seconds, in (0, 3600], for a subscriber to
     /// the touches (of each --publish), and fail if none comes: for a replay whose every frame must be read
-    /// (a serial board's frames are not read meanwhile).
+    /// (a serial board's frames are not read meanwhile); ROS 2 messages then wait for room on the
+    /// link rather than being dropped.
     #[arg(long, value_name = "SECONDS", requires = "publish",
           value_parser = ranges::number("a wait", "(0, 3600] s", "10", |s| s > 0.0 && s <= 3600.0))]
     wait_for_subscriber: Option<f64>,
@@ -208,6 +209,8 @@ impl ZenohArgs {
             sensor: self.sensor.clone(),
             mount: spec.and_then(|s| s.mount.clone()),
             image: self.publish_image,
+            // Waiting for a subscriber is for a replay whose every frame must be read.
+            every_message: self.wait_for_subscriber.is_some(),
         })
     }
 

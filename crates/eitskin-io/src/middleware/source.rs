@@ -22,6 +22,9 @@ const RESTART: u64 = 16;
 const SILENCE_MIN: Duration = Duration::from_secs(1);
 const SILENCE_INTERVALS: f64 = 10.0;
 
+/// The longest step between two frames' times taken as their interval (s).
+const MAX_INTERVAL_S: f64 = 60.0;
+
 /// Frames of [`FrameMessage`]s on one key: each checked for its count, the counter followed as
 /// a serial board's is (frames missing before one are reported as a gap, a frame older than
 /// the newest is dropped as stale), a sample that is not a frame reported with its key. A live
@@ -201,7 +204,8 @@ fn watch(shared: &Mutex<Shared>) {
                 }
                 continue;
             }
-            Some(due) => due - now,
+            // At most the shortest silence: an interval that shrank is seen within it.
+            Some(due) => (due - now).min(SILENCE_MIN),
             None => SILENCE_MIN,
         };
         drop(guard);
@@ -232,13 +236,13 @@ impl Stream {
 
     /// How long without a sample is a silence: ten typical intervals, at least [`SILENCE_MIN`].
     fn silence(&self) -> Duration {
-        let typical = self.interval.map_or(Duration::ZERO, |s| Duration::from_secs_f64(s * SILENCE_INTERVALS));
-        typical.max(SILENCE_MIN)
+        let typical = self.interval.and_then(|s| Duration::try_from_secs_f64(s * SILENCE_INTERVALS).ok());
+        typical.unwrap_or(Duration::ZERO).max(SILENCE_MIN)
     }
 
     /// When the silence after the last sample is to be reported (`None`: none came, or it was).
     fn silence_due(&self) -> Option<Instant> {
-        self.last.filter(|_| !self.silent).map(|last| last + self.silence())
+        self.last.filter(|_| !self.silent).and_then(|last| last.checked_add(self.silence()))
     }
 
     /// Reports the silence since the last sample, at `now`.
@@ -283,7 +287,10 @@ impl Stream {
 
     /// Follows the typical interval between frames by their times `t` (s).
     fn timed(&mut self, t: f64) {
-        if let Some(step) = self.last_t.map(|last| t - last).filter(|s| s.is_finite() && *s > 0.0) {
+        // A step of the bridge's clock past a minute is no frame interval (a clock set, a
+        // restart): it would put a silence off for hours.
+        let step = self.last_t.map(|last| t - last).filter(|s| s.is_finite() && *s > 0.0 && *s <= MAX_INTERVAL_S);
+        if let Some(step) = step {
             self.interval = Some(self.interval.map_or(step, |mean| mean + (step - mean) / 16.0));
         }
         self.last_t = Some(t);
@@ -385,6 +392,17 @@ mod tests {
         assert_eq!(got.len(), 3, "three frames, then the end: {got:?}");
         assert!(got.iter().all(|g| g.starts_with("Frame")), "{got:?}");
         drop(pushed);
+    }
+
+    #[test]
+    fn a_bridges_clock_that_jumps_does_not_put_a_silence_off() {
+        let mut stream = Stream::new("board", 3);
+        for t in [0.0, 0.01, 0.02, 1e18, 1e18 + 0.01, f64::MAX, f64::NAN] {
+            stream.timed(t);
+        }
+        assert_eq!(stream.silence(), SILENCE_MIN, "ten 10-ms intervals are under the shortest");
+        stream.last = Some(Instant::now());
+        assert!(stream.silence_due().is_some());
     }
 
     #[test]

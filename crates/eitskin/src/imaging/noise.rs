@@ -91,33 +91,19 @@ impl Significance {
         }
         assert!(false_alarm_rate > 0.0 && false_alarm_rate <= 0.5, "a false-alarm rate in (0, 0.5]");
         let sd = difference_std(recon, v_ref, noise, averaged);
-        let inverse_std = inverse_std(recon, &sd);
+        let pixels = recon.blank_image().values.len();
+        let mut variance = vec![0.0_f64; pixels];
+        for (m, s) in sd.iter().enumerate() {
+            if *s > 0.0 {
+                variance.iter_mut().zip(recon.matrix().column(m)).for_each(|(v, h)| *v += (f64::from(h) * s).powi(2));
+            }
+        }
+        let inverse_std = variance.iter().map(|v| if *v > 0.0 { (1.0 / v.sqrt()) as f32 } else { 0.0 }).collect();
         let mut significance =
             Significance { inverse_std, threshold: f64::INFINITY, false_alarm_rate, fitted_at: f64::NAN };
         let maxima = significance.noise_maxima(recon, v_ref, &sd, polarity)?;
         (significance.fitted_at, significance.threshold) = threshold_of(&maxima, false_alarm_rate);
         Ok(significance)
-    }
-
-    /// The same test of the same reconstructor's images, under noise whose channels changed
-    /// together (a reference grown, the board's noise as a whole): each pixel's standard
-    /// deviation again, the threshold kept, since a touch's z does not change when every
-    /// channel's noise scales alike. No noise images: a pass over the matrix, where
-    /// [`Significance::new`] images [`CALIBRATION_SAMPLES`] frames.
-    pub fn rescaled(
-        &self,
-        recon: &Reconstructor,
-        v_ref: &[f64],
-        noise: &NoiseModel,
-        averaged: usize,
-    ) -> Result<Significance, InverseError> {
-        let m = recon.measurements();
-        if v_ref.len() != m || noise.len() != m {
-            let got = if v_ref.len() != m { v_ref.len() } else { noise.len() };
-            return Err(InverseError::FrameLength { expected: m, got });
-        }
-        let inverse_std = inverse_std(recon, &difference_std(recon, v_ref, noise, averaged));
-        Ok(Significance { inverse_std, ..*self })
     }
 
     /// The z a touch's peak must reach (dimensionless).
@@ -203,18 +189,6 @@ impl Significance {
     }
 }
 
-/// Per pixel 1/s_p (0 where no channel reaches it) for channels of noise `sd` in the
-/// differences' units: s_p² = Σ_m (H_pm·sd_m)².
-fn inverse_std(recon: &Reconstructor, sd: &[f64]) -> Vec<f32> {
-    let mut variance = vec![0.0_f64; recon.blank_image().values.len()];
-    for (m, s) in sd.iter().enumerate() {
-        if *s > 0.0 {
-            variance.iter_mut().zip(recon.matrix().column(m)).for_each(|(v, h)| *v += (f64::from(h) * s).powi(2));
-        }
-    }
-    variance.iter().map(|v| if *v > 0.0 { (1.0 / v.sqrt()) as f32 } else { 0.0 }).collect()
-}
-
 /// Noise frames imaged at once in the calibration (one matrix product each batch).
 const BATCH: usize = 100;
 
@@ -283,27 +257,6 @@ mod tests {
     /// Frames of `v` with independent relative noise `relative[m]` per channel.
     fn noisy(v: &[f64], relative: &[f64], rng: &mut SeededRng) -> Vec<f64> {
         v.iter().zip(relative).map(|(v, r)| v * (1.0 + r * Normal::new(0.0, 1.0).unwrap().sample(rng))).collect()
-    }
-
-    #[test]
-    fn a_test_rescaled_for_a_grown_reference_is_the_one_drawn_again() {
-        let (recon, v_ref) = setup(16);
-        let m = v_ref.len();
-        let before = NoiseModel::assumed(1e-3, m, 10);
-        let grown = NoiseModel::assumed(1e-3, m, 80);
-        let polarity = Polarity::Decrease;
-        let kept = Significance::new(&recon, &v_ref, &before, 1, polarity, 1e-3).unwrap();
-        let drawn = Significance::new(&recon, &v_ref, &grown, 1, polarity, 1e-3).unwrap();
-        let rescaled = kept.rescaled(&recon, &v_ref, &grown, 1).unwrap();
-        // Every channel's noise fell alike: each pixel's deviation with it, z and its threshold not.
-        let (a, b) = (rescaled.threshold(), drawn.threshold());
-        assert!((a - b).abs() < 1e-5 * b, "{a} vs {b}");
-        assert_eq!(rescaled.threshold(), kept.threshold());
-        for ((a, b), k) in rescaled.inverse_std().iter().zip(drawn.inverse_std()).zip(kept.inverse_std()) {
-            assert!((a - b).abs() <= 1e-6 * b, "{a} vs {b}");
-            assert!(*k == 0.0 || a > k, "a larger reference, less noise in Δv");
-        }
-        assert!(kept.rescaled(&recon, &v_ref[1..], &grown, 1).is_err());
     }
 
     #[test]

@@ -637,8 +637,6 @@ impl Pipeline {
         };
         let mut job = self.derivation(rederive, Vec::new());
         (job.variance, job.reference_count) = (changed.then_some(variance), Some(count));
-        // Only the reference grew: the noise test is rescaled, its threshold kept.
-        job.significance = if changed { None } else { self.chain.significance().cloned() };
         self.ask(job)?;
         Ok(!self.deferred.defers(false))
     }
@@ -659,7 +657,6 @@ impl Pipeline {
             params: self.params,
             polarity: self.chain.touch_params().polarity,
             press_model: self.chain.shared_press_model().cloned(),
-            significance: None,
             configured: self.configured.clone(),
             reference_frames: frames,
             variance: None,

@@ -26,7 +26,7 @@
 //!
 //! ```
 //! use eitskin_io::middleware::ros2::{topic_key, Ros2Settings, TOUCHES};
-//! let settings = Ros2Settings { domain: 0, namespace: "eitskin".into(), sensor: "palm".into(), mount: None, image: false };
+//! let settings = Ros2Settings { domain: 0, namespace: "eitskin".into(), sensor: "palm".into(), mount: None, image: false, every_message: false };
 //! settings.check()?;
 //! assert_eq!(settings.topic("touches"), "/eitskin/palm/touches");
 //! assert!(topic_key(0, "/eitskin/palm/touches", &TOUCHES).starts_with("0/eitskin/palm/touches/eitskin_msgs::msg::dds_::Touches_/RIHS01_"));
@@ -76,6 +76,10 @@ pub struct Ros2Settings {
     pub mount: Option<Mount>,
     /// Whether images are published too.
     pub image: bool,
+    /// Whether a message waits for room to be sent (a replay whose every frame must be read)
+    /// rather than being dropped when the link is full (rmw_zenoh's default for a history kept
+    /// to its last messages: a robot wants the newest).
+    pub every_message: bool,
 }
 
 impl Ros2Settings {
@@ -179,7 +183,11 @@ impl Ros2Publisher {
             let key = topic_key(domain, &topic, kind);
             let publisher = session
                 .declare_publisher(key.clone())
-                .congestion_control(CongestionControl::Drop)
+                .congestion_control(if settings.every_message {
+                    CongestionControl::Block
+                } else {
+                    CongestionControl::Drop
+                })
                 .wait()
                 .map_err(|e| MiddlewareError::Zenoh { key, reason: e.to_string() })?;
             let token = publisher_token(domain, &zid, node_id, entity_id, &node, &topic, kind);

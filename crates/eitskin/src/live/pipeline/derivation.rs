@@ -40,9 +40,6 @@ pub struct Derivation {
     pub(super) params: PipelineParams,
     pub(super) polarity: Polarity,
     pub(super) press_model: Option<Arc<PressModel>>,
-    /// The chain's noise test, when the reconstructor is kept: a refresh for a grown reference
-    /// rescales it ([`Significance::rescaled`]) rather than drawing noise images again.
-    pub(super) significance: Option<Significance>,
     /// The channels the chain came with, which a new reference may not lose more than a quarter of.
     pub(super) configured: Vec<bool>,
     /// The reference's own frames, imaged for their largest peak (the first derivation only).
@@ -146,13 +143,8 @@ impl Derivation {
             }
             None => None,
         };
-        let (reference, noise, average) = (&self.reference, &self.noise, self.params.average);
-        let significance = match (&self.rederive, &self.significance) {
-            (Rederive::Keep, Some(kept)) if kept.false_alarm_rate() == rate => {
-                kept.rescaled(recon, reference, noise, average)?
-            }
-            _ => Significance::new(recon, reference, noise, average, self.polarity, rate)?,
-        };
+        let significance =
+            Significance::new(recon, &self.reference, &self.noise, self.params.average, self.polarity, rate)?;
         Ok((Some(significance), detection))
     }
 }
