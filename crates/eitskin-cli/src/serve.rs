@@ -33,7 +33,7 @@ use clap::FromArgMatches;
 use eitskin::pipeline::{Deferred, Derivation, Derived, PipelineParams};
 use eitskin_io::replay::Speed;
 use eitskin_io::source::{Acquired, SourceError};
-use eitskin_io::stream::Event;
+use eitskin_io::stream::{Event, Start};
 
 use crate::ranges;
 use crate::run::acquire::{self, Acquisition};
@@ -291,7 +291,7 @@ fn parse_run(name: &str, run: &[String]) -> Result<run::Args> {
 }
 
 /// A sensor's pipeline, sinks (its start line taken), source and settings.
-type Built = (Processing, Vec<Box<dyn Sink>>, eitskin_io::source::Source, PipelineParams);
+type Built = (Processing, Vec<Box<dyn Sink>>, eitskin_io::source::Source, PipelineParams, Start);
 
 /// Builds sensor `name` as `run` would, its events reported on stderr.
 fn build(args: &run::Args, name: &str, session: Option<&eitskin_io::middleware::Session>) -> Result<Built> {
@@ -307,8 +307,7 @@ fn build(args: &run::Args, name: &str, session: Option<&eitskin_io::middleware::
     let source = run::open_source(args, &spec, processing.kind(), session)?;
     let mut sinks = run::sinks(args, &spec, &processing.pipeline, processing.kind(), session)?;
     sinks.push(Box::new(Reporting(name.to_owned())));
-    to_all(&mut sinks, |s| s.start(&start))?;
-    Ok((processing, sinks, source, params))
+    Ok((processing, sinks, source, params, start))
 }
 
 /// Runs `eitskin serve`.
@@ -376,7 +375,9 @@ pub fn serve(args: Args) -> Result<()> {
     for (k, run_args) in parsed.into_iter().enumerate() {
         let name = &fleet.sensors[k].name;
         match build(&run_args, name, session.as_ref()) {
-            Ok((processing, sinks, source, params)) => built.push((k, run_args, processing, sinks, source, params)),
+            Ok((processing, sinks, source, params, start)) => {
+                built.push((k, run_args, processing, sinks, source, params, start))
+            }
             Err(e) => {
                 eprintln!("eitskin serve: {name}: failed to start, the others go on: {e:#}");
                 lock(&pool.failed).push(name.clone());
@@ -391,9 +392,18 @@ pub fn serve(args: Args) -> Result<()> {
     // product would wake threads of the normal priority, which wait for each other, spinning.
     eitskin::faer::set_global_parallelism(eitskin::faer::Par::Seq);
     eprintln!("eitskin serve: {} sensors on {threads} threads", built.len());
-    for (k, run_args, processing, sinks, source, params) in built {
+    for (k, run_args, processing, mut sinks, source, params, start) in built {
         let notify = Arc::clone(&pool);
         let (items, acquisition) = acquire::start_notifying(source, move || notify.schedule(k));
+        // The start line (and a publisher's liveliness token) once the source is read: a bridge
+        // that starts on seeing them loses no frame.
+        if let Err(e) = to_all(&mut sinks, |s| s.start(&start)) {
+            let name = &pool.slots[k].name;
+            eprintln!("eitskin serve: {name}: failed to start, the others go on: {e:#}");
+            lock(&pool.failed).push(name.clone());
+            pool.left.fetch_sub(1, Ordering::AcqRel);
+            continue;
+        }
         *lock(&pool.slots[k].running) =
             Some(Running { args: run_args, processing, sinks, items, acquisition: Some(acquisition), params });
         // Items that came before the sensor was in place are taken now.

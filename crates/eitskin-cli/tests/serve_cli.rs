@@ -140,7 +140,12 @@ fn a_sensor_whose_bridge_stops_holds_none_of_the_others_up() {
             std::thread::sleep(Duration::from_millis(20));
         }
     };
-    wait_until("the sensors to subscribe", &|| bridges.iter().all(|b| b.matching_status().wait().unwrap().matching()));
+    // A bridge may start once its sensor says it is alive: the sensor subscribed before.
+    let alive = |name: &str| {
+        let replies = session.liveliness().get(format!("fleet/{name}/alive")).wait().unwrap();
+        replies.iter().any(|reply| reply.result().is_ok())
+    };
+    wait_until("the sensors to be alive", &|| names.iter().all(|name| alive(name)));
     let put = |k: usize, seq: u64| {
         let message = FrameMessage { seq, t: seq as f64 * 0.01, values: recorded[seq as usize].clone() };
         bridges[k].put(serde_json::to_vec(&message).unwrap()).wait().unwrap();
