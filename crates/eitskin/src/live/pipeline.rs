@@ -47,9 +47,10 @@
 //! a [`Derivation`] to run on any thread, its result given back by [`Pipeline::deliver`]) and
 //! puts it in at the next frame after it came: frames go on meanwhile, imaged with what was
 //! derived before ([`Status::Deriving`] until a new reference's first derivation is in, when
-//! that one is deferred too: [`Deferred`]). A server of many sensors runs the refreshes at a
-//! lower priority than frames, and each new reference's on its last frame, so that every frame
-//! after a reference is imaged as without deferring.
+//! that one is deferred too: [`Deferred`]). A server of many sensors runs them at a lower
+//! priority than frames; for a replay it derives each new reference's on its last frame
+//! ([`Deferred::Refreshes`]), so that every frame after a reference is imaged as without
+//! deferring.
 //!
 //! Plain data and no threads or I/O: the caller feeds frames (from a port, a file, the virtual
 //! sensor) and reads the results. After the reference is taken, [`Pipeline::process`]
