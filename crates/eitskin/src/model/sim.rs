@@ -306,10 +306,10 @@ impl VirtualSensor {
     ///
     /// Without drift, a frame is the background's measurements plus the exact change of the
     /// triangles the presses reach, by a low-rank update of the one factorisation
-    /// ([`LowRankUpdate`]): the near part of K₀⁻¹ covers presses within a few indenter radii of
-    /// each other, and presses farther apart take its column solves, or a full solve past 64
-    /// rows (exact either way). With drift the background itself changes, and the frame is
-    /// solved in full.
+    /// ([`LowRankUpdate`]): the near part of K₀⁻¹, kept in f64, covers each press, and the rest
+    /// of it, in f32, the coupling of presses far apart (up to [`crate::forward::FAR_LIMIT`]
+    /// unknowns; beyond, presses far apart take column solves, or a full solve past 64 rows).
+    /// With drift the background itself changes, and the frame is solved in full.
     pub fn clean_frame(&self) -> Result<Vec<f64>, ForwardError> {
         if self.background() != self.background {
             return self.model.measure(&self.conductivity());
@@ -591,15 +591,22 @@ mod tests {
     }
 
     /// Frames by the low-rank update are the full solve's, for one press and for three far
-    /// apart (beyond the near inverse's reach), flat and Hertz-like.
+    /// apart, flat and Hertz-like: on a truth mesh that keeps K₀⁻¹ whole, and on one that keeps
+    /// its near part in f64 and the far coupling in f32.
     #[test]
     fn updated_frames_are_full_solves() {
         let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 1500;
-        for profile in [Profile::Disk, Profile::Hertz { reference_force: 5.0 }] {
+        for (triangles, profile) in [
+            (1500, Profile::Disk),
+            (1500, Profile::Hertz { reference_force: 5.0 }),
+            (2200, Profile::Hertz { reference_force: 5.0 }),
+        ] {
+            spec.mesh.triangles = triangles;
             let hydrogel = Hydrogel { profile, ..Hydrogel::default() };
             let params = SimParams { hydrogel, ..SimParams::default() };
             let mut skin = VirtualSensor::with_params(&spec, params, 3).unwrap();
+            let whole = skin.model().system_size() <= crate::forward::DENSE_LIMIT;
+            assert_eq!(whole, triangles == 1500, "{} unknowns", skin.model().system_size());
             for presses in
                 [vec![([0.02, -0.03], 6.0)], vec![([0.05, 0.05], 3.0), ([-0.06, 0.0], 12.0), ([0.0, -0.07], 8.0)]]
             {
@@ -610,7 +617,7 @@ mod tests {
                 let updated = skin.clean_frame().unwrap();
                 let solved = skin.model().measure(&skin.conductivity()).unwrap();
                 let worst = updated.iter().zip(&solved).map(|(a, b)| ((a - b) / b).abs()).fold(0.0, f64::max);
-                assert!(worst < 1e-9, "{profile:?}, {} presses: {worst:e}", skin.presses().len());
+                assert!(worst < 1e-9, "{triangles}, {profile:?}, {} presses: {worst:e}", skin.presses().len());
             }
         }
     }

@@ -15,10 +15,12 @@
 //! one |R| × |R| system per change, exact up to rounding however strong the change.
 //!
 //! G_RR is |R| columns of K₀⁻¹. A model of up to [`DENSE_LIMIT`] unknowns keeps K₀⁻¹ whole (one
-//! solve of the identity at setup, then a change costs no sparse solve); a larger one solves
-//! the |R| columns per change, unless they are more than [`SOLVED_ROWS`]: then a new
-//! factorisation costs less than that many solves, and the change is solved in full (exact
-//! either way).
+//! solve of the identity at setup, then a change costs no sparse solve). A larger one made
+//! [`LowRankUpdate::with_reach`] keeps, per press, the block of K₀⁻¹ between nodes near each
+//! other in f64, and up to [`FAR_LIMIT`] unknowns the coupling between presses far apart in f32
+//! (the rest of K₀⁻¹, packed): G_RR is then gathered, never solved for. Otherwise it solves the
+//! |R| columns per change, unless they are more than [`SOLVED_ROWS`]: then a new factorisation
+//! costs less than that many solves, and the change is solved in full (exact either way).
 //!
 //! ```
 //! use eitskin::conductivity::{with_inclusions, Inclusion};
@@ -53,6 +55,10 @@ pub const DENSE_LIMIT: usize = 3000;
 
 /// Rows of a change beyond which, without the whole inverse, it is solved in full instead.
 pub const SOLVED_ROWS: usize = 64;
+
+/// Unknowns up to which [`LowRankUpdate::with_reach`] keeps K₀⁻¹ between nodes far apart, in
+/// f32 (4 bytes each, one triangle of the symmetric matrix: 134 MB at the limit).
+pub const FAR_LIMIT: usize = 8192;
 
 /// Local corner pairs of a triangle's stiffness entries, in the order of the stored coefficients.
 const LOCAL: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -100,30 +106,70 @@ impl Readout {
     }
 }
 
-/// K₀⁻¹ between the rows of nodes at most a reach apart: per row (CSR), the rows near it,
-/// sorted, and the values.
+/// K₀⁻¹ between the rows of nodes at most a reach apart, in f64: per row (CSR), the rows near
+/// it, sorted, and the values; and, where kept, the rest of it in f32.
+///
+/// Presses far apart couple only through the far entries, and the coupling is a small part of
+/// each press's change (second order in the changes), so f32's relative 6·10⁻⁸ there moves a
+/// frame far less than any sensor's noise (a test bounds it against full solves).
 #[derive(Debug, Clone)]
 struct NearGreen {
     start: Vec<usize>,
     rows: Vec<usize>,
     values: Vec<f64>,
+    far: Option<FarGreen>,
+}
+
+/// The whole of a symmetric K₀⁻¹ in f32: its lower triangle, column after column.
+#[derive(Debug, Clone)]
+struct FarGreen {
+    n: usize,
+    values: Vec<f32>,
+}
+
+impl FarGreen {
+    /// Where column j's entries (rows j..n) start in the packed triangle.
+    fn offset(n: usize, j: usize) -> usize {
+        j * n - j * j.saturating_sub(1) / 2
+    }
+
+    /// G[i, j].
+    fn get(&self, i: usize, j: usize) -> f64 {
+        let (i, j) = if i >= j { (i, j) } else { (j, i) };
+        f64::from(self.values[FarGreen::offset(self.n, j) + i - j])
+    }
 }
 
 impl NearGreen {
+    /// G_RR for the sorted rows `rows` into `green` (|R| × |R|), each column read from its
+    /// diagonal down and mirrored (so the far part is read along its packed columns); `false`
+    /// if an entry is not kept.
+    fn block_into(&self, rows: &[usize], green: &mut Mat<f64>) -> bool {
+        (0..rows.len()).all(|j| {
+            self.column_into(rows[j], &rows[j..], |i, g| {
+                green[(j + i, j)] = g;
+                green[(j, j + i)] = g;
+            })
+        })
+    }
+
     /// G[rows[i], j] into `out[i]` for every i (`rows` sorted), by one merge of the two sorted
-    /// lists; `false` if a row is not near j.
+    /// lists, a row not near j read from the far part; `false` if it is not kept.
     fn column_into(&self, j: usize, rows: &[usize], mut out: impl FnMut(usize, f64)) -> bool {
         let (Some(&from), Some(&to)) = (self.start.get(j), self.start.get(j + 1)) else { return false };
         let (near, values) = (&self.rows[from..to], &self.values[from..to]);
-        let mut k = 0;
+        let mut k = rows.first().map_or(0, |&first| near.partition_point(|&r| r < first));
         for (i, &row) in rows.iter().enumerate() {
             while k < near.len() && near[k] < row {
                 k += 1;
             }
-            if k == near.len() || near[k] != row {
+            if k < near.len() && near[k] == row {
+                out(i, values[k]);
+            } else if let Some(far) = &self.far {
+                out(i, far.get(row, j));
+            } else {
                 return false;
             }
-            out(i, values[k]);
         }
         true
     }
@@ -171,19 +217,21 @@ impl LowRankUpdate {
     }
 
     /// [`LowRankUpdate::new`], keeping for a model of more than [`DENSE_LIMIT`] unknowns the
-    /// part of K₀⁻¹ between nodes at most `reach` (m) apart: every column is solved once, in
-    /// batches (in parallel), and a change whose nodes lie within `reach` of each other then
-    /// needs no sparse solve.
+    /// part of K₀⁻¹ between nodes at most `reach` (m) apart in f64, and up to [`FAR_LIMIT`]
+    /// unknowns the rest in f32: every column is solved once, in batches (in parallel), and a
+    /// change then needs no sparse solve (beyond [`FAR_LIMIT`], one whose nodes lie within
+    /// `reach` of each other).
     pub fn with_reach(model: &ForwardModel, conductivity: &[f64], reach: f64) -> Result<LowRankUpdate, ForwardError> {
         let mut update = LowRankUpdate::new(model, conductivity)?;
         if update.inverse.is_none() && reach > 0.0 && reach.is_finite() {
-            update.near = Some(update.near_green(reach));
+            update.near = Some(update.near_green(reach, model.system_size() <= FAR_LIMIT));
         }
         Ok(update)
     }
 
-    /// The part of K₀⁻¹ between node rows at most `reach` (m) apart.
-    fn near_green(&self, reach: f64) -> NearGreen {
+    /// The part of K₀⁻¹ between node rows at most `reach` (m) apart, and the rest in f32 if
+    /// `far`.
+    fn near_green(&self, reach: f64, far: bool) -> NearGreen {
         use rayon::prelude::*;
         let model = &self.model;
         let mesh = model.mesh();
@@ -224,17 +272,31 @@ impl LowRankUpdate {
             near
         };
         let factor = &self.factor;
-        let batches: Vec<(Vec<usize>, Vec<f64>, Vec<usize>)> = (0..n)
-            .step_by(BATCH)
-            .collect::<Vec<_>>()
+        // Each batch of columns writes its own stretch of the packed far part.
+        let firsts: Vec<usize> = (0..n).step_by(BATCH).collect();
+        let mut far_values = vec![0.0_f32; if far { FarGreen::offset(n, n) } else { 0 }];
+        let mut stretches: Vec<&mut [f32]> = Vec::with_capacity(firsts.len());
+        let mut rest = far_values.as_mut_slice();
+        for &first in &firsts {
+            let len = if far { FarGreen::offset(n, (first + BATCH).min(n)) - FarGreen::offset(n, first) } else { 0 };
+            let (stretch, after) = rest.split_at_mut(len);
+            stretches.push(stretch);
+            rest = after;
+        }
+        let batches: Vec<(Vec<usize>, Vec<f64>, Vec<usize>)> = firsts
             .into_par_iter()
-            .map(|first| {
+            .zip(stretches)
+            .map(|(first, stretch)| {
                 let columns = first..(first + BATCH).min(n);
                 let mut rhs = Mat::<f64>::zeros(n, columns.len());
                 columns.clone().enumerate().for_each(|(k, j)| rhs[(j, k)] = 1.0);
                 factor.llt.solve_in_place(rhs.as_mut());
                 let (mut counts, mut rows, mut values) = (Vec::new(), Vec::new(), Vec::new());
+                let mut packed = stretch.iter_mut();
                 for (k, j) in columns.enumerate() {
+                    if far {
+                        rhs.col(k).iter().skip(j).zip(packed.by_ref()).for_each(|(g, p)| *p = *g as f32);
+                    }
                     let near = near_rows(j);
                     counts.push(near.len());
                     values.extend(near.iter().map(|&i| rhs[(i, k)]));
@@ -243,7 +305,8 @@ impl LowRankUpdate {
                 (rows, values, counts)
             })
             .collect();
-        let mut near = NearGreen { start: vec![0], rows: Vec::new(), values: Vec::new() };
+        let far = far.then_some(FarGreen { n, values: far_values });
+        let mut near = NearGreen { start: vec![0], rows: Vec::new(), values: Vec::new(), far };
         for (rows, values, counts) in batches {
             for count in counts {
                 let last = *near.start.last().unwrap_or(&0);
@@ -282,7 +345,7 @@ impl LowRankUpdate {
         let s = rows.len();
         let near = self.near.as_ref().and_then(|near| {
             let mut green = Mat::<f64>::zeros(s, s);
-            (0..s).all(|j| near.column_into(rows[j], &rows, |i, g| green[(i, j)] = g)).then_some(green)
+            near.block_into(&rows, &mut green).then_some(green)
         });
         let green = match (&self.inverse, near) {
             (Some(inverse), _) => Some(Mat::from_fn(s, s, |i, j| inverse[(rows[i], rows[j])])),
@@ -339,7 +402,7 @@ impl LowRankUpdate {
                 }
                 true
             }
-            (None, Some(near)) => (0..s).all(|j| near.column_into(rows[j], rows, |i, g| green[(i, j)] = g)),
+            (None, Some(near)) => near.block_into(rows, green),
             (None, None) => false,
         };
         if !found {
@@ -360,10 +423,12 @@ impl LowRankUpdate {
         // per column (a node's neighbours), so both of its products are sums of a few columns.
         grow(system, s, s);
         for j in 0..s {
-            system.col_mut(j).fill(0.0);
-            system[(j, j)] = 1.0;
+            // Contiguous columns as slices, so that the sums vectorise.
+            let column = system.col_as_slice_mut(j);
+            column.fill(0.0);
+            column[j] = 1.0;
             for &(i, value) in nonzeros.column(j) {
-                system.col_mut(j).iter_mut().zip(green.col(i).iter()).for_each(|(c, g)| *c += value * g);
+                column.iter_mut().zip(green.col_as_slice(i)).for_each(|(c, g)| *c += value * g);
             }
         }
         grow(x, s, basis);
@@ -389,7 +454,7 @@ impl LowRankUpdate {
     /// for the whole inverse would: for tests of that path on a small model.
     #[cfg(test)]
     pub(crate) fn near_only(mut self, reach: f64) -> LowRankUpdate {
-        self.near = Some(self.near_green(reach));
+        self.near = Some(self.near_green(reach, false));
         self.inverse = None;
         self
     }
@@ -614,17 +679,29 @@ mod tests {
         assert!(model.mesh().triangles().iter().any(|t| t.contains(&model.ground_node())));
         let mut near = LowRankUpdate::new(&model, &background).unwrap();
         near.inverse = None;
-        near.near = Some(near.near_green(0.08));
+        near.near = Some(near.near_green(0.08, false));
         // A 10 mm press's nodes are near each other: no sparse solve.
         let press = with_inclusions(model.mesh(), 1.0, &cases[0]);
         let local = near.local_rows((0..press.len()).filter(|&t| press[t] < 0.999));
         assert!(local.green.is_some() && local.rows.len() > 3);
-        for (path, dense) in [("dense", true), ("column solves", false), ("near", false)] {
+        // Near each other within 30 mm in f64, the rest in f32: the two presses 90 mm apart
+        // couple through f32 entries, gathered, where the near part alone lacks them.
+        let mut far = near.clone();
+        far.near = Some(far.near_green(0.03, true));
+        let two = with_inclusions(model.mesh(), 1.0, &cases[2]);
+        let rows = far.local_rows((0..two.len()).filter(|&t| two[t] != 1.0)).rows;
+        let gathered = |green: &NearGreen| rows.iter().all(|&j| green.column_into(j, &rows, |_, _| ()));
+        assert!(far.near.as_ref().is_some_and(gathered) && !gathered(&near.near_green(0.03, false)));
+        for (path, dense) in [("dense", true), ("column solves", false), ("near", false), ("near and far", false)] {
             if path == "near" {
                 update = near.clone();
+            } else if path == "near and far" {
+                update = far.clone();
             } else if !dense {
                 update.inverse = None;
             }
+            // f32's rounding of the far entries: 8e-9 of the largest change measured.
+            let tolerance = if path == "near and far" { 3e-8 } else { 1e-9 };
             for inclusions in &cases {
                 let sigma = with_inclusions(model.mesh(), 1.0, inclusions);
                 let changes: Vec<(usize, f64)> =
@@ -635,8 +712,8 @@ mod tests {
                 for (m, (d, (v, v0))) in dv.iter().zip(solved.iter().zip(update.background_measurements())).enumerate()
                 {
                     assert!(
-                        (d - (v - v0)).abs() < 1e-9 * scale,
-                        "dense {dense}, {inclusions:?}, m {m}: {d} vs {}",
+                        (d - (v - v0)).abs() < tolerance * scale,
+                        "{path}, {inclusions:?}, m {m}: {d} vs {}",
                         v - v0
                     );
                 }
