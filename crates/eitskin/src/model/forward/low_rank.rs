@@ -106,73 +106,81 @@ impl Readout {
     }
 }
 
-/// K₀⁻¹ between the rows of nodes at most a reach apart, in f64: per row (CSR), the rows near
-/// it, sorted, and the values; and, where kept, the rest of it in f32.
+/// K₀⁻¹ between the rows of nodes at most a reach apart, in f64, and, where kept, the rest of
+/// it in f32; rows numbered by their nodes' place along a Z-order curve (electrode unknowns
+/// last), so that the nodes of one press are neighbours in memory.
 ///
 /// Presses far apart couple only through the far entries, and the coupling is a small part of
 /// each press's change (second order in the changes), so f32's relative 6·10⁻⁸ there moves a
 /// frame far less than any sensor's noise (a test bounds it against full solves).
 #[derive(Debug, Clone)]
 struct NearGreen {
+    /// Each row's place on the curve.
+    place: Vec<usize>,
+    /// Per place (CSR), where its near places start (one more entry than rows).
     start: Vec<usize>,
-    rows: Vec<usize>,
+    /// The places near each place, sorted.
+    near: Vec<usize>,
     values: Vec<f64>,
-    far: Option<FarGreen>,
+    /// The lower triangle of K₀⁻¹ between places, column after column.
+    far: Option<Vec<f32>>,
 }
 
-/// The whole of a symmetric K₀⁻¹ in f32: its lower triangle, column after column.
-#[derive(Debug, Clone)]
-struct FarGreen {
-    n: usize,
-    values: Vec<f32>,
-}
-
-impl FarGreen {
-    /// Where column j's entries (rows j..n) start in the packed triangle.
-    fn offset(n: usize, j: usize) -> usize {
-        j * n - j * j.saturating_sub(1) / 2
-    }
-
-    /// G[i, j].
-    fn get(&self, i: usize, j: usize) -> f64 {
-        let (i, j) = if i >= j { (i, j) } else { (j, i) };
-        f64::from(self.values[FarGreen::offset(self.n, j) + i - j])
-    }
+/// Where column j's entries (places j..n) start in the packed lower triangle of an n × n matrix.
+fn packed_offset(n: usize, j: usize) -> usize {
+    j * n - j * j.saturating_sub(1) / 2
 }
 
 impl NearGreen {
-    /// G_RR for the sorted rows `rows` into `green` (|R| × |R|), each column read from its
-    /// diagonal down and mirrored (so the far part is read along its packed columns); `false`
-    /// if an entry is not kept.
-    fn block_into(&self, rows: &[usize], green: &mut Mat<f64>) -> bool {
-        (0..rows.len()).all(|j| {
-            self.column_into(rows[j], &rows[j..], |i, g| {
-                green[(j + i, j)] = g;
-                green[(j, j + i)] = g;
-            })
-        })
-    }
-
-    /// G[rows[i], j] into `out[i]` for every i (`rows` sorted), by one merge of the two sorted
-    /// lists, a row not near j read from the far part; `false` if it is not kept.
-    fn column_into(&self, j: usize, rows: &[usize], mut out: impl FnMut(usize, f64)) -> bool {
-        let (Some(&from), Some(&to)) = (self.start.get(j), self.start.get(j + 1)) else { return false };
-        let (near, values) = (&self.rows[from..to], &self.values[from..to]);
-        let mut k = rows.first().map_or(0, |&first| near.partition_point(|&r| r < first));
-        for (i, &row) in rows.iter().enumerate() {
-            while k < near.len() && near[k] < row {
-                k += 1;
-            }
-            if k < near.len() && near[k] == row {
-                out(i, values[k]);
-            } else if let Some(far) = &self.far {
-                out(i, far.get(row, j));
-            } else {
-                return false;
+    /// G_RR for the rows `rows` into `green` (|R| × |R|), read place by place: each column from
+    /// its diagonal down, along the packed far part, and mirrored. `sorted` is a buffer.
+    /// `false` if an entry is kept neither near nor far.
+    fn block_into(&self, rows: &[usize], green: &mut Mat<f64>, sorted: &mut Vec<(usize, usize)>) -> bool {
+        let n = self.place.len();
+        sorted.clear();
+        sorted.extend(rows.iter().enumerate().map(|(i, &row)| (self.place[row], i)));
+        sorted.sort_unstable();
+        for (b, &(pj, j)) in sorted.iter().enumerate() {
+            let (near, values) = (&self.near[self.start[pj]..self.start[pj + 1]], &self.values[self.start[pj]..]);
+            let far = self.far.as_deref().map(|far| &far[packed_offset(n, pj)..]);
+            let mut k = near.partition_point(|&q| q < pj);
+            for &(pi, i) in &sorted[b..] {
+                while k < near.len() && near[k] < pi {
+                    k += 1;
+                }
+                let g = match far {
+                    _ if k < near.len() && near[k] == pi => values[k],
+                    Some(far) => f64::from(far[pi - pj]),
+                    None => return false,
+                };
+                green[(i, j)] = g;
+                green[(j, i)] = g;
             }
         }
         true
     }
+}
+
+/// Each row's place along a Z-order (Morton) curve through its node's position, rows without a
+/// node (electrode unknowns) last in row order.
+fn z_order(node_of_row: &[usize], nodes: &[[f64; 2]], [lo, hi]: [[f64; 2]; 2]) -> Vec<usize> {
+    // 16 bits per axis, interleaved.
+    let spread = |x: f64| -> u64 {
+        let mut v = (x.clamp(0.0, 1.0) * 65535.0) as u64;
+        v = (v | (v << 8)) & 0x00ff_00ff;
+        v = (v | (v << 4)) & 0x0f0f_0f0f;
+        v = (v | (v << 2)) & 0x3333_3333;
+        (v | (v << 1)) & 0x5555_5555
+    };
+    let code = |row: usize| match nodes.get(node_of_row[row]) {
+        Some(p) => spread((p[0] - lo[0]) / (hi[0] - lo[0])) | spread((p[1] - lo[1]) / (hi[1] - lo[1])) << 1,
+        None => u64::MAX,
+    };
+    let mut by_code: Vec<(u64, usize)> = (0..node_of_row.len()).map(|row| (code(row), row)).collect();
+    by_code.sort_unstable();
+    let mut place = vec![0; node_of_row.len()];
+    by_code.iter().enumerate().for_each(|(k, &(_, row))| place[row] = k);
+    place
 }
 
 /// Columns of K₀⁻¹ solved at once when the near part of it is built.
@@ -256,7 +264,11 @@ impl LowRankUpdate {
             let (cx, cy) = cell_of(mesh.nodes()[node]);
             bucket[cy * nx + cx].push(row);
         }
-        let near_rows = |row: usize| -> Vec<usize> {
+        let place = z_order(&node_of_row, mesh.nodes(), [lo, hi]);
+        let mut row_at = vec![0; n];
+        place.iter().enumerate().for_each(|(row, &p)| row_at[p] = row);
+        // The places near a row's, sorted.
+        let near_places = |row: usize| -> Vec<usize> {
             let node = node_of_row[row];
             if node == usize::MAX {
                 return Vec::new();
@@ -267,18 +279,20 @@ impl LowRankUpdate {
                 .flat_map(|y| (cx.saturating_sub(1)..=(cx + 1).min(nx - 1)).map(move |x| y * nx + x))
                 .flat_map(|cell| bucket[cell].iter().copied())
                 .filter(|&other| crate::geometry::dist(p, mesh.nodes()[node_of_row[other]]) <= reach)
+                .map(|other| place[other])
                 .collect();
             near.sort_unstable();
             near
         };
         let factor = &self.factor;
-        // Each batch of columns writes its own stretch of the packed far part.
+        // Columns solved in batches of places; each batch writes its own stretch of the packed
+        // far part.
         let firsts: Vec<usize> = (0..n).step_by(BATCH).collect();
-        let mut far_values = vec![0.0_f32; if far { FarGreen::offset(n, n) } else { 0 }];
+        let mut far_values = vec![0.0_f32; if far { packed_offset(n, n) } else { 0 }];
         let mut stretches: Vec<&mut [f32]> = Vec::with_capacity(firsts.len());
         let mut rest = far_values.as_mut_slice();
         for &first in &firsts {
-            let len = if far { FarGreen::offset(n, (first + BATCH).min(n)) - FarGreen::offset(n, first) } else { 0 };
+            let len = if far { packed_offset(n, (first + BATCH).min(n)) - packed_offset(n, first) } else { 0 };
             let (stretch, after) = rest.split_at_mut(len);
             stretches.push(stretch);
             rest = after;
@@ -289,33 +303,34 @@ impl LowRankUpdate {
             .map(|(first, stretch)| {
                 let columns = first..(first + BATCH).min(n);
                 let mut rhs = Mat::<f64>::zeros(n, columns.len());
-                columns.clone().enumerate().for_each(|(k, j)| rhs[(j, k)] = 1.0);
+                columns.clone().enumerate().for_each(|(k, p)| rhs[(row_at[p], k)] = 1.0);
                 factor.llt.solve_in_place(rhs.as_mut());
-                let (mut counts, mut rows, mut values) = (Vec::new(), Vec::new(), Vec::new());
+                let (mut counts, mut near, mut values) = (Vec::new(), Vec::new(), Vec::new());
                 let mut packed = stretch.iter_mut();
-                for (k, j) in columns.enumerate() {
+                for (k, p) in columns.enumerate() {
+                    let column = rhs.col(k);
                     if far {
-                        rhs.col(k).iter().skip(j).zip(packed.by_ref()).for_each(|(g, p)| *p = *g as f32);
+                        row_at[p..].iter().zip(packed.by_ref()).for_each(|(&row, g)| *g = column[row] as f32);
                     }
-                    let near = near_rows(j);
-                    counts.push(near.len());
-                    values.extend(near.iter().map(|&i| rhs[(i, k)]));
-                    rows.extend(near);
+                    let places = near_places(row_at[p]);
+                    counts.push(places.len());
+                    values.extend(places.iter().map(|&q| column[row_at[q]]));
+                    near.extend(places);
                 }
-                (rows, values, counts)
+                (near, values, counts)
             })
             .collect();
-        let far = far.then_some(FarGreen { n, values: far_values });
-        let mut near = NearGreen { start: vec![0], rows: Vec::new(), values: Vec::new(), far };
-        for (rows, values, counts) in batches {
+        let far = far.then_some(far_values);
+        let mut green = NearGreen { place, start: vec![0], near: Vec::new(), values: Vec::new(), far };
+        for (near, values, counts) in batches {
             for count in counts {
-                let last = *near.start.last().unwrap_or(&0);
-                near.start.push(last + count);
+                let last = *green.start.last().unwrap_or(&0);
+                green.start.push(last + count);
             }
-            near.rows.extend(rows);
-            near.values.extend(values);
+            green.near.extend(near);
+            green.values.extend(values);
         }
-        near
+        green
     }
 
     /// The forward model.
@@ -345,7 +360,7 @@ impl LowRankUpdate {
         let s = rows.len();
         let near = self.near.as_ref().and_then(|near| {
             let mut green = Mat::<f64>::zeros(s, s);
-            near.block_into(&rows, &mut green).then_some(green)
+            near.block_into(&rows, &mut green, &mut Vec::new()).then_some(green)
         });
         let green = match (&self.inverse, near) {
             (Some(inverse), _) => Some(Mat::from_fn(s, s, |i, j| inverse[(rows[i], rows[j])])),
@@ -381,7 +396,7 @@ impl LowRankUpdate {
         scratch: &mut ChangeScratch,
         out: &mut [f64],
     ) -> Result<(), ForwardError> {
-        let ChangeScratch { rows, green, dk, nonzeros, fields, system, x, change, lu, solved } = scratch;
+        let ChangeScratch { rows, places, green, dk, nonzeros, fields, system, x, change, lu, solved } = scratch;
         *solved = false;
         rows.clear();
         for &(t, _) in changes {
@@ -402,7 +417,7 @@ impl LowRankUpdate {
                 }
                 true
             }
-            (None, Some(near)) => near.block_into(rows, green),
+            (None, Some(near)) => near.block_into(rows, green, places),
             (None, None) => false,
         };
         if !found {
@@ -423,13 +438,10 @@ impl LowRankUpdate {
         // per column (a node's neighbours), so both of its products are sums of a few columns.
         grow(system, s, s);
         for j in 0..s {
-            // Contiguous columns as slices, so that the sums vectorise.
             let column = system.col_as_slice_mut(j);
             column.fill(0.0);
             column[j] = 1.0;
-            for &(i, value) in nonzeros.column(j) {
-                column.iter_mut().zip(green.col_as_slice(i)).for_each(|(c, g)| *c += value * g);
-            }
+            add_columns(column, green, nonzeros.column(j));
         }
         grow(x, s, basis);
         x.copy_from(fields.as_ref());
@@ -567,6 +579,18 @@ impl LowRankUpdate {
     }
 }
 
+crate::parallel::widest! {
+    /// `column` += Σ value·G[:, i] over (i, value) of `entries`: a column of G·ΔK.
+    fn add_columns = add_columns_portable(column: &mut [f64], green: &Mat<f64>, entries: &[(usize, f64)]) -> ()
+}
+
+#[inline(always)]
+fn add_columns_portable(column: &mut [f64], green: &Mat<f64>, entries: &[(usize, f64)]) {
+    for &(i, value) in entries {
+        column.iter_mut().zip(green.col_as_slice(i)).for_each(|(c, g)| *c += value * g);
+    }
+}
+
 /// The nonzero entries of a small dense matrix, column by column.
 #[derive(Debug, Default)]
 struct Nonzeros {
@@ -603,6 +627,8 @@ impl Nonzeros {
 #[derive(Debug)]
 pub struct ChangeScratch {
     rows: Vec<usize>,
+    /// (place, index) of each row, for the near inverse's gather.
+    places: Vec<(usize, usize)>,
     green: Mat<f64>,
     dk: Mat<f64>,
     nonzeros: Nonzeros,
@@ -619,6 +645,7 @@ impl ChangeScratch {
     /// Room for changes touching up to `rows` rows of the system.
     pub fn reserve(&mut self, rows: usize) {
         room(&mut self.rows, rows);
+        room(&mut self.places, rows);
         self.nonzeros.reserve(rows);
         self.lu.reserve(rows);
     }
@@ -630,6 +657,7 @@ impl Default for ChangeScratch {
         let (green, dk, fields, system, x, change) = (empty(), empty(), empty(), empty(), empty(), empty());
         ChangeScratch {
             rows: Vec::new(),
+            places: Vec::new(),
             green,
             dk,
             nonzeros: Nonzeros::default(),
@@ -690,7 +718,8 @@ mod tests {
         far.near = Some(far.near_green(0.03, true));
         let two = with_inclusions(model.mesh(), 1.0, &cases[2]);
         let rows = far.local_rows((0..two.len()).filter(|&t| two[t] != 1.0)).rows;
-        let gathered = |green: &NearGreen| rows.iter().all(|&j| green.column_into(j, &rows, |_, _| ()));
+        let gathered =
+            |green: &NearGreen| green.block_into(&rows, &mut Mat::zeros(rows.len(), rows.len()), &mut Vec::new());
         assert!(far.near.as_ref().is_some_and(gathered) && !gathered(&near.near_green(0.03, false)));
         for (path, dense) in [("dense", true), ("column solves", false), ("near", false), ("near and far", false)] {
             if path == "near" {
