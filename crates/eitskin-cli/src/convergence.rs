@@ -10,6 +10,7 @@ use eitskin::SensorSpec;
 use eitskin_study::convergence::{default_inclusion, study, Convergence, Elements};
 use serde::Serialize;
 
+use crate::forward::{check_elements, ElementsArg};
 use crate::{load, ranges};
 
 /// Flags of `eitskin convergence`.
@@ -35,20 +36,13 @@ pub struct Args {
     /// the width at a quarter of the width right of centre, half the background conductivity.
     #[arg(long, allow_hyphen_values = true)]
     inclusion: Option<String>,
-    /// Elements of the forward model: `p1` (linear, the one every other command uses) or `p2`
+    /// Elements of the forward model: `p1` (linear, the one images, touches and presses are built on) or `p2`
     /// (quadratic on the same mesh: a second unknown on every edge, complete electrodes only).
     #[arg(long, value_enum, default_value = "p1")]
     elements: ElementsArg,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
-}
-
-/// `--elements`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum ElementsArg {
-    P1,
-    P2,
 }
 
 #[derive(Serialize)]
@@ -77,11 +71,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.protocol {
         spec.protocol = eitskin_io::protocol_by_name(p, std::path::Path::new("."), spec.electrodes.count)?;
     }
-    if args.elements == ElementsArg::P2 && spec.electrodes.point {
-        bail!(
-            "--elements p2: the sensor has point electrodes, and quadratic elements are for complete electrodes only"
-        );
-    }
+    check_elements(args.elements, &spec)?;
     load::sized(spec.clone(), args.triangles.iter().max().copied(), Stage::ForwardModel)?;
     let inclusion = match &args.inclusion {
         Some(text) => load::inclusion(text, &spec)?,
