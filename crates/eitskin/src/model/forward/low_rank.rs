@@ -12,15 +12,18 @@
 //!   ΔV = −U_Rᵀ·ΔK_RR·(I + G_RR·ΔK_RR)⁻¹·U_R,   Δv_m = w_mᵀ·ΔV·I_m,
 //!
 //! (w_m the measurement's weights and I_m its stimulation's currents on the basis e_p − e_L):
-//! one |R| × |R| system per change, exact up to rounding however strong the change.
+//! one |R| × |R| system per change, exact up to rounding however strong the change (with the
+//! far part below kept in f32, up to its rounding: a test bounds it).
 //!
 //! G_RR is |R| columns of K₀⁻¹. A model of up to [`DENSE_LIMIT`] unknowns keeps K₀⁻¹ whole (one
 //! solve of the identity at setup, then a change costs no sparse solve). A larger one made
-//! [`LowRankUpdate::with_reach`] keeps, per press, the block of K₀⁻¹ between nodes near each
-//! other in f64, and up to [`FAR_LIMIT`] unknowns the coupling between presses far apart in f32
-//! (the rest of K₀⁻¹, packed): G_RR is then gathered, never solved for. Otherwise it solves the
-//! |R| columns per change, unless they are more than [`SOLVED_ROWS`]: then a new factorisation
-//! costs less than that many solves, and the change is solved in full (exact either way).
+//! [`LowRankUpdate::with_reach`] keeps the part of K₀⁻¹ between nodes within a reach of each
+//! other in f64 (a press's own block, for presses that fit in it), and one made
+//! [`LowRankUpdate::with_far`] also, up to [`FAR_LIMIT`] unknowns, the rest in f32 (packed): the
+//! coupling of presses far apart. G_RR is then gathered for changes of up to [`GATHERED_ROWS`]
+//! rows. Otherwise it solves the |R| columns per change, unless they are more than
+//! [`SOLVED_ROWS`]: then a new factorisation costs less than that many solves, and the change is
+//! solved in full (exact either way).
 //!
 //! ```
 //! use eitskin::conductivity::{with_inclusions, Inclusion};
@@ -56,6 +59,11 @@ pub const DENSE_LIMIT: usize = 3000;
 /// Rows of a change beyond which, without the whole inverse, it is solved in full instead.
 pub const SOLVED_ROWS: usize = 64;
 
+/// Rows of a change beyond which, without the whole inverse, a gathered G_RR is not used: the
+/// |R|² system's LU then costs more than solving the changed system in full (about 5 ms on the
+/// virtual sensor's 12k-triangle truth mesh, reached near 400 rows).
+pub const GATHERED_ROWS: usize = 400;
+
 /// Unknowns up to which [`LowRankUpdate::with_reach`] keeps K₀⁻¹ between nodes far apart, in
 /// f32 (4 bytes each, one triangle of the symmetric matrix: 134 MB at the limit).
 pub const FAR_LIMIT: usize = 8192;
@@ -72,7 +80,8 @@ pub struct LowRankUpdate {
     fields: Mat<f64>,
     /// K₀⁻¹ whole, for models of at most [`DENSE_LIMIT`] unknowns.
     inverse: Option<Mat<f64>>,
-    /// K₀⁻¹ between nodes near each other, for larger models made [`LowRankUpdate::with_reach`].
+    /// K₀⁻¹ between nodes near each other, and where kept the rest in f32, for larger models
+    /// made [`LowRankUpdate::with_reach`] or [`LowRankUpdate::with_far`].
     near: Option<NearGreen>,
     background: Vec<f64>,
     /// The background conductivity per triangle, S/m (for changes solved in full).
@@ -110,9 +119,10 @@ impl Readout {
 /// it in f32; rows numbered by their nodes' place along a Z-order curve (electrode unknowns
 /// last), so that the nodes of one press are neighbours in memory.
 ///
-/// Presses far apart couple only through the far entries, and the coupling is a small part of
-/// each press's change (second order in the changes), so f32's relative 6·10⁻⁸ there moves a
-/// frame far less than any sensor's noise (a test bounds it against full solves).
+/// Presses far apart couple only through the far entries, a small part of each press's change
+/// (second order in the changes). ΔK's columns sum to zero, so G·ΔK sees differences of G along
+/// a row, and f32's relative 6·10⁻⁸ of G is more of those; measured against full solves, a
+/// frame moves by at most 8·10⁻⁹ of its largest change (a test), far below any sensor's noise.
 #[derive(Debug, Clone)]
 struct NearGreen {
     /// Each row's place on the curve.
@@ -225,14 +235,28 @@ impl LowRankUpdate {
     }
 
     /// [`LowRankUpdate::new`], keeping for a model of more than [`DENSE_LIMIT`] unknowns the
-    /// part of K₀⁻¹ between nodes at most `reach` (m) apart in f64, and up to [`FAR_LIMIT`]
-    /// unknowns the rest in f32: every column is solved once, in batches (in parallel), and a
-    /// change then needs no sparse solve (beyond [`FAR_LIMIT`], one whose nodes lie within
-    /// `reach` of each other).
+    /// part of K₀⁻¹ between nodes at most `reach` (m) apart: every column is solved once, in
+    /// batches (in parallel), and a change whose nodes lie within `reach` of each other then
+    /// needs no sparse solve.
     pub fn with_reach(model: &ForwardModel, conductivity: &[f64], reach: f64) -> Result<LowRankUpdate, ForwardError> {
+        LowRankUpdate::keeping(model, conductivity, reach, false)
+    }
+
+    /// [`LowRankUpdate::with_reach`], keeping too, up to [`FAR_LIMIT`] unknowns, the rest of
+    /// K₀⁻¹ in f32 (at most 134 MB), so that changes far apart need no sparse solve either.
+    pub fn with_far(model: &ForwardModel, conductivity: &[f64], reach: f64) -> Result<LowRankUpdate, ForwardError> {
+        LowRankUpdate::keeping(model, conductivity, reach, model.system_size() <= FAR_LIMIT)
+    }
+
+    fn keeping(
+        model: &ForwardModel,
+        conductivity: &[f64],
+        reach: f64,
+        far: bool,
+    ) -> Result<LowRankUpdate, ForwardError> {
         let mut update = LowRankUpdate::new(model, conductivity)?;
         if update.inverse.is_none() && reach > 0.0 && reach.is_finite() {
-            update.near = Some(update.near_green(reach, model.system_size() <= FAR_LIMIT));
+            update.near = Some(update.near_green(reach, far));
         }
         Ok(update)
     }
@@ -358,7 +382,7 @@ impl LowRankUpdate {
         rows.sort_unstable();
         rows.dedup();
         let s = rows.len();
-        let near = self.near.as_ref().and_then(|near| {
+        let near = self.near.as_ref().filter(|_| s <= GATHERED_ROWS).and_then(|near| {
             let mut green = Mat::<f64>::zeros(s, s);
             near.block_into(&rows, &mut green, &mut Vec::new()).then_some(green)
         });
@@ -387,9 +411,10 @@ impl LowRankUpdate {
 
     /// [`LowRankUpdate::measurement_change`] into `out` (one value per measurement; a
     /// triangle may appear more than once, its changes add). Allocates nothing once `scratch`
-    /// has grown, where G_RR needs no sparse solve (the inverse kept whole, or its near part
-    /// covers the change's rows); otherwise it solves the rows' columns of K₀⁻¹, or, past
-    /// 64 of them (`SOLVED_ROWS`), the whole changed system.
+    /// has grown, where G_RR needs no sparse solve (the inverse kept whole, or its near part,
+    /// and its far part where kept, covers the change's rows, at most [`GATHERED_ROWS`]);
+    /// otherwise it solves the rows' columns of K₀⁻¹, or, past 64 of them (`SOLVED_ROWS`), the
+    /// whole changed system.
     pub fn measurement_change_into(
         &self,
         changes: &[(usize, f64)],
@@ -407,9 +432,9 @@ impl LowRankUpdate {
         rows.dedup();
         let s = rows.len();
         let basis = self.fields.ncols();
-        grow(green, s, s);
         let found = match (&self.inverse, &self.near) {
             (Some(inverse), _) => {
+                grow(green, s, s);
                 for j in 0..s {
                     for i in 0..s {
                         green[(i, j)] = inverse[(rows[i], rows[j])];
@@ -417,8 +442,11 @@ impl LowRankUpdate {
                 }
                 true
             }
-            (None, Some(near)) => near.block_into(rows, green, places),
-            (None, None) => false,
+            (None, Some(near)) if s <= GATHERED_ROWS => {
+                grow(green, s, s);
+                near.block_into(rows, green, places)
+            }
+            (None, _) => false,
         };
         if !found {
             let local = self.local_rows(changes.iter().map(|(t, _)| *t));
@@ -642,6 +670,12 @@ pub struct ChangeScratch {
 }
 
 impl ChangeScratch {
+    /// Whether the last change was found by the update, not solved in full.
+    #[cfg(test)]
+    pub(crate) fn updated(&self) -> bool {
+        self.solved
+    }
+
     /// Room for changes touching up to `rows` rows of the system.
     pub fn reserve(&mut self, rows: usize) {
         room(&mut self.rows, rows);
@@ -701,7 +735,7 @@ mod tests {
                 Inclusion { centre: [-0.05, 0.04], radius: 0.01, conductivity: 0.3 },
                 Inclusion { centre: [0.04, 0.05], radius: 0.015, conductivity: 2.0 },
             ],
-            // More rows than SOLVED_ROWS: without the whole inverse, solved in full.
+            // The most rows of the four: without the whole inverse or the far part, column solves.
             vec![Inclusion { centre: [0.0, 0.02], radius: 0.05, conductivity: 0.5 }],
         ];
         assert!(model.mesh().triangles().iter().any(|t| t.contains(&model.ground_node())));
