@@ -60,9 +60,10 @@ pub const DENSE_LIMIT: usize = 3000;
 pub const SOLVED_ROWS: usize = 64;
 
 /// Rows of a change beyond which, without the whole inverse, a gathered G_RR is not used: the
-/// |R|² system's LU then costs more than solving the changed system in full (about 5 ms on the
-/// virtual sensor's 12k-triangle truth mesh, reached near 400 rows).
-pub const GATHERED_ROWS: usize = 400;
+/// |R|² system then costs about what solving the changed system in full does (measured on the
+/// virtual sensor's 12k-triangle truth mesh: five presses, 378 rows, 2.4 ms gathered; the full
+/// solve 5–11 ms on two cores or one).
+pub const GATHERED_ROWS: usize = 500;
 
 /// Unknowns up to which [`LowRankUpdate::with_reach`] keeps K₀⁻¹ between nodes far apart, in
 /// f32 (4 bytes each, one triangle of the symmetric matrix: 134 MB at the limit).
