@@ -98,7 +98,7 @@ pub fn run(args: Args) -> Result<()> {
         })
         .collect();
     let report = Report {
-        elements: if elements == Elements::Linear { "p1" } else { "p2" },
+        elements: args.elements.name(),
         reference: found.reference,
         value_order: found.value_order,
         difference_order: found.difference_order,
