@@ -43,6 +43,7 @@ use eitskin_io::stream::Start;
 
 pub(crate) use process::fill_frame_line;
 pub(crate) use process::{Drained, Processing, Tally};
+pub(crate) use setup::{choose_precision, Precision};
 use sink::{to_all, Flow, Lines, Recording, Sink, Viewing};
 
 use crate::{load, outputs, ranges, viewer};
@@ -123,11 +124,13 @@ pub struct Args {
     /// on a model of them while they explain it (a press held costs microseconds, not milliseconds).
     #[arg(long)]
     fresh_presses: bool,
-    /// Image each frame from a half-precision copy of the reconstruction matrix: half the memory
-    /// a frame reads, each pixel within 2⁻¹¹ times the sum of its terms' magnitudes; for many
-    /// sensors on few cores (`serve`), whose matrices do not share the cache.
-    #[arg(long)]
-    half_precision: bool,
+    /// The precision each frame's image is computed from: `half` reads a binary16 copy of the
+    /// reconstruction matrix (half the memory a frame reads, each pixel within 2⁻¹¹ times the sum
+    /// of its terms' magnitudes), `single` the matrix itself; `auto` takes half where the
+    /// matrices the process reads every frame (all of `serve`'s sensors') overflow the
+    /// processor's last-level cache.
+    #[arg(long, value_enum, default_value_t = Precision::Auto)]
+    precision: Precision,
     /// Seed of the virtual sensor's noise and random presses, 0 to 2⁶⁴ − 1.
     #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     seed: u64,
@@ -200,6 +203,7 @@ fn check_record(path: &Path, args: &Args) -> Result<()> {
 pub fn run(args: Args) -> Result<()> {
     let zenoh = check(&args)?;
     let Sensor { spec, mut processing, start, params } = prepare(&args)?;
+    choose_precision("run", &mut [(args.precision, &mut processing.pipeline)]);
     let session = if zenoh { Some(args.zenoh.open()?) } else { None };
     let source = open_source(&args, &spec, processing.kind(), session.as_ref())?;
     let mut sinks = sinks(&args, &spec, &processing.pipeline, processing.kind(), session.as_ref())?;
@@ -222,6 +226,11 @@ impl Args {
     /// Whether the run's results go anywhere but stdout: published, or recorded.
     pub(crate) fn publishes(&self) -> bool {
         self.zenoh.publishes() || self.record.is_some()
+    }
+
+    /// The precision its frames are imaged in, as asked.
+    pub(crate) fn precision(&self) -> Precision {
+        self.precision
     }
 
     /// The recording's path, if recording.

@@ -385,6 +385,8 @@ pub fn serve(args: Args) -> Result<()> {
             }
         }
     }
+    let mut precisions: Vec<_> = built.iter_mut().map(|b| (b.1.precision(), &mut b.2.pipeline)).collect();
+    run::choose_precision("serve", &mut precisions);
     let threads = args.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     // The pool spreads the sensors over the cores: each sensor's products stay on its thread.
     eitskin::parallel::set_par(eitskin::parallel::Par::Seq);

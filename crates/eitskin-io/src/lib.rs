@@ -70,7 +70,7 @@ pub use contrast_map_file::{contrast_map_path, decode_contrast_map, encode_contr
 pub use fleet_file::{parse_fleet, read_fleet, Fleet, FleetSensor, MAX_SENSORS};
 pub use frame_file::{parse_frame, read_frame};
 pub use learned_model_file::{learned_model_to_json, nominal_sensor, parse_learned_model, read_learned_model};
-pub use memory::{available_memory, peak_memory};
+pub use memory::{available_memory, last_level_cache, peak_memory};
 pub use mesh_file::{mesh_to_json, parse_mesh, read_mesh};
 pub use output_name::check_output_name;
 pub use press_model_file::{

@@ -17,6 +17,45 @@ use super::learned::LearnedAnswers;
 use super::Args;
 use crate::load;
 
+/// The precision a sensor's frames are imaged in (`--precision`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Precision {
+    /// Half where the matrices read every frame overflow the last-level cache, else single.
+    Auto,
+    /// The reconstruction matrix itself, in f32.
+    Single,
+    /// A binary16 copy of it: half the bytes a frame reads.
+    Half,
+}
+
+/// Sets the pipelines whose precision is `auto` to half precision where the matrices every
+/// pipeline reads each frame overflow the last-level cache (bytes as the pipelines now read
+/// them), and says so once, as `command`.
+pub fn choose_precision(command: &str, pipelines: &mut [(Precision, &mut Pipeline)]) {
+    let bytes: usize = pipelines.iter().map(|(_, p)| p.chain().reconstructor().matrix().bytes_read()).sum();
+    let Some(cache) = eitskin_io::last_level_cache() else { return };
+    let auto = pipelines.iter().filter(|(precision, _)| *precision == Precision::Auto).count();
+    // Matrices that overflow the cache are read from memory every frame: half the bytes take
+    // about half the time.
+    if bytes as f64 <= cache || auto == 0 {
+        return;
+    }
+    for (_, pipeline) in pipelines.iter_mut().filter(|(precision, _)| *precision == Precision::Auto) {
+        pipeline.set_half_precision(true);
+    }
+    let matrices =
+        if pipelines.len() == 1 { "the matrix's".to_owned() } else { format!("{} matrices'", pipelines.len()) };
+    eprintln!(
+        "eitskin {command}: imaging in half precision ({auto} of {}): {matrices} {:.1} MiB overflow the {:.1} MiB last-level cache (--precision single keeps single)",
+        pipelines.len(),
+        bytes as f64 / MIB,
+        cache / MIB
+    );
+}
+
+/// Bytes in a mebibyte, as processors' caches are said.
+const MIB: f64 = 1024.0 * 1024.0;
+
 /// What a run processes frames with.
 pub struct Built {
     /// The pipeline, its reference not yet taken.
@@ -104,7 +143,8 @@ fn chain_setup(
         );
         (file.array, file.calibration)
     });
-    ChainSetup { touch, fit: args.fit, calibration, half_precision: args.half_precision, ..ChainSetup::new(recon) }
+    let half_precision = args.precision == Precision::Half;
+    ChainSetup { touch, fit: args.fit, calibration, half_precision, ..ChainSetup::new(recon) }
 }
 
 /// The virtual sensor's calibration, made now as `calibrate` makes one from a board's presses

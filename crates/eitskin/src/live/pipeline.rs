@@ -427,6 +427,12 @@ impl Pipeline {
         !self.reference.is_empty() && !self.deriving_reference
     }
 
+    /// Images frames from a half-precision copy of the reconstruction matrix when `on`
+    /// ([`Chain::set_half_precision`]), and every reference derived later. Allocates: setup.
+    pub fn set_half_precision(&mut self, on: bool) {
+        self.chain.set_half_precision(on);
+    }
+
     /// The frame path's settings.
     pub fn params(&self) -> &PipelineParams {
         &self.params

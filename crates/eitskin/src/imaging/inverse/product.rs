@@ -75,6 +75,14 @@ impl BlockedMatrix {
         self.half = None;
     }
 
+    /// Bytes one product reads: the half-precision copy's where kept, else the matrix's.
+    pub fn bytes_read(&self) -> usize {
+        match &self.half {
+            Some(half) => 2 * half.bits.len() + 4 * half.scales.len(),
+            None => 4 * self.data.len(),
+        }
+    }
+
     /// Whether the frame's product reads a half-precision copy.
     pub fn is_half(&self) -> bool {
         self.half.is_some()
