@@ -72,6 +72,9 @@ pub const FAR_LIMIT: usize = 8192;
 /// Local corner pairs of a triangle's stiffness entries, in the order of the stored coefficients.
 const LOCAL: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
+/// A row of the system outside the change's rows ([`ChangeScratch`]'s map).
+const UNUSED: u32 = u32::MAX;
+
 /// A forward model factored at a background conductivity, ready for exact local changes.
 #[derive(Debug, Clone)]
 pub struct LowRankUpdate {
@@ -422,8 +425,9 @@ impl LowRankUpdate {
         scratch: &mut ChangeScratch,
         out: &mut [f64],
     ) -> Result<(), ForwardError> {
-        let ChangeScratch { rows, places, green, dk, nonzeros, fields, system, x, change, lu, solved } = scratch;
+        let ChangeScratch { rows, local, places, green, nonzeros, fields, system, x, change, lu, solved } = scratch;
         *solved = false;
+        rows.iter().for_each(|&r| local[r] = UNUSED);
         rows.clear();
         for &(t, _) in changes {
             let nodes = self.model.mesh.triangles()[t];
@@ -432,6 +436,8 @@ impl LowRankUpdate {
         rows.sort_unstable();
         rows.dedup();
         let s = rows.len();
+        local.resize(self.fields.nrows(), UNUSED);
+        rows.iter().enumerate().for_each(|(i, &r)| local[r] = i as u32);
         let basis = self.fields.ncols();
         let found = match (&self.inverse, &self.near) {
             (Some(inverse), _) => {
@@ -461,8 +467,7 @@ impl LowRankUpdate {
                 fields[(i, p)] = self.fields[(rows[i], p)];
             }
         }
-        self.stiffness_change(changes, rows, dk);
-        nonzeros.gather(dk.as_ref());
+        nonzeros.stiffness_change(self, changes, local, s);
         // X = (I + G·ΔK)⁻¹·U_R by an LU in place, then ΔV = −U_Rᵀ·ΔK·X. ΔK has a few entries
         // per column (a node's neighbours), so both of its products are sums of a few columns.
         grow(system, s, s);
@@ -513,7 +518,7 @@ impl LowRankUpdate {
     /// it, as a press's edge moving does not to first order. `false` (and `out` untouched) if
     /// the last change was solved in full, not by the update.
     pub fn derivative_into(&self, direction: &[(usize, f64)], scratch: &mut ChangeScratch, out: &mut [f64]) -> bool {
-        let ChangeScratch { rows, green: dkx, x, change, solved, .. } = scratch;
+        let ChangeScratch { rows, local: local_of, green: dkx, x, change, solved, .. } = scratch;
         if !*solved {
             return false;
         }
@@ -527,7 +532,7 @@ impl LowRankUpdate {
                 if row == GROUNDED {
                     Some(None)
                 } else {
-                    rows.binary_search(&row).ok().map(Some)
+                    local_of.get(row).filter(|&&i| i != UNUSED).map(|&i| Some(i as usize))
                 }
             });
             if local.iter().any(Option::is_none) {
@@ -630,15 +635,74 @@ struct Nonzeros {
 }
 
 impl Nonzeros {
-    fn gather(&mut self, matrix: MatRef<'_, f64>) {
+    /// ΔK_RR of `changes` from the triangles' stiffness, column by column, each column's rows
+    /// in order with repeats summed: `local` maps a row of the system to its index in R (every
+    /// row of a changed triangle is in R, or grounded), R of `columns` rows. Counted, placed,
+    /// then each column sorted and merged: no |R| × |R| matrix is filled or scanned.
+    fn stiffness_change(&mut self, update: &LowRankUpdate, changes: &[(usize, f64)], local: &[u32], columns: usize) {
+        let model = &update.model;
+        let entries_of = |t: usize| {
+            let nodes = model.mesh.triangles()[t];
+            let index = nodes.map(|n| match model.row_of_node[n] {
+                GROUNDED => UNUSED,
+                row => local[row],
+            });
+            LOCAL.iter().zip(model.pattern.triangle_coefs[t]).filter_map(move |(&(a, b), coef)| {
+                let (i, j) = (index[a], index[b]);
+                (i != UNUSED && j != UNUSED).then_some((i as usize, j as usize, coef))
+            })
+        };
         self.start.clear();
-        self.entries.clear();
-        self.start.push(0);
-        for j in 0..matrix.ncols() {
-            let column = matrix.col(j);
-            self.entries.extend(column.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(i, v)| (i, *v)));
-            self.start.push(self.entries.len());
+        self.start.resize(columns + 2, 0);
+        for &(t, _) in changes {
+            for (i, j, _) in entries_of(t) {
+                self.start[j + 2] += 1;
+                if i != j {
+                    self.start[i + 2] += 1;
+                }
+            }
         }
+        for j in 2..self.start.len() {
+            self.start[j] += self.start[j - 1];
+        }
+        // start[j + 1] is now where column j's entries go: placing moves it to their end.
+        self.entries.clear();
+        self.entries.resize(self.start[columns + 1], (0, 0.0));
+        for &(t, delta) in changes {
+            for (i, j, coef) in entries_of(t) {
+                let value = delta * coef;
+                self.entries[self.start[j + 1]] = (i, value);
+                self.start[j + 1] += 1;
+                if i != j {
+                    self.entries[self.start[i + 1]] = (j, value);
+                    self.start[i + 1] += 1;
+                }
+            }
+        }
+        self.start.pop();
+        // Each column sorted by row, its repeats (a node's edge shared by two triangles) summed,
+        // zeros dropped, and the columns closed up.
+        let mut kept = 0;
+        for j in 0..columns {
+            let (from, to) = (self.start[j], self.start[j + 1]);
+            self.start[j] = kept;
+            self.entries[from..to].sort_unstable_by_key(|e| e.0);
+            let mut k = from;
+            while k < to {
+                let (row, mut value) = self.entries[k];
+                k += 1;
+                while k < to && self.entries[k].0 == row {
+                    value += self.entries[k].1;
+                    k += 1;
+                }
+                if value != 0.0 {
+                    self.entries[kept] = (row, value);
+                    kept += 1;
+                }
+            }
+        }
+        self.start[columns] = kept;
+        self.entries.truncate(kept);
     }
 
     fn column(&self, j: usize) -> &[(usize, f64)] {
@@ -656,10 +720,11 @@ impl Nonzeros {
 #[derive(Debug)]
 pub struct ChangeScratch {
     rows: Vec<usize>,
+    /// Each row of the system's index in `rows`, [`UNUSED`] for the others.
+    local: Vec<u32>,
     /// (place, index) of each row, for the near inverse's gather.
     places: Vec<(usize, usize)>,
     green: Mat<f64>,
-    dk: Mat<f64>,
     nonzeros: Nonzeros,
     fields: Mat<f64>,
     system: Mat<f64>,
@@ -689,12 +754,12 @@ impl ChangeScratch {
 impl Default for ChangeScratch {
     fn default() -> Self {
         let empty = || Mat::zeros(0, 0);
-        let (green, dk, fields, system, x, change) = (empty(), empty(), empty(), empty(), empty(), empty());
+        let (green, fields, system, x, change) = (empty(), empty(), empty(), empty(), empty());
         ChangeScratch {
             rows: Vec::new(),
+            local: Vec::new(),
             places: Vec::new(),
             green,
-            dk,
             nonzeros: Nonzeros::default(),
             fields,
             system,
