@@ -281,3 +281,54 @@ fn robot_presses_are_learned_and_the_curves_reported() {
     let refused = dir.eitskin(&["evaluate", "--model", m, "--samples", h, "--out", "answers.NPY"]);
     assert!(String::from_utf8_lossy(&refused.stderr).contains("this flag writes .csv, not .NPY"), "{refused:?}");
 }
+
+/// Two robot-pressed hydrogel skins of another group (`../shared/data/dev`, 16 electrodes on an
+/// OpenEIT-style board, 192 values a press in the firmware's order, 2,500 presses each), read
+/// as a user would: the protocol from the file's own channel table, the labels in mm about the
+/// centre of the pressed disc. `learn` runs to the end on the first 100 presses, and on 500
+/// later ones its choice is at least as good as the plain kernel ridge of the same run (to the
+/// 0.1 mm the report prints).
+#[test]
+fn learn_on_robot_pressed_skins_is_as_good_as_plain_kernel_ridge() {
+    let Some(shared) = eitskin_testdata::shared() else { return };
+    let dir = scratch("learn-skins");
+    for skin in ["skin_noPattern", "skin_fullCB"] {
+        let path = shared.join("data/dev").join(format!("{skin}.json"));
+        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let set: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let column = |name: &str| -> Vec<Vec<f64>> { serde_json::from_value(set[name].clone()).unwrap() };
+        let (inputs, outputs, lookup) = (column("inp"), column("out"), column("lookup_channels"));
+        let centre: Vec<f64> = serde_json::from_value(set["press_disc_centre_m"].clone()).unwrap();
+        // A multiplexer channel c is electrode c / 2 (the file's conventions).
+        let quads: Vec<Vec<usize>> = lookup.iter().map(|q| q.iter().map(|c| *c as usize / 2).collect()).collect();
+        let protocol = serde_json::json!({"electrodes": 16, "index_base": 0, "quads": quads});
+        std::fs::write(dir.join("protocol.json"), protocol.to_string()).unwrap();
+        let spec = ok(dir.eitskin(&["spec"]))
+            .replace("[protocol]\nkind = \"two-terminal\"", "[protocol]\nkind = \"custom\"\nfile = \"protocol.json\"");
+        assert!(spec.contains("protocol.json"), "{spec}");
+        std::fs::write(dir.join("skin.toml"), spec).unwrap();
+        let samples = |name: &str, presses: std::ops::Range<usize>| {
+            let mut csv = String::from("x,y");
+            (1..=inputs[0].len()).for_each(|k| csv += &format!(",v{k}"));
+            for k in presses {
+                csv += &format!("\n{},{}", 1e3 * (outputs[k][0] - centre[0]), 1e3 * (outputs[k][1] - centre[1]));
+                inputs[k].iter().for_each(|v| csv += &format!(",{v}"));
+            }
+            std::fs::write(dir.join(name), csv + "\n").unwrap();
+            dir.join(name).to_str().unwrap().to_owned()
+        };
+        let (train, held) = (samples("train.csv", 0..100), samples("held.csv", 2000..2500));
+        let spec = dir.join("skin.toml");
+        let out = ok(dir.eitskin(&["learn", spec.to_str().unwrap(), "--samples", &train, "--held-out", &held]));
+        let millimetres = |prefix: &str| -> f64 {
+            let line = out.lines().find(|l| l.trim_start().starts_with(prefix)).unwrap_or_else(|| panic!("{out}"));
+            let words: Vec<&str> = line.split_whitespace().collect();
+            assert_eq!(words.last(), Some(&"mm"), "{line}");
+            words[words.len() - 2].parse().unwrap_or_else(|e| panic!("{line}: {e}"))
+        };
+        let (chosen, baseline) =
+            (millimetres("on 500 held-out presses"), millimetres("the plain kernel ridge on them"));
+        eprintln!("{skin}: chosen {chosen} mm, plain kernel ridge {baseline} mm");
+        assert!(chosen <= baseline + 0.1, "{skin}: {chosen} mm against {baseline} mm\n{out}");
+    }
+}
