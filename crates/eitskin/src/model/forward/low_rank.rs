@@ -83,7 +83,7 @@ pub struct LowRankUpdate {
     /// The background's basis fields, unknowns × (L − 1), in V.
     fields: Mat<f64>,
     /// K₀⁻¹ whole, for models of at most [`DENSE_LIMIT`] unknowns.
-    inverse: Option<Mat<f64>>,
+    inverse: Option<WholeGreen>,
     /// K₀⁻¹ between nodes near each other, and where kept the rest in f32, for larger models
     /// made [`LowRankUpdate::with_reach`] or [`LowRankUpdate::with_far`].
     near: Option<NearGreen>,
@@ -138,6 +138,52 @@ struct NearGreen {
     values: Vec<f64>,
     /// The lower triangle of K₀⁻¹ between places, column after column.
     far: Option<Vec<f32>>,
+}
+
+/// K₀⁻¹ whole, its rows and columns numbered by their nodes' place along a Z-order curve (as
+/// [`NearGreen`]'s), so that the rows of one press are neighbours in memory and its G_RR is read
+/// from a few cache lines a column rather than from all over a matrix larger than the cache.
+#[derive(Debug, Clone)]
+struct WholeGreen {
+    /// Each row's place on the curve.
+    place: Vec<usize>,
+    /// K₀⁻¹ between places.
+    matrix: Mat<f64>,
+}
+
+impl WholeGreen {
+    /// K₀⁻¹ of `model`'s factored system `factor`, in Z-order: column j solved for the unit
+    /// vector of the row at place j, then its rows moved to their places (one matrix, no copy).
+    fn of(model: &ForwardModel, factor: &Factor) -> WholeGreen {
+        let n = model.system_size();
+        let place = z_order(&node_of_row(model), model.mesh().nodes(), model.mesh().bounds());
+        let mut matrix = Mat::<f64>::zeros(n, n);
+        place.iter().enumerate().for_each(|(row, &p)| matrix[(row, p)] = 1.0);
+        factor.llt.solve_in_place(matrix.as_mut());
+        let mut by_row = vec![0.0; n];
+        for j in 0..n {
+            let column = matrix.col_as_slice_mut(j);
+            by_row.copy_from_slice(column);
+            place.iter().zip(&by_row).for_each(|(&p, &g)| column[p] = g);
+        }
+        WholeGreen { place, matrix }
+    }
+
+    /// K₀⁻¹ between rows `a` and `b` of the system.
+    fn at(&self, a: usize, b: usize) -> f64 {
+        self.matrix[(self.place[a], self.place[b])]
+    }
+}
+
+/// The node of each row of `model`'s system (`usize::MAX` for electrode unknowns, which have none).
+fn node_of_row(model: &ForwardModel) -> Vec<usize> {
+    let mut node_of_row = vec![usize::MAX; model.system_size()];
+    for (node, &row) in model.row_of_node.iter().enumerate() {
+        if row != GROUNDED {
+            node_of_row[row] = node;
+        }
+    }
+    node_of_row
 }
 
 /// Where column j's entries (places j..n) start in the packed lower triangle of an n × n matrix.
@@ -218,11 +264,7 @@ impl LowRankUpdate {
         let solution = model.solve_patterns(&factor);
         let background = solution.measurements(model.protocol());
         let n = model.system_size();
-        let inverse = (n <= DENSE_LIMIT).then(|| {
-            let mut identity = Mat::<f64>::identity(n, n);
-            factor.llt.solve_in_place(identity.as_mut());
-            identity
-        });
+        let inverse = (n <= DENSE_LIMIT).then(|| WholeGreen::of(model, &factor));
         let conductivity = conductivity.to_vec();
         let fields = solution.fields;
         let readout = Readout::new(model.protocol(), fields.ncols());
@@ -272,13 +314,7 @@ impl LowRankUpdate {
         let model = &self.model;
         let mesh = model.mesh();
         let n = model.system_size();
-        // The node of each row (electrode unknowns have none).
-        let mut node_of_row = vec![usize::MAX; n];
-        for (node, &row) in model.row_of_node.iter().enumerate() {
-            if row != GROUNDED {
-                node_of_row[row] = node;
-            }
-        }
+        let node_of_row = node_of_row(model);
         // Rows near each row, by a grid of cells `reach` wide.
         let [lo, hi] = mesh.bounds();
         let cells = |k: usize| (((hi[k] - lo[k]) / reach).floor() as usize + 1).min(4096);
@@ -391,7 +427,7 @@ impl LowRankUpdate {
             near.block_into(&rows, &mut green, &mut Vec::new()).then_some(green)
         });
         let green = match (&self.inverse, near) {
-            (Some(inverse), _) => Some(Mat::from_fn(s, s, |i, j| inverse[(rows[i], rows[j])])),
+            (Some(inverse), _) => Some(Mat::from_fn(s, s, |i, j| inverse.at(rows[i], rows[j]))),
             (None, Some(green)) => Some(green),
             (None, None) if s <= SOLVED_ROWS => {
                 let mut columns = Mat::<f64>::zeros(self.model.system_size(), s);
@@ -425,27 +461,33 @@ impl LowRankUpdate {
         scratch: &mut ChangeScratch,
         out: &mut [f64],
     ) -> Result<(), ForwardError> {
-        let ChangeScratch { rows, local, places, green, nonzeros, fields, system, x, change, lu, solved } = scratch;
+        let ChangeScratch { rows, local, places, green, nonzeros, fields, system, x, xt, change, lu, solved } = scratch;
         *solved = false;
         rows.iter().for_each(|&r| local[r] = UNUSED);
         rows.clear();
+        local.resize(self.fields.nrows(), UNUSED);
+        // Each row once (marked as it comes), then in order.
         for &(t, _) in changes {
-            let nodes = self.model.mesh.triangles()[t];
-            rows.extend(nodes.iter().map(|&n| self.model.row_of_node[n]).filter(|&r| r != GROUNDED));
+            for node in self.model.mesh.triangles()[t] {
+                let row = self.model.row_of_node[node];
+                if row != GROUNDED && local[row] == UNUSED {
+                    local[row] = 0;
+                    rows.push(row);
+                }
+            }
         }
         rows.sort_unstable();
-        rows.dedup();
         let s = rows.len();
-        local.resize(self.fields.nrows(), UNUSED);
         rows.iter().enumerate().for_each(|(i, &r)| local[r] = i as u32);
         let basis = self.fields.ncols();
         let found = match (&self.inverse, &self.near) {
             (Some(inverse), _) => {
                 grow(green, s, s);
-                for j in 0..s {
-                    for i in 0..s {
-                        green[(i, j)] = inverse[(rows[i], rows[j])];
-                    }
+                places.clear();
+                places.extend(rows.iter().enumerate().map(|(i, &r)| (inverse.place[r], i)));
+                for (j, &(pj, _)) in places.iter().enumerate() {
+                    let column = inverse.matrix.col_as_slice(pj);
+                    green.col_as_slice_mut(j).iter_mut().zip(places.iter()).for_each(|(g, &(pi, _))| *g = column[pi]);
                 }
                 true
             }
@@ -492,6 +534,9 @@ impl LowRankUpdate {
         grow(change, basis, basis);
         matmul(change.as_mut(), Accum::Replace, fields.transpose(), green.as_ref(), -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
+        // Xᵀ, each row of X contiguous, for the derivatives that follow.
+        grow(xt, basis, s);
+        xt.copy_from(x.transpose());
         *solved = true;
         Ok(())
     }
@@ -518,13 +563,14 @@ impl LowRankUpdate {
     /// it, as a press's edge moving does not to first order. `false` (and `out` untouched) if
     /// the last change was solved in full, not by the update.
     pub fn derivative_into(&self, direction: &[(usize, f64)], scratch: &mut ChangeScratch, out: &mut [f64]) -> bool {
-        let ChangeScratch { rows, local: local_of, green: dkx, x, change, solved, .. } = scratch;
+        let ChangeScratch { rows, local: local_of, green: dkxt, xt, change, solved, .. } = scratch;
         if !*solved {
             return false;
         }
-        let (s, basis) = (rows.len(), x.ncols());
-        grow(dkx, s, basis);
-        dkx.fill(0.0);
+        let (s, basis) = (rows.len(), xt.nrows());
+        // (∂K·X)ᵀ, a row of ∂K·X a contiguous column, each entry of ∂K adding a row of X.
+        grow(dkxt, basis, s);
+        dkxt.fill(0.0);
         for &(t, delta) in direction {
             let nodes = self.model.mesh.triangles()[t];
             let local = nodes.map(|n| {
@@ -542,18 +588,15 @@ impl LowRankUpdate {
             for (&(a, b), coef) in LOCAL.iter().zip(coefs) {
                 let (Some(Some(i)), Some(Some(j))) = (local[a], local[b]) else { continue };
                 let c = delta * coef;
-                for p in 0..basis {
-                    dkx[(i, p)] += c * x[(j, p)];
-                }
+                let axpy = |to: &mut [f64], from: &[f64]| to.iter_mut().zip(from).for_each(|(t, f)| *t += c * f);
+                axpy(dkxt.col_as_slice_mut(i), xt.col_as_slice(j));
                 if i != j {
-                    for p in 0..basis {
-                        dkx[(j, p)] += c * x[(i, p)];
-                    }
+                    axpy(dkxt.col_as_slice_mut(j), xt.col_as_slice(i));
                 }
             }
         }
         grow(change, basis, basis);
-        matmul(change.as_mut(), Accum::Replace, x.transpose(), dkx.as_ref(), -1.0, Par::Seq);
+        matmul(change.as_mut(), Accum::Replace, xt.as_ref(), dkxt.transpose(), -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
         true
     }
@@ -729,6 +772,8 @@ pub struct ChangeScratch {
     fields: Mat<f64>,
     system: Mat<f64>,
     x: Mat<f64>,
+    /// Xᵀ of the last solve.
+    xt: Mat<f64>,
     change: Mat<f64>,
     lu: DenseLu,
     /// Whether `rows` and `x` hold the last change's solve.
@@ -754,7 +799,7 @@ impl ChangeScratch {
 impl Default for ChangeScratch {
     fn default() -> Self {
         let empty = || Mat::zeros(0, 0);
-        let (green, fields, system, x, change) = (empty(), empty(), empty(), empty(), empty());
+        let (green, fields, system, x, xt, change) = (empty(), empty(), empty(), empty(), empty(), empty());
         ChangeScratch {
             rows: Vec::new(),
             local: Vec::new(),
@@ -764,6 +809,7 @@ impl Default for ChangeScratch {
             fields,
             system,
             x,
+            xt,
             change,
             lu: DenseLu::default(),
             solved: false,
