@@ -9,7 +9,8 @@
 //! ```
 //!
 //! `SERVE_FLEET_RUN` adds flags to every sensor's `run` (e.g. `--hyperparameter 1`, to see what
-//! the automatic λ's refreshes cost); the figures of the docs are without it.
+//! the automatic λ's refreshes cost, or `--precision single`); the docs say which figures took it.
+//! Without it each sensor's precision is `auto`: half for a fleet whose matrices overflow the cache.
 //!
 //! Frames are a recording of the virtual sensor: 2 s at rest, then a press every 3 s (held
 //! 2 s, each at another place and force), 14 s in all. Every sensor plays the rest first (its

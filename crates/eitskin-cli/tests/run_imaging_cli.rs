@@ -204,8 +204,9 @@ fn complex_pairs_and_magnitudes_from_a_board_find_the_press() {
 
 /// `--precision half` images from the binary16 copy of the matrix: on the virtual sensor at its
 /// own noise (0.01 %), pressed twice, every frame has the same status and touches as in single
-/// precision, at the same places within 0.5 mm. One sensor's matrix fits a cache, so `auto`
-/// (the default) keeps single precision, and says nothing of it.
+/// precision, at the same places within 0.5 mm. Where the processor's last-level cache holds
+/// the sensor's 2 MB matrix, `auto` (the default) keeps single precision: the same lines as
+/// `single`, and nothing said of half precision.
 #[test]
 fn half_precision_finds_the_same_touches() {
     let dir = scratch("run-half");
@@ -217,8 +218,14 @@ fn half_precision_finds_the_same_touches() {
     let (_, _, halved, _) = run(dir.eitskin(&[&args[..], &["--precision", "half"]].concat()));
     assert_eq!(single.len(), halved.len());
     let (_, _, auto, said) = run(dir.eitskin(&args));
-    assert!(!said.contains("half precision"), "{said}");
-    assert_eq!(auto.len(), single.len());
+    if eitskin_io::last_level_cache().is_some_and(|bytes| bytes >= 4.0 * 1024.0 * 1024.0) {
+        assert!(!said.contains("half precision"), "{said}");
+        assert_eq!(auto.len(), single.len());
+        for (a, s) in auto.iter().zip(&single) {
+            assert_eq!((a.status, a.touches.len()), (s.status, s.touches.len()), "frame {}", a.seq);
+            assert!(a.touches.iter().zip(&s.touches).all(|(a, s)| (a.x, a.y) == (s.x, s.y)), "frame {}", a.seq);
+        }
+    }
     let mut touched = 0;
     for (a, b) in single.iter().zip(&halved) {
         assert_eq!((a.status, a.touches.len()), (b.status, b.touches.len()), "frame {}", a.seq);

@@ -16,7 +16,8 @@
 //! far part below kept in f32, up to its rounding: a test bounds it).
 //!
 //! G_RR is |R| columns of K₀⁻¹. A model of up to [`DENSE_LIMIT`] unknowns keeps K₀⁻¹ whole (one
-//! solve of the identity at setup, then a change costs no sparse solve). A larger one made
+//! solve of the identity at setup, stored in Z-order of the nodes so that a press's rows are
+//! neighbours in memory; then a change costs no sparse solve). A larger one made
 //! [`LowRankUpdate::with_reach`] keeps the part of K₀⁻¹ between nodes within a reach of each
 //! other in f64 (a press's own block, for presses that fit in it), and one made
 //! [`LowRankUpdate::with_far`] also, up to [`FAR_LIMIT`] unknowns, the rest in f32 (packed): the
@@ -668,7 +669,8 @@ fn add_columns_portable(column: &mut [f64], green: &Mat<f64>, entries: &[(usize,
     }
 }
 
-/// The nonzero entries of a small dense matrix, column by column.
+/// The nonzero entries of ΔK_RR, column by column (built from the changed triangles,
+/// [`Nonzeros::stiffness_change`]).
 #[derive(Debug, Default)]
 struct Nonzeros {
     /// Per column, where its entries start (one more than columns).
@@ -753,9 +755,10 @@ impl Nonzeros {
     }
 
     fn reserve(&mut self, columns: usize) {
-        room(&mut self.start, columns + 1);
-        // A node of a triangulation has about six neighbours.
-        room(&mut self.entries, 8 * columns);
+        room(&mut self.start, columns + 2);
+        // A node of a triangulation is in about six triangles, each putting three entries in its
+        // column before they are merged.
+        room(&mut self.entries, 20 * columns);
     }
 }
 
@@ -765,7 +768,7 @@ pub struct ChangeScratch {
     rows: Vec<usize>,
     /// Each row of the system's index in `rows`, [`UNUSED`] for the others.
     local: Vec<u32>,
-    /// (place, index) of each row, for the near inverse's gather.
+    /// (place, index) of each row, for the gather of G_RR from the inverse kept.
     places: Vec<(usize, usize)>,
     green: Mat<f64>,
     nonzeros: Nonzeros,
@@ -776,7 +779,7 @@ pub struct ChangeScratch {
     xt: Mat<f64>,
     change: Mat<f64>,
     lu: DenseLu,
-    /// Whether `rows` and `x` hold the last change's solve.
+    /// Whether `rows`, `local`, `x` and `xt` hold the last change's solve.
     solved: bool,
 }
 
@@ -790,6 +793,7 @@ impl ChangeScratch {
     /// Room for changes touching up to `rows` rows of the system.
     pub fn reserve(&mut self, rows: usize) {
         room(&mut self.rows, rows);
+        room(&mut self.local, rows);
         room(&mut self.places, rows);
         self.nonzeros.reserve(rows);
         self.lu.reserve(rows);
