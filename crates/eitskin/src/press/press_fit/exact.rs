@@ -69,6 +69,19 @@ pub struct ExactScratch {
     changes: Vec<(usize, f64)>,
     near: Vec<usize>,
     part: Vec<f64>,
+    /// The triangles a disk's edge crosses or covers, for its derivatives along each parameter.
+    edge: DiskEdge,
+}
+
+/// The triangles a disk (centre and radius) covers or crosses, with each crossed one's covered
+/// area and its gradient: what every derivative of a press needs, computed once for its
+/// parameters. A scratch serves one [`ExactPresses`].
+#[derive(Debug, Clone, Default)]
+struct DiskEdge {
+    /// The disk's centre and radius these are of.
+    of: Option<([f64; 2], f64)>,
+    /// (triangle, its area, covered whole, covered area and its gradient along x, y, radius).
+    triangles: Vec<(usize, f64, bool, f64, [f64; 3])>,
 }
 
 /// A parameter of a [`Disk`].
@@ -126,6 +139,7 @@ impl ExactPresses {
         room(&mut scratch.changes, triangles);
         room(&mut scratch.near, triangles);
         room(&mut scratch.part, self.update.background_measurements().len());
+        room(&mut scratch.edge.triangles, triangles);
         for group in &mut scratch.groups {
             group.reserve(self.update.model().system_size());
         }
@@ -165,7 +179,7 @@ impl ExactPresses {
         scratch: &mut ExactScratch,
         out: &mut [f64],
     ) -> Result<(), ForwardError> {
-        let ExactScratch { groups, changes, near, part } = scratch;
+        let ExactScratch { groups, changes, near, part, .. } = scratch;
         let together = self.together(disks.len());
         let groups_needed = if together { 1 } else { disks.len() };
         while groups.len() < groups_needed {
@@ -214,31 +228,37 @@ impl ExactPresses {
         scratch: &mut ExactScratch,
         out: &mut [f64],
     ) -> bool {
-        let ExactScratch { groups, changes, near, .. } = scratch;
+        let ExactScratch { groups, changes, near, edge, .. } = scratch;
         let disk = disks[i];
         let Some(group) = groups.get_mut(if self.together(disks.len()) { 0 } else { i }) else { return false };
         let scale = -self.background;
-        changes.clear();
-        self.each_triangle(&disk, near, |t, corners, area| {
-            let rate = match (Overlap::of(corners, &disk), parameter) {
-                (Overlap::Outside, _) => 0.0,
-                (Overlap::Inside, DiskParameter::Drop) => 1.0,
-                // A triangle the disk's edge does not cross keeps its share.
-                (Overlap::Inside, _) => 0.0,
-                (Overlap::Crossing, parameter) => {
+        if edge.of != Some((disk.centre, disk.radius)) {
+            edge.triangles.clear();
+            self.each_triangle(&disk, near, |t, corners, area| match Overlap::of(corners, &disk) {
+                Overlap::Outside => {}
+                Overlap::Inside => edge.triangles.push((t, area, true, area, [0.0; 3])),
+                Overlap::Crossing => {
                     let (overlap, gradient) = circle_triangle_area_gradient(disk.centre, disk.radius, corners);
-                    match parameter {
-                        DiskParameter::Drop => (overlap / area).min(1.0),
-                        DiskParameter::X => disk.drop * gradient[0] / area,
-                        DiskParameter::Y => disk.drop * gradient[1] / area,
-                        DiskParameter::Radius => disk.drop * gradient[2] / area,
-                    }
+                    edge.triangles.push((t, area, false, overlap, gradient));
                 }
+            });
+            edge.of = Some((disk.centre, disk.radius));
+        }
+        changes.clear();
+        for &(t, area, inside, overlap, gradient) in &edge.triangles {
+            let rate = match (inside, parameter) {
+                (true, DiskParameter::Drop) => 1.0,
+                // A triangle the disk's edge does not cross keeps its share.
+                (true, _) => 0.0,
+                (false, DiskParameter::Drop) => (overlap / area).min(1.0),
+                (false, DiskParameter::X) => disk.drop * gradient[0] / area,
+                (false, DiskParameter::Y) => disk.drop * gradient[1] / area,
+                (false, DiskParameter::Radius) => disk.drop * gradient[2] / area,
             };
             if rate.abs() > 0.0 {
                 changes.push((t, scale * rate));
             }
-        });
+        }
         let done = self.update.derivative_into(changes, group, out);
         out.iter_mut().zip(&self.scale).for_each(|(o, s)| *o *= s);
         done
