@@ -573,21 +573,8 @@ impl LowRankUpdate {
         grow(dkxt, basis, s);
         dkxt.fill(0.0);
         for &(t, delta) in direction {
-            let nodes = self.model.mesh.triangles()[t];
-            let local = nodes.map(|n| {
-                let row = self.model.row_of_node[n];
-                if row == GROUNDED {
-                    Some(None)
-                } else {
-                    local_of.get(row).filter(|&&i| i != UNUSED).map(|&i| Some(i as usize))
-                }
-            });
-            if local.iter().any(Option::is_none) {
-                continue;
-            }
-            let coefs = self.model.pattern.triangle_coefs[t];
-            for (&(a, b), coef) in LOCAL.iter().zip(coefs) {
-                let (Some(Some(i)), Some(Some(j))) = (local[a], local[b]) else { continue };
+            let Some(entries) = self.triangle_entries(t, local_of) else { continue };
+            for (i, j, coef) in entries {
                 let c = delta * coef;
                 let axpy = |to: &mut [f64], from: &[f64]| to.iter_mut().zip(from).for_each(|(t, f)| *t += c * f);
                 axpy(dkxt.col_as_slice_mut(i), xt.col_as_slice(j));
@@ -602,28 +589,25 @@ impl LowRankUpdate {
         true
     }
 
-    /// ΔK_RR (rows `rows`, sorted) of `changes`, into `dk`, from the triangles' stiffness.
-    fn stiffness_change(&self, changes: &[(usize, f64)], rows: &[usize], dk: &mut Mat<f64>) {
-        let s = rows.len();
-        grow(dk, s, s);
-        dk.fill(0.0);
-        for &(t, delta) in changes {
-            let nodes = self.model.mesh.triangles()[t];
-            let coefs = self.model.pattern.triangle_coefs[t];
-            for (&(a, b), coef) in LOCAL.iter().zip(coefs) {
-                let (ra, rb) = (self.model.row_of_node[nodes[a]], self.model.row_of_node[nodes[b]]);
-                if ra == GROUNDED || rb == GROUNDED {
-                    continue;
-                }
-                let (Ok(i), Ok(j)) = (rows.binary_search(&ra), rows.binary_search(&rb)) else {
-                    panic!("rows {ra}, {rb} are not among the local rows")
-                };
-                dk[(i, j)] += delta * coef;
-                if i != j {
-                    dk[(j, i)] += delta * coef;
-                }
+    /// Triangle `t`'s stiffness entries (i, j, per unit conductivity and thickness) between its
+    /// rows' indices in R (`local`: a row of the system's index, [`UNUSED`] outside R), the
+    /// grounded node left out; `None` if a row of it is outside R. The one place ΔK's entries
+    /// are read from the mesh, for the update, its derivative and the solve of a whole place.
+    fn triangle_entries(&self, t: usize, local: &[u32]) -> Option<impl Iterator<Item = (usize, usize, f64)>> {
+        // The grounded node's index: past every row's.
+        const GROUND: u32 = UNUSED - 1;
+        let mut index = [GROUND; 3];
+        for (k, &n) in self.model.mesh.triangles()[t].iter().enumerate() {
+            let row = self.model.row_of_node[n];
+            if row != GROUNDED {
+                index[k] = *local.get(row).filter(|&&i| i != UNUSED)?;
             }
         }
+        let coefs = self.model.pattern.triangle_coefs[t];
+        Some(LOCAL.iter().zip(coefs).filter_map(move |(&(a, b), coef)| {
+            let (i, j) = (index[a], index[b]);
+            (i != GROUND && j != GROUND).then_some((i as usize, j as usize, coef))
+        }))
     }
 
     /// Every measurement (V, protocol order) of a change `change` of the basis voltages
@@ -646,8 +630,21 @@ impl LowRankUpdate {
             let solved = self.model.measure(&sigma)?;
             return Ok(solved.iter().zip(&self.background).map(|(v, v0)| v - v0).collect());
         };
-        let mut dk = Mat::zeros(0, 0);
-        self.stiffness_change(changes, &local.rows, &mut dk);
+        let mut index = vec![UNUSED; self.fields.nrows()];
+        local.rows.iter().enumerate().for_each(|(i, &r)| index[r] = i as u32);
+        let s = local.rows.len();
+        let mut dk = Mat::<f64>::zeros(s, s);
+        for &(t, delta) in changes {
+            let Some(entries) = self.triangle_entries(t, &index) else {
+                panic!("triangle {t}'s rows are not among the local rows")
+            };
+            for (i, j, coef) in entries {
+                dk[(i, j)] += delta * coef;
+                if i != j {
+                    dk[(j, i)] += delta * coef;
+                }
+            }
+        }
         let system = Mat::<f64>::identity(local.rows.len(), local.rows.len()) + green * &dk;
         let x = system.partial_piv_lu().solve(&local.fields);
         let change = -(local.fields.transpose() * (&dk * &x));
@@ -685,18 +682,7 @@ impl Nonzeros {
     /// row of a changed triangle is in R, or grounded), R of `columns` rows. Counted, placed,
     /// then each column sorted and merged: no |R| × |R| matrix is filled or scanned.
     fn stiffness_change(&mut self, update: &LowRankUpdate, changes: &[(usize, f64)], local: &[u32], columns: usize) {
-        let model = &update.model;
-        let entries_of = |t: usize| {
-            let nodes = model.mesh.triangles()[t];
-            let index = nodes.map(|n| match model.row_of_node[n] {
-                GROUNDED => UNUSED,
-                row => local[row],
-            });
-            LOCAL.iter().zip(model.pattern.triangle_coefs[t]).filter_map(move |(&(a, b), coef)| {
-                let (i, j) = (index[a], index[b]);
-                (i != UNUSED && j != UNUSED).then_some((i as usize, j as usize, coef))
-            })
-        };
+        let entries_of = |t: usize| update.triangle_entries(t, local).into_iter().flatten();
         self.start.clear();
         self.start.resize(columns + 2, 0);
         for &(t, _) in changes {
