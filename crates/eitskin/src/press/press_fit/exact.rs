@@ -75,7 +75,7 @@ pub struct ExactScratch {
 
 /// The triangles a disk (centre and radius) covers or crosses, with each crossed one's covered
 /// area and its gradient: what every derivative of a press needs, computed once for its
-/// parameters. A scratch serves one [`ExactPresses`].
+/// parameters; forgotten at each [`ExactPresses::response_into`], which the derivatives follow.
 #[derive(Debug, Clone, Default)]
 struct DiskEdge {
     /// The disk's centre and radius these are of.
@@ -179,7 +179,9 @@ impl ExactPresses {
         scratch: &mut ExactScratch,
         out: &mut [f64],
     ) -> Result<(), ForwardError> {
-        let ExactScratch { groups, changes, near, part, .. } = scratch;
+        let ExactScratch { groups, changes, near, part, edge } = scratch;
+        // The derivatives that follow are at these disks, of this model: none kept from before.
+        edge.of = None;
         let together = self.together(disks.len());
         let groups_needed = if together { 1 } else { disks.len() };
         while groups.len() < groups_needed {
