@@ -10,8 +10,8 @@
 //! reconstructor), `derive_reference`, `derive_refresh_noise` and `derive_refresh_grown` (what a
 //! live pipeline derives off its frame path, λ from the noise: when its reference is taken, when
 //! its noise has changed, and when only its reference has grown) and `auto_hyperparameter_2356` and `reconstructor_2356` (λ, then the reconstructor at it, on a
-//! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table and, by low-rank updates, the ladder
-//! of strong presses) and `press_detection` (its noise threshold, from 400 noise frames) and,
+//! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table, by low-rank updates the ladder
+//! of strong presses, and one press's exact response tabulated over the sheet and its drop) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch) and `frame_three_presses` (three presses found in Δv against
 //! 0.05 % noise, median of 201 runs on the noiseless frame), `frame_three_presses_noisy` (the
@@ -329,7 +329,9 @@ fn frames(
     // too fine to keep its inverse whole (that mesh's build is counted).
     let (t_press_model, press_model) = time(n.min(3), || {
         let exact = exact_model_for(spec, model)?;
-        Ok(PressModel::with_exact_model(model, exact.as_ref().unwrap_or(model), background, &press_params)?)
+        let press_model =
+            PressModel::with_exact_model(model, exact.as_ref().unwrap_or(model), background, &press_params)?;
+        Ok(press_model.with_tabulated()?)
     })?;
     let dv: Vec<f64> = frame.iter().zip(values).map(|(v, r)| v - r).collect();
     let starts: Vec<[f64; 2]> = touches.iter().map(|t| t.centre).collect();

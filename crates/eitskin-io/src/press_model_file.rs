@@ -1,7 +1,9 @@
 //! The press-model cache: a built [`PressModel`] (its response table and ladder, seconds of
 //! forward solves) saved to a file named by a hash of the spec, protocol, mesh settings, the
 //! model's parameters and this crate's version, so a second start loads it (and factors the
-//! forward model again for the exact responses, [`PressModel::with_exact`]).
+//! forward model again for the exact responses, [`PressModel::with_exact`], and tabulates one
+//! press's exact response again, [`PressModel::with_tabulated`]: under a second on two cores for
+//! the paper's sensor, where a file of it would be 20 MB).
 //!
 //! File layout (little-endian): `EITSKINP`, format version (u32), the 32-byte key, lo (2 × f64),
 //! spacing (f64), dims (2 × u32), measurements (u32), radius, search (f64), the responses
@@ -46,7 +48,7 @@ pub fn load_or_build_press_model(
             let values =
                 model.measure(&spec.homogeneous(model.mesh())).map_err(eitskin::inverse::InverseError::from)?;
             let exact = exact_model_for(spec, &model)?;
-            press_model.with_exact(exact.as_ref().unwrap_or(&model), spec.conductivity, &values)?
+            press_model.with_exact(exact.as_ref().unwrap_or(&model), spec.conductivity, &values)?.with_tabulated()?
         }
         false => press_model,
     };
@@ -54,11 +56,14 @@ pub fn load_or_build_press_model(
 }
 
 /// The press model of `spec`, its exact responses on [`exact_model_for`]'s mesh when the spec's
-/// own is too fine to keep its inverse whole.
+/// own is too fine to keep its inverse whole, and one press's exact response tabulated
+/// ([`PressModel::with_tabulated`]: presses found afresh are fitted on it).
 pub fn build_press_model(spec: &SensorSpec, params: &PressModelParams) -> Result<PressModel, Error> {
     let model = spec.forward_model()?;
     let exact = exact_model_for(spec, &model)?;
-    Ok(PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), spec.conductivity, params)?)
+    let press_model =
+        PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), spec.conductivity, params)?;
+    Ok(press_model.with_tabulated()?)
 }
 
 /// The bytes of a cache file.

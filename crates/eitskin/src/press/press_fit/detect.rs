@@ -31,6 +31,7 @@ use rand::SeedableRng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 use super::exact::ExactPresses;
+use super::tabulated::TabulatedPresses;
 use super::{PressFit, PressModel, PressScratch, MAX_DROP, SWEEPS};
 use crate::inverse::{BlockedMatrix, InverseError};
 use crate::noise::{threshold_of, CALIBRATION_SAMPLES};
@@ -91,6 +92,8 @@ impl Scan {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Exact<'a> {
     pub(crate) presses: &'a ExactPresses,
+    /// One press's response tabulated, if the model has it: fits at the indenter's radius read it.
+    pub(crate) table: Option<&'a TabulatedPresses>,
     pub(crate) dv: &'a [f64],
     pub(crate) weights: &'a [f64],
 }
@@ -195,7 +198,12 @@ impl PressDetection {
 
     /// The exact fit of Δv `dv` (V), if the model has exact responses.
     pub(super) fn exact<'a>(&'a self, dv: &'a [f64]) -> Option<Exact<'a>> {
-        self.model.exact.as_deref().map(|presses| Exact { presses, dv, weights: &self.weights })
+        self.model.exact.as_deref().map(|presses| Exact {
+            presses,
+            table: self.model.tabulated.as_deref(),
+            dv,
+            weights: &self.weights,
+        })
     }
 }
 
@@ -239,7 +247,8 @@ impl PressModel {
     ) -> Option<(usize, f64)> {
         correlations.resize(scan.points.len(), 0.0);
         scan.blocked.mul_into(correlations, |k| dv[k] as f32);
-        let apart = 2.0 * self.radius;
+        // Compared squared: every point near a press found is tested against it.
+        let apart = (2.0 * self.radius).powi(2);
         let mut best: Option<(usize, f64)> = None;
         let points = scan.points.iter().zip(correlations.iter()).zip(scan.norms.iter().zip(unexplained));
         for ((&j, &c), (&norm, &left)) in points {
@@ -248,7 +257,8 @@ impl PressModel {
                 continue;
             }
             let p = self.grid.point(j);
-            if found.iter().any(|f| (f[0] - p[0]).hypot(f[1] - p[1]) < apart) || self.drop(c / norm, p) > MAX_DROP {
+            let near = |f: &[f64; 2]| (f[0] - p[0]).powi(2) + (f[1] - p[1]).powi(2) < apart;
+            if found.iter().any(near) || self.drop(c / norm, p) > MAX_DROP {
                 continue;
             }
             best = Some((j, c / left.sqrt()));

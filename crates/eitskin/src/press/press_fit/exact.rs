@@ -127,6 +127,11 @@ impl ExactPresses {
         self.update.model()
     }
 
+    /// Values per response.
+    pub fn measurements(&self) -> usize {
+        self.scale.len()
+    }
+
     /// The measurements at the background, in V (protocol order).
     pub fn background_measurements(&self) -> &[f64] {
         self.update.background_measurements()

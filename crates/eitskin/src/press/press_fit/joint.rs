@@ -23,7 +23,7 @@
 
 use super::detect::{Exact, Scan, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter};
-use super::refine::{refine, RefineParams, DEEPEST};
+use super::refine::{refine, refine_tabulated, RefineParams, DEEPEST};
 use super::{PressFit, PressModel, PressScratch};
 use crate::inverse::InverseError;
 use crate::scratch::{grow, room};
@@ -380,7 +380,8 @@ impl PressModel {
     }
 
     /// The score test of press `i`'s radius at the last exact fit: ∂χ²/∂r over its standard
-    /// deviation, (∂F/∂r)ᵀr / |∂F/∂r less its part in the span of the fit's Jacobian (the first
+    /// deviation (∂F/∂r of the presses together, or of press `i` alone where the fit read
+    /// each from the table), (∂F/∂r)ᵀr / |∂F/∂r less its part in the span of the fit's Jacobian (the first
     /// `rank` rows of the scratch's basis)|, r the whitened misfit; N(0, 1) if the indenter's
     /// radius is the press's.
     fn size_z(
@@ -395,8 +396,11 @@ impl PressModel {
         let residual = refining.residual();
         disks.clear();
         disks.extend(presses.iter().map(disk_of));
-        exact.presses.response_into(disks, ex, response)?;
-        if !exact.presses.derivative_into(disks, i, DiskParameter::Radius, ex, response) {
+        // Where the fit read each press from the table, alone, so is its radius's derivative:
+        // one press's solve, not all of theirs.
+        let (solved, i) = if exact.table.is_some() { (&disks[i..=i], 0) } else { (&disks[..], i) };
+        exact.presses.response_into(solved, ex, response)?;
+        if !exact.presses.derivative_into(solved, i, DiskParameter::Radius, ex, response) {
             return Ok(0.0);
         }
         response.iter_mut().zip(exact.weights).for_each(|(d, w)| *d *= w);
@@ -509,7 +513,10 @@ impl PressModel {
             bounds: self.grid.bounds(),
             converged_below: CONVERGED,
         };
-        let cost = refine(exact.presses, exact.dv, exact.weights, disks, &params, refining)?;
+        let cost = match exact.table {
+            Some(table) => refine_tabulated(exact.presses, table, exact.dv, exact.weights, disks, &params, refining)?,
+            None => refine(exact.presses, exact.dv, exact.weights, disks, &params, refining)?,
+        };
         let own = refining.own_responses();
         responses.resize(responses.len().max(presses.len() * m), 0.0);
         responses[..presses.len() * m].copy_from_slice(&own[..presses.len() * m]);

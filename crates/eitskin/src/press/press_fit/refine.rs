@@ -8,6 +8,7 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::exact::{Disk, DiskParameter, ExactPresses, ExactScratch};
+use super::tabulated::TabulatedPresses;
 use crate::forward::ForwardError;
 use crate::scratch::{grow, room, DenseLu};
 
@@ -45,16 +46,28 @@ pub struct RefineParams {
     pub converged_below: f64,
 }
 
-/// Buffers of [`refine`].
-#[derive(Debug)]
+/// Buffers of [`refine`] and [`refine_tabulated`].
+#[derive(Debug, Default)]
 pub struct RefineScratch {
     exact: ExactScratch,
-    trial: Vec<Disk>,
     single: Vec<Disk>,
-    /// Weighted: the joint response, the residual, each press's own response, one perturbed.
+    /// Each press's own response, weighted.
+    own: Vec<f64>,
+    lm: Iterations,
+    /// The tabulated fit: what the table leaves of the presses' exact joint response (V), each
+    /// press's value and derivatives from the table, its buffer.
+    coupling: Vec<f64>,
+    jets: Vec<f64>,
+    work: Vec<f32>,
+}
+
+/// Buffers of the Levenberg–Marquardt iterations.
+#[derive(Debug)]
+struct Iterations {
+    trial: Vec<Disk>,
+    /// Weighted: the joint response, the residual, one perturbed.
     joint: Vec<f64>,
     residual: Vec<f64>,
-    own: Vec<f64>,
     perturbed: Vec<f64>,
     /// Parameters × measurements, each row ∂F/∂θ (weighted).
     jacobian: Mat<f64>,
@@ -69,16 +82,13 @@ pub struct RefineScratch {
     jacobian_layout: [usize; 2],
 }
 
-impl Default for RefineScratch {
+impl Default for Iterations {
     fn default() -> Self {
         let empty = || Mat::zeros(0, 0);
-        RefineScratch {
-            exact: ExactScratch::default(),
+        Iterations {
             trial: Vec::new(),
-            single: Vec::new(),
             joint: Vec::new(),
             residual: Vec::new(),
-            own: Vec::new(),
             perturbed: Vec::new(),
             jacobian: empty(),
             normal: empty(),
@@ -104,29 +114,31 @@ impl RefineScratch {
     /// `exact`'s model, so that the frame path does not allocate when more presses come.
     pub fn reserve(&mut self, exact: &ExactPresses, presses: usize, measurements: usize) {
         exact.reserve(&mut self.exact);
-        room(&mut self.trial, presses);
+        room(&mut self.lm.trial, presses);
         room(&mut self.single, 1);
-        for buffer in [&mut self.joint, &mut self.residual, &mut self.perturbed] {
+        for buffer in [&mut self.lm.joint, &mut self.lm.residual, &mut self.lm.perturbed, &mut self.coupling] {
             room(buffer, measurements);
         }
         room(&mut self.own, presses * measurements);
+        room(&mut self.jets, presses * 4 * measurements);
+        room(&mut self.work, 4 * measurements);
     }
 
-    /// Each press's own exact response, weighted, as the last [`refine`] left them (presses ×
-    /// measurements, row by row).
+    /// Each press's own response, weighted, as the last fit left them (presses × measurements,
+    /// row by row): exact after [`refine`], the table's after [`refine_tabulated`].
     pub fn own_responses(&self) -> &[f64] {
         &self.own
     }
 
-    /// The weighted misfit w⊙(Δv − F) the last [`refine`] left, F the presses' joint response.
+    /// The weighted misfit w⊙(Δv − F) the last fit left, F the presses' joint response.
     pub fn residual(&self) -> &[f64] {
-        &self.residual
+        &self.lm.residual
     }
 
-    /// The Jacobian of the last [`refine`]'s last iteration, weighted: one row per parameter
+    /// The Jacobian of the last fit's last iteration, weighted: one row per parameter
     /// (each press's x, y, drop and, if fitted, radius), one column per measurement.
     pub fn jacobian(&self) -> MatRef<'_, f64> {
-        self.jacobian.as_ref()
+        self.lm.jacobian.as_ref()
     }
 
     /// Per disk of the last [`refine`] (`disks` as it left them), the variance of its drop at
@@ -137,40 +149,41 @@ impl RefineScratch {
     /// at the fit, every other parameter unknown too. `false` where the fit left no whole
     /// Jacobian of these disks or JJᵀ is singular. Allocates nothing once `out` has grown.
     pub fn equivalent_drop_variances_into(&mut self, disks: &[Disk], radius: f64, out: &mut Vec<f64>) -> bool {
+        let Iterations { jacobian, normal, damped, step, lu, jacobian_whole, jacobian_layout, .. } = &mut self.lm;
         out.clear();
-        let ([per, presses], k) = (self.jacobian_layout, disks.len());
+        let ([per, presses], k) = (*jacobian_layout, disks.len());
         let n = per * k;
-        if !self.jacobian_whole || k == 0 || presses != k || self.jacobian.nrows() != n {
+        if !*jacobian_whole || k == 0 || presses != k || jacobian.nrows() != n {
             return false;
         }
-        let j = self.jacobian.as_ref();
-        matmul(self.normal.as_mut(), Accum::Replace, j, j.transpose(), 1.0, Par::Seq);
+        let j = jacobian.as_ref();
+        matmul(normal.as_mut(), Accum::Replace, j, j.transpose(), 1.0, Par::Seq);
         for (i, disk) in disks.iter().enumerate() {
             // A radius not fitted has a row of 0: it stays, and adds nothing.
             let (drop_row, radius_row) = (i * per + 2, i * per + 3);
             let (_, mut gradient) = disk.equivalent_drop(radius);
-            if per != 4 || self.normal[(radius_row, radius_row)] <= 0.0 {
+            if per != 4 || normal[(radius_row, radius_row)] <= 0.0 {
                 gradient[1] = 0.0;
             }
             // Only a radius not fitted may have no row; any other such row leaves JJᵀ singular.
-            self.damped.copy_from(self.normal.as_ref());
+            damped.copy_from(normal.as_ref());
             for a in 0..n {
-                if self.normal[(a, a)] <= 0.0 {
+                if normal[(a, a)] <= 0.0 {
                     if a % per != 3 {
                         out.clear();
                         return false;
                     }
-                    self.damped[(a, a)] = 1.0;
+                    damped[(a, a)] = 1.0;
                 }
             }
-            self.step.fill(0.0);
-            self.step[(drop_row, 0)] = gradient[0];
+            step.fill(0.0);
+            step[(drop_row, 0)] = gradient[0];
             if per == 4 {
-                self.step[(radius_row, 0)] = gradient[1];
+                step[(radius_row, 0)] = gradient[1];
             }
-            self.lu.solve_in_place(self.damped.as_mut(), self.step.as_mut());
-            let radius_part = if per == 4 { gradient[1] * self.step[(radius_row, 0)] } else { 0.0 };
-            let variance = gradient[0] * self.step[(drop_row, 0)] + radius_part;
+            lu.solve_in_place(damped.as_mut(), step.as_mut());
+            let radius_part = if per == 4 { gradient[1] * step[(radius_row, 0)] } else { 0.0 };
+            let variance = gradient[0] * step[(drop_row, 0)] + radius_part;
             if !(variance.is_finite() && variance > 0.0) {
                 out.clear();
                 return false;
@@ -181,17 +194,76 @@ impl RefineScratch {
     }
 }
 
+/// What a fit reads of presses: their joint Δv and its derivatives (V per unit of each
+/// parameter), unweighted.
+trait Responses {
+    /// Δv of `disks` pressed together into `out`.
+    fn response_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError>;
+    /// The derivative along `parameter` of `disks[i]` at the disks of the last
+    /// [`Responses::response_into`], into `out`; `false` where it has none.
+    fn derivative_into(&mut self, disks: &[Disk], i: usize, parameter: DiskParameter, out: &mut [f64]) -> bool;
+}
+
+/// The exact responses, solved.
+struct Solved<'a> {
+    presses: &'a ExactPresses,
+    scratch: &'a mut ExactScratch,
+}
+
+impl Responses for Solved<'_> {
+    fn response_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
+        self.presses.response_into(disks, self.scratch, out)
+    }
+
+    fn derivative_into(&mut self, disks: &[Disk], i: usize, parameter: DiskParameter, out: &mut [f64]) -> bool {
+        self.presses.derivative_into(disks, i, parameter, self.scratch, out)
+    }
+}
+
+/// Each press's response read from the table, summed, plus a fixed `coupling` (V).
+struct Interpolated<'a> {
+    table: &'a TabulatedPresses,
+    coupling: &'a [f64],
+    /// Per disk of the last response, its value and derivatives (4 × measurements).
+    jets: &'a mut Vec<f64>,
+    work: &'a mut Vec<f32>,
+}
+
+impl Responses for Interpolated<'_> {
+    fn response_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
+        let m = out.len();
+        self.jets.resize(disks.len() * 4 * m, 0.0);
+        out.copy_from_slice(self.coupling);
+        for (disk, jet) in disks.iter().zip(self.jets.chunks_exact_mut(4 * m)) {
+            self.table.jet_into(disk.centre, disk.drop, self.work, jet);
+            out.iter_mut().zip(&jet[..m]).for_each(|(o, v)| *o += v);
+        }
+        Ok(())
+    }
+
+    fn derivative_into(&mut self, _: &[Disk], i: usize, parameter: DiskParameter, out: &mut [f64]) -> bool {
+        let m = out.len();
+        let row = match parameter {
+            DiskParameter::X => 1,
+            DiskParameter::Y => 2,
+            DiskParameter::Drop => 3,
+            DiskParameter::Radius => return false,
+        };
+        out.copy_from_slice(&self.jets[(4 * i + row) * m..(4 * i + row + 1) * m]);
+        true
+    }
+}
+
 /// The misfit |w⊙(Δv − F(disks))|² and the weighted residual into `residual`.
 fn misfit(
-    exact: &ExactPresses,
+    model: &mut impl Responses,
     dv: &[f64],
     weights: &[f64],
     disks: &[Disk],
-    scratch: &mut ExactScratch,
     joint: &mut [f64],
     residual: &mut [f64],
 ) -> Result<f64, ForwardError> {
-    exact.response_into(disks, scratch, joint)?;
+    model.response_into(disks, joint)?;
     let mut cost = 0.0;
     for ((r, (f, v)), w) in residual.iter_mut().zip(joint.iter().zip(dv)).zip(weights) {
         *r = w * (v - f);
@@ -212,6 +284,77 @@ pub fn refine(
     params: &RefineParams,
     scratch: &mut RefineScratch,
 ) -> Result<f64, ForwardError> {
+    let RefineScratch { exact: ex, single, own, lm, .. } = scratch;
+    let cost = iterate(&mut Solved { presses: exact, scratch: ex }, dv, weights, disks, params, lm)?;
+    // Each press's own response at the final place.
+    let m = dv.len();
+    own.resize(disks.len() * m, 0.0);
+    for (disk, own_i) in disks.iter().zip(own.chunks_exact_mut(m)) {
+        single.clear();
+        single.push(*disk);
+        exact.response_into(single, ex, own_i)?;
+        own_i.iter_mut().zip(weights).for_each(|(f, w)| *f *= w);
+    }
+    Ok(cost)
+}
+
+/// [`refine`] with each press's response read from `table` (made from `exact`), and what the
+/// table leaves of the presses' joint response (their fields on each other, its own error)
+/// from one exact solve: the fit on the table alone, the exact joint response there, then the
+/// fit on the table with that difference added. Its misfit is the exact one to first order in
+/// how far that last fit moved; each press's own response is the table's. Where radii are
+/// fitted, or a press is not of the table's radius, [`refine`] itself.
+pub fn refine_tabulated(
+    exact: &ExactPresses,
+    table: &TabulatedPresses,
+    dv: &[f64],
+    weights: &[f64],
+    disks: &mut [Disk],
+    params: &RefineParams,
+    scratch: &mut RefineScratch,
+) -> Result<f64, ForwardError> {
+    if params.free_radii != 0 || disks.iter().any(|d| d.radius != table.radius()) {
+        return refine(exact, dv, weights, disks, params, scratch);
+    }
+    let m = dv.len();
+    let RefineScratch { exact: ex, own, lm, coupling, jets, work, .. } = scratch;
+    coupling.clear();
+    coupling.resize(m, 0.0);
+    lm.joint.resize(m, 0.0);
+    let mut cost = 0.0;
+    for correction in 0..=CORRECTIONS {
+        if correction > 0 {
+            // The table's joint response at the fit (its jets there), then the exact one.
+            let mut table_only = Interpolated { table, coupling, jets, work };
+            table_only.response_into(disks, &mut lm.perturbed)?;
+            exact.response_into(disks, ex, &mut lm.joint)?;
+            for ((c, f), t) in coupling.iter_mut().zip(&lm.joint).zip(&lm.perturbed) {
+                *c += f - t;
+            }
+        }
+        cost = iterate(&mut Interpolated { table, coupling, jets, work }, dv, weights, disks, params, lm)?;
+    }
+    // Each press's own response at the final place: the jets there.
+    Interpolated { table, coupling, jets, work }.response_into(disks, &mut lm.perturbed)?;
+    own.resize(disks.len() * m, 0.0);
+    for (own_i, jet) in own.chunks_exact_mut(m).zip(jets.chunks_exact(4 * m)) {
+        own_i.iter_mut().zip(&jet[..m]).zip(weights).for_each(|((o, v), w)| *o = w * v);
+    }
+    Ok(cost)
+}
+
+/// Exact joint solves a [`refine_tabulated`] makes.
+const CORRECTIONS: usize = 1;
+
+/// The Levenberg–Marquardt iterations of [`refine`] on `model`'s responses.
+fn iterate(
+    model: &mut impl Responses,
+    dv: &[f64],
+    weights: &[f64],
+    disks: &mut [Disk],
+    params: &RefineParams,
+    lm: &mut Iterations,
+) -> Result<f64, ForwardError> {
     let m = dv.len();
     let k = disks.len();
     let parameters: &[DiskParameter] = if params.free_radii == 0 { &ALL[..3] } else { &ALL };
@@ -221,13 +364,10 @@ pub fn refine(
         parameter == DiskParameter::Radius && (i >= 32 || params.free_radii & (1 << i) == 0)
     };
     let n = k * per;
-    let RefineScratch {
-        exact: ex,
+    let Iterations {
         trial,
-        single,
         joint,
         residual,
-        own,
         perturbed,
         jacobian,
         normal,
@@ -237,19 +377,18 @@ pub fn refine(
         lu,
         jacobian_whole,
         jacobian_layout,
-    } = scratch;
+    } = lm;
     *jacobian_whole = false;
     *jacobian_layout = [per, k];
     joint.resize(m, 0.0);
     residual.resize(m, 0.0);
-    own.resize(k * m, 0.0);
     perturbed.resize(m, 0.0);
     grow(jacobian, n, m);
     grow(normal, n, n);
     grow(damped, n, n);
     grow(step, n, 1);
     grow(gradient, n, 1);
-    let mut cost = misfit(exact, dv, weights, disks, ex, joint, residual)?;
+    let mut cost = misfit(model, dv, weights, disks, joint, residual)?;
     let mut damping = 1e-3;
     'iterations: for _ in 0..ITERATIONS {
         if k == 0 {
@@ -257,14 +396,14 @@ pub fn refine(
         }
         // The Jacobian at `disks`, from the solve that gave their misfit; not whole until made.
         *jacobian_whole = false;
-        for (i, _) in disks.iter().enumerate() {
+        for i in 0..k {
             for (p, &parameter) in parameters.iter().enumerate() {
                 if pinned(i, parameter) {
                     (0..m).for_each(|q| jacobian[(i * per + p, q)] = 0.0);
                     continue;
                 }
                 // A press solved in full (too wide for the update) stays where it is.
-                if !exact.derivative_into(disks, i, parameter, ex, perturbed) {
+                if !model.derivative_into(disks, i, parameter, perturbed) {
                     break 'iterations;
                 }
                 for (q, (d, w)) in perturbed.iter().zip(weights).enumerate() {
@@ -318,7 +457,7 @@ pub fn refine(
                     (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]).max((a.radius - b.radius).abs());
                 shift < TOLERANCE[0] && (a.drop - b.drop).abs() < TOLERANCE[1]
             });
-            let trial_cost = misfit(exact, dv, weights, trial, ex, joint, perturbed)?;
+            let trial_cost = misfit(model, dv, weights, trial, joint, perturbed)?;
             if trial_cost <= cost {
                 cost = trial_cost;
                 disks.copy_from_slice(trial);
@@ -332,14 +471,6 @@ pub fn refine(
         if !accepted || moved_little {
             break;
         }
-    }
-    // Each press's own response at the final place.
-    for (i, disk) in disks.iter().enumerate() {
-        single.clear();
-        single.push(*disk);
-        let own_i = &mut own[i * m..(i + 1) * m];
-        exact.response_into(single, ex, own_i)?;
-        own_i.iter_mut().zip(weights).for_each(|(f, w)| *f *= w);
     }
     Ok(cost)
 }
@@ -498,6 +629,57 @@ mod tests {
                 assert!((d.radius - t.radius).abs() < 1e-4, "{d:?} for {t:?}");
             }
         }
+    }
+
+    /// Presses of the table's radius fitted on the table with one exact solve land where the
+    /// exact fit does, to a small part of their standard deviation, from a start a few mm and
+    /// 0.1 in drop off; the misfit is the exact one; a free radius is the exact fit itself.
+    #[test]
+    fn a_fit_on_the_table_lands_where_the_exact_fit_does() {
+        let truth = [
+            Disk { centre: [0.07, -0.05], radius: 0.01, drop: 0.85 },
+            Disk { centre: [-0.02, 0.03], radius: 0.01, drop: 0.3 },
+            Disk { centre: [0.03, 0.06], radius: 0.01, drop: 0.5 },
+        ];
+        let (model, exact, v0, dv) = setup(1200, &truth);
+        let bounds = model.mesh().bounds();
+        let table = TabulatedPresses::new(&exact, bounds, 0.01, 0.0025).unwrap();
+        let weights: Vec<f64> = v0.iter().map(|v| 1.0 / (5e-4 * v.abs())).collect();
+        let start = [
+            Disk { centre: [0.074, -0.053], radius: 0.01, drop: 0.7 },
+            Disk { centre: [-0.024, 0.027], radius: 0.01, drop: 0.4 },
+            Disk { centre: [0.027, 0.064], radius: 0.01, drop: 0.45 },
+        ];
+        let params = RefineParams { free_radii: 0, radius_range: [0.004, 0.025], bounds, converged_below: 0.01 };
+        let mut scratch = RefineScratch::default();
+        let (mut solved, mut read) = (start, start);
+        refine(&exact, &dv, &weights, &mut solved, &params, &mut scratch).unwrap();
+        use faer::linalg::solvers::Solve;
+        // Each parameter's variance at the exact fit: the diagonal of (JJᵀ)⁻¹.
+        let j = scratch.jacobian().to_owned();
+        let normal = &j * j.transpose();
+        let covariance = normal.partial_piv_lu().solve(Mat::<f64>::identity(normal.nrows(), normal.nrows()));
+        let cost = refine_tabulated(&exact, &table, &dv, &weights, &mut read, &params, &mut scratch).unwrap();
+        for (i, (s, r)) in solved.iter().zip(&read).enumerate() {
+            let std = |p: usize| covariance[(3 * i + p, 3 * i + p)].sqrt();
+            let off = [
+                (s.centre[0] - r.centre[0]) / std(0),
+                (s.centre[1] - r.centre[1]) / std(1),
+                (s.drop - r.drop) / std(2),
+            ];
+            assert!(off.iter().all(|o| o.abs() < 0.1), "{r:?} for {s:?}: {off:?} std");
+        }
+        // Its misfit is the exact one at its presses, to a small part of one.
+        let mut joint = vec![0.0; dv.len()];
+        exact.response_into(&read, &mut ExactScratch::default(), &mut joint).unwrap();
+        let exact_cost: f64 = dv.iter().zip(&joint).zip(&weights).map(|((v, f), w)| (w * (v - f)).powi(2)).sum();
+        assert!((cost - exact_cost).abs() < 0.1, "misfit {cost} for {exact_cost}");
+        // A radius fitted: the exact fit's answer, to the bit.
+        let free = RefineParams { free_radii: 0b1, ..params };
+        let (mut solved, mut read) = (start, start);
+        let a = refine(&exact, &dv, &weights, &mut solved, &free, &mut scratch).unwrap();
+        let b = refine_tabulated(&exact, &table, &dv, &weights, &mut read, &free, &mut scratch).unwrap();
+        assert_eq!((a.to_bits(), solved), (b.to_bits(), read));
     }
 
     /// A strong press fitted with its radius free from far off (drop 0.3 for 0.87): the first

@@ -1,0 +1,310 @@
+//! One press's exact response ([`ExactPresses`]) at the indenter's radius, tabulated over the
+//! sheet and over its drop, read back with its derivatives along x, y and the drop in about a
+//! microsecond: what lets a joint fit of presses found afresh iterate without a solve.
+//!
+//! At each point of a square grid (a quarter of the indenter's radius apart, one ring past the
+//! mesh's bounds) Δv(d)/d is solved at [`NODES`] Chebyshev drops in [0, [`DEEPEST`]] and kept
+//! as its Chebyshev coefficients (f32): Δv(d)/d = 1/(1 − k·d − …) along each channel is smooth
+//! on that interval (its pole lies past d = 1), so the series is within 3·10⁻⁴ of the solved
+//! response at the median drop on the paper's sensor. Between grid points it is read by
+//! Catmull–Rom cubics in x and y (within 0.2 % at the median place; next to an electrode,
+//! where a press's response turns within a grid step, up to 10 %).
+//!
+//! The table knows one press alone; what presses change of each other's field, and what it
+//! misses of one, a fit takes from one exact solve of them together ([`super::refine()`]).
+
+use rayon::prelude::*;
+
+use super::exact::{Disk, ExactPresses, ExactScratch};
+use super::refine::DEEPEST;
+use super::Grid;
+use crate::forward::ForwardError;
+
+/// Drops solved per grid point: the Chebyshev series' terms.
+pub const NODES: usize = 6;
+
+/// Grid points read around a place: 4 × 4 for the bicubic.
+const STENCIL: usize = 16;
+
+/// Channels summed at once (a 512-bit vector of f32): each point's rows are padded to a
+/// multiple of it.
+const LANES: usize = 16;
+
+/// One press's exact response at one radius, tabulated over the sheet and its drop.
+#[derive(Debug, Clone)]
+pub struct TabulatedPresses {
+    grid: Grid,
+    radius: f64,
+    measurements: usize,
+    /// `measurements` rounded up to [`LANES`].
+    stride: usize,
+    /// Per grid point (row-major from the grid's first), per Chebyshev term, `stride`
+    /// coefficients of Δv(d)/d (V), the last `stride − measurements` of them 0.
+    coefficients: Vec<f32>,
+}
+
+/// Where a [`TabulatedPresses::jet_into`] reads: each of the 16 grid points' first coefficient,
+/// and its weights for the value and its derivatives along x and y (per m).
+struct Stencil {
+    rows: [usize; STENCIL],
+    weights: [[f32; 3]; STENCIL],
+}
+
+impl TabulatedPresses {
+    /// Tabulates `exact`'s response to a press of `radius` (m) over the box `bounds` (m, `[min,
+    /// max]`: the centres a fit may take) at `spacing` (m), the grid points in parallel.
+    pub fn new(
+        exact: &ExactPresses,
+        bounds: [[f64; 2]; 2],
+        radius: f64,
+        spacing: f64,
+    ) -> Result<TabulatedPresses, ForwardError> {
+        let [lo, hi] = bounds;
+        // One ring before the box and two past it: every place in it has its 4 × 4 stencil.
+        let grid =
+            Grid::over([[lo[0] - spacing, lo[1] - spacing], [hi[0] + 2.0 * spacing, hi[1] + 2.0 * spacing]], spacing);
+        let measurements = exact.measurements();
+        let stride = measurements.div_ceil(LANES) * LANES;
+        let drops = nodes();
+        let per_point = (0..grid.len()).into_par_iter().map_init(
+            || (ExactScratch::default(), vec![0.0; measurements]),
+            |(scratch, dv), j| {
+                let centre = grid.point(j);
+                let mut coefficients = vec![0.0_f32; NODES * stride];
+                for &drop in &drops {
+                    exact.response_into(&[Disk { centre, radius, drop }], scratch, dv)?;
+                    // c_k = (2 − δ_k0)/N · Σ_n f(t_n)·T_k(t_n), f = Δv/d.
+                    let (terms, _) = chebyshev(t_of(drop));
+                    for (k, term) in terms.iter().enumerate() {
+                        let factor = if k == 0 { 1.0 } else { 2.0 } / NODES as f64 * term / drop;
+                        let row = &mut coefficients[k * stride..k * stride + measurements];
+                        row.iter_mut().zip(dv.iter()).for_each(|(c, v)| *c += (factor * v) as f32);
+                    }
+                }
+                Ok(coefficients)
+            },
+        );
+        let per_point: Vec<Vec<f32>> = per_point.collect::<Result<_, ForwardError>>()?;
+        Ok(TabulatedPresses { grid, radius, measurements, stride, coefficients: per_point.concat() })
+    }
+
+    /// The radius of the press it tabulates, in m.
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
+    /// Values per response.
+    pub fn measurements(&self) -> usize {
+        self.measurements
+    }
+
+    /// Bytes its coefficients take.
+    pub fn bytes(&self) -> usize {
+        self.coefficients.len() * size_of::<f32>()
+    }
+
+    /// Δv (V) of a press of the table's radius at `centre` (m, clamped into the box it was made
+    /// for) with `drop` (a fraction of the background, clamped to [0, [`DEEPEST`]]), and its
+    /// derivatives along x and y (V/m) and the drop (V), into `jet` (4 × measurements: value,
+    /// x, y, drop). `work` is a buffer. Allocates nothing once `work` has grown (to 4 ×
+    /// measurements rounded up to 16).
+    pub fn jet_into(&self, centre: [f64; 2], drop: f64, work: &mut Vec<f32>, jet: &mut [f64]) {
+        let m = self.measurements;
+        assert_eq!(jet.len(), 4 * m, "a jet holds the value and three derivatives");
+        let stencil = self.stencil(centre);
+        let drop = drop.clamp(0.0, DEEPEST);
+        let (terms, slopes) = chebyshev(t_of(drop));
+        // d/dd of T_k(t(d)) = T_k'(t)·dt/dd.
+        let dt = 2.0 / DEEPEST;
+        let terms = terms.map(|t| t as f32);
+        let slopes = slopes.map(|s| (s * dt) as f32);
+        let stride = self.stride;
+        work.clear();
+        work.resize(4 * stride, 0.0);
+        sum_stencil(work, &self.coefficients, stride, &stencil.rows, &stencil.weights, &terms, &slopes);
+        let (sums, derivatives) = work.split_at(stride);
+        let (along_x, rest) = derivatives.split_at(stride);
+        let (along_y, along_drop) = rest.split_at(stride);
+        let (value, rest) = jet.split_at_mut(m);
+        let (x, rest) = rest.split_at_mut(m);
+        let (y, d) = rest.split_at_mut(m);
+        for q in 0..m {
+            let f = f64::from(sums[q]);
+            value[q] = drop * f;
+            x[q] = drop * f64::from(along_x[q]);
+            y[q] = drop * f64::from(along_y[q]);
+            d[q] = f + drop * f64::from(along_drop[q]);
+        }
+    }
+
+    /// The 4 × 4 grid points around `centre` and their bicubic weights.
+    fn stencil(&self, centre: [f64; 2]) -> Stencil {
+        let Grid { lo, spacing, dims } = self.grid;
+        let cell = |k: usize| {
+            let x = ((centre[k] - lo[k]) / spacing).clamp(1.0, (dims[k] - 2) as f64);
+            let i = (x.floor() as usize).min(dims[k] - 3);
+            (i - 1, catmull_rom(x - i as f64))
+        };
+        let ((i, wx), (j, wy)) = (cell(0), cell(1));
+        let mut stencil = Stencil { rows: [0; STENCIL], weights: [[0.0; 3]; STENCIL] };
+        for (b, (y, dy)) in wy.into_iter().enumerate() {
+            for (a, (x, dx)) in wx.into_iter().enumerate() {
+                let s = 4 * b + a;
+                stencil.rows[s] = ((j + b) * dims[0] + i + a) * NODES * self.stride;
+                stencil.weights[s] = [(x * y) as f32, (dx * y / spacing) as f32, (x * dy / spacing) as f32];
+            }
+        }
+        stencil
+    }
+}
+
+/// The drops the table is solved at: Chebyshev points of [0, [`DEEPEST`]], none at 0.
+fn nodes() -> [f64; NODES] {
+    std::array::from_fn(|n| {
+        let angle = (2 * n + 1) as f64 * std::f64::consts::PI / (2 * NODES) as f64;
+        0.5 * DEEPEST * (1.0 - angle.cos())
+    })
+}
+
+/// The drop's place on the Chebyshev interval [−1, 1].
+fn t_of(drop: f64) -> f64 {
+    2.0 * drop / DEEPEST - 1.0
+}
+
+/// T_k(t) and T_k'(t) for k below [`NODES`].
+fn chebyshev(t: f64) -> ([f64; NODES], [f64; NODES]) {
+    let (mut terms, mut slopes) = ([0.0; NODES], [0.0; NODES]);
+    // T_k' = k·U_{k−1}; U_0 = 1, U_1 = 2t.
+    let (mut u_prev, mut u) = (0.0, 1.0);
+    for k in 0..NODES {
+        terms[k] = match k {
+            0 => 1.0,
+            1 => t,
+            _ => 2.0 * t * terms[k - 1] - terms[k - 2],
+        };
+        if k > 0 {
+            slopes[k] = k as f64 * u;
+            (u_prev, u) = (u, 2.0 * t * u - u_prev);
+        }
+    }
+    (terms, slopes)
+}
+
+/// Catmull–Rom weights of the points at −1, 0, 1, 2 for a place `f` in [0, 1], each with its
+/// derivative along `f`.
+fn catmull_rom(f: f64) -> [(f64, f64); 4] {
+    let (f2, f3) = (f * f, f * f * f);
+    [
+        ((-f3 + 2.0 * f2 - f) / 2.0, (-3.0 * f2 + 4.0 * f - 1.0) / 2.0),
+        ((3.0 * f3 - 5.0 * f2 + 2.0) / 2.0, (9.0 * f2 - 10.0 * f) / 2.0),
+        ((-3.0 * f3 + 4.0 * f2 + f) / 2.0, (-9.0 * f2 + 8.0 * f + 1.0) / 2.0),
+        ((f3 - f2) / 2.0, (3.0 * f2 - 2.0 * f) / 2.0),
+    ]
+}
+
+crate::parallel::widest! {
+    /// Into `out` (4 × `stride`: the series' value, along x, along y, along the drop) the
+    /// stencil's grid points' series, each weighted.
+    fn sum_stencil = sum_stencil_portable(
+        out: &mut [f32],
+        coefficients: &[f32],
+        stride: usize,
+        rows: &[usize; STENCIL],
+        weights: &[[f32; 3]; STENCIL],
+        terms: &[f32; NODES],
+        slopes: &[f32; NODES]
+    ) -> ()
+}
+
+/// [`LANES`] channels at a time, their four sums held in registers across the 16 points and
+/// their terms: each coefficient is read once.
+#[inline(always)]
+fn sum_stencil_portable(
+    out: &mut [f32],
+    coefficients: &[f32],
+    stride: usize,
+    rows: &[usize; STENCIL],
+    weights: &[[f32; 3]; STENCIL],
+    terms: &[f32; NODES],
+    slopes: &[f32; NODES],
+) {
+    for block in (0..stride).step_by(LANES) {
+        let mut sums = [[0.0_f32; LANES]; 4];
+        for (&row, &[w, wx, wy]) in rows.iter().zip(weights) {
+            for k in 0..NODES {
+                let start = row + k * stride + block;
+                let Some(c) = coefficients.get(start..).and_then(|c| c.first_chunk::<LANES>()) else { continue };
+                let factors = [w * terms[k], wx * terms[k], wy * terms[k], w * slopes[k]];
+                for (sum, f) in sums.iter_mut().zip(factors) {
+                    sum.iter_mut().zip(c).for_each(|(s, c)| *s += f * c);
+                }
+            }
+        }
+        for (part, sum) in sums.iter().enumerate() {
+            out[part * stride + block..][..LANES].copy_from_slice(sum);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::forward::LowRankUpdate;
+    use crate::SensorSpec;
+
+    /// The paper's sensor on a coarse mesh, its exact presses and their table.
+    fn setup() -> (ExactPresses, TabulatedPresses) {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 600;
+        let model = spec.forward_model().unwrap();
+        let sigma = vec![1.0; model.mesh().triangles().len()];
+        let exact = ExactPresses::new(LowRankUpdate::new(&model, &sigma).unwrap(), 1.0);
+        let table = TabulatedPresses::new(&exact, [[-0.1, -0.1], [0.1, 0.1]], 0.01, 0.0025).unwrap();
+        (exact, table)
+    }
+
+    /// At a grid point the table is the series alone; between them it is close to the solve,
+    /// and its derivatives are the central differences of its own values.
+    #[test]
+    fn the_table_reads_back_the_exact_response_and_its_derivatives() {
+        let (exact, table) = setup();
+        let m = table.measurements();
+        let (mut work, mut jet, mut other) = (Vec::new(), vec![0.0; 4 * m], vec![0.0; 4 * m]);
+        let mut solved = vec![0.0; m];
+        let mut scratch = ExactScratch::default();
+        let relative = |a: &[f64], b: &[f64]| {
+            let diff: f64 = a.iter().zip(b).map(|(a, b)| (a - b).powi(2)).sum();
+            (diff / b.iter().map(|b| b * b).sum::<f64>()).sqrt()
+        };
+        for (centre, drop, within) in
+            [([0.0, 0.0], 0.5, 2e-3), ([0.03, -0.02], 0.3, 2e-3), ([0.0213, 0.0371], 0.77, 1e-2)]
+        {
+            exact.response_into(&[Disk { centre, radius: 0.01, drop }], &mut scratch, &mut solved).unwrap();
+            table.jet_into(centre, drop, &mut work, &mut jet);
+            let off = relative(&jet[..m], &solved);
+            assert!(off < within, "{centre:?} at {drop}: {off}");
+            // Derivatives: central differences of the table itself.
+            let h = [1e-5, 1e-5, 1e-4];
+            for (k, step) in h.iter().enumerate() {
+                let shifted = |s: f64| {
+                    let mut c = centre;
+                    let mut d = drop;
+                    if k < 2 {
+                        c[k] += s
+                    } else {
+                        d += s
+                    }
+                    (c, d)
+                };
+                let (c, d) = shifted(*step);
+                table.jet_into(c, d, &mut work, &mut other);
+                let plus = other[..m].to_vec();
+                let (c, d) = shifted(-*step);
+                table.jet_into(c, d, &mut work, &mut other);
+                let difference: Vec<f64> = plus.iter().zip(&other[..m]).map(|(p, q)| (p - q) / (2.0 * step)).collect();
+                let off = relative(&jet[(k + 1) * m..(k + 2) * m], &difference);
+                assert!(off < 1e-3, "{centre:?} derivative {k}: {off}");
+            }
+        }
+    }
+}
