@@ -49,7 +49,8 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     spec.mesh.triangles = 1200;
     let model = spec.forward_model().unwrap();
     let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
-    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
+    // As the CLI builds it: presses found afresh are fitted on the table of one press's response.
+    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap().with_tabulated().unwrap();
     let array = PseudoArray::of_sensor(&spec, [1, 1]).unwrap();
     let gel = Hydrogel::default().drop_curve(16.0);
     let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
@@ -68,6 +69,11 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     for _ in 0..5 {
         frames.push(skin.frame().unwrap());
     }
+    // Then pressed elsewhere: found afresh.
+    skin.release();
+    skin.press([0.04, -0.06], 6.0);
+    skin.press([-0.06, 0.05], 12.0);
+    let moved = skin.frame().unwrap();
     // The counter counts: a reference frame is copied into the pipeline.
     COUNTING.store(true, Ordering::Relaxed);
     pipeline.process(&frames[0]).unwrap();
@@ -90,6 +96,13 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     // Each force with its standard deviation (its posterior's, from the fit's spread).
     assert!(touches.iter().all(|t| t.press.is_some() && t.force.is_some_and(|f| f.std.is_some())), "{touches:?}");
     assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in 4 frames");
+    // Presses found afresh, fitted on the table with one exact solve per fit: nothing either.
+    COUNTING.store(true, Ordering::Relaxed);
+    pipeline.process(&moved).unwrap();
+    COUNTING.store(false, Ordering::Relaxed);
+    assert_eq!(pipeline.chain().tracked(), Some(eitskin::press_fit::Tracked::Found));
+    assert_eq!(pipeline.touches().len(), 2, "{:?}", pipeline.touches());
+    assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame of presses found afresh");
     // A channel going bad is an event (the reconstructor is derived again); after it, the frames
     // that still miss the channel cost nothing again.
     let mut lost = frames[11].clone();

@@ -8,7 +8,7 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::exact::{Disk, DiskParameter, ExactPresses, ExactScratch};
-use super::tabulated::TabulatedPresses;
+use super::tabulated::{self, TabulatedPresses};
 use crate::forward::ForwardError;
 use crate::scratch::{grow, room, DenseLu};
 
@@ -121,7 +121,7 @@ impl RefineScratch {
         }
         room(&mut self.own, presses * measurements);
         room(&mut self.jets, presses * 4 * measurements);
-        room(&mut self.work, 4 * measurements);
+        room(&mut self.work, tabulated::work_len(measurements));
     }
 
     /// Each press's own response, weighted, as the last fit left them (presses × measurements,

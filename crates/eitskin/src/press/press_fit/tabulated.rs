@@ -120,7 +120,7 @@ impl TabulatedPresses {
         let slopes = slopes.map(|s| (s * dt) as f32);
         let stride = self.stride;
         work.clear();
-        work.resize(4 * stride, 0.0);
+        work.resize(work_len(m), 0.0);
         sum_stencil(work, &self.coefficients, stride, &stencil.rows, &stencil.weights, &terms, &slopes);
         let (sums, derivatives) = work.split_at(stride);
         let (along_x, rest) = derivatives.split_at(stride);
@@ -156,6 +156,11 @@ impl TabulatedPresses {
         }
         stencil
     }
+}
+
+/// The length of a [`TabulatedPresses::jet_into`]'s buffer for `measurements` values.
+pub(crate) fn work_len(measurements: usize) -> usize {
+    4 * measurements.div_ceil(LANES) * LANES
 }
 
 /// The drops the table is solved at: Chebyshev points of [0, [`DEEPEST`]], none at 0.
