@@ -74,7 +74,7 @@ pub use detect::PressDetection;
 pub use exact::{Disk, DiskParameter, ExactPresses, ExactScratch, JOINT_PRESSES};
 pub use locate::{Locator, STRIDE};
 pub use refine::{refine, refine_tabulated, RefineParams, RefineScratch, DEEPEST};
-pub use tabulated::TabulatedPresses;
+pub use tabulated::{TabulatedPresses, TabulatedTable, NODES};
 pub use track::{PressTrack, Tracked, WINDOW};
 
 /// A square grid of points over a box: the first at `lo`, row-major.
@@ -535,6 +535,16 @@ impl PressModel {
             self.tabulated = Some(Arc::new(table));
         }
         Ok(self)
+    }
+
+    /// The same model with `table` as its tabulated response ([`PressModel::with_tabulated`],
+    /// read back from a cache); `None` if its radius or values per response are not the model's.
+    pub fn with_tabulated_table(mut self, table: TabulatedPresses) -> Option<PressModel> {
+        let fits = table.radius() == self.radius && table.measurements() == self.measurements;
+        fits.then(|| {
+            self.tabulated = Some(Arc::new(table));
+            self
+        })
     }
 
     /// The tabulated response presses are fitted with, if it has one ([`PressModel::with_tabulated`]).

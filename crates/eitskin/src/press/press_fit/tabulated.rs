@@ -43,6 +43,24 @@ pub struct TabulatedPresses {
     coefficients: Vec<f32>,
 }
 
+/// A [`TabulatedPresses`] as plain data, for saving and loading it (`eitskin-io` caches it).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TabulatedTable {
+    /// First grid point `[x, y]`, in m.
+    pub lo: [f64; 2],
+    /// Grid spacing, in m.
+    pub spacing: f64,
+    /// Grid points `[nx, ny]`, row-major from `lo`.
+    pub dims: [usize; 2],
+    /// Radius of the press tabulated, in m.
+    pub radius: f64,
+    /// Values per response.
+    pub measurements: usize,
+    /// Per grid point, per Chebyshev term ([`NODES`] of them), the coefficients of Δv(d)/d
+    /// (V), `measurements` rounded up to 16 per term (the rest 0).
+    pub coefficients: Vec<f32>,
+}
+
 /// Where a [`TabulatedPresses::jet_into`] reads: each of the 16 grid points' first coefficient,
 /// and its weights for the value and its derivatives along x and y (per m).
 struct Stencil {
@@ -86,6 +104,34 @@ impl TabulatedPresses {
         );
         let per_point: Vec<Vec<f32>> = per_point.collect::<Result<_, ForwardError>>()?;
         Ok(TabulatedPresses { grid, radius, measurements, stride, coefficients: per_point.concat() })
+    }
+
+    /// The table as plain data.
+    pub fn table(&self) -> TabulatedTable {
+        let Grid { lo, spacing, dims } = self.grid;
+        let (radius, measurements) = (self.radius, self.measurements);
+        TabulatedTable { lo, spacing, dims, radius, measurements, coefficients: self.coefficients.clone() }
+    }
+
+    /// The table from its plain data; `None` if the sizes disagree, a length is not positive
+    /// or a coefficient is not finite.
+    pub fn from_table(table: TabulatedTable) -> Option<TabulatedPresses> {
+        let TabulatedTable { lo, spacing, dims, radius, measurements, coefficients } = table;
+        let stride = measurements.div_ceil(LANES) * LANES;
+        let values = dims[0].checked_mul(dims[1])?.checked_mul(NODES)?.checked_mul(stride)?;
+        let consistent = [spacing, radius].iter().all(|x| *x > 0.0 && x.is_finite())
+            && lo.iter().all(|x| x.is_finite())
+            && dims.iter().all(|&n| n >= 4)
+            && measurements > 0
+            && coefficients.len() == values
+            && coefficients.iter().all(|c| c.is_finite());
+        consistent.then_some(TabulatedPresses {
+            grid: Grid { lo, spacing, dims },
+            radius,
+            measurements,
+            stride,
+            coefficients,
+        })
     }
 
     /// The radius of the press it tabulates, in m.
