@@ -359,6 +359,11 @@ pub fn exact_model_for(
     coarse.forward_model().map(Some)
 }
 
+/// The most bytes a press model's tabulated response may take ([`PressModel::with_tabulated`]),
+/// 128 MiB: a sheet of 500 × 500 mm under a 10 mm indenter takes 122 MiB, the paper's sheet
+/// 21 MiB, and under an indenter narrower than 4 mm more than the limit.
+pub const TABLE_LIMIT: f64 = 134_217_728.0;
+
 /// The largest drop a fitted press may have (a fraction of the background): all of it.
 pub const MAX_DROP: f64 = 1.0;
 
@@ -528,8 +533,14 @@ impl PressModel {
     /// the sheet ([`TabulatedPresses`], at the response grid's spacing: about 21 MB and 0.7 s on
     /// two cores for the paper's sensor), so that presses found afresh are fitted on the table
     /// with one exact solve per fit ([`refine_tabulated`]) instead of several per iteration.
-    /// A model without exact responses is returned as it is.
+    /// A model without exact responses, or whose table would take more than [`TABLE_LIMIT`]
+    /// bytes (a sheet wide against its indenter: the table grows as their ratio squared), is
+    /// returned as it is, and fits presses on the exact responses alone.
     pub fn with_tabulated(mut self) -> Result<PressModel, PressModelError> {
+        let bytes = TabulatedPresses::bytes_for(self.grid.bounds(), self.grid.spacing, self.measurements);
+        if bytes > TABLE_LIMIT {
+            return Ok(self);
+        }
         if let Some(exact) = &self.exact {
             let table = TabulatedPresses::new(exact, self.grid.bounds(), self.radius, self.grid.spacing)?;
             self.tabulated = Some(Arc::new(table));
@@ -861,6 +872,22 @@ mod tests {
             let err = PressModel::new(&model, 1.0, &PressModelParams { radius, ..PressModelParams::default() });
             assert!(matches!(err, Err(PressModelError::IndenterRadius(r)) if r.to_bits() == radius.to_bits()));
         }
+    }
+
+    /// A table past the limit is not made: a 3 mm indenter on the paper's sheet would take
+    /// 225 MB; the model keeps fitting on its exact responses.
+    #[test]
+    fn a_table_too_large_is_not_made() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let model = spec.forward_model().unwrap();
+        let params = PressModelParams { radius: 0.003, ..PressModelParams::default() };
+        let bytes = TabulatedPresses::bytes_for(model.mesh().bounds(), 0.00075, 120);
+        assert!(bytes > TABLE_LIMIT, "{bytes}");
+        let press_model = PressModel::new(&model, 1.0, &params).unwrap().with_tabulated().unwrap();
+        assert!(press_model.tabulated().is_none() && press_model.exact().is_some());
+        let small = TabulatedPresses::bytes_for(model.mesh().bounds(), 0.0025, 120);
+        assert!((small / 2f64.powi(20) - 20.67).abs() < 0.01, "{small}");
     }
 
     #[test]

@@ -77,10 +77,7 @@ impl TabulatedPresses {
         radius: f64,
         spacing: f64,
     ) -> Result<TabulatedPresses, ForwardError> {
-        let [lo, hi] = bounds;
-        // One ring before the box and two past it: every place in it has its 4 × 4 stencil.
-        let grid =
-            Grid::over([[lo[0] - spacing, lo[1] - spacing], [hi[0] + 2.0 * spacing, hi[1] + 2.0 * spacing]], spacing);
+        let grid = grid_over(bounds, spacing);
         let measurements = exact.measurements();
         let stride = measurements.div_ceil(LANES) * LANES;
         let drops = nodes();
@@ -104,6 +101,12 @@ impl TabulatedPresses {
         );
         let per_point: Vec<Vec<f32>> = per_point.collect::<Result<_, ForwardError>>()?;
         Ok(TabulatedPresses { grid, radius, measurements, stride, coefficients: per_point.concat() })
+    }
+
+    /// Bytes a table of `measurements` values over `bounds` (m) at `spacing` (m) takes.
+    pub fn bytes_for(bounds: [[f64; 2]; 2], spacing: f64, measurements: usize) -> f64 {
+        let points = grid_over(bounds, spacing).len() as f64;
+        points * (NODES * measurements.div_ceil(LANES) * LANES * size_of::<f32>()) as f64
     }
 
     /// The table as plain data.
@@ -202,6 +205,12 @@ impl TabulatedPresses {
         }
         stencil
     }
+}
+
+/// The grid a table over `bounds` at `spacing` is made on: one ring before the box and two
+/// past it, so that every place in it has its 4 × 4 stencil.
+fn grid_over([lo, hi]: [[f64; 2]; 2], spacing: f64) -> Grid {
+    Grid::over([[lo[0] - spacing, lo[1] - spacing], [hi[0] + 2.0 * spacing, hi[1] + 2.0 * spacing]], spacing)
 }
 
 /// The length of a [`TabulatedPresses::jet_into`]'s buffer for `measurements` values.
