@@ -22,8 +22,9 @@ impl NominalSensor {
     }
 
     /// The sensor of `spec` on its own mesh, with `press` as its press model (built with the
-    /// default indenter when `None`: a fraction of a second at 4,000 triangles, its exact
-    /// responses on [`crate::press_fit::EXACT_TRIANGLES`] for a finer mesh).
+    /// default indenter when `None`, as the CLI builds it: about a second at 4,000 triangles,
+    /// its exact responses on [`crate::press_fit::EXACT_TRIANGLES`] for a finer mesh, one
+    /// press's tabulated).
     pub fn of_spec(spec: &SensorSpec, press: Option<PressModel>) -> Result<NominalSensor, LearnError> {
         let model = spec.forward_model()?;
         let background = model.measure(&spec.homogeneous(model.mesh()))?;
@@ -33,7 +34,9 @@ impl NominalSensor {
                 // Its exact responses on a coarser mesh when this one is too fine to keep K⁻¹ whole.
                 let exact = crate::press_fit::exact_model_for(spec, &model)?;
                 let params = PressModelParams::default();
-                PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), spec.conductivity, &params)?
+                let press =
+                    PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), spec.conductivity, &params)?;
+                press.with_tabulated()?
             }
         };
         let (expected, got) = (background.len(), press.measurements());
