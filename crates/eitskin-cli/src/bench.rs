@@ -10,12 +10,14 @@
 //! reconstructor), `derive_reference`, `derive_refresh_noise` and `derive_refresh_grown` (what a
 //! live pipeline derives off its frame path, λ from the noise: when its reference is taken, when
 //! its noise has changed, and when only its reference has grown) and `auto_hyperparameter_2356` and `reconstructor_2356` (λ, then the reconstructor at it, on a
-//! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table, by low-rank updates the ladder
-//! of strong presses, and one press's exact response tabulated over the sheet and its drop) and `press_detection` (its noise threshold, from 400 noise frames) and,
+//! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table and, by low-rank updates, the ladder
+//! of strong presses), `press_table` (one press's exact response tabulated over the sheet and
+//! its drop, [`PressModel::with_tabulated`], which a model fits with on request) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch) and `frame_three_presses` (three presses found in Δv against
 //! 0.05 % noise, median of 201 runs on the noiseless frame), `frame_three_presses_noisy` (the
-//! same on 201 frames of the presses held, each with its own 0.05 % noise) and
+//! same on 201 frames of the presses held, each with its own 0.05 % noise;
+//! `frame_three_presses_noisy_tabulated` with the model's tabulated response) and
 //! `frame_three_presses_carried` (those frames as a stream, the presses carried from frame to
 //! frame) and `frame_three_presses_carried_80db` (the same stream at 0.01 % noise, the reference
 //! of 100 frames); `simulated_frame` and `simulated_three_presses` (the virtual
@@ -329,9 +331,7 @@ fn frames(
     // too fine to keep its inverse whole (that mesh's build is counted).
     let (t_press_model, press_model) = time(n.min(3), || {
         let exact = exact_model_for(spec, model)?;
-        let press_model =
-            PressModel::with_exact_model(model, exact.as_ref().unwrap_or(model), background, &press_params)?;
-        Ok(press_model.with_tabulated()?)
+        Ok(PressModel::with_exact_model(model, exact.as_ref().unwrap_or(model), background, &press_params)?)
     })?;
     let dv: Vec<f64> = frame.iter().zip(values).map(|(v, r)| v - r).collect();
     let starts: Vec<[f64; 2]> = touches.iter().map(|t| t.centre).collect();
@@ -369,6 +369,13 @@ fn three_presses(press_model: &PressModel, values: &[f64], dv3: &[f64], n: usize
         next += 1;
         Ok(detection.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
     })?;
+    let (t_table, tabulated) = time(n.min(3), || Ok(press_model.clone().with_tabulated()?))?;
+    let on_table = PressDetection::new(&tabulated, &std, 9.0, 1e-3)?;
+    let mut next = 0;
+    let (t_noisy_table, ()) = time(held.len(), || {
+        next += 1;
+        Ok(on_table.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
+    })?;
     let (mut track, mut next) = (PressTrack::default(), 0);
     let (t_carried, _) = time(held.len(), || {
         next += 1;
@@ -382,10 +389,11 @@ fn three_presses(press_model: &PressModel, values: &[f64], dv3: &[f64], n: usize
         next += 1;
         Ok(detection80.track_into(&held80[next - 1], &mut whitened, &mut scratch, &mut track, &mut found)?)
     })?;
-    stages.setup.push(("press_detection", t_detection));
+    stages.setup.extend([("press_detection", t_detection), ("press_table", t_table)]);
     stages.per_frame.extend([
         ("frame_three_presses", t_detect),
         ("frame_three_presses_noisy", t_noisy),
+        ("frame_three_presses_noisy_tabulated", t_noisy_table),
         ("frame_three_presses_carried", t_carried),
         ("frame_three_presses_carried_80db", t_carried80),
     ]);

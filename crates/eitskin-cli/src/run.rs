@@ -124,6 +124,13 @@ pub struct Args {
     /// on a model of them while they explain it (a press held costs microseconds, not milliseconds).
     #[arg(long)]
     fresh_presses: bool,
+    /// Fit presses found afresh on one press's exact response tabulated over the sheet (with
+    /// --fit or a fitted-drop calibration): about 0.7 s more setup and 21 MB on the paper's
+    /// sheet, three presses found afresh in about a third of the time; in the hardest cases (a
+    /// weak press half taken up by a strong one, a wide press's neighbour) it decides
+    /// otherwise than the exact fit, the default.
+    #[arg(long)]
+    press_table: bool,
     /// The precision each frame's image is computed from: `half` reads a binary16 copy of the
     /// reconstruction matrix (half the memory a frame reads, each pixel within 2⁻¹¹ times the sum
     /// of its terms' magnitudes), `single` the matrix itself; `auto` takes half where the

@@ -204,6 +204,46 @@ fn the_virtual_sensor_pressed_by_a_script_gives_a_touch_where_and_when_pressed()
     }
 }
 
+/// `--press-table`: presses found afresh in every frame (`--fresh-presses`) are fitted on the
+/// press model's tabulated response, and found where the exact fit finds them: the same
+/// frames with a press, each within 3 mm and 0.05 in drop of the exact fit's.
+#[test]
+fn presses_fitted_on_the_table_are_those_of_the_exact_fit() {
+    let dir = scratch("press-table");
+    let script = dir.join("script.txt");
+    std::fs::write(&script, "0.6 1.6 30 -20 7\n0.8 1.6 -40 50 11\n").unwrap();
+    let source = format!("sim:{}", script.display());
+    let run = |table: &[&str]| {
+        let args =
+            ["run", "--source", &source, "--frames", "40", "--fast", "--fit", "--fresh-presses", "--triangles", "1500"];
+        frames_only(dir.eitskin(&[&args[..], table].concat()))
+    };
+    let presses = |line: &serde_json::Value| -> Vec<(f64, f64, f64)> {
+        let touches = line["touches"].as_array().unwrap();
+        let press = |t: &serde_json::Value| {
+            let p = &t["press"];
+            (p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap(), p["drop"].as_f64().unwrap())
+        };
+        touches.iter().filter(|t| t["press"].is_object()).map(press).collect()
+    };
+    let (exact, table) = (run(&[]), run(&["--press-table"]));
+    assert_eq!(exact.len(), table.len());
+    let mut pressed = 0;
+    for (a, b) in exact.iter().zip(&table) {
+        let (a, b) = (presses(a), presses(b));
+        assert_eq!(a.len(), b.len(), "{a:?} against {b:?}");
+        for p in &a {
+            let near = b.iter().any(|q| (p.0 - q.0).hypot(p.1 - q.1) < 3.0 && (p.2 - q.2).abs() < 0.05);
+            assert!(near, "{p:?} has no match in {b:?}");
+        }
+        pressed += usize::from(!a.is_empty());
+    }
+    assert!(pressed >= 10, "{pressed} frames with a press");
+    // And the flag is read: the fits are the table's, not the exact fit's to the last digit.
+    let all = |lines: &[serde_json::Value]| lines.iter().flat_map(presses).collect::<Vec<_>>();
+    assert_ne!(all(&exact), all(&table));
+}
+
 /// One core or two (`--cores`): the same lines, rasters included, byte for byte, since the
 /// split product computes each pixel as one core does.
 #[test]

@@ -101,6 +101,9 @@ pub struct ChainSetup {
     pub strength: Strength,
     /// Fit a press to each touch (on by itself when the strength needs the press model).
     pub fit: bool,
+    /// Fit presses found afresh on the press model's tabulated response
+    /// ([`PressModel::with_tabulated`]; not cached: tabulated at each setup).
+    pub press_table: bool,
     /// The pseudo-array and curves that turn strengths into forces, N.
     pub calibration: Option<(PseudoArray, Calibration)>,
     /// Image frames from a half-precision copy of the matrix ([`Chain::set_half_precision`]).
@@ -116,6 +119,7 @@ impl ChainSetup {
             touch: TouchParams::default(),
             strength: Strength::Peak,
             fit: false,
+            press_table: false,
             calibration: None,
             half_precision: false,
         }
@@ -151,7 +155,8 @@ pub fn chain(spec: &SensorSpec, setup: ChainSetup) -> Result<Chain, Error> {
     };
     let mut chain = Chain::new(recon, setup.touch);
     if setup.needs_press_model() {
-        chain = chain.with_press_model(press_model(spec)?);
+        let press_model = press_model(spec)?;
+        chain = chain.with_press_model(if setup.press_table { press_model.with_tabulated()? } else { press_model });
     }
     if let Some(map) = map {
         chain = chain.with_contrast_map(map);

@@ -1,30 +1,23 @@
 //! The press-model cache: a built [`PressModel`] (its response table and ladder, seconds of
 //! forward solves) saved to a file named by a hash of the spec, protocol, mesh settings, the
-//! model's parameters and this crate's version, so a second start loads it, with one press's
-//! exact response tabulated ([`PressModel::with_tabulated`]: 0.65 s on two cores for the paper's
-//! sensor, 21 MB of the file), and factors the forward model again for the exact responses
-//! ([`PressModel::with_exact`]).
+//! model's parameters and this crate's version, so a second start loads it (and factors the
+//! forward model again for the exact responses, [`PressModel::with_exact`]).
 //!
 //! File layout (little-endian): `EITSKINP`, format version (u32), the 32-byte key, lo (2 × f64),
 //! spacing (f64), dims (2 × u32), measurements (u32), radius, search (f64), the responses
 //! (points × measurements f64), coarse spacing (f64), coarse dims (2 × u32), the ladder
-//! (coarse points × 9 f64); then whether one press's exact response is tabulated (u32, 0 or 1)
-//! and, if it is, its lo (2 × f64), spacing (f64), dims (2 × u32), radius (f64), measurements
-//! (u32), Chebyshev terms (u32, [`NODES`]) and coefficients (points × terms × measurements
-//! rounded up to 16, f32). A file that does not match is rebuilt.
+//! (coarse points × 9 f64). A file that does not match is rebuilt.
 
 use std::path::{Path, PathBuf};
 
-use eitskin::press_fit::{
-    exact_model_for, PressModel, PressModelParams, PressTable, TabulatedPresses, TabulatedTable, NODES,
-};
+use eitskin::press_fit::{exact_model_for, PressModel, PressModelParams, PressTable};
 use eitskin::SensorSpec;
 
 use crate::reconstructor_file::{cache_file, cached, key_of, Reader};
 use crate::Error;
 
 const MAGIC: &[u8; 8] = b"EITSKINP";
-const FORMAT: u32 = 2;
+const FORMAT: u32 = 1;
 
 /// The file a press model for `spec` and `params` is cached in, under `dir`.
 pub fn press_model_path(dir: &Path, spec: &SensorSpec, params: &PressModelParams) -> Result<PathBuf, Error> {
@@ -53,11 +46,7 @@ pub fn load_or_build_press_model(
             let values =
                 model.measure(&spec.homogeneous(model.mesh())).map_err(eitskin::inverse::InverseError::from)?;
             let exact = exact_model_for(spec, &model)?;
-            let press_model = press_model.with_exact(exact.as_ref().unwrap_or(&model), spec.conductivity, &values)?;
-            match press_model.tabulated() {
-                Some(_) => press_model,
-                None => press_model.with_tabulated()?,
-            }
+            press_model.with_exact(exact.as_ref().unwrap_or(&model), spec.conductivity, &values)?
         }
         false => press_model,
     };
@@ -65,14 +54,11 @@ pub fn load_or_build_press_model(
 }
 
 /// The press model of `spec`, its exact responses on [`exact_model_for`]'s mesh when the spec's
-/// own is too fine to keep its inverse whole, and one press's exact response tabulated
-/// ([`PressModel::with_tabulated`]: presses found afresh are fitted on it).
+/// own is too fine to keep its inverse whole.
 pub fn build_press_model(spec: &SensorSpec, params: &PressModelParams) -> Result<PressModel, Error> {
     let model = spec.forward_model()?;
     let exact = exact_model_for(spec, &model)?;
-    let press_model =
-        PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), spec.conductivity, params)?;
-    Ok(press_model.with_tabulated()?)
+    Ok(PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), spec.conductivity, params)?)
 }
 
 /// The bytes of a cache file.
@@ -92,18 +78,6 @@ pub fn encode_press_model(model: &PressModel, key: &[u8; 32]) -> Vec<u8> {
     f64s(&mut out, &[t.coarse_spacing]);
     u32s(&mut out, &t.coarse_dims);
     t.ladder.iter().for_each(|rungs| f64s(&mut out, rungs));
-    match model.tabulated().map(TabulatedPresses::table) {
-        Some(table) => {
-            u32s(&mut out, &[1]);
-            f64s(&mut out, &[table.lo[0], table.lo[1], table.spacing]);
-            u32s(&mut out, &table.dims);
-            f64s(&mut out, &[table.radius]);
-            u32s(&mut out, &[table.measurements, NODES]);
-            out.reserve(4 * table.coefficients.len());
-            table.coefficients.iter().for_each(|c| out.extend_from_slice(&c.to_le_bytes()));
-        }
-        None => u32s(&mut out, &[0]),
-    }
     out
 }
 
@@ -121,38 +95,13 @@ pub fn decode_press_model(bytes: &[u8], key: &[u8; 32]) -> Option<PressModel> {
     let coarse_spacing = r.f64()?;
     let coarse_dims = [r.u32()? as usize, r.u32()? as usize];
     let rungs = r.f64s(coarse_dims[0].checked_mul(coarse_dims[1])?.checked_mul(9)?)?;
-    let tabulated = match r.u32()? {
-        0 => None,
-        1 => Some(decode_tabulated(&mut r)?),
-        _ => return None,
-    };
     if !r.0.is_empty() {
         return None;
     }
     let ladder = rungs.chunks_exact(9).map(|c| std::array::from_fn(|k| c[k])).collect();
     let table =
         PressTable { lo, spacing, dims, measurements, radius, search, responses, coarse_spacing, coarse_dims, ladder };
-    let press_model = PressModel::from_table(table)?;
-    match tabulated {
-        Some(tabulated) => press_model.with_tabulated_table(tabulated),
-        None => Some(press_model),
-    }
-}
-
-/// The tabulated response of a cache file, from after its flag.
-fn decode_tabulated(r: &mut Reader<'_>) -> Option<TabulatedPresses> {
-    let (lo, spacing) = ([r.f64()?, r.f64()?], r.f64()?);
-    let dims = [r.u32()? as usize, r.u32()? as usize];
-    let radius = r.f64()?;
-    let (measurements, nodes) = (r.u32()? as usize, r.u32()? as usize);
-    if nodes != NODES {
-        return None;
-    }
-    let stride = measurements.div_ceil(16) * 16;
-    let count = dims[0].checked_mul(dims[1])?.checked_mul(nodes)?.checked_mul(stride)?;
-    let raw = r.take(count.checked_mul(4)?)?;
-    let coefficients = raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
-    TabulatedPresses::from_table(TabulatedTable { lo, spacing, dims, radius, measurements, coefficients })
+    PressModel::from_table(table)
 }
 
 #[cfg(test)]
@@ -172,9 +121,6 @@ mod tests {
         assert!(hit, "the second start must come from the cache");
         assert_eq!(loaded.table().responses, built.table().responses);
         assert!(loaded.exact().is_some(), "a loaded model fits presses exactly too");
-        let table = |m: &PressModel| m.tabulated().map(TabulatedPresses::table);
-        assert!(table(&built).is_some(), "the CLI's press model carries one press's tabulated response");
-        assert_eq!(table(&loaded), table(&built), "and its cache gives it back");
         let dv: Vec<f64> = built.table().responses[..120].to_vec();
         assert_eq!(loaded.fit(&dv, [0.0, 0.0]), built.fit(&dv, [0.0, 0.0]));
 

@@ -244,9 +244,7 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     let [lo, hi] = spec.outline.bounds();
     let side = hi[0] - lo[0];
     let radius = params.sim.hydrogel.indenter_radius;
-    // As the CLI builds it: presses found afresh are fitted on one press's tabulated response.
-    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams { radius, ..Default::default() })?
-        .with_tabulated()?;
+    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams { radius, ..Default::default() })?;
     let reference_frames = rest_frames(&mut skin, params.repeats)?;
     let reference = mean_of_finite(&reference_frames);
 

@@ -191,7 +191,7 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     progress("sweep: setting up", 0, 1);
     let model = spec.forward_model()?;
     let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
-    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?.with_tabulated()?;
+    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?;
     let array = PseudoArray::of_sensor(spec, [1, 1])?;
     let mut rng = SeededRng::seed_from_u64(params.seed);
 

@@ -49,8 +49,7 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     spec.mesh.triangles = 1200;
     let model = spec.forward_model().unwrap();
     let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
-    // As the CLI builds it: presses found afresh are fitted on the table of one press's response.
-    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap().with_tabulated().unwrap();
+    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
     let array = PseudoArray::of_sensor(&spec, [1, 1]).unwrap();
     let gel = Hydrogel::default().drop_curve(16.0);
     let calibration = Calibration { curves: vec![gel], strength: Strength::FittedDrop };
@@ -96,13 +95,26 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     // Each force with its standard deviation (its posterior's, from the fit's spread).
     assert!(touches.iter().all(|t| t.press.is_some() && t.force.is_some_and(|f| f.std.is_some())), "{touches:?}");
     assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in 4 frames");
-    // Presses found afresh, fitted on the table with one exact solve per fit: nothing either.
+    // Presses found afresh, fitted together exactly: nothing either.
     COUNTING.store(true, Ordering::Relaxed);
     pipeline.process(&moved).unwrap();
     COUNTING.store(false, Ordering::Relaxed);
     assert_eq!(pipeline.chain().tracked(), Some(eitskin::press_fit::Tracked::Found));
     assert_eq!(pipeline.touches().len(), 2, "{:?}", pipeline.touches());
     assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame of presses found afresh");
+    // The same with the press model's tabulated response (presses found afresh fitted on it).
+    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap().with_tabulated().unwrap();
+    let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
+    let chain = Chain::new(recon, TouchParams::default()).with_press_model(press_model);
+    let mut on_table = Pipeline::new(chain, PipelineParams::default());
+    for frame in &frames[..12] {
+        on_table.process(frame).unwrap(); // the reference, and presses found afresh once
+    }
+    COUNTING.store(true, Ordering::Relaxed);
+    on_table.process(&moved).unwrap();
+    COUNTING.store(false, Ordering::Relaxed);
+    assert_eq!(on_table.chain().tracked(), Some(eitskin::press_fit::Tracked::Found));
+    assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame found afresh on the table");
     // A channel going bad is an event (the reconstructor is derived again); after it, the frames
     // that still miss the channel cost nothing again.
     let mut lost = frames[11].clone();

@@ -144,7 +144,14 @@ fn chain_setup(
         (file.array, file.calibration)
     });
     let half_precision = args.precision == Precision::Half;
-    ChainSetup { touch, fit: args.fit, calibration, half_precision, ..ChainSetup::new(recon) }
+    ChainSetup {
+        touch,
+        fit: args.fit,
+        press_table: args.press_table,
+        calibration,
+        half_precision,
+        ..ChainSetup::new(recon)
+    }
 }
 
 /// The virtual sensor's calibration, made now as `calibrate` makes one from a board's presses

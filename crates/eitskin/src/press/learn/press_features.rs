@@ -22,9 +22,8 @@ impl NominalSensor {
     }
 
     /// The sensor of `spec` on its own mesh, with `press` as its press model (built with the
-    /// default indenter when `None`, as the CLI builds it: about a second at 4,000 triangles,
-    /// its exact responses on [`crate::press_fit::EXACT_TRIANGLES`] for a finer mesh, one
-    /// press's tabulated).
+    /// default indenter when `None`: a fraction of a second at 4,000 triangles, its exact
+    /// responses on [`crate::press_fit::EXACT_TRIANGLES`] for a finer mesh).
     pub fn of_spec(spec: &SensorSpec, press: Option<PressModel>) -> Result<NominalSensor, LearnError> {
         let model = spec.forward_model()?;
         let background = model.measure(&spec.homogeneous(model.mesh()))?;
@@ -34,9 +33,7 @@ impl NominalSensor {
                 // Its exact responses on a coarser mesh when this one is too fine to keep K⁻¹ whole.
                 let exact = crate::press_fit::exact_model_for(spec, &model)?;
                 let params = PressModelParams::default();
-                let press =
-                    PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), spec.conductivity, &params)?;
-                press.with_tabulated()?
+                PressModel::with_exact_model(&model, exact.as_ref().unwrap_or(&model), spec.conductivity, &params)?
             }
         };
         let (expected, got) = (background.len(), press.measurements());

@@ -392,13 +392,14 @@ impl PressModel {
         rank: usize,
         scratch: &mut PressScratch,
     ) -> Result<f64, InverseError> {
+        // Where the fit read each press from the table (no radius fitted), alone, so is its
+        // radius's derivative: one press's solve, not all of theirs.
+        let on_table = exact.table.is_some() && fitted(&scratch.sizes) == 0;
         let PressScratch { disks, exact: ex, response, refine: refining, basis, .. } = scratch;
         let residual = refining.residual();
         disks.clear();
         disks.extend(presses.iter().map(disk_of));
-        // Where the fit read each press from the table, alone, so is its radius's derivative:
-        // one press's solve, not all of theirs.
-        let (solved, i) = if exact.table.is_some() { (&disks[i..=i], 0) } else { (&disks[..], i) };
+        let (solved, i) = if on_table { (&disks[i..=i], 0) } else { (&disks[..], i) };
         exact.presses.response_into(solved, ex, response)?;
         if !exact.presses.derivative_into(solved, i, DiskParameter::Radius, ex, response) {
             return Ok(0.0);

@@ -2,8 +2,8 @@
 //! sheet and over its drop, read back with its derivatives along x, y and the drop in about a
 //! microsecond: what lets a joint fit of presses found afresh iterate without a solve.
 //!
-//! At each point of a square grid (a quarter of the indenter's radius apart, one ring past the
-//! mesh's bounds) Δv(d)/d is solved at [`NODES`] Chebyshev drops in [0, [`DEEPEST`]] and kept
+//! At each point of a square grid (a quarter of the indenter's radius apart, one ring before
+//! the box the centres may take and two past it) Δv(d)/d is solved at [`NODES`] Chebyshev drops in [0, [`DEEPEST`]] and kept
 //! as its Chebyshev coefficients (f32): Δv(d)/d = 1/(1 − k·d − …) along each channel is smooth
 //! on that interval (its pole lies past d = 1), so the series is within 3·10⁻⁴ of the solved
 //! response at the median drop on the paper's sensor. Between grid points it is read by
@@ -11,7 +11,8 @@
 //! where a press's response turns within a grid step, up to 10 %).
 //!
 //! The table knows one press alone; what presses change of each other's field, and what it
-//! misses of one, a fit takes from one exact solve of them together ([`super::refine()`]).
+//! misses of one, a fit takes from one exact solve of them together
+//! ([`refine_tabulated`](super::refine_tabulated)).
 
 use rayon::prelude::*;
 
@@ -43,24 +44,6 @@ pub struct TabulatedPresses {
     coefficients: Vec<f32>,
 }
 
-/// A [`TabulatedPresses`] as plain data, for saving and loading it (`eitskin-io` caches it).
-#[derive(Debug, Clone, PartialEq)]
-pub struct TabulatedTable {
-    /// First grid point `[x, y]`, in m.
-    pub lo: [f64; 2],
-    /// Grid spacing, in m.
-    pub spacing: f64,
-    /// Grid points `[nx, ny]`, row-major from `lo`.
-    pub dims: [usize; 2],
-    /// Radius of the press tabulated, in m.
-    pub radius: f64,
-    /// Values per response.
-    pub measurements: usize,
-    /// Per grid point, per Chebyshev term ([`NODES`] of them), the coefficients of Δv(d)/d
-    /// (V), `measurements` rounded up to 16 per term (the rest 0).
-    pub coefficients: Vec<f32>,
-}
-
 /// Where a [`TabulatedPresses::jet_into`] reads: each of the 16 grid points' first coefficient,
 /// and its weights for the value and its derivatives along x and y (per m).
 struct Stencil {
@@ -79,7 +62,7 @@ impl TabulatedPresses {
     ) -> Result<TabulatedPresses, ForwardError> {
         let grid = grid_over(bounds, spacing);
         let measurements = exact.measurements();
-        let stride = measurements.div_ceil(LANES) * LANES;
+        let stride = padded(measurements);
         let drops = nodes();
         let per_point = (0..grid.len()).into_par_iter().map_init(
             || (ExactScratch::default(), vec![0.0; measurements]),
@@ -106,35 +89,7 @@ impl TabulatedPresses {
     /// Bytes a table of `measurements` values over `bounds` (m) at `spacing` (m) takes.
     pub fn bytes_for(bounds: [[f64; 2]; 2], spacing: f64, measurements: usize) -> f64 {
         let points = grid_over(bounds, spacing).len() as f64;
-        points * (NODES * measurements.div_ceil(LANES) * LANES * size_of::<f32>()) as f64
-    }
-
-    /// The table as plain data.
-    pub fn table(&self) -> TabulatedTable {
-        let Grid { lo, spacing, dims } = self.grid;
-        let (radius, measurements) = (self.radius, self.measurements);
-        TabulatedTable { lo, spacing, dims, radius, measurements, coefficients: self.coefficients.clone() }
-    }
-
-    /// The table from its plain data; `None` if the sizes disagree, a length is not positive
-    /// or a coefficient is not finite.
-    pub fn from_table(table: TabulatedTable) -> Option<TabulatedPresses> {
-        let TabulatedTable { lo, spacing, dims, radius, measurements, coefficients } = table;
-        let stride = measurements.div_ceil(LANES) * LANES;
-        let values = dims[0].checked_mul(dims[1])?.checked_mul(NODES)?.checked_mul(stride)?;
-        let consistent = [spacing, radius].iter().all(|x| *x > 0.0 && x.is_finite())
-            && lo.iter().all(|x| x.is_finite())
-            && dims.iter().all(|&n| n >= 4)
-            && measurements > 0
-            && coefficients.len() == values
-            && coefficients.iter().all(|c| c.is_finite());
-        consistent.then_some(TabulatedPresses {
-            grid: Grid { lo, spacing, dims },
-            radius,
-            measurements,
-            stride,
-            coefficients,
-        })
+        points * (NODES * padded(measurements) * size_of::<f32>()) as f64
     }
 
     /// The radius of the press it tabulates, in m.
@@ -190,7 +145,8 @@ impl TabulatedPresses {
     fn stencil(&self, centre: [f64; 2]) -> Stencil {
         let Grid { lo, spacing, dims } = self.grid;
         let cell = |k: usize| {
-            let x = ((centre[k] - lo[k]) / spacing).clamp(1.0, (dims[k] - 2) as f64);
+            // max and min, not clamp: a NaN centre reads the first cell, never outside the grid.
+            let x = ((centre[k] - lo[k]) / spacing).max(1.0).min((dims[k] - 2) as f64);
             let i = (x.floor() as usize).min(dims[k] - 3);
             (i - 1, catmull_rom(x - i as f64))
         };
@@ -213,9 +169,14 @@ fn grid_over([lo, hi]: [[f64; 2]; 2], spacing: f64) -> Grid {
     Grid::over([[lo[0] - spacing, lo[1] - spacing], [hi[0] + 2.0 * spacing, hi[1] + 2.0 * spacing]], spacing)
 }
 
+/// `measurements` rounded up to [`LANES`]: the length of each row of coefficients.
+fn padded(measurements: usize) -> usize {
+    measurements.div_ceil(LANES) * LANES
+}
+
 /// The length of a [`TabulatedPresses::jet_into`]'s buffer for `measurements` values.
 pub(crate) fn work_len(measurements: usize) -> usize {
-    4 * measurements.div_ceil(LANES) * LANES
+    4 * padded(measurements)
 }
 
 /// The drops the table is solved at: Chebyshev points of [0, [`DEEPEST`]], none at 0.
