@@ -247,7 +247,7 @@ impl PressModel {
     ) -> Option<(usize, f64)> {
         correlations.resize(scan.points.len(), 0.0);
         scan.blocked.mul_into(correlations, |k| dv[k] as f32);
-        // Compared squared: every point near a press found is tested against it.
+        // Distances compared squared, without hypot: the test runs for every point near a press found.
         let apart = (2.0 * self.radius).powi(2);
         let mut best: Option<(usize, f64)> = None;
         let points = scan.points.iter().zip(correlations.iter()).zip(scan.norms.iter().zip(unexplained));

@@ -2,7 +2,9 @@
 //! centre and drop (and, if asked, its radius) by Levenberg–Marquardt on the noise-weighted
 //! misfit |w⊙(Δv − F(presses))|², F the exact Δv of all presses at once (so one press's field
 //! on another's is in it), its Jacobian exact from the same solve ([`ExactPresses::derivative_into`]):
-//! one solve per iteration.
+//! one solve per iteration. [`refine_tabulated`] runs the same iterations on one press's
+//! tabulated response ([`TabulatedPresses`]), with one exact solve per fit for what the table
+//! leaves.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
