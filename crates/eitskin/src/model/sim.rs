@@ -31,8 +31,9 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
 use crate::calibration::MAX_FORCE;
-use crate::conductivity::{box_distance, mixed, triangle_box, Inclusion};
+use crate::conductivity::{box_distance, mixed, Inclusion};
 use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
+use crate::mesh::TriangleBuckets;
 use crate::spec::{SensorSpec, SpecError};
 
 /// How the gel answers a press: the drop d(F) by its [`ForceLaw`], spread under the indenter
@@ -184,7 +185,7 @@ pub struct VirtualSensor {
     /// The background's factorisation and its inverse (near part in f64, the rest in f32), built
     /// at the first frame with a press: a frame is then a low-rank update of it (`None` if it failed to
     /// build: frames are then solved in full).
-    update: std::sync::OnceLock<Option<(LowRankUpdate, Vec<[f64; 4]>)>>,
+    update: std::sync::OnceLock<Option<(LowRankUpdate, TriangleBuckets)>>,
     /// The measurements of the sheet with no press at the spec's conductivity, solved once.
     unpressed: std::sync::OnceLock<Vec<f64>>,
     /// The update's buffers, kept from frame to frame.
@@ -322,23 +323,25 @@ impl VirtualSensor {
             let v = self.model.measure(&self.conductivity())?;
             return Ok(self.unpressed.get_or_init(|| v).clone());
         }
-        let Some((update, boxes)) = self.update.get_or_init(|| self.low_rank_update()) else {
+        let Some((update, buckets)) = self.update.get_or_init(|| self.low_rank_update()) else {
             return self.model.measure(&self.conductivity());
         };
-        // Only triangles whose box a press reaches can change: found in the boxes kept.
+        // Only triangles whose box a press reaches can change: found by the buckets kept, in
+        // order, each once.
         let (presses, h) = (&self.presses, self.params.hydrogel);
-        let spans: Vec<[f64; 4]> = presses
-            .iter()
-            .map(|p| {
-                let ([x, y], r) = (p.position, h.contact_radius(p.force));
-                [x - r, y - r, x + r, y + r]
-            })
-            .collect();
-        let reaches = |b: &[f64; 4]| spans.iter().any(|s| s[2] >= b[0] && s[0] <= b[2] && s[3] >= b[1] && s[1] <= b[3]);
+        let mut near = Vec::new();
+        let mut candidates = Vec::new();
+        for p in presses {
+            let ([x, y], r) = (p.position, h.contact_radius(p.force));
+            buckets.near_into([x - r, y - r], [x + r, y + r], &mut near);
+            candidates.extend_from_slice(&near);
+        }
+        candidates.sort_unstable();
+        candidates.dedup();
         let inclusions = self.inclusions(presses);
-        let changes: Vec<(usize, f64)> = (boxes.iter().enumerate())
-            .filter(|(_, b)| reaches(b))
-            .map(|(t, _)| (t, self.triangle(t, presses, self.background, &inclusions) - self.background))
+        let changes: Vec<(usize, f64)> = candidates
+            .into_iter()
+            .map(|t| (t, self.triangle(t, presses, self.background, &inclusions) - self.background))
             .filter(|(_, d)| *d != 0.0)
             .collect();
         let mut frame = vec![0.0; update.background_measurements().len()];
@@ -351,14 +354,13 @@ impl VirtualSensor {
 
     /// The update of the background, keeping K₀⁻¹ between nodes as far apart as the widest
     /// press reaches (its contact radius at 16 N, twice, and the cut triangles' nodes beyond it).
-    fn low_rank_update(&self) -> Option<(LowRankUpdate, Vec<[f64; 4]>)> {
+    fn low_rank_update(&self) -> Option<(LowRankUpdate, TriangleBuckets)> {
         let mesh = self.model.mesh();
         let area: f64 = (0..mesh.triangles().len()).map(|t| mesh.area(t)).sum();
         let edge = (2.0 * area / mesh.triangles().len() as f64).sqrt();
         let reach = 2.0 * self.params.hydrogel.contact_radius(16.0) + 4.0 * edge;
         let background = vec![self.background; mesh.triangles().len()];
-        let boxes = (0..mesh.triangles().len()).map(|t| triangle_box(mesh.corners(t))).collect();
-        Some((LowRankUpdate::with_far(&self.model, &background, reach).ok()?, boxes))
+        Some((LowRankUpdate::with_far(&self.model, &background, reach).ok()?, TriangleBuckets::new(mesh)))
     }
 
     /// Noise-free frames (V at 1 A) for several sets of presses, solved in parallel; the
