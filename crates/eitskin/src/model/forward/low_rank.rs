@@ -132,9 +132,10 @@ impl Readout {
 struct NearGreen {
     /// Each row's place on the curve.
     place: Vec<usize>,
-    /// Per place (CSR), where its near places start (one more entry than rows).
+    /// Per place (CSR), where its near places start (one more entry than rows): those at or
+    /// after it along the curve, the lower triangle (the matrix is symmetric).
     start: Vec<usize>,
-    /// The places near each place, sorted.
+    /// The places near each place and not before it, sorted.
     near: Vec<usize>,
     values: Vec<f64>,
     /// The lower triangle of K₀⁻¹ between places, column after column.
@@ -204,7 +205,7 @@ impl NearGreen {
         for (b, &(pj, j)) in sorted.iter().enumerate() {
             let (near, values) = (&self.near[self.start[pj]..self.start[pj + 1]], &self.values[self.start[pj]..]);
             let far = self.far.as_deref().map(|far| &far[packed_offset(n, pj)..]);
-            let mut k = near.partition_point(|&q| q < pj);
+            let mut k = 0;
             for &(pi, i) in &sorted[b..] {
                 while k < near.len() && near[k] < pi {
                     k += 1;
@@ -332,7 +333,7 @@ impl LowRankUpdate {
         let place = z_order(&node_of_row, mesh.nodes(), [lo, hi]);
         let mut row_at = vec![0; n];
         place.iter().enumerate().for_each(|(row, &p)| row_at[p] = row);
-        // The places near a row's, sorted.
+        // The places near a row's and not before it, sorted.
         let near_places = |row: usize| -> Vec<usize> {
             let node = node_of_row[row];
             if node == usize::MAX {
@@ -345,6 +346,7 @@ impl LowRankUpdate {
                 .flat_map(|cell| bucket[cell].iter().copied())
                 .filter(|&other| crate::geometry::dist(p, mesh.nodes()[node_of_row[other]]) <= reach)
                 .map(|other| place[other])
+                .filter(|&q| q >= place[row])
                 .collect();
             near.sort_unstable();
             near
