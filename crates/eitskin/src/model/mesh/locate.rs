@@ -89,9 +89,13 @@ impl TriangleBuckets {
     }
 
     /// Every triangle whose bounding box may meet the box `[min, max]` (m), some more than
-    /// once (a triangle is listed in each cell it meets), into `out` (cleared).
+    /// once (a triangle is listed in each cell it meets), into `out` (cleared); none for a box
+    /// that is empty (a min past its max, or NaN).
     pub fn near_into(&self, min: [f64; 2], max: [f64; 2], out: &mut Vec<usize>) {
         out.clear();
+        if !(min[0] <= max[0] && min[1] <= max[1]) {
+            return;
+        }
         let [(i0, i1), (j0, j1)] = self.cell_range(min, max);
         for j in j0..=j1 {
             let (from, to) = (self.start[j * self.dims[0] + i0], self.start[j * self.dims[0] + i1 + 1]);
@@ -187,6 +191,36 @@ mod tests {
             }
         }
         assert_eq!(locator.locate(mesh.centroid(17)), Some(17));
+    }
+
+    /// Every triangle whose box meets a query box is listed (against the boxes themselves),
+    /// boxes partly or wholly off the mesh included, and an empty box lists none.
+    #[test]
+    fn buckets_list_every_triangle_a_box_meets() {
+        let mesh = Mesh::generate(
+            &Outline::Rectangle { width: 2.0, height: 1.0 },
+            &[],
+            &MeshParams { triangles: 400, ..MeshParams::default() },
+        )
+        .unwrap();
+        let buckets = TriangleBuckets::new(&mesh);
+        let mut near = Vec::new();
+        for (min, max) in [([-0.2, -0.1], [0.1, 0.05]), ([0.9, 0.4], [1.5, 0.9]), ([-3.0, 2.0], [-2.5, 2.5])] {
+            buckets.near_into(min, max, &mut near);
+            for t in 0..mesh.triangles().len() {
+                let c = mesh.corners(t);
+                let lo = [c[0][0].min(c[1][0]).min(c[2][0]), c[0][1].min(c[1][1]).min(c[2][1])];
+                let hi = [c[0][0].max(c[1][0]).max(c[2][0]), c[0][1].max(c[1][1]).max(c[2][1])];
+                if lo[0] <= max[0] && min[0] <= hi[0] && lo[1] <= max[1] && min[1] <= hi[1] {
+                    assert!(near.contains(&t), "triangle {t} meets {min:?}–{max:?}");
+                }
+            }
+        }
+        // A box of negative size (a press of negative radius) or NaN meets nothing.
+        for (min, max) in [([0.5, 2.0], [0.4, 2.0]), ([0.1, 0.1], [0.0, 0.2]), ([f64::NAN, 0.0], [0.1, 0.1])] {
+            buckets.near_into(min, max, &mut near);
+            assert!(near.is_empty(), "{min:?}–{max:?}");
+        }
     }
 
     #[test]
