@@ -130,6 +130,9 @@ impl Event {
 ///     The virtual sensor's seed, 0 to 2⁶⁴ − 1.
 /// values_per_measurement : {1, 2}, default 1
 ///     2 for boards sending complex (re, im) pairs.
+/// noise : float, default 1e-4
+///     The virtual sensor's noise, a relative standard deviation per value in [0, 0.1] (1e-4 is
+///     a best case; open boards vary 0.003–0.005).
 ///
 /// Bad input never ends the stream: it comes as an `Event` ("bad", "skipped", "disconnected",
 /// "reconnected") between frames, and the source goes on.
@@ -144,7 +147,7 @@ impl Source {
     /// after that many, `codec` is "lines" or "binary", `values_per_measurement` 1 or 2 (complex).
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments, one per setting")]
-    #[pyo3(signature = (source, spec, rate = 20.0, fast = false, frames = None, codec = "lines", seed = 1, values_per_measurement = 1))]
+    #[pyo3(signature = (source, spec, rate = 20.0, fast = false, frames = None, codec = "lines", seed = 1, values_per_measurement = 1, noise = 1e-4))]
     fn new(
         py: Python<'_>,
         source: &str,
@@ -155,6 +158,7 @@ impl Source {
         codec: &str,
         #[pyo3(from_py_with = arguments::seed)] seed: u64,
         #[pyo3(from_py_with = arguments::values_per_measurement)] values_per_measurement: usize,
+        #[pyo3(from_py_with = arguments::noise)] noise: f64,
     ) -> PyResult<Source> {
         use eitskin_io::replay::Speed;
         use eitskin_io::source::{Codec, SourceSettings, SourceSpec};
@@ -166,6 +170,7 @@ impl Source {
             codec: codec.parse::<Codec>().map_err(fail)?,
             seed,
             values_per_measurement,
+            noise,
         };
         let spec = &spec.0;
         py.detach(|| eitskin_io::source::Source::open(&which, spec, &settings))

@@ -217,6 +217,7 @@ def test_whole_numbers_of_any_size_are_refused_with_their_value():
     _refused(lambda: SPEC.with_triangles(2**70), "triangles must be 1 to 100000000, got 1180591620717411303424")
     _refused(lambda: eitskin.VirtualSensor(SPEC, seed=2**64), "seed must be 0 to 18446744073709551615, got 18446744073709551616")
     _refused(lambda: eitskin.Source("sim", SPEC, seed=2**64), "seed must be 0 to 18446744073709551615, got 18446744073709551616")
+    _refused(lambda: eitskin.Source("sim", SPEC, noise=0.5), "noise must be a number in [0, 0.1] (relative), got 0.5")
     _refused(lambda: eitskin.robot_presses(SPEC, 2**64), "count must be 1 to 1000000, got 18446744073709551616")
     reference = np.array([F["rest"], F["rest"] * 1.001])
     _refused(lambda: eitskin.Reconstructor.from_reference(SPEC, reference, raster=(-1, 5)), "raster must be (nx, ny), each 1 to 4096, got (-1, 5)")

@@ -64,6 +64,7 @@ const TEXT: &[(&str, &str)] = &[
 const ACCEPTED: &[(&str, &str, &str)] = &[
     ("study", "seed", "0"),
     ("run", "seed", "0"),
+    ("run", "noise", "0"),              // noise-free frames
     ("study", "noise", "0"),            // noise-free frames
     ("study", "sweep-presses", "0"),    // the sweep left out
     ("study", "learning-presses", "0"), // the learned calibration left out

@@ -141,6 +141,10 @@ pub struct Args {
     /// Seed of the virtual sensor's noise and random presses, 0 to 2⁶⁴ − 1.
     #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     seed: u64,
+    /// The virtual sensor's measurement noise, a relative standard deviation per value and
+    /// frame in [0, 0.1]: 1e-4 (0.01 %) is a best case; open boards vary 0.003–0.005.
+    #[arg(long, default_value_t = 1e-4, value_parser = ranges::number("a relative noise", "[0, 0.1]", "0.004", |n| (0.0..=0.1).contains(&n)))]
+    noise: f64,
     /// How a serial board (or a capture file of its bytes) encodes frames: `lines` (text) or
     /// `binary` (framed, with counter and CRC).
     #[arg(long, default_value_t = Codec::Lines)]
@@ -333,6 +337,7 @@ pub(crate) fn open_source(
         codec: args.codec,
         seed: args.seed,
         values_per_measurement: kind.per_measurement(),
+        noise: args.noise,
     };
     Ok(match (&args.source, session) {
         (SourceSpec::Zenoh { key }, Some(session)) => {

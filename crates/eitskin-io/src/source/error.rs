@@ -153,6 +153,15 @@ pub enum SourceError {
         /// The rate given, in frames/s.
         rate: f64,
     },
+    /// The virtual sensor's noise outside its range.
+    #[error(
+        "the virtual sensor's noise is a relative standard deviation per value in [0, 0.1] \
+         (open boards vary 0.003–0.005 from frame to frame), not {noise}"
+    )]
+    Noise {
+        /// The noise given, relative to each value.
+        noise: f64,
+    },
     /// The sensor spec does not make a virtual sensor or a protocol.
     #[error("the sensor spec does not make a virtual sensor")]
     Sensor(#[from] SpecError),
