@@ -236,8 +236,21 @@ fn inverse(
     mask[0] = false;
     let channels = Channels::all(mask.len()).masked(&mask);
     let (t_drop, _) = time(n, || Ok(recon.derive(params.hyperparameter, channels.clone())?))?;
+    // λ again on channels chosen before (a live sensor's refreshes: the channels' products
+    // kept), and first on a linearisation (each a fresh copy, made outside the timing).
     let (t_auto, _) = time(n.min(3), || Ok(recon.with_auto_hyperparameter(Channels::all(mask.len()), None)?))?;
-    stages.setup.extend([("reconstructor", t_recon), ("drop_channel", t_drop), ("auto_hyperparameter", t_auto)]);
+    let mut fresh: Vec<_> = (0..n.min(3)).map(|_| (**recon.linearisation()).clone()).collect();
+    let first_lambda = || {
+        let lin = fresh.pop().ok_or_else(|| anyhow::anyhow!("a fresh linearisation per run"))?;
+        Ok(eitskin::inverse::choose_hyperparameter(&lin, &params.prior, false, &Channels::all(mask.len()))?)
+    };
+    let (t_first, _) = time(n.min(3), first_lambda)?;
+    stages.setup.extend([
+        ("reconstructor", t_recon),
+        ("drop_channel", t_drop),
+        ("auto_hyperparameter", t_auto),
+        ("auto_hyperparameter_first", t_first),
+    ]);
     derivations(spec, &recon, n, stages)?;
     let (lin, channels) = tank()?;
     let prior = eitskin::Prior::default();

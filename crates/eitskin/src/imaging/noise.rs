@@ -93,9 +93,12 @@ impl Significance {
         let sd = difference_std(recon, v_ref, noise, averaged);
         let pixels = recon.blank_image().values.len();
         let mut variance = vec![0.0_f64; pixels];
-        for (m, s) in sd.iter().enumerate() {
-            if *s > 0.0 {
-                variance.iter_mut().zip(recon.matrix().column(m)).for_each(|(v, h)| *v += (f64::from(h) * s).powi(2));
+        // Σ_m (H_pm·s_m)², each pixel's terms in the order of m, read in the matrix's own order.
+        for (first, m, lanes) in recon.matrix().blocks() {
+            let s = sd[m];
+            if s > 0.0 {
+                let part = &mut variance[first..first + lanes.len()];
+                part.iter_mut().zip(lanes).for_each(|(v, h)| *v += (f64::from(*h) * s).powi(2));
             }
         }
         let inverse_std = variance.iter().map(|v| if *v > 0.0 { (1.0 / v.sqrt()) as f32 } else { 0.0 }).collect();
@@ -180,10 +183,9 @@ impl Significance {
             }
             let batch: Vec<&[f64]> = frames[..count].iter().map(Vec::as_slice).collect();
             let images = recon.image_values_of(v_ref, &batch)?;
-            maxima.extend((0..count).map(|f| {
-                let z = images.col(f).iter().zip(&self.inverse_std).map(|(v, s)| polarity.intensity(*v * s));
-                z.fold(0.0, f64::max)
-            }));
+            // (An owned matrix's column is one slice.)
+            let column = |f: usize| images.col(f).try_as_col_major().map(|c| c.as_slice()).unwrap_or_default();
+            maxima.extend((0..count).map(|f| self.strongest(column(f), polarity)));
         }
         Ok(maxima)
     }

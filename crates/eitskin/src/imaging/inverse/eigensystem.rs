@@ -9,27 +9,38 @@
 //! signal nor images to anything, so only that range is decomposed: with Σ^-½ P = Q R_p (thin
 //! QR), Σ^-½ J R⁻¹ = Q S for S = R_p B R⁻¹, and K = Q (S R Sᵀ) Qᵀ is decomposed at the pairs'
 //! count, exactly and with no product at the channels' count × triangles. Where the pairs are
-//! not fewer than the channels, K is decomposed whole.
+//! not fewer than the channels, K is decomposed whole, formed from J R⁻¹ Jᵀ as the
+//! linearisation keeps it for the channels ([`ChannelProducts`]): channels² for each new noise.
+
+use std::sync::Arc;
 
 use faer::{Mat, MatRef, Side};
 
+use super::channel_products::ChannelProducts;
 use super::linearisation::{inverse_diagonal, lower_product};
 use super::{Channels, InverseError, Linearisation, Prior};
 
 /// The whitened system's eigenpairs on its range, with what the criteria need of it.
 pub(super) struct Eigensystem {
-    /// The Jacobian's rows of the used channels (divided by v₀ when normalised).
-    pub jacobian: Mat<f64>,
     /// Each used channel's noise standard deviation relative to the mean variance's root.
     pub std: Vec<f64>,
     /// The eigenvalues e of K on its range, ascending; every other eigenvalue is 0.
     pub eigenvalues: Vec<f64>,
-    /// Q (used channels × rows, orthonormal columns) and S (rows × triangles) with
-    /// Σ^-½ J R⁻¹ = Q S: the range's basis and the images on it (Q = I when decomposed whole).
-    q: Mat<f64>,
-    s: Mat<f64>,
-    /// The eigenvectors V of T = S R Sᵀ (rows × eigenvalues); K's are Q V.
+    /// 1/R per triangle (R the prior's diagonal, floored where 0).
+    pub r_inv: Vec<f64>,
+    /// The eigenvectors V of T (rows × eigenvalues); K's are Q V.
     v: Mat<f64>,
+    form: Form,
+}
+
+/// How K was decomposed.
+enum Form {
+    /// Whole (Q = I, T = K = Σ^-½ J R⁻¹ Jᵀ Σ^-½), from the channels' products kept with the
+    /// linearisation ([`ChannelProducts`]): channels² to form.
+    Whole(Arc<ChannelProducts>),
+    /// On J's range: Σ^-½ J R⁻¹ = Q S, T = S R Sᵀ, with J's rows of the used channels (divided
+    /// by v₀ when normalised).
+    Range { jacobian: Mat<f64>, q: Mat<f64>, s: Mat<f64> },
 }
 
 impl Eigensystem {
@@ -52,43 +63,97 @@ impl Eigensystem {
         on_range: bool,
     ) -> Result<Eigensystem, InverseError> {
         channels.check(lin.measurements())?;
-        let jacobian = lin.rows(&channels.used(), normalised)?;
-        let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
+        let used = channels.used();
         let std: Vec<f64> = channels.relative_variance().iter().map(|v| v.sqrt()).collect();
-        let basis = lin.factors().basis.as_ref();
-        let range = if on_range && lin.factored_for(jacobian.nrows()) {
-            Range::factored(lin.pattern_rows(&channels.used(), normalised)?.as_ref(), basis, &std, &r)?
-        } else {
-            Range::whole(jacobian.as_ref(), &std, &r)?
-        };
-        let Range { q, s, eigenvalues, v } = range;
-        Ok(Eigensystem { jacobian, std, eigenvalues, q, s, v })
+        if on_range && lin.factored_for(used.len()) {
+            let jacobian = lin.rows(&used, normalised)?;
+            let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
+            let basis = lin.factors().basis.as_ref();
+            let range = Range::factored(lin.pattern_rows(&used, normalised)?.as_ref(), basis, &std, &r)?;
+            let Range { q, s, eigenvalues, v } = range;
+            let r_inv = inverse_diagonal(&r);
+            return Ok(Eigensystem { std, eigenvalues, r_inv, v, form: Form::Range { jacobian, q, s } });
+        }
+        let products = lin.channel_products(&used, normalised, prior)?;
+        let t = Mat::from_fn(used.len(), used.len(), |i, j| products.gram[(i, j)] / (std[i] * std[j]));
+        let (eigenvalues, v) = eigen(t)?;
+        let r_inv = products.r_inv.clone();
+        Ok(Eigensystem { std, eigenvalues, r_inv, v, form: Form::Whole(products) })
     }
 
     /// Uᵀ d = Vᵀ (Qᵀ d) for a whitened `d` of the used channels: its coefficients on the
     /// eigenvectors.
     pub(super) fn coefficients(&self, d: &[f64]) -> Vec<f64> {
-        let on_range = self.q.transpose() * faer::ColRef::from_slice(d);
-        let b = self.v.transpose() * on_range;
+        let d = faer::ColRef::from_slice(d);
+        let b = match &self.form {
+            Form::Whole(_) => self.v.transpose() * d,
+            Form::Range { q, .. } => self.v.transpose() * (q.transpose() * d),
+        };
         b.iter().copied().collect()
     }
 
-    /// CᵀC for C = diag(w) (Σ^-½ J R⁻¹)ᵀ U, the eigenvectors' images weighted per triangle by `w`:
-    /// eigenvalues × eigenvalues, symmetric; Vᵀ (S diag(w²) Sᵀ) V, at the range's size.
-    pub(super) fn image_gram(&self, w: &[f64]) -> Mat<f64> {
-        let weighted = Mat::from_fn(self.s.nrows(), self.s.ncols(), |i, t| self.s[(i, t)] * w[t] * w[t]);
-        let gram = symmetric(lower_product(self.s.as_ref(), weighted.transpose()));
+    /// CᵀC for C = A (Σ^-½ J R⁻¹)ᵀ U, the eigenvectors' images weighted by the triangles'
+    /// areas A: eigenvalues × eigenvalues, symmetric.
+    pub(super) fn area_gram(&self, lin: &Linearisation) -> Mat<f64> {
+        let gram = match &self.form {
+            Form::Whole(products) => {
+                let std = &self.std;
+                Mat::from_fn(std.len(), std.len(), |i, j| products.area_gram[(i, j)] / (std[i] * std[j]))
+            }
+            // Vᵀ (S A² Sᵀ) V, at the range's size.
+            Form::Range { s, .. } => {
+                let mesh = lin.mesh();
+                let weighted = Mat::from_fn(s.nrows(), s.ncols(), |i, t| s[(i, t)] * mesh.area(t).powi(2));
+                symmetric(lower_product(s.as_ref(), weighted.transpose()))
+            }
+        };
         self.v.transpose() * gram * &self.v
+    }
+
+    /// J·1 over `triangles` for each used channel (divided by v₀ when normalised).
+    pub(super) fn response_to(&self, lin: &Linearisation, triangles: &[usize]) -> Vec<f64> {
+        match &self.form {
+            Form::Whole(products) => products.response_to(lin, triangles),
+            Form::Range { jacobian, .. } => {
+                (0..jacobian.nrows()).map(|i| triangles.iter().map(|&t| jacobian[(i, t)]).sum()).collect()
+            }
+        }
+    }
+
+    /// The reconstruction matrix of `lin` at λ `hyperparameter`, triangles × used channels,
+    /// from the eigenpairs already made: no system formed or factored again.
+    pub(super) fn compact_matrix(&self, lin: &Linearisation, hyperparameter: f64) -> Result<Mat<f64>, InverseError> {
+        let v = self.v.as_ref();
+        match &self.form {
+            Form::Range { q, s, .. } => {
+                Range::matrix(q.as_ref(), s.as_ref(), &self.eigenvalues, v, &self.std, hyperparameter)
+            }
+            // H = R⁻¹ Jᵀ Σ^-½ V diag(1/(e + λ²)) Vᵀ Σ^-½: the filter at the channels' size, then
+            // one product with J.
+            Form::Whole(products) => {
+                let lambda2 = regularised(&self.eigenvalues, hyperparameter)?;
+                let std = &self.std;
+                let filtered = Mat::from_fn(v.nrows(), v.ncols(), |i, k| {
+                    v[(i, k)] / (self.eigenvalues[k].max(0.0) + lambda2) / std[i]
+                });
+                let whitened = Mat::from_fn(v.ncols(), v.nrows(), |k, j| v[(j, k)] / std[j]);
+                let mut h = products.transposed_times(lin, (filtered * whitened).as_ref());
+                for j in 0..h.ncols() {
+                    h.col_mut(j).iter_mut().zip(&self.r_inv).for_each(|(h, r)| *h *= r);
+                }
+                Ok(h)
+            }
+        }
     }
 }
 
-impl Eigensystem {
-    /// The reconstruction matrix at λ `hyperparameter`, triangles × used channels, from the
-    /// eigenpairs already made ([`Range::matrix`]): no system formed or factored again.
-    pub(super) fn compact_matrix(&self, hyperparameter: f64) -> Result<Mat<f64>, InverseError> {
-        let (q, s, v) = (self.q.as_ref(), self.s.as_ref(), self.v.as_ref());
-        Range::matrix(q, s, &self.eigenvalues, v, &self.std, hyperparameter)
+/// λ², refused where it leaves the range's null directions unregularised (its square underflows).
+fn regularised(eigenvalues: &[f64], hyperparameter: f64) -> Result<f64, InverseError> {
+    let lambda2 = hyperparameter * hyperparameter;
+    if eigenvalues.first().is_some_and(|e| e.max(0.0) + lambda2 <= 0.0) {
+        return Err(InverseError::NotPositiveDefinite);
     }
+    Ok(lambda2)
 }
 
 /// Σ^-½ J R⁻¹ = Q S (Q orthonormal columns), with the eigenpairs of T = S R Sᵀ = V diag(e) Vᵀ:
@@ -118,13 +183,6 @@ impl Range {
         Range::of(qr.compute_thin_Q(), qr.thin_R() * scaled, r)
     }
 
-    /// From J's rows whole (Q = I).
-    pub(super) fn whole(jacobian: MatRef<'_, f64>, std: &[f64], r: &[f64]) -> Result<Range, InverseError> {
-        let (m, k) = (jacobian.nrows(), jacobian.ncols());
-        let r_inv = inverse_diagonal(r);
-        Range::of(Mat::identity(m, m), Mat::from_fn(m, k, |i, j| jacobian[(i, j)] / std[i] * r_inv[j]), r)
-    }
-
     /// The reconstruction matrix at λ `hyperparameter` from Σ^-½ J R⁻¹ = Q S and T's eigenpairs
     /// (`eigenvalues`, `v`), for channels of noise `std`: triangles × used channels,
     /// H = R⁻¹Jᵀ(JR⁻¹Jᵀ + λ²Σ)⁻¹ = Sᵀ V diag(1/(e + λ²)) Vᵀ Qᵀ Σ^-½, the part of the data
@@ -137,11 +195,7 @@ impl Range {
         std: &[f64],
         hyperparameter: f64,
     ) -> Result<Mat<f64>, InverseError> {
-        let lambda2 = hyperparameter * hyperparameter;
-        // A λ whose square underflows leaves the range's null directions unregularised.
-        if eigenvalues.first().is_some_and(|e| e.max(0.0) + lambda2 <= 0.0) {
-            return Err(InverseError::NotPositiveDefinite);
-        }
+        let lambda2 = regularised(eigenvalues, hyperparameter)?;
         let filtered = Mat::from_fn(v.nrows(), v.ncols(), |i, k| v[(i, k)] / (eigenvalues[k].max(0.0) + lambda2));
         let data = Mat::from_fn(q.ncols(), q.nrows(), |p, i| q[(i, p)] / std[i]);
         Ok(s.transpose() * (filtered * (v.transpose() * data)))
@@ -177,8 +231,8 @@ mod tests {
 
     /// The whitened Gram matrix's quadratic form and the filtered energy of a vector, as the
     /// noise figure and the data's criteria read them, at λ².
-    fn readings(system: &Eigensystem, area: &[f64], d: &[f64], lambda2: f64) -> (f64, f64) {
-        let gram = system.image_gram(area);
+    fn readings(system: &Eigensystem, lin: &Linearisation, d: &[f64], lambda2: f64) -> (f64, f64) {
+        let gram = system.area_gram(lin);
         let b = system.coefficients(d);
         let y: Vec<f64> = system.eigenvalues.iter().zip(&b).map(|(e, b)| b / (e.max(0.0) + lambda2)).collect();
         let signal: f64 = (0..y.len()).map(|i| y[i] * (0..y.len()).map(|j| gram[(i, j)] * y[j]).sum::<f64>()).sum();
@@ -209,7 +263,7 @@ mod tests {
                 let variance = channels.relative_variance();
                 let factorised =
                     super::super::linearisation::measurement_sized(jacobian.as_ref(), &r, lambda, &variance).unwrap();
-                let got = system.compact_matrix(lambda).unwrap();
+                let got = system.compact_matrix(&lin, lambda).unwrap();
                 let largest =
                     factorised.col_iter().flat_map(|c| c.iter().copied()).fold(0.0_f64, |a, h| a.max(h.abs()));
                 // Both round to the system's condition, about e_max/λ², times the precision.
@@ -245,14 +299,13 @@ mod tests {
         // Past the range, the whole system's eigenvalues are rounding.
         assert!(whole.eigenvalues[..m - r].iter().all(|e| e.abs() < 1e-12 * largest));
         // A target's signal (in the range) and an arbitrary vector (mostly outside it).
-        let area: Vec<f64> = (0..lin.mesh().triangles().len()).map(|t| lin.mesh().area(t)).collect();
-        let target: Vec<f64> =
-            (0..m).map(|i| (0..40).map(|t| reduced.jacobian[(i, t)]).sum::<f64>() / reduced.std[i]).collect();
+        let response = reduced.response_to(&lin, &(0..40).collect::<Vec<_>>());
+        let target: Vec<f64> = response.iter().zip(&reduced.std).map(|(z, s)| z / s).collect();
         let d: Vec<f64> = (0..m).map(|i| ((i * 37) % 11) as f64 - 5.0).collect();
         for lambda in [1e-4, 1e-2, 1.0, 100.0] {
             let lambda2 = lambda * lambda * largest;
             for v in [&target, &d] {
-                let (a, b) = (readings(&reduced, &area, v, lambda2), readings(&whole, &area, v, lambda2));
+                let (a, b) = (readings(&reduced, &lin, v, lambda2), readings(&whole, &lin, v, lambda2));
                 assert!((a.0 / b.0 - 1.0).abs() < 1e-7, "λ {lambda}: image {} vs {}", a.0, b.0);
                 // (to the size of the vector: at small λ the residual is rounding in either)
                 let size: f64 = v.iter().map(|x| x * x).sum();

@@ -125,13 +125,9 @@ impl NoiseFigure {
     /// From the channels' eigensystem, already made.
     fn of(system: &Eigensystem, lin: &Linearisation, channels: &Channels) -> NoiseFigure {
         let variance = channels.relative_variance();
-        let mesh = lin.mesh();
         // CᵀC: channels² work per λ instead of triangles × channels.
-        let area: Vec<f64> = (0..mesh.triangles().len()).map(|t| mesh.area(t)).collect();
-        let gram = system.image_gram(&area);
-        let contrast = target(mesh);
-        let jacobian = &system.jacobian;
-        let z0: Vec<f64> = (0..jacobian.nrows()).map(|i| contrast.iter().map(|&t| jacobian[(i, t)]).sum()).collect();
+        let gram = system.area_gram(lin);
+        let z0 = system.response_to(lin, &target(lin.mesh()));
         let zw: Vec<f64> = z0.iter().zip(&system.std).map(|(z, s)| z / s).collect();
         let target = system.coefficients(&zw);
         let snr_z = z0.iter().map(|z| z * z).sum::<f64>() / variance.iter().sum::<f64>();
@@ -185,21 +181,15 @@ pub fn choose_hyperparameter(
     channels: &Channels,
 ) -> Result<f64, InverseError> {
     let system = Eigensystem::new(lin, prior, normalised, channels)?;
-    choose_hyperparameter_on(lin, prior, normalised, channels, &system)
+    Ok(choose_hyperparameter_on(lin, channels, &system))
 }
 
 /// [`choose_hyperparameter`] on the channels' eigensystem, already made (the reconstructor at
 /// the λ chosen is then derived from it: [`Eigensystem::compact_matrix`]).
-pub(super) fn choose_hyperparameter_on(
-    lin: &Linearisation,
-    prior: &Prior,
-    normalised: bool,
-    channels: &Channels,
-    system: &Eigensystem,
-) -> Result<f64, InverseError> {
+pub(super) fn choose_hyperparameter_on(lin: &Linearisation, channels: &Channels, system: &Eigensystem) -> f64 {
     let from_figure = noise_figure_search(&NoiseFigure::of(system, lin, channels));
-    let from_level = map_hyperparameter(lin, prior, normalised, channels)?;
-    Ok(from_level.map_or(from_figure, |l| from_figure.max(l.min(SEARCH.1))))
+    let from_level = map_hyperparameter_of(lin, &system.r_inv, channels);
+    from_level.map_or(from_figure, |l| from_figure.max(l.min(SEARCH.1)))
 }
 
 /// The MAP λ = √(mean(Σ)/q) for the channels' noise variances Σ (the model's units) and the
@@ -210,12 +200,17 @@ pub fn map_hyperparameter(
     normalised: bool,
     channels: &Channels,
 ) -> Result<Option<f64>, InverseError> {
-    let Some(mean_variance) = channels.mean_variance() else {
+    if channels.mean_variance().is_none() {
         return Ok(None);
-    };
+    }
     let jacobian = lin.rows(&channels.used(), normalised)?;
     let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
-    let r_inv = inverse_diagonal(&r);
+    Ok(map_hyperparameter_of(lin, &inverse_diagonal(&r), channels))
+}
+
+/// [`map_hyperparameter`] for the prior's inverse diagonal `r_inv` on the channels, already made.
+fn map_hyperparameter_of(lin: &Linearisation, r_inv: &[f64], channels: &Channels) -> Option<f64> {
+    let mean_variance = channels.mean_variance()?;
     let mesh = lin.mesh();
     let area: Vec<f64> = (0..mesh.triangles().len()).map(|t| mesh.area(t)).collect();
     let total: f64 = area.iter().sum();
@@ -226,7 +221,7 @@ pub fn map_hyperparameter(
     let sigma0 =
         -lin.background().iter().zip(&d).map(|(v, d)| v * d).sum::<f64>() / d.iter().map(|d| d * d).sum::<f64>();
     let q = (TARGET_CONTRAST * sigma0).powi(2) * share / mean_r_inv;
-    Ok(Some((mean_variance / q).sqrt()).filter(|l| l.is_finite() && *l > 0.0))
+    Some((mean_variance / q).sqrt()).filter(|l| l.is_finite() && *l > 0.0)
 }
 
 /// The λ whose noise figure is [`NOISE_FIGURE_TARGET`], searched on a grid of 20 steps a

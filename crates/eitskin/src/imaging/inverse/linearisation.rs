@@ -17,6 +17,7 @@
 use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::{Accum, Mat, MatRef, Side};
 
+use super::channel_products::{ChannelProducts, ProductsCache};
 use super::eigensystem::Range;
 use super::{check_hyperparameter, Channels, InverseError, Prior, ReconstructorParams};
 use crate::forward::{ForwardModel, JacobianFactors};
@@ -29,6 +30,8 @@ pub struct Linearisation {
     factors: JacobianFactors,
     background: Vec<f64>,
     mesh: Mesh,
+    /// The measurement-sized products of the channel sets derived on last.
+    products: ProductsCache,
 }
 
 impl Linearisation {
@@ -55,7 +58,13 @@ impl Linearisation {
         let jacobian = model.jacobian(&solution);
         let factors = model.jacobian_factors(&solution);
         let background = solution.measurements(model.protocol());
-        Ok(Linearisation { jacobian, factors, background, mesh: model.mesh().clone() })
+        Ok(Linearisation {
+            jacobian,
+            factors,
+            background,
+            mesh: model.mesh().clone(),
+            products: ProductsCache::default(),
+        })
     }
 
     /// A linearisation from its parts (as a cache file holds them), each column-major: the
@@ -83,7 +92,7 @@ impl Linearisation {
             patterns: Mat::from_fn(m, pairs, |i, p| patterns[p * m + i]),
             basis: Mat::from_fn(pairs, k, |p, t| basis[t * pairs + p]),
         };
-        Some(Linearisation { jacobian, factors, background, mesh })
+        Some(Linearisation { jacobian, factors, background, mesh, products: ProductsCache::default() })
     }
 
     /// The Jacobian ∂v/∂σ, measurements × triangles, in V per S/m (at 1 A).
@@ -130,8 +139,20 @@ impl Linearisation {
         Ok(Mat::from_fn(used.len(), patterns.ncols(), |i, p| patterns[(used[i], p)] * scale[i]))
     }
 
+    /// The measurement-sized products of channels `used` (J's rows divided by v₀ when
+    /// `normalised`) under the diagonal `prior`, kept from an earlier derivation on them or
+    /// made now ([`ChannelProducts`]).
+    pub(crate) fn channel_products(
+        &self,
+        used: &[usize],
+        normalised: bool,
+        prior: &Prior,
+    ) -> Result<std::sync::Arc<ChannelProducts>, InverseError> {
+        self.products.get(self, used, normalised, prior)
+    }
+
     /// Per used channel, 1/v₀ when `normalised`, else 1; an error for a v₀ of 0.
-    fn row_scale(&self, used: &[usize], normalised: bool) -> Result<Vec<f64>, InverseError> {
+    pub(crate) fn row_scale(&self, used: &[usize], normalised: bool) -> Result<Vec<f64>, InverseError> {
         let mut scale = vec![1.0; used.len()];
         if normalised {
             for (s, &m) in scale.iter_mut().zip(used) {

@@ -14,6 +14,7 @@
 //! [`reconstruction_matrix`] gives the element-level matrix; [`Reconstructor`] projects it
 //! once onto a raster so that a frame costs one pixels × measurements product.
 
+mod channel_products;
 mod channels;
 mod criterion;
 mod eigensystem;

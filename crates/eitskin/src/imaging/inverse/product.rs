@@ -55,18 +55,23 @@ impl BlockedMatrix {
     /// doc); [`set`](Self::set) drops it. Allocates the copy (a quarter of a second's worth of
     /// frames: setup, not the frame path).
     pub fn keep_half(&mut self) {
+        use half::slice::{HalfBitsSliceExt, HalfFloatSliceExt};
         debug_assert!(self.data.iter().all(|h| h.is_finite()), "a finite matrix");
-        let largest = (0..self.columns).map(|m| self.column(m).fold(0.0_f32, |a, h| a.max(h.abs())));
-        let scales: Vec<f32> = largest.map(|l| if l > 0.0 && l.is_finite() { l / HALF_TOP } else { 1.0 }).collect();
-        let bits = self
-            .data
-            .chunks_exact(BLOCK)
-            .enumerate()
-            .flat_map(|(k, lanes)| {
-                let scale = scales[k % self.columns.max(1)];
-                lanes.iter().map(move |h| to_half(h / scale))
-            })
-            .collect();
+        let mut largest = vec![0.0_f32; self.columns];
+        for (_, m, lanes) in self.blocks() {
+            largest[m] = lanes.iter().fold(largest[m], |a, h| a.max(h.abs()));
+        }
+        let scales: Vec<f32> =
+            largest.iter().map(|&l| if l > 0.0 && l.is_finite() { l / HALF_TOP } else { 1.0 }).collect();
+        let mut bits = vec![0_u16; self.data.len()];
+        let mut scaled = [0.0_f32; BLOCK];
+        for (k, (lanes, out)) in self.data.chunks_exact(BLOCK).zip(bits.chunks_exact_mut(BLOCK)).enumerate() {
+            let scale = scales[k % self.columns];
+            scaled.iter_mut().zip(lanes).for_each(|(x, h)| *x = h / scale);
+            // Rounded to nearest, ties to even, as one conversion each (the processor's F16C where it has it).
+            out.reinterpret_cast_mut::<half::f16>().convert_from_f32_slice(&scaled);
+            out.iter_mut().for_each(|b| *b = flushed(*b));
+        }
         self.half = Some(Half { bits, scales });
     }
 
@@ -108,6 +113,25 @@ impl BlockedMatrix {
     /// Entry (`row`, `column`).
     pub fn get(&self, row: usize, column: usize) -> f32 {
         self.data[self.index(row, column)]
+    }
+
+    /// Each block's part of each column, in storage order: (its first row, the column, its
+    /// entries, rows past the last left out).
+    pub fn blocks(&self) -> impl Iterator<Item = (usize, usize, &[f32])> + '_ {
+        self.data.chunks_exact(BLOCK).enumerate().map(move |(k, lanes)| {
+            let first = k / self.columns * BLOCK;
+            (first, k % self.columns, &lanes[..(self.rows - first).min(BLOCK)])
+        })
+    }
+
+    /// [`BlockedMatrix::blocks`] to write (dropping the half-precision copy).
+    pub fn blocks_mut(&mut self) -> impl Iterator<Item = (usize, usize, &mut [f32])> + '_ {
+        self.half = None;
+        let (rows, columns) = (self.rows, self.columns);
+        self.data.chunks_exact_mut(BLOCK).enumerate().map(move |(k, lanes)| {
+            let first = k / columns * BLOCK;
+            (first, k % columns, &mut lanes[..(rows - first).min(BLOCK)])
+        })
     }
 
     /// Column `column`, row by row.
@@ -230,8 +254,14 @@ const HALF_TOP: f32 = 32768.0;
 
 /// `x` (|x| ≤ [`HALF_TOP`]) in binary16, rounded to nearest; below the smallest normal, 0 (so
 /// that every path converts it back alike).
+#[cfg(test)]
 fn to_half(x: f32) -> u16 {
-    let bits = half::f16::from_f32(x).to_bits();
+    flushed(half::f16::from_f32(x).to_bits())
+}
+
+/// A binary16's `bits` with a subnormal made zero (its sign kept).
+#[inline(always)]
+fn flushed(bits: u16) -> u16 {
     if bits & 0x7c00 == 0 {
         bits & 0x8000
     } else {
@@ -327,6 +357,12 @@ mod tests {
             assert_eq!(from_half(h), half::f16::from_bits(h).to_f32(), "{h:#06x}");
         }
         assert_eq!((from_half(0), from_half(0x8000).to_bits()), (0.0, (-0.0f32).to_bits()));
+        // An entry below 2⁻²⁹ of its column's largest is 0 (a binary16 subnormal, flushed), its sign kept.
+        let mut tiny = BlockedMatrix::zeros(3, 1);
+        [1.0, -1e-10, 1e-3].iter().enumerate().for_each(|(r, h)| tiny.set(r, 0, *h));
+        tiny.keep_half();
+        let bits = tiny.half.as_ref().map(|h| h.bits[..3].to_vec()).unwrap_or_default();
+        assert_eq!(bits, [to_half(32768.0), 0x8000, to_half(32.768)]);
         for (rows, columns) in [(1, 1), (63, 5), (64, 120), (200, 7), (130, PASS + 3), (5, 0)] {
             let entry = |r: usize, c: usize| (((r * 31 + c * 17) % 13) as f32 - 6.0) * 10f32.powi((c % 7) as i32 - 3);
             let mut matrix = BlockedMatrix::zeros(rows, columns);
@@ -340,6 +376,13 @@ mod tests {
             matrix.mul_into(&mut single, d);
             matrix.keep_half();
             assert!(matrix.is_half());
+            // Converted in bulk, each entry as one conversion would give it.
+            if let Some(half) = &matrix.half {
+                for (r, c) in (0..rows).flat_map(|r| (0..columns).map(move |c| (r, c))) {
+                    let want = to_half(entry(r, c) / half.scales[c]);
+                    assert_eq!(half.bits[matrix.index(r, c)], want, "{rows}×{columns}: ({r}, {c})");
+                }
+            }
             let mut halved = vec![f32::NAN; rows];
             matrix.mul_into(&mut halved, d);
             for r in 0..rows {

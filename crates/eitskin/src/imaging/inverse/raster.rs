@@ -132,18 +132,21 @@ impl Reconstructor {
         };
         // Columns of H for the used channels, zero columns for the dropped, in f32: per pixel
         // the triangle under it, and per triangle as it is.
-        let (measurements, triangles) = (channels.len(), compact.nrows());
-        let mut matrix = BlockedMatrix::zeros(pixels.len(), measurements);
-        let mut elements = BlockedMatrix::zeros(triangles, measurements);
+        let measurements = channels.len();
+        let mut columns: Vec<&[f64]> = vec![&[]; measurements];
         for (i, m) in channels.used().into_iter().enumerate() {
             // Owned matrices are stored column by column, so a column is one slice.
-            let column = compact.col(i).try_as_col_major().map(|c| c.as_slice()).unwrap_or_default();
-            for (t, h) in column.iter().enumerate() {
-                elements.set(t, m, *h as f32);
-            }
-            for (p, t) in pixels.iter().enumerate() {
-                matrix.set(p, m, t.and_then(|t| column.get(t)).map_or(0.0, |h| *h as f32));
-            }
+            columns[m] = compact.col(i).try_as_col_major().map(|c| c.as_slice()).unwrap_or_default();
+        }
+        let mut elements = BlockedMatrix::zeros(compact.nrows(), measurements);
+        for (first, m, lanes) in elements.blocks_mut() {
+            lanes.iter_mut().zip(columns[m].get(first..).unwrap_or_default()).for_each(|(x, h)| *x = *h as f32);
+        }
+        let mut matrix = BlockedMatrix::zeros(pixels.len(), measurements);
+        for (first, m, lanes) in matrix.blocks_mut().filter(|(_, m, _)| !columns[*m].is_empty()) {
+            let column = columns[m];
+            let under = pixels[first..].iter().map(|t| t.and_then(|t| column.get(t)).map_or(0.0, |h| *h as f32));
+            lanes.iter_mut().zip(under).for_each(|(x, h)| *x = h);
         }
         Ok(Reconstructor {
             params: *params,
@@ -213,7 +216,7 @@ impl Reconstructor {
         let channels = lin.noise_weighted(normalised, channels, relative);
         let prior = &self.params.prior;
         let system = Eigensystem::new(lin, prior, normalised, &channels)?;
-        let lambda = super::hyperparameter::choose_hyperparameter_on(lin, prior, normalised, &channels, &system)?;
+        let lambda = super::hyperparameter::choose_hyperparameter_on(lin, &channels, &system);
         // The matrix at λ from the eigenpairs λ was chosen on (with a global change fitted
         // beside the image, the Jacobian projected first: derived afresh).
         if self.params.background_change {
@@ -221,7 +224,7 @@ impl Reconstructor {
         }
         let params = ReconstructorParams { hyperparameter: lambda, ..self.params };
         let (template, pixels) = (self.template.clone(), self.pixels.clone());
-        let compact = system.compact_matrix(lambda)?;
+        let compact = system.compact_matrix(lin, lambda)?;
         let recon = Reconstructor::assemble_compact(Arc::clone(lin), &params, channels, template, pixels, compact)?;
         Ok((recon, lambda))
     }

@@ -1,0 +1,186 @@
+//! What every derivation on one set of channels shares, whatever their noise: the products
+//! J_S R⁻¹ J_Sᵀ and J_S R⁻¹ A² R⁻¹ J_Sᵀ of the channels' rows J_S of the Jacobian (divided by v₀
+//! when normalised), the diagonal prior R they set and the triangles' areas A, measurement-sized.
+//!
+//! For noise Σ the whitened system is Σ^-½ (J_S R⁻¹ J_Sᵀ) Σ^-½ and the noise figure's Gram
+//! matrix Σ^-½ (J_S R⁻¹ A² R⁻¹ J_Sᵀ) Σ^-½: channels² to form from these instead of channels² ×
+//! triangles. A live sensor derives its λ and weights again each time its noise is measured
+//! anew (four times in its first 150 frames), on the same channels: the linearisation keeps
+//! the products of the last few channel sets ([`ProductsCache`]) for every reconstructor
+//! derived from it.
+
+use std::sync::{Arc, Mutex};
+
+use faer::{Mat, MatRef};
+
+use super::linearisation::{inverse_diagonal, lower_product};
+use super::{InverseError, Linearisation, Prior};
+
+/// The measurement-sized products of one set of channels (see the module doc).
+#[derive(Debug)]
+pub(crate) struct ChannelProducts {
+    /// The channels (indices into the frame), their normalisation and the prior: the key.
+    used: Vec<usize>,
+    normalised: bool,
+    prior: Prior,
+    /// Per used channel, the factor of its row: 1/v₀ when normalised, else 1 (J_S = diag(scale) J[S, :]).
+    pub scale: Vec<f64>,
+    /// 1/R per triangle (R the prior's diagonal on J_S, floored where 0).
+    pub r_inv: Vec<f64>,
+    /// J_S R⁻¹ J_Sᵀ, used × used, both halves.
+    pub gram: Mat<f64>,
+    /// J_S R⁻¹ A² R⁻¹ J_Sᵀ, used × used, both halves.
+    pub area_gram: Mat<f64>,
+}
+
+impl ChannelProducts {
+    /// The products of channels `used` of `lin` (J's rows divided by v₀ when `normalised`)
+    /// under the diagonal `prior`: channels² × triangles of work, twice.
+    fn new(lin: &Linearisation, used: &[usize], normalised: bool, prior: &Prior) -> Result<Self, InverseError> {
+        let jacobian = lin.rows(used, normalised)?;
+        let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
+        let r_inv = inverse_diagonal(&r);
+        let mesh = lin.mesh();
+        // R⁻¹ as the whitened system has it, R⁻¹·R·R⁻¹ (0 where J's column is, as R is).
+        let gram = weighted_gram(jacobian.as_ref(), |k| r_inv[k] * r_inv[k] * r[k]);
+        let area_gram = weighted_gram(jacobian.as_ref(), |k| (r_inv[k] * mesh.area(k)).powi(2));
+        let scale = lin.row_scale(used, normalised)?;
+        Ok(ChannelProducts { used: used.to_vec(), normalised, prior: *prior, scale, r_inv, gram, area_gram })
+    }
+
+    fn is_for(&self, used: &[usize], normalised: bool, prior: &Prior) -> bool {
+        self.used == used && self.normalised == normalised && self.prior == *prior
+    }
+
+    /// J_Sᵀ `m` for `m` used × k, through J's own columns (no copy of J_S): triangles × k.
+    pub fn transposed_times(&self, lin: &Linearisation, m: MatRef<'_, f64>) -> Mat<f64> {
+        // J_Sᵀ m = J[S, :]ᵀ diag(scale) m = Jᵀ m', m' with m's rows scaled and put at S's rows.
+        let mut spread = Mat::zeros(lin.measurements(), m.ncols());
+        for (i, (&row, s)) in self.used.iter().zip(&self.scale).enumerate() {
+            for j in 0..m.ncols() {
+                spread[(row, j)] = s * m[(i, j)];
+            }
+        }
+        lin.jacobian().transpose() * spread
+    }
+
+    /// J_S·1 over `triangles`: each used channel's change for 1 S/m on each of them.
+    pub fn response_to(&self, lin: &Linearisation, triangles: &[usize]) -> Vec<f64> {
+        let jacobian = lin.jacobian();
+        let sum = |row: usize| triangles.iter().map(|&t| jacobian[(row, t)]).sum::<f64>();
+        self.used.iter().zip(&self.scale).map(|(&row, s)| sum(row) * s).collect()
+    }
+}
+
+/// J diag(w) Jᵀ, both halves.
+fn weighted_gram(jacobian: MatRef<'_, f64>, w: impl Fn(usize) -> f64) -> Mat<f64> {
+    let weighted = Mat::from_fn(jacobian.nrows(), jacobian.ncols(), |i, k| jacobian[(i, k)] * w(k));
+    let mut gram = lower_product(jacobian, weighted.transpose());
+    for j in 0..gram.ncols() {
+        for i in 0..j {
+            gram[(i, j)] = gram[(j, i)];
+        }
+    }
+    gram
+}
+
+/// The products of the channel sets a linearisation was last derived on, at most [`KEPT`]
+/// (each channels² × 16 bytes); equal to any other (it changes no result).
+#[derive(Default)]
+pub(crate) struct ProductsCache(Mutex<Vec<Arc<ChannelProducts>>>);
+
+/// Channel sets a linearisation keeps the products of (the newest).
+const KEPT: usize = 4;
+
+impl ProductsCache {
+    /// The products of `used` of `lin` under `prior`, kept from before or made now (see
+    /// [`ChannelProducts::new`]) and kept.
+    pub fn get(
+        &self,
+        lin: &Linearisation,
+        used: &[usize],
+        normalised: bool,
+        prior: &Prior,
+    ) -> Result<Arc<ChannelProducts>, InverseError> {
+        let kept = |cache: &Self| {
+            let entries = cache.0.lock().unwrap_or_else(|e| e.into_inner());
+            entries.iter().find(|p| p.is_for(used, normalised, prior)).cloned()
+        };
+        if let Some(products) = kept(self) {
+            return Ok(products);
+        }
+        // Made without the lock held: a second thread asking meanwhile makes them too.
+        let products = Arc::new(ChannelProducts::new(lin, used, normalised, prior)?);
+        let mut entries = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if entries.len() >= KEPT {
+            entries.remove(0);
+        }
+        entries.push(Arc::clone(&products));
+        Ok(products)
+    }
+}
+
+/// A clone starts with none kept (reconstructors share one linearisation through an `Arc`).
+impl Clone for ProductsCache {
+    fn clone(&self) -> Self {
+        ProductsCache::default()
+    }
+}
+
+impl PartialEq for ProductsCache {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for ProductsCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kept = self.0.lock().map_or(0, |entries| entries.len());
+        write!(f, "ProductsCache {{ kept: {kept} }}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A channel set's products are made once and kept, each set (channels, normalisation,
+    /// prior) its own, equal to the sums they stand for; a clone makes its own; the oldest of
+    /// more than [`KEPT`] sets is dropped.
+    #[test]
+    fn each_channel_sets_products_are_made_once_and_kept() {
+        let mut spec = crate::SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 400;
+        let lin = Linearisation::new(&spec.forward_model().unwrap(), 1.0).unwrap();
+        let all: Vec<usize> = (0..lin.measurements()).collect();
+        let noser = Prior::default();
+        let first = lin.channel_products(&all, false, &noser).unwrap();
+        assert!(Arc::ptr_eq(&first, &lin.channel_products(&all, false, &noser).unwrap()));
+        assert!(!Arc::ptr_eq(&first, &lin.clone().channel_products(&all, false, &noser).unwrap()));
+        let mesh = lin.mesh();
+        let others = [
+            (&all[..], true, noser),
+            (&all[..], false, Prior::Tikhonov),
+            (&all[..], true, Prior::Tikhonov),
+            (&all[3..], false, noser),
+        ];
+        for (used, normalised, prior) in others {
+            let products = lin.channel_products(used, normalised, &prior).unwrap();
+            assert!(!Arc::ptr_eq(&products, &first));
+            let j = lin.rows(used, normalised).unwrap();
+            let r_inv = inverse_diagonal(&prior.diagonal(j.as_ref()).unwrap());
+            for (a, b) in [(0, 0), (1, 7), (used.len() - 1, 2)] {
+                let sum = |w: &dyn Fn(usize) -> f64| (0..j.ncols()).map(|k| j[(a, k)] * j[(b, k)] * w(k)).sum::<f64>();
+                let (gram, area_gram) = (sum(&|k| r_inv[k]), sum(&|k| (r_inv[k] * mesh.area(k)).powi(2)));
+                assert!((products.gram[(a, b)] / gram - 1.0).abs() < 1e-12, "({a}, {b}): {}", products.gram[(a, b)]);
+                assert!((products.area_gram[(b, a)] / area_gram - 1.0).abs() < 1e-12);
+            }
+        }
+        // Four sets were asked for after the first: it was dropped, and is made again.
+        assert!(!Arc::ptr_eq(&first, &lin.channel_products(&all, false, &noser).unwrap()));
+        assert_eq!(
+            lin.channel_products(&all, false, &Prior::Laplace).unwrap_err(),
+            InverseError::AutoNeedsDiagonalPrior
+        );
+    }
+}
