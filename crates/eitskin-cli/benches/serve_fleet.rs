@@ -86,7 +86,9 @@ fn main() {
     let session = zenoh::open(config).wait().expect("a Zenoh session");
 
     // The subscriber: when each (sensor, seq) came, and each sensor's first imaged line.
-    let arrived: Arc<Mutex<HashMap<(usize, u64), Instant>>> = Arc::default();
+    // Room for every frame from the start: a map growing past half a million entries stalls the
+    // subscriber's thread for tens of milliseconds each time it doubles (twice in a minute).
+    let arrived = Arc::new(Mutex::new(HashMap::<(usize, u64), Instant>::with_capacity(sensors * frames as usize)));
     let first_imaged: Arc<Mutex<HashMap<usize, u64>>> = Arc::default();
     let (sink, imaged) = (Arc::clone(&arrived), Arc::clone(&first_imaged));
     let _subscriber = session
