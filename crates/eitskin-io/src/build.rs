@@ -37,10 +37,10 @@ fn cache(use_cache: bool) -> Option<PathBuf> {
 
 /// The linearisation of `spec`, from the cache when there is one (and `use_cache`).
 pub fn linearisation(spec: &SensorSpec, use_cache: bool) -> Result<Arc<Linearisation>, Error> {
-    Ok(Arc::new(match cache(use_cache) {
-        Some(dir) => crate::load_linearisation(&dir, spec)?.0,
-        None => Linearisation::new(&spec.forward_model()?, spec.conductivity)?,
-    }))
+    Ok(match cache(use_cache) {
+        Some(dir) => crate::shared_linearisation(&dir, spec)?.0,
+        None => Arc::new(Linearisation::new(&spec.forward_model()?, spec.conductivity)?),
+    })
 }
 
 /// The reconstructor of `spec` with `params`, from the cache when there is one (and

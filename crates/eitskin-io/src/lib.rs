@@ -83,7 +83,7 @@ pub use raster_file::{
 };
 pub use reconstructor_file::{
     cache_key, cache_path, cached_hyperparameter, decode_linearisation, encode_linearisation, load_linearisation,
-    load_or_build,
+    load_or_build, shared_linearisation,
 };
 pub use samples_file::{
     check_labels_on_sheet, labelled_presses_to_csv, off_sheet, parse_samples, read_labelled_presses, read_samples,

@@ -16,7 +16,7 @@
 //! pairs × triangles, f64, column-major). A file that does not match is rebuilt.
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, Weak};
 
 use eitskin::inverse::{Channels, Linearisation};
 use eitskin::{Mesh, Reconstructor, ReconstructorParams, SensorSpec};
@@ -60,9 +60,30 @@ pub fn load_or_build(
     spec: &SensorSpec,
     params: &ReconstructorParams,
 ) -> Result<(Reconstructor, bool), Error> {
-    let (linearisation, hit) = load_linearisation(dir, spec)?;
+    let (linearisation, hit) = shared_linearisation(dir, spec)?;
     let channels = Channels::all(linearisation.measurements());
-    Ok((Reconstructor::from_linearisation(Arc::new(linearisation), params, channels)?, hit))
+    Ok((Reconstructor::from_linearisation(linearisation, params, channels)?, hit))
+}
+
+/// [`load_linearisation`], shared with every other user of the same spec's in this process
+/// while any holds it: a fleet of identical patches (`eitskin serve`) keeps one Jacobian (8 MB
+/// on the paper's sheet) and the products its derivations keep with it, not one a sensor.
+/// The flag says whether it came from the cache or this process.
+pub fn shared_linearisation(dir: &Path, spec: &SensorSpec) -> Result<(Arc<Linearisation>, bool), Error> {
+    /// The linearisations handed out, by key; those no longer held are dropped as others come.
+    static HELD: Mutex<Vec<([u8; 32], Weak<Linearisation>)>> = Mutex::new(Vec::new());
+    let key = cache_key(spec)?;
+    let held = || HELD.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(linearisation) = held().iter().find(|(k, _)| *k == key).and_then(|(_, held)| held.upgrade()) {
+        return Ok((linearisation, true));
+    }
+    // Loaded without the lock held: sensors of other specs load meanwhile.
+    let (linearisation, hit) = load_linearisation(dir, spec)?;
+    let linearisation = Arc::new(linearisation);
+    let mut held = held();
+    held.retain(|(k, held)| *k != key && held.strong_count() > 0);
+    held.push((key, Arc::downgrade(&linearisation)));
+    Ok((linearisation, hit))
 }
 
 /// The linearisation of `spec`, loaded from `dir` if there, else computed and saved (best
@@ -253,14 +274,19 @@ mod tests {
     fn a_saved_linearisation_loads_back_equal_and_keys_differ_by_input() {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = 400;
+        // (No other test of this process holds this sheet's linearisation.)
+        spec.conductivity = 1.0625;
         let params = ReconstructorParams { raster: [16, 16], ..ReconstructorParams::default() };
         let folder = tempfile::Builder::new().prefix("eitskin-cache-").tempdir().unwrap();
         let dir = folder.path().join("cache"); // made by the first save, as a user's cache folder is
         let (built, hit) = load_or_build(&dir, &spec, &params).unwrap();
         assert!(!hit);
+        let (from_file, hit) = load_linearisation(&dir, &spec).unwrap();
+        assert!(hit, "the second start must come from the cache");
+        assert_eq!(&from_file, built.linearisation().as_ref());
         let other = ReconstructorParams { hyperparameter: 0.05, ..params };
         let (loaded, hit) = load_or_build(&dir, &spec, &other).unwrap();
-        assert!(hit, "the second start must come from the cache, whatever λ it asks for");
+        assert!(hit && Arc::ptr_eq(loaded.linearisation(), built.linearisation()), "shared, whatever λ it asks for");
         assert_eq!(loaded.derive(0.1, loaded.channels().clone()).unwrap(), built);
 
         let masked =
@@ -278,5 +304,31 @@ mod tests {
         assert_eq!(decode_linearisation(&bytes, &key).as_ref(), Some(built.linearisation().as_ref()));
         assert!(decode_linearisation(&bytes[..bytes.len() - 1], &key).is_none(), "a torn file is not loaded");
         assert!(decode_linearisation(&bytes, &[0; 32]).is_none(), "another key is not loaded");
+    }
+
+    /// A spec's linearisation is one in the process while held (whichever cache folder asked),
+    /// another spec's its own; once none holds it, it is loaded again, from the file.
+    #[test]
+    fn a_linearisation_is_shared_while_held() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        spec.conductivity = 0.8125; // no other test of this process holds this sheet's
+        let folder = tempfile::Builder::new().prefix("eitskin-cache-").tempdir().unwrap();
+        let (dir, elsewhere) = (folder.path().join("cache"), folder.path().join("other"));
+        let (first, hit) = shared_linearisation(&dir, &spec).unwrap();
+        assert!(!hit);
+        let (second, hit) = shared_linearisation(&elsewhere, &spec).unwrap();
+        assert!(hit && Arc::ptr_eq(&first, &second));
+        let mut thicker = spec.clone();
+        thicker.conductivity *= 2.0;
+        let (other_sheet, _) = shared_linearisation(&dir, &thicker).unwrap();
+        assert!(!Arc::ptr_eq(&other_sheet, &first));
+        let bytes = encode_linearisation(&first, &cache_key(&spec).unwrap());
+        let weak = Arc::downgrade(&first);
+        drop((first, second));
+        assert!(weak.upgrade().is_none());
+        let (again, hit) = shared_linearisation(&dir, &spec).unwrap();
+        assert!(hit, "from the file");
+        assert_eq!(encode_linearisation(&again, &cache_key(&spec).unwrap()), bytes);
     }
 }
