@@ -12,7 +12,7 @@
 //! fails if any sensor did.
 //!
 //! What a sensor derives from its noise (its λ and noise tests, when its reference is taken and
-//! as its noise model grows: tens of milliseconds each) is done off the frame path, by half as
+//! as its noise model grows: 10–20 ms each on the paper's sheet) is done off the frame path, by half as
 //! many derivation threads as the pool has (at least one), at the lowest priority the system
 //! gives (nice 19 on Linux; a loaded machine delays them, never a frame, and never stops them): a hundred
 //! sensors taking their references at once hold none of the frames up. Frames go on with what
