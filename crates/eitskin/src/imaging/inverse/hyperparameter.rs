@@ -137,10 +137,9 @@ impl NoiseFigure {
     fn at(&self, hyperparameter: f64) -> f64 {
         let lambda2 = hyperparameter * hyperparameter;
         let filter: Vec<f64> = self.eigenvalues.iter().map(|e| 1.0 / (e.max(0.0) + lambda2)).collect();
-        let y: Vec<f64> = filter.iter().zip(&self.target).map(|(f, t)| f * t).collect();
-        // The image's signal ‖C y‖² = yᵀ CᵀC y, column by column of the (column-major) Gram matrix.
-        let signal: f64 =
-            (0..y.len()).map(|j| y[j] * self.gram.col(j).iter().zip(&y).map(|(g, y)| g * y).sum::<f64>()).sum();
+        let y = faer::Col::from_fn(filter.len(), |i| filter[i] * self.target[i]);
+        // The image's signal ‖C y‖² = yᵀ (CᵀC y).
+        let signal = y.transpose() * (&self.gram * &y);
         let noise: f64 = filter.iter().enumerate().map(|(i, f)| f * f * self.gram[(i, i)]).sum();
         self.snr_z / (signal / noise)
     }
