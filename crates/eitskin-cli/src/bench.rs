@@ -7,7 +7,8 @@
 //! converged values: quadratic elements on the sheet graded to 0.02, 5,600 triangles; complete
 //! electrodes only), `reconstructor` (prior, the measurement-sized solve and the
 //! raster projection), `auto_hyperparameter` (λ chosen from the noise, on the sensor's
-//! reconstructor), `derive_reference`, `derive_refresh_noise` and `derive_refresh_grown` (what a
+//! reconstructor, its channels' products kept), `auto_hyperparameter_first` (λ alone, first on a
+//! linearisation: the products made), `derive_reference`, `derive_refresh_noise` and `derive_refresh_grown` (what a
 //! live pipeline derives off its frame path, λ from the noise: when its reference is taken, when
 //! its noise has changed, and when only its reference has grown) and `auto_hyperparameter_2356` and `reconstructor_2356` (λ, then the reconstructor at it, on a
 //! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table and, by low-rank updates, the ladder

@@ -52,9 +52,9 @@ pub fn cache_path(dir: &Path, spec: &SensorSpec) -> Result<PathBuf, Error> {
     Ok(cache_file(dir, "linearisation", &cache_key(spec)?))
 }
 
-/// The reconstructor for `spec` and `params` (every channel used), its linearisation loaded
-/// from `dir` if there, else computed and saved (best effort); the flag says whether it came
-/// from the cache.
+/// The reconstructor for `spec` and `params` (every channel used), its linearisation the one
+/// this process holds for `spec` ([`shared_linearisation`]), else loaded from `dir` if there,
+/// else computed and saved (best effort); the flag says whether it was held or cached.
 pub fn load_or_build(
     dir: &Path,
     spec: &SensorSpec,
@@ -77,10 +77,14 @@ pub fn shared_linearisation(dir: &Path, spec: &SensorSpec) -> Result<(Arc<Linear
     if let Some(linearisation) = held().iter().find(|(k, _)| *k == key).and_then(|(_, held)| held.upgrade()) {
         return Ok((linearisation, true));
     }
-    // Loaded without the lock held: sensors of other specs load meanwhile.
-    let (linearisation, hit) = load_linearisation(dir, spec)?;
-    let linearisation = Arc::new(linearisation);
+    // Loaded without the lock held: sensors of other specs load meanwhile (and one of the same
+    // spec loading meanwhile is kept, this one dropped).
+    let (loaded, hit) = load_linearisation(dir, spec)?;
     let mut held = held();
+    if let Some(linearisation) = held.iter().find(|(k, _)| *k == key).and_then(|(_, held)| held.upgrade()) {
+        return Ok((linearisation, true));
+    }
+    let linearisation = Arc::new(loaded);
     held.retain(|(k, held)| *k != key && held.strong_count() > 0);
     held.push((key, Arc::downgrade(&linearisation)));
     Ok((linearisation, hit))

@@ -13,6 +13,7 @@ use std::sync::{Arc, Mutex};
 
 use faer::{Mat, MatRef};
 
+use super::eigensystem::symmetric;
 use super::linearisation::{inverse_diagonal, lower_product};
 use super::{InverseError, Linearisation, Prior};
 
@@ -75,13 +76,7 @@ impl ChannelProducts {
 /// J diag(w) Jᵀ, both halves.
 fn weighted_gram(jacobian: MatRef<'_, f64>, w: impl Fn(usize) -> f64) -> Mat<f64> {
     let weighted = Mat::from_fn(jacobian.nrows(), jacobian.ncols(), |i, k| jacobian[(i, k)] * w(k));
-    let mut gram = lower_product(jacobian, weighted.transpose());
-    for j in 0..gram.ncols() {
-        for i in 0..j {
-            gram[(i, j)] = gram[(j, i)];
-        }
-    }
-    gram
+    symmetric(lower_product(jacobian, weighted.transpose()))
 }
 
 /// The products of the channel sets a linearisation was last derived on, at most [`KEPT`]
@@ -102,21 +97,28 @@ impl ProductsCache {
         normalised: bool,
         prior: &Prior,
     ) -> Result<Arc<ChannelProducts>, InverseError> {
-        let kept = |cache: &Self| {
-            let entries = cache.0.lock().unwrap_or_else(|e| e.into_inner());
-            entries.iter().find(|p| p.is_for(used, normalised, prior)).cloned()
+        // The newest last: a set used again moves there, the oldest is dropped.
+        let kept = |entries: &mut Vec<Arc<ChannelProducts>>| {
+            let at = entries.iter().position(|p| p.is_for(used, normalised, prior))?;
+            let products = entries.remove(at);
+            entries.push(Arc::clone(&products));
+            Some(products)
         };
-        if let Some(products) = kept(self) {
+        if let Some(products) = kept(&mut self.0.lock().unwrap_or_else(|e| e.into_inner())) {
             return Ok(products);
         }
-        // Made without the lock held: a second thread asking meanwhile makes them too.
-        let products = Arc::new(ChannelProducts::new(lin, used, normalised, prior)?);
+        // Made without the lock held (a second thread asking meanwhile makes them too, and
+        // keeps the first one's).
+        let made = Arc::new(ChannelProducts::new(lin, used, normalised, prior)?);
         let mut entries = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(products) = kept(&mut entries) {
+            return Ok(products);
+        }
         if entries.len() >= KEPT {
             entries.remove(0);
         }
-        entries.push(Arc::clone(&products));
-        Ok(products)
+        entries.push(Arc::clone(&made));
+        Ok(made)
     }
 }
 
@@ -172,12 +174,23 @@ mod tests {
             for (a, b) in [(0, 0), (1, 7), (used.len() - 1, 2)] {
                 let sum = |w: &dyn Fn(usize) -> f64| (0..j.ncols()).map(|k| j[(a, k)] * j[(b, k)] * w(k)).sum::<f64>();
                 let (gram, area_gram) = (sum(&|k| r_inv[k]), sum(&|k| (r_inv[k] * mesh.area(k)).powi(2)));
-                assert!((products.gram[(a, b)] / gram - 1.0).abs() < 1e-12, "({a}, {b}): {}", products.gram[(a, b)]);
-                assert!((products.area_gram[(b, a)] / area_gram - 1.0).abs() < 1e-12);
+                // (to the size of the diagonal: an entry may be small by cancellation)
+                let close = |got: &Mat<f64>, want: f64| {
+                    (got[(a, b)] - want).abs() <= 1e-12 * (got[(a, a)] * got[(b, b)]).sqrt()
+                        && got[(a, b)] == got[(b, a)]
+                };
+                assert!(close(&products.gram, gram), "({a}, {b}): {} vs {gram}", products.gram[(a, b)]);
+                assert!(close(&products.area_gram, area_gram), "({a}, {b}): {area_gram}");
             }
         }
-        // Four sets were asked for after the first: it was dropped, and is made again.
+        // Four sets were asked for after the first: it was dropped, and is made again; a set
+        // asked for again is kept as the newest.
         assert!(!Arc::ptr_eq(&first, &lin.channel_products(&all, false, &noser).unwrap()));
+        let tikhonov = lin.channel_products(&all, false, &Prior::Tikhonov).unwrap();
+        for fewer in [&all[1..], &all[2..], &all[4..]] {
+            lin.channel_products(fewer, false, &noser).unwrap();
+            assert!(Arc::ptr_eq(&tikhonov, &lin.channel_products(&all, false, &Prior::Tikhonov).unwrap()));
+        }
         assert_eq!(
             lin.channel_products(&all, false, &Prior::Laplace).unwrap_err(),
             InverseError::AutoNeedsDiagonalPrior

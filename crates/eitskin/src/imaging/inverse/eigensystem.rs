@@ -210,7 +210,7 @@ impl Range {
 }
 
 /// `lower` with its upper half copied from its lower half.
-fn symmetric(mut lower: Mat<f64>) -> Mat<f64> {
+pub(super) fn symmetric(mut lower: Mat<f64>) -> Mat<f64> {
     for j in 0..lower.ncols() {
         for i in 0..j {
             lower[(i, j)] = lower[(j, i)];
@@ -255,10 +255,17 @@ mod tests {
         let variance: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64).collect();
         let channels = Channels::all(m).with_variance(variance).masked(&(0..m).map(|i| i != 5).collect::<Vec<_>>());
         let prior = Prior::default();
-        let jacobian = lin.rows(&channels.used(), false).unwrap();
-        let r = prior.diagonal(jacobian.as_ref()).unwrap();
-        for on_range in [true, false] {
-            let system = Eigensystem::build(&lin, &prior, false, &channels, on_range).unwrap();
+        for (normalised, on_range) in [(false, true), (false, false), (true, false)] {
+            let jacobian = lin.rows(&channels.used(), normalised).unwrap();
+            let r = prior.diagonal(jacobian.as_ref()).unwrap();
+            let system = Eigensystem::build(&lin, &prior, normalised, &channels, on_range).unwrap();
+            // The target's signal, as J's rows give it.
+            let target = [0, 17, 203];
+            let response = system.response_to(&lin, &target);
+            for (i, z) in response.iter().enumerate() {
+                let want: f64 = target.iter().map(|&t| jacobian[(i, t)]).sum();
+                assert!((z - want).abs() <= 1e-14 * want.abs().max(1e-300), "channel {i}: {z} vs {want}");
+            }
             for lambda in [1e-3, 0.1, 3.0, 300.0] {
                 let variance = channels.relative_variance();
                 let factorised =
@@ -272,7 +279,7 @@ mod tests {
                 for j in 0..got.ncols() {
                     for i in 0..got.nrows() {
                         let (a, b) = (got[(i, j)], factorised[(i, j)]);
-                        assert!((a - b).abs() <= tolerance, "λ {lambda} ({on_range}): {a} vs {b} at ({i}, {j})");
+                        assert!((a - b).abs() <= tolerance, "λ {lambda} ({normalised}): {a} vs {b} at ({i}, {j})");
                     }
                 }
             }
