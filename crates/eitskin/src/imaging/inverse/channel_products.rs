@@ -13,8 +13,8 @@ use std::sync::{Arc, Mutex};
 
 use faer::{Mat, MatRef};
 
-use super::eigensystem::symmetric;
-use super::linearisation::{inverse_diagonal, lower_product};
+use super::eigensystem::weighted_gram;
+use super::linearisation::inverse_diagonal;
 use super::{InverseError, Linearisation, Prior};
 
 /// The measurement-sized products of one set of channels (see the module doc).
@@ -38,8 +38,7 @@ impl ChannelProducts {
     /// The products of channels `used` of `lin` (J's rows divided by v₀ when `normalised`)
     /// under the diagonal `prior`: channels² × triangles of work, twice.
     fn new(lin: &Linearisation, used: &[usize], normalised: bool, prior: &Prior) -> Result<Self, InverseError> {
-        let jacobian = lin.rows(used, normalised)?;
-        let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
+        let (jacobian, r) = lin.rows_with_diagonal(used, normalised, prior)?;
         let r_inv = inverse_diagonal(&r);
         let mesh = lin.mesh();
         // R⁻¹ as the whitened system has it, R⁻¹·R·R⁻¹ (0 where J's column is, as R is).
@@ -71,12 +70,6 @@ impl ChannelProducts {
         let sum = |row: usize| triangles.iter().map(|&t| jacobian[(row, t)]).sum::<f64>();
         self.used.iter().zip(&self.scale).map(|(&row, s)| sum(row) * s).collect()
     }
-}
-
-/// J diag(w) Jᵀ, both halves.
-fn weighted_gram(jacobian: MatRef<'_, f64>, w: impl Fn(usize) -> f64) -> Mat<f64> {
-    let weighted = Mat::from_fn(jacobian.nrows(), jacobian.ncols(), |i, k| jacobian[(i, k)] * w(k));
-    symmetric(lower_product(jacobian, weighted.transpose()))
 }
 
 /// The products of the channel sets a linearisation was last derived on, at most [`KEPT`]

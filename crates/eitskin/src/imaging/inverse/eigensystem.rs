@@ -26,8 +26,6 @@ pub(super) struct Eigensystem {
     pub std: Vec<f64>,
     /// The eigenvalues e of K on its range, ascending; every other eigenvalue is 0.
     pub eigenvalues: Vec<f64>,
-    /// 1/R per triangle (R the prior's diagonal, floored where 0).
-    pub r_inv: Vec<f64>,
     /// The eigenvectors V of T (rows × eigenvalues); K's are Q V.
     v: Mat<f64>,
     form: Form,
@@ -39,8 +37,8 @@ enum Form {
     /// linearisation ([`ChannelProducts`]): channels² to form.
     Whole(Arc<ChannelProducts>),
     /// On J's range: Σ^-½ J R⁻¹ = Q S, T = S R Sᵀ, with J's rows of the used channels (divided
-    /// by v₀ when normalised).
-    Range { jacobian: Mat<f64>, q: Mat<f64>, s: Mat<f64> },
+    /// by v₀ when normalised) and 1/R.
+    Range { jacobian: Mat<f64>, r_inv: Vec<f64>, q: Mat<f64>, s: Mat<f64> },
 }
 
 impl Eigensystem {
@@ -66,19 +64,25 @@ impl Eigensystem {
         let used = channels.used();
         let std: Vec<f64> = channels.relative_variance().iter().map(|v| v.sqrt()).collect();
         if on_range && lin.factored_for(used.len()) {
-            let jacobian = lin.rows(&used, normalised)?;
-            let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
+            let (jacobian, r) = lin.rows_with_diagonal(&used, normalised, prior)?;
             let basis = lin.factors().basis.as_ref();
             let range = Range::factored(lin.pattern_rows(&used, normalised)?.as_ref(), basis, &std, &r)?;
             let Range { q, s, eigenvalues, v } = range;
             let r_inv = inverse_diagonal(&r);
-            return Ok(Eigensystem { std, eigenvalues, r_inv, v, form: Form::Range { jacobian, q, s } });
+            return Ok(Eigensystem { std, eigenvalues, v, form: Form::Range { jacobian, r_inv, q, s } });
         }
         let products = lin.channel_products(&used, normalised, prior)?;
         let t = Mat::from_fn(used.len(), used.len(), |i, j| products.gram[(i, j)] / (std[i] * std[j]));
         let (eigenvalues, v) = eigen(t)?;
-        let r_inv = products.r_inv.clone();
-        Ok(Eigensystem { std, eigenvalues, r_inv, v, form: Form::Whole(products) })
+        Ok(Eigensystem { std, eigenvalues, v, form: Form::Whole(products) })
+    }
+
+    /// 1/R per triangle (R the prior's diagonal on the channels, floored where 0).
+    pub(super) fn r_inv(&self) -> &[f64] {
+        match &self.form {
+            Form::Whole(products) => &products.r_inv,
+            Form::Range { r_inv, .. } => r_inv,
+        }
     }
 
     /// Uᵀ d = Vᵀ (Qᵀ d) for a whitened `d` of the used channels: its coefficients on the
@@ -101,11 +105,7 @@ impl Eigensystem {
                 Mat::from_fn(std.len(), std.len(), |i, j| products.area_gram[(i, j)] / (std[i] * std[j]))
             }
             // Vᵀ (S A² Sᵀ) V, at the range's size.
-            Form::Range { s, .. } => {
-                let mesh = lin.mesh();
-                let weighted = Mat::from_fn(s.nrows(), s.ncols(), |i, t| s[(i, t)] * mesh.area(t).powi(2));
-                symmetric(lower_product(s.as_ref(), weighted.transpose()))
-            }
+            Form::Range { s, .. } => weighted_gram(s.as_ref(), |t| lin.mesh().area(t).powi(2)),
         };
         self.v.transpose() * gram * &self.v
     }
@@ -139,7 +139,7 @@ impl Eigensystem {
                 let whitened = Mat::from_fn(v.ncols(), v.nrows(), |k, j| v[(j, k)] / std[j]);
                 let mut h = products.transposed_times(lin, (filtered * whitened).as_ref());
                 for j in 0..h.ncols() {
-                    h.col_mut(j).iter_mut().zip(&self.r_inv).for_each(|(h, r)| *h *= r);
+                    h.col_mut(j).iter_mut().zip(&products.r_inv).for_each(|(h, r)| *h *= r);
                 }
                 Ok(h)
             }
@@ -209,8 +209,14 @@ impl Range {
     }
 }
 
+/// A diag(w) Aᵀ, both halves.
+pub(super) fn weighted_gram(a: MatRef<'_, f64>, w: impl Fn(usize) -> f64) -> Mat<f64> {
+    let weighted = Mat::from_fn(a.nrows(), a.ncols(), |i, k| a[(i, k)] * w(k));
+    symmetric(lower_product(a, weighted.transpose()))
+}
+
 /// `lower` with its upper half copied from its lower half.
-pub(super) fn symmetric(mut lower: Mat<f64>) -> Mat<f64> {
+fn symmetric(mut lower: Mat<f64>) -> Mat<f64> {
     for j in 0..lower.ncols() {
         for i in 0..j {
             lower[(i, j)] = lower[(j, i)];

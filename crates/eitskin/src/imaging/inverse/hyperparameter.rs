@@ -187,7 +187,7 @@ pub fn choose_hyperparameter(
 /// the λ chosen is then derived from it: [`Eigensystem::compact_matrix`]).
 pub(super) fn choose_hyperparameter_on(lin: &Linearisation, channels: &Channels, system: &Eigensystem) -> f64 {
     let from_figure = noise_figure_search(&NoiseFigure::of(system, lin, channels));
-    let from_level = map_hyperparameter_of(lin, &system.r_inv, channels);
+    let from_level = map_hyperparameter_of(lin, system.r_inv(), channels);
     from_level.map_or(from_figure, |l| from_figure.max(l.min(SEARCH.1)))
 }
 
@@ -202,8 +202,7 @@ pub fn map_hyperparameter(
     if channels.mean_variance().is_none() {
         return Ok(None);
     }
-    let jacobian = lin.rows(&channels.used(), normalised)?;
-    let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
+    let (_, r) = lin.rows_with_diagonal(&channels.used(), normalised, prior)?;
     Ok(map_hyperparameter_of(lin, &inverse_diagonal(&r), channels))
 }
 

@@ -131,6 +131,19 @@ impl Linearisation {
         Ok(Mat::from_fn(used.len(), self.jacobian.ncols(), |i, k| self.jacobian[(used[i], k)] * scale[i]))
     }
 
+    /// [`Linearisation::rows`] with the diagonal prior R they set; refused for a prior that is
+    /// not diagonal (what the automatic λ needs).
+    pub(crate) fn rows_with_diagonal(
+        &self,
+        used: &[usize],
+        normalised: bool,
+        prior: &Prior,
+    ) -> Result<(Mat<f64>, Vec<f64>), InverseError> {
+        let jacobian = self.rows(used, normalised)?;
+        let r = prior.diagonal(jacobian.as_ref()).ok_or(InverseError::AutoNeedsDiagonalPrior)?;
+        Ok((jacobian, r))
+    }
+
     /// The rows of the factors' P for the used channels, divided by v₀ when `normalised` (so
     /// that they times B are [`Linearisation::rows`]).
     pub(crate) fn pattern_rows(&self, used: &[usize], normalised: bool) -> Result<Mat<f64>, InverseError> {
