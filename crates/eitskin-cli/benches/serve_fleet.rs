@@ -35,7 +35,8 @@ use zenoh::Wait;
 const RATE_HZ: f64 = 100.0;
 /// The sensor whose board dies for a while.
 const DEAD: usize = 0;
-/// The latency is also given for each window of this many seconds of the frames' times.
+/// The latency is also given for each window of this many seconds of the frames' times
+/// (`SERVE_FLEET_WINDOW` sets another, whole seconds).
 const WINDOW_S: usize = 10;
 const WARM_UP: u64 = 100;
 /// Frames of the recording: 2 s at rest, then four presses 3 s apart, 1 s at rest after the last.
@@ -47,6 +48,8 @@ fn main() {
     let (sensors, seconds) = (number(0, 100), number(1, 10));
     let threads = args.get(2).cloned();
     let frames = seconds as u64 * RATE_HZ as u64;
+    let window_s =
+        std::env::var("SERVE_FLEET_WINDOW").ok().and_then(|w| w.parse().ok()).filter(|w| *w > 0).unwrap_or(WINDOW_S);
     // The frames sensor DEAD's board never sends.
     let dead = if sensors > 1 { frames * 2 / 5..frames * 3 / 5 } else { 0..0 };
     let eitskin = env!("CARGO_BIN_EXE_eitskin");
@@ -211,7 +214,7 @@ fn main() {
 
     let arrived = arrived.lock().expect("the map");
     let (mut warm, mut steady, mut late, mut lost) = (Vec::new(), Vec::new(), Vec::new(), 0usize);
-    let mut windows: Vec<Vec<f64>> = vec![Vec::new(); seconds.div_ceil(WINDOW_S)];
+    let mut windows: Vec<Vec<f64>> = vec![Vec::new(); seconds.div_ceil(window_s)];
     for (&(k, seq), &put) in &sent {
         match arrived.get(&(k, seq)) {
             Some(&came) => {
@@ -224,7 +227,7 @@ fn main() {
                 if seq >= frames / 2 {
                     late.push(ms);
                 }
-                windows[(seq as f64 / RATE_HZ) as usize / WINDOW_S].push(ms);
+                windows[(seq as f64 / RATE_HZ) as usize / window_s].push(ms);
             }
             None => lost += 1,
         }
@@ -253,15 +256,18 @@ fn main() {
     summary(&format!("first {WARM_UP} frames a sensor (reference, noise)"), warm);
     summary(&format!("after the first {WARM_UP}"), steady);
     summary("second half of the run", late);
+    let derived = derived.lock().expect("the list");
+    let since_start = |at: &Instant| at.saturating_duration_since(start).as_secs_f64();
     for (w, ms) in windows.into_iter().enumerate() {
-        summary(&format!("  frames of {}–{} s", w * WINDOW_S, (w + 1) * WINDOW_S), ms);
+        let (from, to) = ((w * window_s) as f64, ((w + 1) * window_s) as f64);
+        let came = derived.iter().map(since_start).filter(|s| (from..to).contains(s)).count();
+        summary(&format!("  frames of {from}–{to} s ({came} derivations came in)"), ms);
     }
     println!("lost (put, never at the subscriber): {lost} of {}", sent.len());
     let imaged = first_imaged.lock().expect("the map");
     let latest = imaged.values().max().map_or(f64::NAN, |seq| *seq as f64 / RATE_HZ);
     println!("sensors imaging: {} of {sensors}, the last from {latest:.1} s (its frame time)", imaged.len());
-    let derived = derived.lock().expect("the list");
-    let last = derived.iter().max().map_or(f64::NAN, |at| at.saturating_duration_since(start).as_secs_f64());
+    let last = derived.iter().max().map_or(f64::NAN, since_start);
     println!(
         "derivations in (reference taken, noise updated): {}, the last {last:.1} s after the first put",
         derived.len()

@@ -132,23 +132,9 @@ impl Significance {
     /// The largest z of an image's `values` (row-major, as the map) toward `polarity`: the
     /// strongest any touch of it can be.
     pub fn strongest(&self, values: &[f32], polarity: Polarity) -> f64 {
-        let sign = polarity.intensity(1.0) as f32;
-        let both = matches!(polarity, Polarity::Both);
-        // Sixteen running maxima over whole chunks, so that the pass vectorises (twice as fast as
-        // over chunks that may be short); outside the outline 1/s is 0.
-        let mut lanes = [0.0_f32; 16];
-        let step = |lanes: &mut [f32; 16], v: &[f32], w: &[f32]| {
-            for ((lane, v), w) in lanes.iter_mut().zip(v).zip(w) {
-                let x = if both { v.abs() } else { sign * v };
-                *lane = lane.max(x * w);
-            }
-        };
         let n = values.len().min(self.inverse_std.len());
-        let (values, weights) = (values[..n].chunks_exact(16), self.inverse_std[..n].chunks_exact(16));
-        let rest = (values.remainder(), weights.remainder());
-        values.zip(weights).for_each(|(v, w)| step(&mut lanes, v, w));
-        step(&mut lanes, rest.0, rest.1);
-        f64::from(lanes.iter().fold(0.0_f32, |a, b| a.max(*b)))
+        let (sign, both) = (polarity.intensity(1.0) as f32, matches!(polarity, Polarity::Both));
+        f64::from(strongest_z(&values[..n], &self.inverse_std[..n], sign, both))
     }
 
     /// The noise's standard deviation, in S/m, at the median inside pixel: a scale for showing images.
@@ -195,6 +181,31 @@ impl Significance {
         }
         Ok(maxima)
     }
+}
+
+crate::parallel::widest! {
+    /// The largest of `values` (times `sign`, or their magnitudes when `both`) times `weights`,
+    /// and 0: [`Significance::strongest`]'s pass.
+    fn strongest_z = strongest_z_portable(values: &[f32], weights: &[f32], sign: f32, both: bool) -> f32
+}
+
+/// [`strongest_z`] in portable code: sixteen running maxima over whole chunks and the rest
+/// apart, so that the pass vectorises (outside the outline the weight 1/s is 0). A NaN is never
+/// the larger (as `f32::max` has it), written as one comparison so that it is one vector max.
+#[inline(always)]
+fn strongest_z_portable(values: &[f32], weights: &[f32], sign: f32, both: bool) -> f32 {
+    let mut lanes = [0.0_f32; 16];
+    let step = |lanes: &mut [f32; 16], v: &[f32], w: &[f32]| {
+        for ((lane, v), w) in lanes.iter_mut().zip(v).zip(w) {
+            let z = if both { v.abs() } else { sign * v } * w;
+            *lane = if z > *lane { z } else { *lane };
+        }
+    };
+    let (values, weights) = (values.chunks_exact(16), weights.chunks_exact(16));
+    let rest = (values.remainder(), weights.remainder());
+    values.zip(weights).for_each(|(v, w)| step(&mut lanes, v, w));
+    step(&mut lanes, rest.0, rest.1);
+    lanes.iter().fold(0.0_f32, |a, b| a.max(*b))
 }
 
 /// Noise frames imaged at once in the calibration (one matrix product each batch).
