@@ -209,6 +209,7 @@ impl Pool {
     /// left for its sensor's next step, until all sensors ended.
     fn derive(&self) {
         lowest_priority();
+        eitskin::parallel::set_step_aside(STEP_ASIDE);
         loop {
             let (k, job) = {
                 let mut queue = lock(&self.derivations);
@@ -233,6 +234,12 @@ impl Pool {
         }
     }
 }
+
+/// How long a derivation thread sleeps between the pieces of a derivation: long enough for the
+/// core to count as idle, so that a frame's thread waiting on the other core's queue is moved
+/// to it at once. In the 100-sensor benchmark, p99 while the fleet's first 300 derivations ran
+/// fell from 13–25 ms to 4–8 ms; it adds about 1 ms to a derivation of 10.
+const STEP_ASIDE: std::time::Duration = std::time::Duration::from_micros(50);
 
 /// Puts the calling thread at the lowest priority of the normal scheduler (nice 19 on Linux):
 /// a frame's thread, at nice 0, takes the core from it at once, and when other processes keep

@@ -165,6 +165,9 @@ impl Significance {
         let mut frames = vec![v_ref.to_vec(); BATCH];
         let mut maxima = Vec::with_capacity(CALIBRATION_SAMPLES);
         while maxima.len() < CALIBRATION_SAMPLES {
+            if !maxima.is_empty() {
+                crate::parallel::step_aside();
+            }
             let count = BATCH.min(CALIBRATION_SAMPLES - maxima.len());
             for frame in &mut frames[..count] {
                 for (m, v) in frame.iter_mut().enumerate() {
@@ -209,7 +212,7 @@ fn strongest_z_portable(values: &[f32], weights: &[f32], sign: f32, both: bool) 
 }
 
 /// Noise frames imaged at once in the calibration (one matrix product each batch).
-const BATCH: usize = 100;
+const BATCH: usize = 50;
 
 /// Each used channel's noise standard deviation in the differences' units (V, or a ratio when
 /// normalised) for frames that are the mean of `averaged`, with the reference's share; 0 for a

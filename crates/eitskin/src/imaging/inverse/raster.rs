@@ -216,7 +216,9 @@ impl Reconstructor {
         let channels = lin.noise_weighted(normalised, channels, relative);
         let prior = &self.params.prior;
         let system = Eigensystem::new(lin, prior, normalised, &channels)?;
+        crate::parallel::step_aside();
         let lambda = super::hyperparameter::choose_hyperparameter_on(lin, &channels, &system);
+        crate::parallel::step_aside();
         // The matrix at λ from the eigenpairs λ was chosen on (with a global change fitted
         // beside the image, the Jacobian projected first: derived afresh).
         if self.params.background_change {
@@ -225,6 +227,7 @@ impl Reconstructor {
         let params = ReconstructorParams { hyperparameter: lambda, ..self.params };
         let (template, pixels) = (self.template.clone(), self.pixels.clone());
         let compact = system.compact_matrix(lin, lambda)?;
+        crate::parallel::step_aside();
         let recon = Reconstructor::assemble_compact(Arc::clone(lin), &params, channels, template, pixels, compact)?;
         Ok((recon, lambda))
     }

@@ -1,6 +1,7 @@
 //! Parallel work on the frame path, in one place: how many cores it uses ([`Par`], set with
 //! [`set_par`]), the split of a product between the calling thread and one helper thread
-//! ([`run_split`]), and the choice of vector instructions for a kernel (`widest!`, crate-private).
+//! ([`run_split`]), the choice of vector instructions for a kernel (`widest!`, crate-private),
+//! and how a thread deriving in the background makes way for frames ([`set_step_aside`]).
 //!
 //! A frame's image is one product of a matrix (2 MB for the paper's sensor) with Δv; it runs
 //! at the rate the shared cache reads the matrix. With [`Par::Two`], the default on two or more
@@ -19,6 +20,7 @@
 mod helper;
 
 use std::sync::atomic::{AtomicU8, Ordering};
+use std::time::Duration;
 
 pub use helper::{run_split, SPIN};
 
@@ -47,6 +49,30 @@ pub fn par() -> Par {
         Par::Seq
     } else {
         Par::Two
+    }
+}
+
+thread_local! {
+    /// How long the calling thread sleeps at each [`step_aside`] (zero: it does not).
+    static STEP_ASIDE: std::cell::Cell<Duration> = const { std::cell::Cell::new(Duration::ZERO) };
+}
+
+/// Makes the calling thread sleep `pause` between the pieces of a long derivation (a λ chosen, a
+/// reconstructor derived, a noise test made: pieces of at most about a millisecond on the
+/// paper's sheet); `Duration::ZERO`, the default, goes straight on. For a thread that derives
+/// beside threads that image frames: a core it holds for tens of milliseconds, even at the
+/// lowest priority, is one the scheduler does not hand a waiting frame's thread at once (it
+/// balances the two cores' queues every few milliseconds); a core left idle for a moment is
+/// handed over at once. The results are the same either way.
+pub fn set_step_aside(pause: Duration) {
+    STEP_ASIDE.with(|s| s.set(pause));
+}
+
+/// A point between two pieces of a derivation: sleeps as [`set_step_aside`] set for this thread.
+pub(crate) fn step_aside() {
+    let pause = STEP_ASIDE.with(std::cell::Cell::get);
+    if !pause.is_zero() {
+        std::thread::sleep(pause);
     }
 }
 

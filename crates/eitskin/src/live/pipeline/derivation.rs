@@ -72,7 +72,9 @@ pub(super) struct Tests {
 }
 
 impl Derivation {
-    /// Does the work (milliseconds to a fifth of a second on the paper's sensor; allocates).
+    /// Does the work (milliseconds to a fifth of a second on the paper's sensor; allocates), in
+    /// pieces of about a millisecond with a pause between where the thread asked for one
+    /// ([`crate::parallel::set_step_aside`]).
     pub fn run(self) -> Derived {
         let result = self.derive();
         let Derivation { generation, first, variance, reference_count, .. } = self;
@@ -111,6 +113,7 @@ impl Derivation {
         // Imaged as the chain's is, its half-precision copy made here rather than on the frame
         // that puts it in.
         if let (true, Some(recon)) = (self.recon.half_precision(), recon.as_mut()) {
+            crate::parallel::step_aside();
             recon.set_half_precision(true);
         }
         let recon_now = recon.as_ref().unwrap_or(&self.recon);
@@ -124,6 +127,7 @@ impl Derivation {
                 }
             }
         }
+        crate::parallel::step_aside();
         let (significance, detection) = self.tests(recon_now)?;
         Ok(Tests { recon, significance, detection, noise_peak })
     }
