@@ -14,7 +14,8 @@
 //! What a sensor derives from its noise (its λ and noise tests, when its reference is taken and
 //! as its noise model grows: 10–20 ms each on the paper's sheet) is done off the frame path, by half as
 //! many derivation threads as the pool has (at least one), at the lowest priority the system
-//! gives (nice 19 on Linux; a loaded machine delays them, never a frame, and never stops them): a hundred
+//! gives (nice 19 on Linux; a loaded machine delays them, never a frame, and never stops them),
+//! each stepping aside between its pieces of about a millisecond ([`STEP_ASIDE`]): a hundred
 //! sensors taking their references at once hold none of the frames up. Frames go on with what
 //! was derived before; a live sensor's frames until its reference's derivation is in are
 //! answered at once, as referencing. A source read as fast as it goes (`--fast`, a replay) is
@@ -237,8 +238,8 @@ impl Pool {
 
 /// How long a derivation thread sleeps between the pieces of a derivation: long enough for the
 /// core to count as idle, so that a frame's thread waiting on the other core's queue is moved
-/// to it at once. In the 100-sensor benchmark, p99 while the fleet's first 300 derivations ran
-/// fell from 13–25 ms to 4–8 ms; it adds about 1 ms to a derivation of 10.
+/// to it at once. In the 100-sensor benchmark, p99 in 2-s windows while the fleet's first 300
+/// derivations ran fell from 13–25 ms to 2.5–7 ms; it adds about 1 ms to a derivation of 11.
 const STEP_ASIDE: std::time::Duration = std::time::Duration::from_micros(50);
 
 /// Puts the calling thread at the lowest priority of the normal scheduler (nice 19 on Linux):

@@ -186,7 +186,10 @@ pub fn choose_hyperparameter(
 /// [`choose_hyperparameter`] on the channels' eigensystem, already made (the reconstructor at
 /// the λ chosen is then derived from it: [`Eigensystem::compact_matrix`]).
 pub(super) fn choose_hyperparameter_on(lin: &Linearisation, channels: &Channels, system: &Eigensystem) -> f64 {
-    let from_figure = noise_figure_search(&NoiseFigure::of(system, lin, channels));
+    let figure = NoiseFigure::of(system, lin, channels);
+    crate::parallel::step_aside();
+    let from_figure = noise_figure_search(&figure);
+    crate::parallel::step_aside();
     let from_level = map_hyperparameter_of(lin, system.r_inv(), channels);
     from_level.map_or(from_figure, |l| from_figure.max(l.min(SEARCH.1)))
 }

@@ -142,6 +142,7 @@ impl Reconstructor {
         for (first, m, lanes) in elements.blocks_mut() {
             lanes.iter_mut().zip(columns[m].get(first..).unwrap_or_default()).for_each(|(x, h)| *x = *h as f32);
         }
+        crate::parallel::step_aside();
         let mut matrix = BlockedMatrix::zeros(pixels.len(), measurements);
         for (first, m, lanes) in matrix.blocks_mut().filter(|(_, m, _)| !columns[*m].is_empty()) {
             let column = columns[m];
