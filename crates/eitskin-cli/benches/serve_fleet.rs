@@ -8,6 +8,7 @@
 //! cargo bench -p eitskin-cli --bench serve_fleet -- [SENSORS] [SECONDS] [THREADS]   (100, 10, the cores)
 //! ```
 //!
+//! `SERVE_FLEET_WINDOW` sets the windows' length in seconds (10 unless told).
 //! `SERVE_FLEET_RUN` adds flags to every sensor's `run` (e.g. `--hyperparameter 1`, to see what
 //! the automatic λ's refreshes cost, or `--precision single`); the docs say which figures took it.
 //! Without it each sensor's precision is `auto`: half for a fleet whose matrices overflow the cache.

@@ -52,9 +52,9 @@ impl ChannelProducts {
         self.used == used && self.normalised == normalised && self.prior == *prior
     }
 
-    /// J_Sᵀ `m` for `m` used × k, through J's own columns (no copy of J_S): triangles × k, made
-    /// [`ROW_BLOCK`] triangles at a time with a [step aside](crate::parallel::set_step_aside)
-    /// between (each entry as one product of the whole gives it).
+    /// J_Sᵀ `m` for `m` used × k, through J's own columns (no copy of J_S): triangles × k; in
+    /// blocks of about [`ROW_BLOCK`] triangles with a [step aside](crate::parallel::set_step_aside)
+    /// between where the thread asked for one.
     pub fn transposed_times(&self, lin: &Linearisation, m: MatRef<'_, f64>) -> Mat<f64> {
         // J_Sᵀ m = J[S, :]ᵀ diag(scale) m = Jᵀ m', m' with m's rows scaled and put at S's rows.
         let mut spread = Mat::zeros(lin.measurements(), m.ncols());
@@ -63,24 +63,10 @@ impl ChannelProducts {
                 spread[(row, j)] = s * m[(i, j)];
             }
         }
-        let jacobian = lin.jacobian();
-        let triangles = jacobian.ncols();
-        let mut product = Mat::zeros(triangles, m.ncols());
-        for first in (0..triangles).step_by(ROW_BLOCK) {
-            if first > 0 {
-                crate::parallel::step_aside();
-            }
-            let rows = ROW_BLOCK.min(triangles - first);
-            faer::linalg::matmul::matmul(
-                product.as_mut().subrows_mut(first, rows),
-                faer::Accum::Replace,
-                jacobian.transpose().subrows(first, rows),
-                spread.as_ref(),
-                1.0,
-                faer::get_global_parallelism(),
-            );
+        match crate::parallel::stepping_aside() {
+            true => product_in_blocks(lin.jacobian().transpose(), spread.as_ref(), ROW_BLOCK),
+            false => lin.jacobian().transpose() * spread,
         }
-        product
     }
 
     /// J_S·1 over `triangles`: each used channel's change for 1 S/m on each of them.
@@ -91,8 +77,32 @@ impl ChannelProducts {
     }
 }
 
-/// Triangles of J_Sᵀ·m made in one piece: about a millisecond for 120 channels.
+/// Triangles of J_Sᵀ·m made in one piece, at most: about half a millisecond for 120 channels.
 const ROW_BLOCK: usize = 512;
+
+/// `lhs`·`rhs` in row blocks of equal size, at most `block` rows each (none of a few rows, which
+/// faer would take as dot products, rounded otherwise), stepping aside between them; each entry
+/// as the one product gives it where faer's own kernels run (x86-64 with AVX2 or AVX-512).
+fn product_in_blocks(lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>, block: usize) -> Mat<f64> {
+    let rows = lhs.nrows();
+    let size = rows.div_ceil(rows.div_ceil(block.max(1)).max(1)).max(1);
+    let mut product = Mat::zeros(rows, rhs.ncols());
+    for first in (0..rows).step_by(size) {
+        if first > 0 {
+            crate::parallel::step_aside();
+        }
+        let part = size.min(rows - first);
+        faer::linalg::matmul::matmul(
+            product.as_mut().subrows_mut(first, part),
+            faer::Accum::Replace,
+            lhs.subrows(first, part),
+            rhs,
+            1.0,
+            faer::get_global_parallelism(),
+        );
+    }
+    product
+}
 
 /// The products of the channel sets a linearisation was last derived on, at most [`KEPT`]
 /// (each channels² × 16 bytes); equal to any other (it changes no result).
@@ -212,9 +222,10 @@ mod tests {
         );
     }
 
-    /// J_Sᵀ·m made in row blocks, each stepping aside, is the one product Jᵀ·m' (m's rows scaled
-    /// and put at the channels' rows) entry for entry, and J_Sᵀ·m to rounding (normalised rows,
-    /// channels missing, more triangles than a block).
+    /// J_Sᵀ·m made in row blocks, stepping aside between, is the one product Jᵀ·m' (m's rows
+    /// scaled and put at the channels' rows) entry for entry, and J_Sᵀ·m to rounding (normalised
+    /// rows, channels missing, more triangles than a block); so is a product of 1 to 2,000 rows
+    /// in blocks (counts one past a multiple of the block among them), on this machine's kernels.
     #[test]
     fn the_product_made_in_blocks_is_the_whole_one() {
         let mut spec = crate::SensorSpec::square_hydrogel();
@@ -224,17 +235,17 @@ mod tests {
         let used: Vec<usize> = (0..lin.measurements()).filter(|m| m % 7 != 3).collect();
         let products = lin.channel_products(&used, true, &Prior::default()).unwrap();
         let m = Mat::<f64>::from_fn(used.len(), 5, |i, j| ((i * 13 + j * 5) % 17) as f64 - 8.0);
-        let scale = lin.row_scale(&used, true).unwrap();
-        let mut spread = Mat::<f64>::zeros(lin.measurements(), m.ncols());
-        for (i, &row) in used.iter().enumerate() {
-            (0..m.ncols()).for_each(|j| spread[(row, j)] = scale[i] * m[(i, j)]);
-        }
-        let whole = lin.jacobian().transpose() * &spread;
+        let whole = products.transposed_times(&lin, m.as_ref());
         crate::parallel::set_step_aside(std::time::Duration::from_micros(1));
         let blocks = products.transposed_times(&lin, m.as_ref());
         crate::parallel::set_step_aside(std::time::Duration::ZERO);
         assert_eq!(blocks, whole);
         let direct = lin.rows(&used, true).unwrap().transpose() * &m;
         assert!((&blocks - &direct).norm_max() <= 1e-12 * direct.norm_max());
+        for rows in [1, 511, 513, 1025, 1537, 2000] {
+            let lhs = Mat::<f64>::from_fn(rows, 120, |i, k| ((i * 120 + k) as f64 * 0.7).sin());
+            let rhs = Mat::<f64>::from_fn(120, 120, |k, j| ((k * 120 + j) as f64 * 1.3).cos() / (1.0 + k as f64));
+            assert_eq!(product_in_blocks(lhs.as_ref(), rhs.as_ref(), ROW_BLOCK), &lhs * &rhs, "{rows} rows");
+        }
     }
 }

@@ -58,14 +58,22 @@ thread_local! {
 }
 
 /// Makes the calling thread sleep `pause` between the pieces of a long derivation (a λ chosen, a
-/// reconstructor derived, a noise test made: pieces of at most about a millisecond on the
-/// paper's sheet); `Duration::ZERO`, the default, goes straight on. For a thread that derives
+/// reconstructor derived, a noise test made: pieces of under a millisecond on the paper's
+/// sheet, but for the channels' products of a linearisation's first derivation and a
+/// reconstructor that estimates a background change, each one piece); `Duration::ZERO`, the
+/// default, goes straight on and does each product whole. For a thread that derives
 /// beside threads that image frames: a core it holds for tens of milliseconds, even at the
 /// lowest priority, is one the scheduler does not hand a waiting frame's thread at once (it
 /// balances the two cores' queues every few milliseconds); a core left idle for a moment is
 /// handed over at once. The results are the same either way.
 pub fn set_step_aside(pause: Duration) {
     STEP_ASIDE.with(|s| s.set(pause));
+}
+
+/// Whether the calling thread steps aside between pieces ([`set_step_aside`]): work split
+/// into pieces only for that is done whole otherwise.
+pub(crate) fn stepping_aside() -> bool {
+    !STEP_ASIDE.with(std::cell::Cell::get).is_zero()
 }
 
 /// A point between two pieces of a derivation: sleeps as [`set_step_aside`] set for this thread.
