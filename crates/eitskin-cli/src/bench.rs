@@ -15,7 +15,9 @@
 //! of strong presses), `press_table` (one press's exact response tabulated over the sheet and
 //! its drop, [`PressModel::with_tabulated`], which a model fits with on request) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
-//! press fitted from the touch) and `frame_three_presses` (three presses found in Δv against
+//! press fitted from the touch), `fleet_frame_half` and `fleet_frame_shared` (one image on one
+//! core from each of 100 sensors of one spec in turn, λ from each one's noise: from their own
+//! half-precision matrices, and through their shared basis) and `frame_three_presses` (three presses found in Δv against
 //! 0.05 % noise, median of 201 runs on the noiseless frame), `frame_three_presses_noisy` (the
 //! same on 201 frames of the presses held, each with its own 0.05 % noise;
 //! `frame_three_presses_noisy_tabulated` with the model's tabulated response) and
@@ -291,6 +293,41 @@ fn derivations(spec: &eitskin::SensorSpec, recon: &Reconstructor, n: usize, stag
     Ok(())
 }
 
+/// Sensors in [`fleet_frames`].
+const FLEET: usize = 100;
+
+/// One image a frame, on one core, from each of [`FLEET`] sensors of one spec in turn, λ chosen
+/// from each one's noise (as `serve` images a fleet whose matrices overflow the cache): from
+/// their own half-precision matrices (read from memory), and through their shared basis with
+/// their own mixes.
+fn fleet_frames(recon: &Reconstructor, values: &[f64], frame: &[f64]) -> Result<(Timing, Timing)> {
+    let m = recon.measurements();
+    let mut half = (0..FLEET)
+        .map(|k| {
+            let noise = (0..m).map(|c| 1e-6 * (1.0 + ((c * 7 + k) % 5) as f64)).collect();
+            Ok(recon.with_auto_hyperparameter(Channels::all(m), Some(noise))?.0)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut shared = half.clone();
+    half.iter_mut().for_each(|r| r.set_half_precision(true));
+    if !shared.iter_mut().all(|r| r.set_shared_basis(true)) {
+        anyhow::bail!("a reconstructor of λ chosen from the noise without a shared basis");
+    }
+    let par = eitskin::parallel::par();
+    eitskin::parallel::set_par(eitskin::parallel::Par::Seq);
+    let mut image = recon.blank_image();
+    let mut timed = |fleet: &[Reconstructor]| {
+        let mut k = 0;
+        time(FRAMES, || {
+            k = (k + 1) % FLEET;
+            Ok(fleet[k].image_into(values, frame, &mut image)?)
+        })
+    };
+    let (own, shared) = (timed(&half), timed(&shared));
+    eitskin::parallel::set_par(par);
+    Ok((own?.0, shared?.0))
+}
+
 /// A 32-electrode tank with a KTC-sized protocol: 76 drives (32 adjacent, 32 skipping two, 12
 /// opposite) × 31 adjacent differences = 2,356 channels, a disc of 115 mm radius with 4,000
 /// triangles; its linearisation, and its channels with each one's noise 0.3 % of its value.
@@ -353,6 +390,8 @@ fn frames(
     let (t_fit, ()) = time(FRAMES, || Ok(press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits)?))?;
     stages.setup.push(("press_model", t_press_model));
     stages.per_frame.extend([("frame_image", t_image), ("frame_touches", t_touches), ("frame_press_fit", t_fit)]);
+    let (t_own, t_shared) = fleet_frames(recon, values, &frame)?;
+    stages.per_frame.extend([("fleet_frame_half", t_own), ("fleet_frame_shared", t_shared)]);
     let three = [([-0.3, 0.4], 0.25), ([0.4, -0.2], 0.5), ([0.6, 0.7], 0.6)].map(|(at, drop)| Inclusion {
         centre: [at[0] * half, at[1] * half],
         radius: press_params.radius,

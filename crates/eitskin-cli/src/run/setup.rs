@@ -20,7 +20,9 @@ use crate::load;
 /// The precision a sensor's frames are imaged in (`--precision`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Precision {
-    /// Half where the matrices read every frame overflow the last-level cache, else single.
+    /// Where the matrices read every frame overflow the last-level cache: through the shared
+    /// basis of each reconstructor that has one (λ chosen from the noise; sensors of one spec
+    /// share it), else half; single otherwise.
     Auto,
     /// The reconstruction matrix itself, in f32.
     Single,
@@ -28,9 +30,10 @@ pub enum Precision {
     Half,
 }
 
-/// Sets the pipelines whose precision is `auto` to half precision where the matrices every
-/// pipeline reads each frame overflow the last-level cache (bytes as the pipelines now read
-/// them), and says so once, as `command`.
+/// Sets the pipelines whose precision is `auto` to image through their reconstructors' shared
+/// basis where there is one, else in half precision, where the matrices every pipeline reads
+/// each frame overflow the last-level cache (bytes as the pipelines now read them), and says so
+/// once, as `command`.
 pub fn choose_precision(command: &str, pipelines: &mut [(Precision, &mut Pipeline)]) {
     let bytes: usize = pipelines.iter().map(|(_, p)| p.chain().reconstructor().matrix().bytes_read()).sum();
     let Some(cache) = eitskin_io::last_level_cache() else { return };
@@ -41,12 +44,13 @@ pub fn choose_precision(command: &str, pipelines: &mut [(Precision, &mut Pipelin
         return;
     }
     for (_, pipeline) in pipelines.iter_mut().filter(|(precision, _)| *precision == Precision::Auto) {
+        pipeline.set_shared_basis(true);
         pipeline.set_half_precision(true);
     }
     let matrices =
         if pipelines.len() == 1 { "the matrix's".to_owned() } else { format!("{} matrices'", pipelines.len()) };
     eprintln!(
-        "eitskin {command}: imaging in half precision ({auto} of {}): {matrices} {:.1} MiB overflow the {:.1} MiB last-level cache (--precision single keeps single)",
+        "eitskin {command}: imaging through the sensors' shared basis once λ is chosen from their noise, else in half precision ({auto} of {}): {matrices} {:.1} MiB overflow the {:.1} MiB last-level cache (--precision single keeps single)",
         pipelines.len(),
         bytes as f64 / MIB,
         cache / MIB

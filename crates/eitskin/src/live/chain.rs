@@ -148,6 +148,9 @@ pub struct Chain {
     carry_presses: bool,
     /// Whether every reconstructor set images from a half-precision copy of its matrix.
     half_precision: bool,
+    /// Whether every reconstructor set that has a shared basis images through it (and needs
+    /// no half-precision copy then).
+    shared_basis: bool,
     press_track: PressTrack,
     tracked: Option<Tracked>,
     whitened: Vec<f64>,
@@ -181,6 +184,7 @@ impl Chain {
             press_detection: None,
             carry_presses: false,
             half_precision: false,
+            shared_basis: false,
             press_track: PressTrack::default(),
             tracked: None,
             detected: Vec::with_capacity(MAX_FITTED),
@@ -209,11 +213,25 @@ impl Chain {
     pub fn set_reconstructor(&mut self, mut recon: Reconstructor) {
         assert_eq!(recon.measurements(), self.recon.measurements(), "the same protocol");
         assert_eq!(recon.blank_image().size, self.image.size, "the same raster");
-        if self.half_precision && !recon.half_precision() {
-            recon.set_half_precision(true);
-        }
+        prepare_frames(&mut recon, self.half_precision, self.shared_basis);
         self.recon = Arc::new(recon);
         self.mask_press_model();
+    }
+
+    /// Images frames through the shared basis of each reconstructor set that has one, this one
+    /// and every one set later, when `on` ([`Reconstructor::set_shared_basis`]); one without
+    /// it images as before. Allocates.
+    pub fn set_shared_basis(&mut self, on: bool) {
+        self.shared_basis = on;
+        if self.recon.shared_basis() != on {
+            Arc::make_mut(&mut self.recon).set_shared_basis(on);
+        }
+    }
+
+    /// The forms frames are imaged in, as asked: (from a half-precision copy, through a shared
+    /// basis where there is one).
+    pub fn frame_forms(&self) -> (bool, bool) {
+        (self.half_precision, self.shared_basis)
     }
 
     /// Images frames from a half-precision copy of the reconstructor's matrix when `on`, this
@@ -479,6 +497,15 @@ fn touch_of_press(press: &PressFit, radius: f64, image: &Image) -> Touch {
         pixels: (area / image.pixel_area()).round() as usize,
         bounding_box: [[x - radius, y - radius], [x + radius, y + radius]],
         significance: Some(press.z),
+    }
+}
+
+/// Readies `recon` to image frames as a chain asked: through its shared basis where `shared`
+/// and it has one, else from a half-precision copy where `half`. Allocates.
+pub(crate) fn prepare_frames(recon: &mut Reconstructor, half: bool, shared: bool) {
+    let through_basis = shared && recon.set_shared_basis(true);
+    if half && !through_basis && !recon.half_precision() {
+        recon.set_half_precision(true);
     }
 }
 

@@ -433,6 +433,12 @@ impl Pipeline {
         self.chain.set_half_precision(on);
     }
 
+    /// Images frames through the shared basis of every reconstructor derived that has one
+    /// ([`Chain::set_shared_basis`]): for many sensors of one spec. Allocates: setup.
+    pub fn set_shared_basis(&mut self, on: bool) {
+        self.chain.set_shared_basis(on);
+    }
+
     /// The frame path's settings.
     pub fn params(&self) -> &PipelineParams {
         &self.params
@@ -668,6 +674,7 @@ impl Pipeline {
             reference_frames: frames,
             variance: None,
             reference_count: None,
+            frame_forms: self.chain.frame_forms(),
         }
     }
 

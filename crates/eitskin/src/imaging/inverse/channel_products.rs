@@ -15,13 +15,14 @@ use faer::{Mat, MatRef};
 
 use super::eigensystem::weighted_gram;
 use super::linearisation::inverse_diagonal;
+use super::product::BlockedMatrix;
 use super::{InverseError, Linearisation, Prior};
 
 /// The measurement-sized products of one set of channels (see the module doc).
 #[derive(Debug)]
 pub(crate) struct ChannelProducts {
     /// The channels (indices into the frame), their normalisation and the prior: the key.
-    used: Vec<usize>,
+    pub used: Vec<usize>,
     normalised: bool,
     prior: Prior,
     /// Per used channel, the factor of its row: 1/v₀ when normalised, else 1 (J_S = diag(scale) J[S, :]).
@@ -32,7 +33,16 @@ pub(crate) struct ChannelProducts {
     pub gram: Mat<f64>,
     /// J_S R⁻¹ A² R⁻¹ J_Sᵀ, used × used, both halves.
     pub area_gram: Mat<f64>,
+    /// R⁻¹ J_Sᵀ on the rasters asked for (the triangle under each pixel, and the basis), the
+    /// newest last, at most [`KEPT_BASES`] (see [`super::shared_basis`]).
+    bases: Mutex<Vec<RasterBasis>>,
 }
+
+/// A raster (the triangle under each pixel) and R⁻¹ J_Sᵀ on it.
+type RasterBasis = (Vec<Option<usize>>, Arc<BlockedMatrix>);
+
+/// Rasters whose basis a channel set keeps.
+const KEPT_BASES: usize = 2;
 
 impl ChannelProducts {
     /// The products of channels `used` of `lin` (J's rows divided by v₀ when `normalised`)
@@ -45,7 +55,26 @@ impl ChannelProducts {
         let gram = weighted_gram(jacobian.as_ref(), |k| r_inv[k] * r_inv[k] * r[k]);
         let area_gram = weighted_gram(jacobian.as_ref(), |k| (r_inv[k] * mesh.area(k)).powi(2));
         let scale = lin.row_scale(used, normalised)?;
-        Ok(ChannelProducts { used: used.to_vec(), normalised, prior: *prior, scale, r_inv, gram, area_gram })
+        let bases = Mutex::default();
+        Ok(ChannelProducts { used: used.to_vec(), normalised, prior: *prior, scale, r_inv, gram, area_gram, bases })
+    }
+
+    /// R⁻¹ J_Sᵀ on the raster whose pixels lie on triangles `pixels`, made once for every
+    /// reconstructor of this channel set ([`super::shared_basis::raster_basis`]).
+    pub fn raster_basis(&self, lin: &Linearisation, pixels: &[Option<usize>]) -> Arc<BlockedMatrix> {
+        let mut bases = self.bases.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(at) = bases.iter().position(|(on, _)| on == pixels) {
+            let entry = bases.remove(at);
+            let basis = Arc::clone(&entry.1);
+            bases.push(entry);
+            return basis;
+        }
+        let basis = Arc::new(super::shared_basis::raster_basis(lin, self, pixels));
+        if bases.len() == KEPT_BASES {
+            bases.remove(0);
+        }
+        bases.push((pixels.to_vec(), Arc::clone(&basis)));
+        basis
     }
 
     fn is_for(&self, used: &[usize], normalised: bool, prior: &Prior) -> bool {

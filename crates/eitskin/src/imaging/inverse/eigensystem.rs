@@ -18,6 +18,7 @@ use faer::{Mat, MatRef, Side};
 
 use super::channel_products::ChannelProducts;
 use super::linearisation::{inverse_diagonal, lower_product};
+use super::shared_basis::ChannelMix;
 use super::{Channels, InverseError, Linearisation, Prior};
 
 /// The whitened system's eigenpairs on its range, with what the criteria need of it.
@@ -131,18 +132,39 @@ impl Eigensystem {
             // H = R⁻¹ Jᵀ Σ^-½ V diag(1/(e + λ²)) Vᵀ Σ^-½: the filter at the channels' size, then
             // one product with J.
             Form::Whole(products) => {
-                let lambda2 = regularised(&self.eigenvalues, hyperparameter)?;
-                let std = &self.std;
-                let filtered = Mat::from_fn(v.nrows(), v.ncols(), |i, k| {
-                    v[(i, k)] / (self.eigenvalues[k].max(0.0) + lambda2) / std[i]
-                });
-                let whitened = Mat::from_fn(v.ncols(), v.nrows(), |k, j| v[(j, k)] / std[j]);
-                let mut h = products.transposed_times(lin, (filtered * whitened).as_ref());
+                let mix = self.mix(hyperparameter)?;
+                let mut h = products.transposed_times(lin, mix.as_ref());
                 for j in 0..h.ncols() {
                     h.col_mut(j).iter_mut().zip(&products.r_inv).for_each(|(h, r)| *h *= r);
                 }
                 Ok(h)
             }
+        }
+    }
+}
+
+impl Eigensystem {
+    /// M = Σ^-½ V diag(1/(e + λ²)) Vᵀ Σ^-½ (used × used) at λ `hyperparameter`: the whole
+    /// form's reconstructor is R⁻¹ J_Sᵀ M.
+    fn mix(&self, hyperparameter: f64) -> Result<Mat<f64>, InverseError> {
+        let v = self.v.as_ref();
+        let lambda2 = regularised(&self.eigenvalues, hyperparameter)?;
+        let std = &self.std;
+        let filtered =
+            Mat::from_fn(v.nrows(), v.ncols(), |i, k| v[(i, k)] / (self.eigenvalues[k].max(0.0) + lambda2) / std[i]);
+        let whitened = Mat::from_fn(v.ncols(), v.nrows(), |k, j| v[(j, k)] / std[j]);
+        Ok(filtered * whitened)
+    }
+
+    /// The reconstructor's own mix at λ `hyperparameter` for a basis shared with every other
+    /// of its channel set ([`ChannelMix`]): the whole form's, of at most
+    /// [`super::shared_basis::SHARED_CHANNELS`] channels; else `None`.
+    pub(super) fn channel_mix(&self, hyperparameter: f64) -> Result<Option<ChannelMix>, InverseError> {
+        match &self.form {
+            Form::Whole(products) if products.used.len() <= super::shared_basis::SHARED_CHANNELS => {
+                Ok(ChannelMix::new(Arc::clone(products), self.mix(hyperparameter)?.as_ref()))
+            }
+            _ => Ok(None),
         }
     }
 }

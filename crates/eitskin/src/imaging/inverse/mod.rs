@@ -25,6 +25,7 @@ mod prior;
 mod product;
 mod raster;
 mod reference;
+mod shared_basis;
 
 pub(crate) use channels::floored;
 pub use channels::{

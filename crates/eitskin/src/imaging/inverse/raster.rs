@@ -16,6 +16,7 @@ use faer::Mat;
 
 use super::eigensystem::Eigensystem;
 use super::product::BlockedMatrix;
+use super::shared_basis::ChannelMix;
 use super::{Channels, InverseError, Linearisation, Prior};
 use crate::forward::ForwardModel;
 use crate::image::Image;
@@ -73,6 +74,11 @@ pub struct Reconstructor {
     background: Vec<f64>,
     /// Number of measurements (columns of `matrix`).
     measurements: usize,
+    /// Its own mix M for a basis its channel set shares (`matrix` = B·M on the used columns),
+    /// where λ was chosen on the whole eigensystem; see [`super::shared_basis`].
+    mix: Option<Arc<ChannelMix>>,
+    /// The shared basis B, while frames are imaged through it ([`Reconstructor::set_shared_basis`]).
+    shared_basis: Option<Arc<BlockedMatrix>>,
 }
 
 impl Reconstructor {
@@ -159,6 +165,8 @@ impl Reconstructor {
             elements,
             background,
             measurements,
+            mix: None,
+            shared_basis: None,
         })
     }
 
@@ -205,6 +213,26 @@ impl Reconstructor {
         self.matrix.is_half()
     }
 
+    /// Images frames through the basis R⁻¹ J_Sᵀ that every reconstructor of its linearisation
+    /// and channels shares, times its own channels² mix, when `on` and it has one (λ chosen
+    /// from the noise, at most 256 channels, no background change: see
+    /// [`Reconstructor::with_auto_hyperparameter`]); whether frames now go through it. For many
+    /// sensors of one spec on few cores: they read one basis where each would read its own
+    /// matrix. Each pixel within the rounding of two single-precision products of the matrix's
+    /// image. Allocates (the basis, once for the channel set).
+    pub fn set_shared_basis(&mut self, on: bool) -> bool {
+        self.shared_basis = match (on, &self.mix) {
+            (true, Some(mix)) => Some(mix.basis(&self.linearisation, &self.pixels)),
+            _ => None,
+        };
+        self.shared_basis.is_some()
+    }
+
+    /// Whether frames are imaged through a shared basis ([`Reconstructor::set_shared_basis`]).
+    pub fn shared_basis(&self) -> bool {
+        self.shared_basis.is_some()
+    }
+
     /// The same reconstructor with λ chosen from the noise (see [`choose_hyperparameter`](super::choose_hyperparameter))
     /// and the channels weighted by it ([`Linearisation::noise_weighted`]). Returns it with λ.
     pub fn with_auto_hyperparameter(
@@ -229,7 +257,8 @@ impl Reconstructor {
         let (template, pixels) = (self.template.clone(), self.pixels.clone());
         let compact = system.compact_matrix(lin, lambda)?;
         crate::parallel::step_aside();
-        let recon = Reconstructor::assemble_compact(Arc::clone(lin), &params, channels, template, pixels, compact)?;
+        let mut recon = Reconstructor::assemble_compact(Arc::clone(lin), &params, channels, template, pixels, compact)?;
+        recon.mix = system.channel_mix(lambda)?.map(Arc::new);
         Ok((recon, lambda))
     }
 
@@ -301,7 +330,11 @@ impl Reconstructor {
         self.check(v_ref, v)?;
         let pixels = self.template.values.len();
         assert_eq!(image.values.len(), pixels, "the image must come from blank_image()");
-        self.matrix.mul_into(&mut image.values, |m| self.difference(v_ref, v, m));
+        let difference = |m| self.difference(v_ref, v, m);
+        match (&self.shared_basis, &self.mix) {
+            (Some(basis), Some(mix)) => mix.mul_into(basis, &mut image.values, difference),
+            _ => self.matrix.mul_into(&mut image.values, difference),
+        }
         Ok(())
     }
 

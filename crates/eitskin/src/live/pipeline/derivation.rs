@@ -48,6 +48,9 @@ pub struct Derivation {
     /// records as derived once it is in (`None`: not a refresh of the noise).
     pub(super) variance: Option<Vec<f64>>,
     pub(super) reference_count: Option<usize>,
+    /// The chain's frame forms ([`crate::chain::Chain::frame_forms`]), which a new
+    /// reconstructor is readied in.
+    pub(super) frame_forms: (bool, bool),
 }
 
 /// A derivation's result, for the pipeline that asked for it.
@@ -110,11 +113,12 @@ impl Derivation {
         if let (true, Some(recon)) = (self.first, &recon) {
             too_many_dropped(recon.channels().used_mask(), &self.configured, 0)?;
         }
-        // Imaged as the chain's is, its half-precision copy made here rather than on the frame
-        // that puts it in.
-        if let (true, Some(recon)) = (self.recon.half_precision(), recon.as_mut()) {
+        // Imaged as the chain's is, its half-precision copy or shared basis made here rather
+        // than on the frame that puts it in.
+        if let Some(recon) = recon.as_mut() {
             crate::parallel::step_aside();
-            recon.set_half_precision(true);
+            let (half, shared) = self.frame_forms;
+            crate::chain::prepare_frames(recon, half, shared);
         }
         let recon_now = recon.as_ref().unwrap_or(&self.recon);
         let mut noise_peak = 0.0_f64;
@@ -171,6 +175,43 @@ mod tests {
         let mut deferred = Pipeline::new(chain.clone(), params);
         deferred.defer_derivations(Deferred::All);
         (Pipeline::new(chain, params), deferred, VirtualSensor::new(&spec, 3).unwrap())
+    }
+
+    /// A pipeline asked to image through the shared basis (in half precision where there is
+    /// none): until its reference's λ is chosen it images from the half copy, then every
+    /// reconstructor derived goes through the basis, readied by the derivation; its
+    /// frames' touches are the plain pipeline's (the same count, centres within 0.1 mm).
+    #[test]
+    fn derived_reconstructors_image_through_the_shared_basis() {
+        let (mut plain, _, mut skin) = pair();
+        let (mut shared, _, _) = pair();
+        shared.set_shared_basis(true);
+        shared.set_half_precision(true);
+        assert!(shared.chain().reconstructor().half_precision() && !shared.chain().reconstructor().shared_basis());
+        let mut touched = 0;
+        for k in 0..300 {
+            // At rest for the reference and the first refreshes, then pressed at one place, at two, and released.
+            match k {
+                150 => skin.press([0.03, -0.04], 8.0),
+                200 => skin.press([-0.05, 0.05], 5.0),
+                250 => skin.release(),
+                _ => {}
+            }
+            let frame = skin.frame().unwrap();
+            assert_eq!(plain.process(&frame).unwrap(), shared.process(&frame).unwrap());
+            let (a, b) = (plain.touches(), shared.touches());
+            assert_eq!(a.len(), b.len());
+            for (a, b) in a.iter().zip(b) {
+                let d = (a.touch.centre[0] - b.touch.centre[0]).hypot(a.touch.centre[1] - b.touch.centre[1]);
+                assert!(d < 1e-4, "{:?} against {:?}", a.touch.centre, b.touch.centre);
+            }
+            touched += usize::from(!a.is_empty());
+            if shared.imaging() {
+                let recon = shared.chain().reconstructor();
+                assert!(recon.shared_basis() && !recon.half_precision());
+            }
+        }
+        assert!(touched > 10, "{touched} frames with touches");
     }
 
     #[test]
