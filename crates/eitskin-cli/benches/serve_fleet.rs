@@ -11,7 +11,8 @@
 //! `SERVE_FLEET_WINDOW` sets the windows' length in seconds (10 unless told).
 //! `SERVE_FLEET_RUN` adds flags to every sensor's `run` (e.g. `--hyperparameter 1`, to see what
 //! the automatic λ's refreshes cost, or `--precision single`); the docs say which figures took it.
-//! Without it each sensor's precision is `auto`: half for a fleet whose matrices overflow the cache.
+//! Without it each sensor's precision is `auto`: for a fleet whose matrices overflow the cache,
+//! half until its λ is chosen from its noise, then through the basis the fleet's sensors share.
 //!
 //! Frames are a recording of the virtual sensor: 2 s at rest, then a press every 3 s (held
 //! 2 s, each at another place and force), 14 s in all. Every sensor plays the rest first (its

@@ -17,7 +17,7 @@
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch), `fleet_frame_half` and `fleet_frame_shared` (one image on one
 //! core from each of 100 sensors of one spec in turn, λ from each one's noise: from their own
-//! half-precision matrices, and through their shared basis) and `frame_three_presses` (three presses found in Δv against
+//! half-precision matrices, and through their shared basis; left out where there is none) and `frame_three_presses` (three presses found in Δv against
 //! 0.05 % noise, median of 201 runs on the noiseless frame), `frame_three_presses_noisy` (the
 //! same on 201 frames of the presses held, each with its own 0.05 % noise;
 //! `frame_three_presses_noisy_tabulated` with the model's tabulated response) and
@@ -296,23 +296,28 @@ fn derivations(spec: &eitskin::SensorSpec, recon: &Reconstructor, n: usize, stag
 /// Sensors in [`fleet_frames`].
 const FLEET: usize = 100;
 
+/// Bytes the fleet of [`fleet_frames`] may hold, at most.
+const FLEET_BYTES: usize = 1 << 30;
+
 /// One image a frame, on one core, from each of [`FLEET`] sensors of one spec in turn, λ chosen
 /// from each one's noise (as `serve` images a fleet whose matrices overflow the cache): from
 /// their own half-precision matrices (read from memory), and through their shared basis with
-/// their own mixes.
-fn fleet_frames(recon: &Reconstructor, values: &[f64], frame: &[f64]) -> Result<(Timing, Timing)> {
+/// their own mixes. `None` where the sensor's reconstructors have no shared basis (more channels
+/// than the electrodes have pairs, or than 256) or a fleet of them would hold more than
+/// [`FLEET_BYTES`].
+fn fleet_frames(recon: &Reconstructor, values: &[f64], frame: &[f64]) -> Result<Option<(Timing, Timing)>> {
     let m = recon.measurements();
-    let mut half = (0..FLEET)
-        .map(|k| {
-            let noise = (0..m).map(|c| 1e-6 * (1.0 + ((c * 7 + k) % 5) as f64)).collect();
-            Ok(recon.with_auto_hyperparameter(Channels::all(m), Some(noise))?.0)
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let mut shared = half.clone();
-    half.iter_mut().for_each(|r| r.set_half_precision(true));
-    if !shared.iter_mut().all(|r| r.set_shared_basis(true)) {
-        anyhow::bail!("a reconstructor of λ chosen from the noise without a shared basis");
+    let derive = |k: usize| {
+        let noise = (0..m).map(|c| 1e-6 * (1.0 + ((c * 7 + k) % 5) as f64)).collect();
+        Ok(recon.with_auto_hyperparameter(Channels::all(m), Some(noise))?.0)
+    };
+    let first: Reconstructor = derive(0)?;
+    // Its single-precision raster and triangle matrices, and the half copy.
+    let each = first.matrix().bytes_read() * 5 / 2 + first.blank_image().values.len() * 4;
+    if !first.can_share_basis() || each.saturating_mul(FLEET) > FLEET_BYTES {
+        return Ok(None);
     }
+    let mut fleet = std::iter::once(Ok(first)).chain((1..FLEET).map(derive)).collect::<Result<Vec<_>>>()?;
     let par = eitskin::parallel::par();
     eitskin::parallel::set_par(eitskin::parallel::Par::Seq);
     let mut image = recon.blank_image();
@@ -323,9 +328,15 @@ fn fleet_frames(recon: &Reconstructor, values: &[f64], frame: &[f64]) -> Result<
             Ok(fleet[k].image_into(values, frame, &mut image)?)
         })
     };
-    let (own, shared) = (timed(&half), timed(&shared));
+    fleet.iter_mut().for_each(|r| r.set_half_precision(true));
+    let own = timed(&fleet);
+    fleet.iter_mut().for_each(|r| {
+        r.set_half_precision(false);
+        r.set_shared_basis(true);
+    });
+    let shared = timed(&fleet);
     eitskin::parallel::set_par(par);
-    Ok((own?.0, shared?.0))
+    Ok(Some((own?.0, shared?.0)))
 }
 
 /// A 32-electrode tank with a KTC-sized protocol: 76 drives (32 adjacent, 32 skipping two, 12
@@ -390,8 +401,9 @@ fn frames(
     let (t_fit, ()) = time(FRAMES, || Ok(press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits)?))?;
     stages.setup.push(("press_model", t_press_model));
     stages.per_frame.extend([("frame_image", t_image), ("frame_touches", t_touches), ("frame_press_fit", t_fit)]);
-    let (t_own, t_shared) = fleet_frames(recon, values, &frame)?;
-    stages.per_frame.extend([("fleet_frame_half", t_own), ("fleet_frame_shared", t_shared)]);
+    if let Some((t_own, t_shared)) = fleet_frames(recon, values, &frame)? {
+        stages.per_frame.extend([("fleet_frame_half", t_own), ("fleet_frame_shared", t_shared)]);
+    }
     let three = [([-0.3, 0.4], 0.25), ([0.4, -0.2], 0.5), ([0.6, 0.7], 0.6)].map(|(at, drop)| Inclusion {
         centre: [at[0] * half, at[1] * half],
         radius: press_params.radius,

@@ -135,7 +135,8 @@ pub struct Args {
     /// reconstruction matrix (half the memory a frame reads, each pixel within 2⁻¹¹ times the sum
     /// of its terms' magnitudes), `single` the matrix itself; `auto` takes half where the
     /// matrices the process reads every frame (all of `serve`'s sensors') overflow the
-    /// processor's last-level cache.
+    /// processor's last-level cache, and there `serve`'s sensors of one spec image through the
+    /// basis they share once each one's λ is chosen from its noise.
     #[arg(long, value_enum, default_value_t = Precision::Auto)]
     precision: Precision,
     /// Seed of the virtual sensor's noise and random presses, 0 to 2⁶⁴ − 1.

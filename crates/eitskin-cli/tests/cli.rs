@@ -135,6 +135,8 @@ fn bench_json_has_every_stage() {
         "reconstructor_2356",
         "frame_image",
         "frame_touches",
+        "fleet_frame_half",
+        "fleet_frame_shared",
     ] {
         assert!(json[stage].as_f64().is_some_and(|t| t > 0.0), "stage {stage} missing: {json}");
     }

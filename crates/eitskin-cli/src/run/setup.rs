@@ -20,9 +20,9 @@ use crate::load;
 /// The precision a sensor's frames are imaged in (`--precision`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Precision {
-    /// Where the matrices read every frame overflow the last-level cache: through the shared
-    /// basis of each reconstructor that has one (λ chosen from the noise; sensors of one spec
-    /// share it), else half; single otherwise.
+    /// Half where the matrices read every frame overflow the last-level cache, and through the
+    /// basis sensors of one spec in one process share once λ is chosen from their noise; else
+    /// single.
     Auto,
     /// The reconstruction matrix itself, in f32.
     Single,
@@ -30,27 +30,41 @@ pub enum Precision {
     Half,
 }
 
-/// Sets the pipelines whose precision is `auto` to image through their reconstructors' shared
-/// basis where there is one, else in half precision, where the matrices every pipeline reads
-/// each frame overflow the last-level cache (bytes as the pipelines now read them), and says so
-/// once, as `command`.
+/// Sets the pipelines whose precision is `auto` to half precision where the matrices every
+/// pipeline reads each frame overflow the last-level cache (bytes as the pipelines now read
+/// them), those of them that share their linearisation with another pipeline (sensors of one
+/// spec in one process) to image through their shared basis once their λ is chosen from their
+/// noise, and says so once, as `command`.
 pub fn choose_precision(command: &str, pipelines: &mut [(Precision, &mut Pipeline)]) {
     let bytes: usize = pipelines.iter().map(|(_, p)| p.chain().reconstructor().matrix().bytes_read()).sum();
     let Some(cache) = eitskin_io::last_level_cache() else { return };
     let auto = pipelines.iter().filter(|(precision, _)| *precision == Precision::Auto).count();
     // Matrices that overflow the cache are read from memory every frame: half the bytes take
-    // about half the time.
+    // about half the time; a basis that several sensors share is read once for all of them.
     if bytes as f64 <= cache || auto == 0 {
         return;
     }
-    for (_, pipeline) in pipelines.iter_mut().filter(|(precision, _)| *precision == Precision::Auto) {
-        pipeline.set_shared_basis(true);
+    let linearisation = |p: &Pipeline| std::sync::Arc::clone(p.chain().reconstructor().linearisation());
+    let all: Vec<_> = pipelines.iter().map(|(_, p)| linearisation(p)).collect();
+    let shares = |k: usize| all.iter().enumerate().any(|(j, lin)| j != k && std::sync::Arc::ptr_eq(lin, &all[k]));
+    let mut sharing = 0;
+    for (k, (_, pipeline)) in
+        pipelines.iter_mut().enumerate().filter(|(_, (precision, _))| *precision == Precision::Auto)
+    {
+        if shares(k) {
+            pipeline.set_shared_basis(true);
+            sharing += 1;
+        }
         pipeline.set_half_precision(true);
     }
     let matrices =
         if pipelines.len() == 1 { "the matrix's".to_owned() } else { format!("{} matrices'", pipelines.len()) };
+    let shared = match sharing {
+        0 => String::new(),
+        n => format!(", {n} of them through the basis their spec shares once λ is chosen from their noise"),
+    };
     eprintln!(
-        "eitskin {command}: imaging through the sensors' shared basis once λ is chosen from their noise, else in half precision ({auto} of {}): {matrices} {:.1} MiB overflow the {:.1} MiB last-level cache (--precision single keeps single)",
+        "eitskin {command}: imaging in half precision ({auto} of {}{shared}): {matrices} {:.1} MiB overflow the {:.1} MiB last-level cache (--precision single keeps single)",
         pipelines.len(),
         bytes as f64 / MIB,
         cache / MIB

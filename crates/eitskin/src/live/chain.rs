@@ -223,8 +223,15 @@ impl Chain {
     /// it images as before. Allocates.
     pub fn set_shared_basis(&mut self, on: bool) {
         self.shared_basis = on;
-        if self.recon.shared_basis() != on {
-            Arc::make_mut(&mut self.recon).set_shared_basis(on);
+        self.ready_frames();
+    }
+
+    /// The reconstructor readied for the frame forms asked ([`prepare_frames`]), copied only
+    /// where it changes.
+    fn ready_frames(&mut self) {
+        let (half, shared) = (self.half_precision, self.shared_basis);
+        if !frames_ready(&self.recon, half, shared) {
+            prepare_frames(Arc::make_mut(&mut self.recon), half, shared);
         }
     }
 
@@ -235,12 +242,11 @@ impl Chain {
     }
 
     /// Images frames from a half-precision copy of the reconstructor's matrix when `on`, this
-    /// one's and every one set later ([`Reconstructor::set_half_precision`]). Allocates.
+    /// one's and every one set later ([`Reconstructor::set_half_precision`]), but where one
+    /// images through its shared basis ([`Chain::set_shared_basis`]). Allocates.
     pub fn set_half_precision(&mut self, on: bool) {
         self.half_precision = on;
-        if self.recon.half_precision() != on {
-            Arc::make_mut(&mut self.recon).set_half_precision(on);
-        }
+        self.ready_frames();
     }
 
     fn mask_press_model(&mut self) {
@@ -501,12 +507,22 @@ fn touch_of_press(press: &PressFit, radius: f64, image: &Image) -> Touch {
 }
 
 /// Readies `recon` to image frames as a chain asked: through its shared basis where `shared`
-/// and it has one, else from a half-precision copy where `half`. Allocates.
+/// and it has one, else from a half-precision copy where `half`, else from its matrix; what it
+/// already has is kept. Allocates (what it did not have).
 pub(crate) fn prepare_frames(recon: &mut Reconstructor, half: bool, shared: bool) {
-    let through_basis = shared && recon.set_shared_basis(true);
-    if half && !through_basis && !recon.half_precision() {
-        recon.set_half_precision(true);
+    if !frames_ready(recon, half, shared) {
+        let through = shared && recon.set_shared_basis(true);
+        if !through {
+            recon.set_shared_basis(false);
+        }
+        recon.set_half_precision(half && !through);
     }
+}
+
+/// Whether `recon` images frames as [`prepare_frames`] would ready it to.
+fn frames_ready(recon: &Reconstructor, half: bool, shared: bool) -> bool {
+    let through = shared && recon.can_share_basis();
+    recon.shared_basis() == through && recon.half_precision() == (half && !through)
 }
 
 #[cfg(test)]

@@ -62,19 +62,29 @@ impl ChannelProducts {
     /// R⁻¹ J_Sᵀ on the raster whose pixels lie on triangles `pixels`, made once for every
     /// reconstructor of this channel set ([`super::shared_basis::raster_basis`]).
     pub fn raster_basis(&self, lin: &Linearisation, pixels: &[Option<usize>]) -> Arc<BlockedMatrix> {
-        let mut bases = self.bases.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(at) = bases.iter().position(|(on, _)| on == pixels) {
+        // The newest last: a raster asked for again moves there, the oldest is dropped.
+        let kept = |bases: &mut Vec<RasterBasis>| {
+            let at = bases.iter().position(|(on, _)| on == pixels)?;
             let entry = bases.remove(at);
             let basis = Arc::clone(&entry.1);
             bases.push(entry);
+            Some(basis)
+        };
+        if let Some(basis) = kept(&mut self.bases.lock().unwrap_or_else(|e| e.into_inner())) {
             return basis;
         }
-        let basis = Arc::new(super::shared_basis::raster_basis(lin, self, pixels));
+        // Made without the lock held (a second thread asking meanwhile makes it too, and keeps
+        // the first one's).
+        let made = Arc::new(super::shared_basis::raster_basis(lin, self, pixels));
+        let mut bases = self.bases.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(basis) = kept(&mut bases) {
+            return basis;
+        }
         if bases.len() == KEPT_BASES {
             bases.remove(0);
         }
-        bases.push((pixels.to_vec(), Arc::clone(&basis)));
-        basis
+        bases.push((pixels.to_vec(), Arc::clone(&made)));
+        made
     }
 
     fn is_for(&self, used: &[usize], normalised: bool, prior: &Prior) -> bool {

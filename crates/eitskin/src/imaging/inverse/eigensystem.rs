@@ -121,29 +121,6 @@ impl Eigensystem {
         }
     }
 
-    /// The reconstruction matrix of `lin` at λ `hyperparameter`, triangles × used channels,
-    /// from the eigenpairs already made: no system formed or factored again.
-    pub(super) fn compact_matrix(&self, lin: &Linearisation, hyperparameter: f64) -> Result<Mat<f64>, InverseError> {
-        let v = self.v.as_ref();
-        match &self.form {
-            Form::Range { q, s, .. } => {
-                Range::matrix(q.as_ref(), s.as_ref(), &self.eigenvalues, v, &self.std, hyperparameter)
-            }
-            // H = R⁻¹ Jᵀ Σ^-½ V diag(1/(e + λ²)) Vᵀ Σ^-½: the filter at the channels' size, then
-            // one product with J.
-            Form::Whole(products) => {
-                let mix = self.mix(hyperparameter)?;
-                let mut h = products.transposed_times(lin, mix.as_ref());
-                for j in 0..h.ncols() {
-                    h.col_mut(j).iter_mut().zip(&products.r_inv).for_each(|(h, r)| *h *= r);
-                }
-                Ok(h)
-            }
-        }
-    }
-}
-
-impl Eigensystem {
     /// M = Σ^-½ V diag(1/(e + λ²)) Vᵀ Σ^-½ (used × used) at λ `hyperparameter`: the whole
     /// form's reconstructor is R⁻¹ J_Sᵀ M.
     fn mix(&self, hyperparameter: f64) -> Result<Mat<f64>, InverseError> {
@@ -156,15 +133,30 @@ impl Eigensystem {
         Ok(filtered * whitened)
     }
 
-    /// The reconstructor's own mix at λ `hyperparameter` for a basis shared with every other
-    /// of its channel set ([`ChannelMix`]): the whole form's, of at most
-    /// [`super::shared_basis::SHARED_CHANNELS`] channels; else `None`.
-    pub(super) fn channel_mix(&self, hyperparameter: f64) -> Result<Option<ChannelMix>, InverseError> {
+    /// The reconstruction matrix of `lin` at λ `hyperparameter`, triangles × used channels,
+    /// from the eigenpairs already made (no system formed or factored again), and the mix M it
+    /// was made from for a basis its channel set shares ([`ChannelMix`]: the whole form's, of at
+    /// most [`super::shared_basis::SHARED_CHANNELS`] channels; else `None`).
+    pub(super) fn compact_matrix_and_mix(
+        &self,
+        lin: &Linearisation,
+        hyperparameter: f64,
+    ) -> Result<(Mat<f64>, Option<ChannelMix>), InverseError> {
+        let v = self.v.as_ref();
         match &self.form {
-            Form::Whole(products) if products.used.len() <= super::shared_basis::SHARED_CHANNELS => {
-                Ok(ChannelMix::new(Arc::clone(products), self.mix(hyperparameter)?.as_ref()))
+            Form::Range { q, s, .. } => {
+                Ok((Range::matrix(q.as_ref(), s.as_ref(), &self.eigenvalues, v, &self.std, hyperparameter)?, None))
             }
-            _ => Ok(None),
+            // H = R⁻¹ Jᵀ Σ^-½ V diag(1/(e + λ²)) Vᵀ Σ^-½: the filter at the channels' size, then
+            // one product with J.
+            Form::Whole(products) => {
+                let mix = self.mix(hyperparameter)?;
+                let mut h = products.transposed_times(lin, mix.as_ref());
+                for j in 0..h.ncols() {
+                    h.col_mut(j).iter_mut().zip(&products.r_inv).for_each(|(h, r)| *h *= r);
+                }
+                Ok((h, ChannelMix::new(Arc::clone(products), mix.as_ref())))
+            }
         }
     }
 }
@@ -298,7 +290,7 @@ mod tests {
                 let variance = channels.relative_variance();
                 let factorised =
                     super::super::linearisation::measurement_sized(jacobian.as_ref(), &r, lambda, &variance).unwrap();
-                let got = system.compact_matrix(&lin, lambda).unwrap();
+                let got = system.compact_matrix_and_mix(&lin, lambda).unwrap().0;
                 let largest =
                     factorised.col_iter().flat_map(|c| c.iter().copied()).fold(0.0_f64, |a, h| a.max(h.abs()));
                 // Both round to the system's condition, about e_max/λ², times the precision.

@@ -184,7 +184,7 @@ pub fn choose_hyperparameter(
 }
 
 /// [`choose_hyperparameter`] on the channels' eigensystem, already made (the reconstructor at
-/// the λ chosen is then derived from it: [`Eigensystem::compact_matrix`]).
+/// the λ chosen is then derived from it: [`Eigensystem::compact_matrix_and_mix`]).
 pub(super) fn choose_hyperparameter_on(lin: &Linearisation, channels: &Channels, system: &Eigensystem) -> f64 {
     let figure = NoiseFigure::of(system, lin, channels);
     crate::parallel::step_aside();

@@ -216,10 +216,11 @@ impl Reconstructor {
     /// Images frames through the basis R⁻¹ J_Sᵀ that every reconstructor of its linearisation
     /// and channels shares, times its own channels² mix, when `on` and it has one (λ chosen
     /// from the noise, at most 256 channels, no background change: see
-    /// [`Reconstructor::with_auto_hyperparameter`]); whether frames now go through it. For many
-    /// sensors of one spec on few cores: they read one basis where each would read its own
-    /// matrix. Each pixel within the rounding of two single-precision products of the matrix's
-    /// image. Allocates (the basis, once for the channel set).
+    /// [`Reconstructor::with_auto_hyperparameter`], on no more channels than the electrodes
+    /// have pairs); whether frames now go through it. For many sensors of one spec in one
+    /// process (one linearisation): they read one basis where each would read its own matrix.
+    /// Each pixel within the rounding of B·(M·Δv) in single precision of the matrix's image.
+    /// Allocates (the basis, once for the channel set and raster).
     pub fn set_shared_basis(&mut self, on: bool) -> bool {
         self.shared_basis = match (on, &self.mix) {
             (true, Some(mix)) => Some(mix.basis(&self.linearisation, &self.pixels)),
@@ -231,6 +232,18 @@ impl Reconstructor {
     /// Whether frames are imaged through a shared basis ([`Reconstructor::set_shared_basis`]).
     pub fn shared_basis(&self) -> bool {
         self.shared_basis.is_some()
+    }
+
+    /// Whether it has a mix for a shared basis, so that [`Reconstructor::set_shared_basis`] can
+    /// turn it on.
+    pub fn can_share_basis(&self) -> bool {
+        self.mix.is_some()
+    }
+
+    /// The shared basis frames are imaged through, if they are (for tests: who shares it).
+    #[cfg(test)]
+    pub(crate) fn basis(&self) -> Option<&Arc<BlockedMatrix>> {
+        self.shared_basis.as_ref()
     }
 
     /// The same reconstructor with λ chosen from the noise (see [`choose_hyperparameter`](super::choose_hyperparameter))
@@ -255,10 +268,10 @@ impl Reconstructor {
         }
         let params = ReconstructorParams { hyperparameter: lambda, ..self.params };
         let (template, pixels) = (self.template.clone(), self.pixels.clone());
-        let compact = system.compact_matrix(lin, lambda)?;
+        let (compact, mix) = system.compact_matrix_and_mix(lin, lambda)?;
         crate::parallel::step_aside();
         let mut recon = Reconstructor::assemble_compact(Arc::clone(lin), &params, channels, template, pixels, compact)?;
-        recon.mix = system.channel_mix(lambda)?.map(Arc::new);
+        recon.mix = mix.map(Arc::new);
         Ok((recon, lambda))
     }
 

@@ -27,7 +27,7 @@ pub(crate) const SHARED_CHANNELS: usize = 256;
 #[derive(Debug)]
 pub(crate) struct ChannelMix {
     products: Arc<ChannelProducts>,
-    /// M, used × used, column-major, in the image's units per difference unit.
+    /// M, used × used, column-major (whitened channels' weights: H = B·M).
     mix: Vec<f32>,
 }
 
@@ -59,6 +59,7 @@ impl ChannelMix {
     pub(crate) fn mul_into(&self, basis: &BlockedMatrix, out: &mut [f32], difference: impl Fn(usize) -> f32) {
         let used = &self.products.used;
         let n = used.len();
+        debug_assert_eq!(basis.columns(), n, "a basis of the mix's channels");
         let (mut d, mut y) = ([0.0_f32; SHARED_CHANNELS], [0.0_f32; SHARED_CHANNELS]);
         d.iter_mut().zip(used).for_each(|(d, &m)| *d = difference(m));
         mix_into(&mut y[..n], &self.mix, &d[..n]);
@@ -119,8 +120,11 @@ mod tests {
             let v = model.measure(&pressed).unwrap();
             let mut used = vec![true; m];
             used[17] = false;
-            for (sensor, channels) in [Channels::all(m), Channels::all(m).masked(&used)].into_iter().enumerate() {
-                let noise: Vec<f64> = (0..m).map(|k| 1e-6 * (1.0 + ((k * 7 + sensor) % 5) as f64)).collect();
+            let mut first_basis = None;
+            // 0.1–0.2 % noise; a channel dropped; and 0.001–0.002 % (λ much smaller).
+            let sensors = [(Channels::all(m), 1e-6), (Channels::all(m).masked(&used), 1e-6), (Channels::all(m), 1e-10)];
+            for (sensor, (channels, level)) in sensors.into_iter().enumerate() {
+                let noise: Vec<f64> = (0..m).map(|k| level * (1.0 + ((k * 7 + sensor) % 5) as f64)).collect();
                 let (alone, _) = recon.with_auto_hyperparameter(channels, Some(noise)).unwrap();
                 let mut shared = alone.clone();
                 assert!(shared.set_shared_basis(true) && shared.shared_basis());
@@ -129,6 +133,14 @@ mod tests {
                 assert!(peak > 0.0);
                 for (w, g) in want.values.iter().zip(&got.values) {
                     assert!((w - g).abs() <= 1e-5 * peak, "normalised {normalised}: {g} against {w} (peak {peak})");
+                }
+                // Sensors of the same channels share one basis, whatever their noise.
+                let basis = Arc::clone(shared.basis().unwrap());
+                match (sensor, &first_basis) {
+                    (0, _) => first_basis = Some(basis),
+                    (1, Some(first)) => assert!(!Arc::ptr_eq(first, &basis)),
+                    (_, Some(first)) => assert!(Arc::ptr_eq(first, &basis)),
+                    _ => unreachable!(),
                 }
                 assert!(!shared.set_shared_basis(false) && shared.image(&v_ref, &v).unwrap() == want);
             }

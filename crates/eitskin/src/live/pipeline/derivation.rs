@@ -115,9 +115,9 @@ impl Derivation {
         }
         // Imaged as the chain's is, its half-precision copy or shared basis made here rather
         // than on the frame that puts it in.
-        if let Some(recon) = recon.as_mut() {
+        let (half, shared) = self.frame_forms;
+        if let (true, Some(recon)) = (half || shared, recon.as_mut()) {
             crate::parallel::step_aside();
-            let (half, shared) = self.frame_forms;
             crate::chain::prepare_frames(recon, half, shared);
         }
         let recon_now = recon.as_ref().unwrap_or(&self.recon);
