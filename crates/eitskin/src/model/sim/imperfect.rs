@@ -12,7 +12,7 @@ use rand::{RngExt, SeedableRng};
 use super::{SimParams, VirtualSensor};
 use crate::geometry::Outline;
 use crate::learn::LabelledPress;
-use crate::spec::{Placement, SensorSpec, SpecError};
+use crate::spec::{Numbering, Placement, SensorSpec, SpecError};
 use crate::ForwardError;
 
 /// How the skin differs from its spec.
@@ -113,7 +113,9 @@ pub fn built_spec(
             built.outline.point_at(moved.rem_euclid(perimeter))
         })
         .collect();
+    // Listed in electrode order, as explicit positions are: the spec's numbering is in them.
     built.electrodes.placement = Placement::Explicit { positions };
+    built.electrodes.numbering = Numbering::CounterClockwise;
     built.validate()?;
     Ok(built)
 }
@@ -209,15 +211,19 @@ mod tests {
     use super::*;
 
     /// Without shifts, a larger outline carries each electrode out along its ray from the centre,
-    /// onto a circle too (where the spec's per-side placement has no meaning).
+    /// onto a circle too (where the spec's per-side placement has no meaning), electrode k to
+    /// electrode k's place whichever way the spec numbers them.
     #[test]
     fn electrodes_are_carried_to_the_built_outline_along_their_rays() {
-        let spec = SensorSpec::square_hydrogel();
         let points = |s: &SensorSpec| -> Vec<[f64; 2]> {
             s.electrode_positions().unwrap().iter().map(|e| s.outline.point_at(e.centre)).collect()
         };
-        let nominal = points(&spec);
-        for circle in [false, true] {
+        for (numbering, circle) in
+            [false, true].into_iter().flat_map(|c| [(Numbering::CounterClockwise, c), (Numbering::Clockwise, c)])
+        {
+            let mut spec = SensorSpec::square_hydrogel();
+            spec.electrodes.numbering = numbering;
+            let nominal = points(&spec);
             let imperfections = Imperfections { circle, electrode_shift: 0.0, ..Imperfections::default() };
             let built = built_spec(&spec, &imperfections, &mut SeededRng::seed_from_u64(1)).unwrap();
             for (a, b) in nominal.iter().zip(points(&built)) {
