@@ -565,21 +565,22 @@ impl LowRankUpdate {
             interior.extend(x.as_mut(), rim);
         }
         *kept = rim;
-        // ΔK·X into `green` (no longer needed; ΔK is symmetric, so its columns are its rows),
-        // then the basis change.
-        grow(green, s, basis);
-        for p in 0..basis {
-            let x = x.col(p);
-            for i in 0..s {
-                green[(i, p)] = nonzeros.column(i).iter().map(|&(j, value)| value * x[j]).sum();
+        // Xᵀ, each row of X contiguous (for the derivatives that follow too), then (ΔK·X)ᵀ into
+        // `green` (no longer needed; ΔK is symmetric, so its columns are its rows), each entry of
+        // ΔK adding a row of X, and the basis change.
+        grow(xt, basis, s);
+        xt.copy_from(x.transpose());
+        grow(green, basis, s);
+        for i in 0..s {
+            let to = green.col_as_slice_mut(i);
+            to.fill(0.0);
+            for &(j, value) in nonzeros.column(i) {
+                to.iter_mut().zip(xt.col_as_slice(j)).for_each(|(t, x)| *t += value * x);
             }
         }
         grow(change, basis, basis);
-        matmul(change.as_mut(), Accum::Replace, fields.transpose(), green.as_ref(), -1.0, Par::Seq);
+        matmul(change.as_mut(), Accum::Replace, fields.transpose(), green.transpose(), -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
-        // Xᵀ, each row of X contiguous, for the derivatives that follow.
-        grow(xt, basis, s);
-        xt.copy_from(x.transpose());
         *solved = true;
         Ok(())
     }
