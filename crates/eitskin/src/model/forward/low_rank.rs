@@ -493,6 +493,7 @@ impl LowRankUpdate {
             system,
             x,
             xt,
+            dkxt,
             change,
             lu,
             solved,
@@ -565,21 +566,21 @@ impl LowRankUpdate {
             interior.extend(x.as_mut(), rim);
         }
         *kept = rim;
-        // Xᵀ, each row of X contiguous (for the derivatives that follow too), then (ΔK·X)ᵀ into
-        // `green` (no longer needed; ΔK is symmetric, so its columns are its rows), each entry of
-        // ΔK adding a row of X, and the basis change.
+        // Xᵀ, each row of X contiguous (for the derivatives that follow too), then (ΔK·X)ᵀ, each
+        // entry of ΔK (symmetric: its columns are its rows) adding a row of X, and the basis
+        // change.
         grow(xt, basis, s);
         xt.copy_from(x.transpose());
-        grow(green, basis, s);
+        grow(dkxt, basis, s);
         for i in 0..s {
-            let to = green.col_as_slice_mut(i);
+            let to = dkxt.col_as_slice_mut(i);
             to.fill(0.0);
             for &(j, value) in nonzeros.column(i) {
                 to.iter_mut().zip(xt.col_as_slice(j)).for_each(|(t, x)| *t += value * x);
             }
         }
         grow(change, basis, basis);
-        matmul(change.as_mut(), Accum::Replace, fields.transpose(), green.transpose(), -1.0, Par::Seq);
+        matmul(change.as_mut(), Accum::Replace, fields.transpose(), dkxt.transpose(), -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
         *solved = true;
         Ok(())
@@ -600,8 +601,8 @@ impl LowRankUpdate {
     }
 
     /// G_ΓR of the change's rows `rows` into `green` (`rim` × |R|, in a buffer of |R| × |R|:
-    /// it then holds ΔK·X and the derivatives' (∂K·X)ᵀ, so its capacity settles at once), from
-    /// the inverse kept or its near and far parts; `false` where they lack an entry.
+    /// the same shape from frame to frame, not filled again), from the inverse kept or its near
+    /// and far parts; `false` where they lack an entry.
     fn gather(&self, rows: &[usize], rim: usize, green: &mut Mat<f64>, places: &mut Vec<(usize, usize)>) -> bool {
         let s = rows.len();
         grow(green, s, s);
@@ -638,7 +639,7 @@ impl LowRankUpdate {
     /// it, as a press's edge moving does not to first order. `false` (and `out` untouched) if
     /// the last change was solved in full, not by the update.
     pub fn derivative_into(&self, direction: &[(usize, f64)], scratch: &mut ChangeScratch, out: &mut [f64]) -> bool {
-        let ChangeScratch { rows, local: local_of, green: dkxt, xt, change, solved, .. } = scratch;
+        let ChangeScratch { rows, local: local_of, dkxt, xt, change, solved, .. } = scratch;
         if !*solved {
             return false;
         }
@@ -837,6 +838,8 @@ pub struct ChangeScratch {
     x: Mat<f64>,
     /// Xᵀ of the last solve.
     xt: Mat<f64>,
+    /// (ΔK·X)ᵀ, then a derivative's (∂K·X)ᵀ.
+    dkxt: Mat<f64>,
     change: Mat<f64>,
     lu: DenseLu,
     /// Whether `rows`, `local`, `x` and `xt` hold the last change's solve.
@@ -874,7 +877,8 @@ impl ChangeScratch {
 impl Default for ChangeScratch {
     fn default() -> Self {
         let empty = || Mat::zeros(0, 0);
-        let (green, fields, system, x, xt, change) = (empty(), empty(), empty(), empty(), empty(), empty());
+        let (green, fields, system, x, xt, dkxt, change) =
+            (empty(), empty(), empty(), empty(), empty(), empty(), empty());
         ChangeScratch {
             rows: Vec::new(),
             local: Vec::new(),
@@ -885,6 +889,7 @@ impl Default for ChangeScratch {
             system,
             x,
             xt,
+            dkxt,
             change,
             lu: DenseLu::default(),
             solved: false,
