@@ -86,7 +86,8 @@ const UNUSED: u32 = u32::MAX;
 pub struct LowRankUpdate {
     model: ForwardModel,
     factor: Factor,
-    /// The background's basis fields, unknowns × (L − 1), in V.
+    /// The background's basis fields, (L − 1) × unknowns (a row's fields a contiguous
+    /// column, as a change reads them), in V.
     fields: Mat<f64>,
     /// K₀⁻¹ whole, for models of at most [`DENSE_LIMIT`] unknowns.
     inverse: Option<WholeGreen>,
@@ -286,8 +287,8 @@ impl LowRankUpdate {
         let n = model.system_size();
         let inverse = (n <= DENSE_LIMIT).then(|| WholeGreen::of(model, &factor));
         let conductivity = conductivity.to_vec();
-        let fields = solution.fields;
-        let readout = Readout::new(model.protocol(), fields.ncols());
+        let fields = solution.fields.transpose().to_owned();
+        let readout = Readout::new(model.protocol(), fields.nrows());
         Ok(LowRankUpdate {
             model: model.clone(),
             factor,
@@ -459,7 +460,7 @@ impl LowRankUpdate {
             }
             (None, None) => None,
         };
-        let fields = Mat::from_fn(s, self.fields.ncols(), |i, p| self.fields[(rows[i], p)]);
+        let fields = Mat::from_fn(s, self.fields.nrows(), |i, p| self.fields[(p, rows[i])]);
         LocalRows { rows, green, fields }
     }
 
@@ -503,7 +504,7 @@ impl LowRankUpdate {
         *solved = false;
         rows.iter().for_each(|&r| local[r] = UNUSED);
         rows.clear();
-        local.resize(self.fields.nrows(), UNUSED);
+        local.resize(self.fields.ncols(), UNUSED);
         // Each row once (marked as it comes), then in order.
         for &(t, _) in changes {
             for node in self.model.mesh.triangles()[t] {
@@ -517,7 +518,7 @@ impl LowRankUpdate {
         rows.sort_unstable();
         let s = rows.len();
         rows.iter().enumerate().for_each(|(i, &r)| local[r] = i as u32);
-        let basis = self.fields.ncols();
+        let basis = self.fields.nrows();
         // The rim's rows first (all of them if a part's interior cannot be eliminated), and
         // G_ΓR gathered for them.
         // The rim's rows first where the change has several parts with an interior (for one,
@@ -538,11 +539,10 @@ impl LowRankUpdate {
         if !gathered || (rim == s && !self.gather(rows, s, green, places)) {
             return self.solved_apart(changes, out);
         }
-        grow(fields, s, basis);
-        for i in 0..s {
-            for p in 0..basis {
-                fields[(i, p)] = self.fields[(rows[i], p)];
-            }
+        // U_Rᵀ, each row's fields a contiguous column.
+        grow(fields, basis, s);
+        for (i, &row) in rows.iter().enumerate() {
+            fields.col_as_slice_mut(i).copy_from_slice(self.fields.col_as_slice(row));
         }
         nonzeros.stiffness_change(self, changes, local, s);
         // X_Γ = (I + G_ΓR·Q)⁻¹·U_Γ by an LU in place, X_I = P·X_Γ, then ΔV = −U_Rᵀ·ΔK·X.
@@ -560,7 +560,7 @@ impl LowRankUpdate {
             }
         }
         grow(x, s, basis);
-        x.as_mut().subrows_mut(0, rim).copy_from(fields.as_ref().subrows(0, rim));
+        x.as_mut().subrows_mut(0, rim).copy_from(fields.as_ref().subcols(0, rim).transpose());
         lu.solve_in_place(system.as_mut(), x.as_mut().subrows_mut(0, rim));
         if rim < s {
             interior.extend(x.as_mut(), rim);
@@ -580,7 +580,7 @@ impl LowRankUpdate {
             }
         }
         grow(change, basis, basis);
-        matmul(change.as_mut(), Accum::Replace, fields.transpose(), dkxt.transpose(), -1.0, Par::Seq);
+        matmul(change.as_mut(), Accum::Replace, fields.as_ref(), dkxt.transpose(), -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
         *solved = true;
         Ok(())
@@ -705,7 +705,7 @@ impl LowRankUpdate {
             let solved = self.model.measure(&sigma)?;
             return Ok(solved.iter().zip(&self.background).map(|(v, v0)| v - v0).collect());
         };
-        let mut index = vec![UNUSED; self.fields.nrows()];
+        let mut index = vec![UNUSED; self.fields.ncols()];
         local.rows.iter().enumerate().for_each(|(i, &r)| index[r] = i as u32);
         let s = local.rows.len();
         let mut dk = Mat::<f64>::zeros(s, s);
@@ -833,6 +833,7 @@ pub struct ChangeScratch {
     places: Vec<(usize, usize)>,
     green: Mat<f64>,
     nonzeros: Nonzeros,
+    /// U_Rᵀ, (L − 1) × |R|.
     fields: Mat<f64>,
     system: Mat<f64>,
     x: Mat<f64>,
