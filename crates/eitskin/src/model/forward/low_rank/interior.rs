@@ -278,22 +278,30 @@ impl Interior {
         super::room(&mut self.blocks, offset.next_power_of_two());
         self.blocks.clear();
         self.blocks.resize(offset, 0.0);
-        let (parts, part_of, blocks) = (&self.parts, &self.part_of, &mut self.blocks);
-        let mut add = |i: usize, j: usize, value: f64| {
-            if i < rim {
-                return;
-            }
-            let part = &parts[part_of[i] as usize];
-            let k = part.inner.len();
-            let column = if j < rim { j - part.rim.start } else { part.rim.len() + j - part.inner.start };
-            blocks[part.block + column * k + i - part.inner.start] += value;
-        };
+        // Each triangle with an interior row adds its stiffness at the changed conductivity to
+        // its part's block (all its rows are of one part), on the interior's rows only.
+        let triangles = update.model.mesh.triangles();
         for &t in &self.triangles {
-            let sigma = update.conductivity[t] + self.delta[t];
-            for (i, j, coef) in update.triangle_entries(t, local).into_iter().flatten() {
-                add(i, j, sigma * coef);
-                if i != j {
-                    add(j, i, sigma * coef);
+            let index = triangles[t].map(|node| {
+                let row = update.model.row_of_node[node];
+                (row != GROUNDED).then(|| local[row] as usize)
+            });
+            let Some(&inner) = index.iter().flatten().find(|&&i| i >= rim) else { continue };
+            let part = &self.parts[self.part_of[inner] as usize];
+            let (k, sigma) = (part.inner.len(), update.conductivity[t] + self.delta[t]);
+            let column = index
+                .map(|i| i.map(|i| if i < rim { i - part.rim.start } else { part.rim.len() + i - part.inner.start }));
+            let block = &mut self.blocks[part.block..];
+            for (&(a, b), coef) in super::LOCAL.iter().zip(update.model.pattern.triangle_coefs[t]) {
+                let (Some(ia), Some(ib), Some(ca), Some(cb)) = (index[a], index[b], column[a], column[b]) else {
+                    continue;
+                };
+                let value = sigma * coef;
+                if ia >= rim {
+                    block[cb * k + ia - part.inner.start] += value;
+                }
+                if a != b && ib >= rim {
+                    block[ca * k + ib - part.inner.start] += value;
                 }
             }
         }
