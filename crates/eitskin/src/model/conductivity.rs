@@ -126,7 +126,15 @@ pub fn mixed(corners: [[f64; 2]; 3], area: f64, background: f64, inclusions: &[I
         if box_distance(inc.centre, corners) > inc.radius {
             continue;
         }
-        let f = (circle_triangle_area(inc.centre, inc.radius, corners) / area).clamp(0.0, 1.0);
+        // A triangle with every corner in the circle is covered whole (exactly 1, where the
+        // sectors' sum would give 1 up to rounding), and costs no arc tangents either.
+        let within =
+            |c: &[f64; 2]| (c[0] - inc.centre[0]).powi(2) + (c[1] - inc.centre[1]).powi(2) <= inc.radius.powi(2);
+        let f = if corners.iter().all(within) {
+            1.0
+        } else {
+            (circle_triangle_area(inc.centre, inc.radius, corners) / area).clamp(0.0, 1.0)
+        };
         if f > 0.0 {
             s = (1.0 - f) * s + f * inc.conductivity;
         }
