@@ -126,11 +126,9 @@ pub fn mixed(corners: [[f64; 2]; 3], area: f64, background: f64, inclusions: &[I
         if box_distance(inc.centre, corners) > inc.radius {
             continue;
         }
-        // A triangle with every corner in the circle is covered whole (exactly 1, where the
-        // sectors' sum would give 1 up to rounding), and costs no arc tangents either.
-        let within =
-            |c: &[f64; 2]| (c[0] - inc.centre[0]).powi(2) + (c[1] - inc.centre[1]).powi(2) <= inc.radius.powi(2);
-        let f = if corners.iter().all(within) {
+        // A triangle covered whole has a share of exactly 1 (the sectors' sum would give 1 up
+        // to rounding), and costs no arc tangents either.
+        let f = if covered_whole(inc.centre, inc.radius, corners) {
             1.0
         } else {
             (circle_triangle_area(inc.centre, inc.radius, corners) / area).clamp(0.0, 1.0)
@@ -140,6 +138,13 @@ pub fn mixed(corners: [[f64; 2]; 3], area: f64, background: f64, inclusions: &[I
         }
     }
     s
+}
+
+/// Whether the disk (`centre`, `radius`, m) covers a triangle's `corners` whole: every corner
+/// strictly inside its circle.
+pub fn covered_whole(centre: [f64; 2], radius: f64, corners: [[f64; 2]; 3]) -> bool {
+    let squared = radius * radius;
+    corners.iter().all(|c| (c[0] - centre[0]).powi(2) + (c[1] - centre[1]).powi(2) < squared)
 }
 
 /// Distance from `p` to the bounding box of a triangle's `corners`, in m (0 inside it).

@@ -16,7 +16,9 @@
 //! below kept in f32, up to its rounding: a test bounds it). The rows of nodes inside the
 //! change (every triangle of theirs changed, none on the boundary) are first eliminated onto
 //! the rest, the change's rim Γ (`interior`), so the system solved is |Γ| × |Γ| and G is read
-//! on Γ × R only: 97 of 231 rows for three presses on the virtual sensor's truth mesh.
+//! on Γ × R only: 97 of 231 rows for three presses on the virtual sensor's truth mesh. That is
+//! done where the change has two or more parts with an interior (for one, it costs what it
+//! saves), and where each part's changed conductivity is positive (else all rows are solved).
 //!
 //! G_RR is |R| columns of K₀⁻¹. A model of up to [`DENSE_LIMIT`] unknowns keeps K₀⁻¹ whole (one
 //! solve of the identity at setup, stored in Z-order of the nodes so that a press's rows are
@@ -67,8 +69,8 @@ pub const SOLVED_ROWS: usize = 64;
 
 /// Rows of a change beyond which, without the whole inverse, a gathered G_RR is not used: the
 /// |R|² system then costs about what solving the changed system in full does (measured on the
-/// virtual sensor's 12k-triangle truth mesh: five presses, 378 rows, 2.4 ms gathered; the full
-/// solve 5–11 ms on two cores or one).
+/// virtual sensor's 12k-triangle truth mesh before a change's interior was eliminated: five
+/// presses, 378 rows, 2.4 ms gathered; the full solve 5–11 ms on two cores or one).
 pub const GATHERED_ROWS: usize = 500;
 
 /// Unknowns up to which [`LowRankUpdate::with_reach`] keeps K₀⁻¹ between nodes far apart, in
@@ -499,7 +501,7 @@ impl LowRankUpdate {
             lu,
             solved,
             interior,
-            rim: kept,
+            kept,
         } = scratch;
         *solved = false;
         rows.iter().for_each(|&r| local[r] = UNUSED);
@@ -515,28 +517,23 @@ impl LowRankUpdate {
                 }
             }
         }
-        rows.sort_unstable();
+        interior::sorted(rows, local);
         let s = rows.len();
-        rows.iter().enumerate().for_each(|(i, &r)| local[r] = i as u32);
+        *kept = s;
         let basis = self.fields.nrows();
-        // The rim's rows first (all of them if a part's interior cannot be eliminated), and
-        // G_ΓR gathered for them.
-        // The rim's rows first where the change has several parts with an interior (for one,
-        // the elimination costs about what it saves), and G_ΓR gathered for them; G_RR otherwise,
-        // or where a part's interior cannot be eliminated.
+        // The rim's rows first where the change has several parts with an interior that can be
+        // eliminated (for one, the elimination costs about what it saves), and G_ΓR gathered for
+        // them; G_RR otherwise.
         let gathered = self.inverse.is_some() || (self.near.is_some() && s <= GATHERED_ROWS);
         let mut rim = s;
         if gathered && interior.analyse(self, changes, rows, local) >= interior::PARTS_TO_ELIMINATE {
             rim = interior.order_rows(self, rows, local);
-            if !self.gather(rows, rim, green, places) {
-                return self.solved_apart(changes, out);
-            }
             if !interior.eliminate(self, local, rim) {
                 interior::sorted(rows, local);
                 rim = s;
             }
         }
-        if !gathered || (rim == s && !self.gather(rows, s, green, places)) {
+        if !gathered || !self.gather(rows, rim, green, places) {
             return self.solved_apart(changes, out);
         }
         // U_Rᵀ, each row's fields a contiguous column.
@@ -829,7 +826,7 @@ pub struct ChangeScratch {
     rows: Vec<usize>,
     /// Each row of the system's index in `rows`, [`UNUSED`] for the others.
     local: Vec<u32>,
-    /// (place, index) of each row, for the gather of G_RR from the inverse kept.
+    /// Each row's place (and, for the near part's gather, its index), for the gather of G.
     places: Vec<(usize, usize)>,
     green: Mat<f64>,
     nonzeros: Nonzeros,
@@ -847,8 +844,8 @@ pub struct ChangeScratch {
     solved: bool,
     /// The change's interior eliminated onto its rim.
     interior: interior::Interior,
-    /// The rows the last solve kept (the rim's, or all).
-    rim: usize,
+    /// The rows the last change kept in its dense solve (the rim's, or all).
+    kept: usize,
 }
 
 impl ChangeScratch {
@@ -861,7 +858,7 @@ impl ChangeScratch {
     /// The last change's rows, and how many of them its solve kept (its rim's).
     #[cfg(test)]
     fn rows_and_rim(&self) -> (usize, usize) {
-        (self.rows.len(), self.rim)
+        (self.rows.len(), self.kept)
     }
 
     /// Room for changes touching up to `rows` rows of the system.
@@ -895,7 +892,7 @@ impl Default for ChangeScratch {
             lu: DenseLu::default(),
             solved: false,
             interior: interior::Interior::default(),
-            rim: 0,
+            kept: 0,
         }
     }
 }
@@ -995,13 +992,17 @@ mod tests {
             let sigma = with_inclusions(model.mesh(), 1.0, inclusions);
             sigma.iter().enumerate().filter(|(_, s)| **s != 1.0).map(|(t, s)| (t, s - 1.0)).collect()
         };
+        // Two wide presses and a narrow one, a part with no interior row.
         let two = [
             Inclusion { centre: [-0.04, 0.03], radius: 0.025, conductivity: 0.3 },
             Inclusion { centre: [0.05, -0.04], radius: 0.02, conductivity: 1.8 },
+            Inclusion { centre: [0.06, 0.07], radius: 0.002, conductivity: 0.5 },
         ];
         let mut changes = change_of(&two);
-        let (t, d) = changes[0];
-        changes[0].1 = 0.25 * d;
+        // A triangle covered whole (its nodes interior) listed twice: its changes add.
+        let whole = changes.iter().position(|c| c.1 == 0.3 - 1.0).unwrap();
+        let (t, d) = changes[whole];
+        changes[whole].1 = 0.25 * d;
         changes.push((t, 0.75 * d));
         let (mut scratch, mut dv) = (ChangeScratch::default(), vec![0.0; update.background_measurements().len()]);
         update.measurement_change_into(&changes, &mut scratch, &mut dv).unwrap();
@@ -1012,6 +1013,15 @@ mod tests {
         for (m, (d, (v, v0))) in dv.iter().zip(solved.iter().zip(update.background_measurements())).enumerate() {
             assert!((d - (v - v0)).abs() < 1e-9 * scale, "m {m}: {d} vs {}", v - v0);
         }
+        // The same through the near part and the far part in f32 (G_ΓR gathered place by place).
+        let mut far = update.clone();
+        far.inverse = None;
+        far.near = Some(far.near_green(0.03, true));
+        let (mut apart, mut through_far) = (ChangeScratch::default(), dv.clone());
+        far.measurement_change_into(&changes, &mut apart, &mut through_far).unwrap();
+        let (rows, rim) = apart.rows_and_rim();
+        assert!(apart.updated() && rim < rows / 2, "{rim} of {rows} rows kept");
+        assert!(through_far.iter().zip(&dv).all(|(f, d)| (f - d).abs() < 3e-8 * scale));
         // Along the change itself (every changed triangle's δσ scaled): central differences.
         let scaled = |by: f64| changes.iter().map(|&(t, d)| (t, by * d)).collect::<Vec<_>>();
         let (h, mut up, mut down) = (1e-4, dv.clone(), dv.clone());

@@ -9,7 +9,7 @@
 //! another, weak one, and biases every other press's drop. The exact response leaves nothing
 //! of a flat press.
 
-use crate::conductivity::{circle_triangle_area, circle_triangle_area_gradient};
+use crate::conductivity::{circle_triangle_area, circle_triangle_area_gradient, covered_whole};
 use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
 use crate::mesh::TriangleBuckets;
 use crate::scratch::room;
@@ -287,7 +287,7 @@ impl Overlap {
     fn of(corners: [[f64; 2]; 3], disk: &Disk) -> Overlap {
         let (centre, squared) = (disk.centre, disk.radius * disk.radius);
         let distance2 = |p: [f64; 2]| (p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2);
-        if corners.iter().all(|&c| distance2(c) < squared) {
+        if covered_whole(centre, disk.radius, corners) {
             return Overlap::Inside;
         }
         // Outside: the centre is farther than the radius from each edge and not in the triangle.

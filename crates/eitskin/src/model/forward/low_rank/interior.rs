@@ -13,8 +13,8 @@
 //! of 231 rows, a twelfth of the LU's work, and 0.4 of G to gather). ΔK and K₁_II are block
 //! diagonal over the change's connected parts (presses apart), so each part's K₁_II, a few
 //! dozen rows, is factored on its own by Cholesky: it is the part's stiffness with its rim held,
-//! positive definite while the conductivity there is positive. Where it is not (a drop to
-//! nothing), the change is solved on all its rows instead; so is a change of one part, for which
+//! positive definite while the conductivity there is positive. Where it is not (a conductivity
+//! at or below 0), the change is solved on all its rows instead; so is a change of one part, for which
 //! the elimination costs about what it saves ([`PARTS_TO_ELIMINATE`]).
 
 use std::ops::Range;
@@ -147,9 +147,13 @@ impl Interior {
             super::room(v, rows);
         }
         super::room(&mut self.order, rows);
-        // A part's block is its interior's rows by all its rows: a few thousand entries for a
-        // press of a few dozen rows.
+        // A part's block is its interior's rows by all its rows, about |R|²/2 entries for a
+        // press of |R| rows: 8 per row of the system is room for several presses of a hundred
+        // rows on any mesh they fit. Then the parts, and the Cholesky's scratch for a part as
+        // large as the system (its size doubled: room for larger ones).
         super::room(&mut self.blocks, 8 * rows);
+        super::room(&mut self.parts, 16);
+        self.stack_for(rows);
     }
 
     /// Reads the change: its triangles (each once, their changes summed), each row's changed
@@ -305,16 +309,11 @@ impl Interior {
                 }
             }
         }
+        self.stack_for(self.parts.iter().map(|p| p.inner.len()).max().unwrap_or(0));
         for part in &self.parts {
             let (k, g) = (part.inner.len(), part.rim.len());
             if k == 0 {
                 continue;
-            }
-            let need = cholesky_in_place_scratch::<f64>(k, Par::Seq, Default::default());
-            if self.stack_bytes < need.unaligned_bytes_required() {
-                let twice = need.and(need);
-                self.stack = MemBuffer::new(twice);
-                self.stack_bytes = twice.unaligned_bytes_required();
             }
             let block = &mut self.blocks[part.block..part.block + k * (g + k)];
             let (mut coupling, mut kii) = MatMut::from_column_major_slice_mut(block, k, g + k).split_at_col_mut(g);
@@ -331,9 +330,14 @@ impl Interior {
         true
     }
 
-    /// Part `part`'s P (its interior's rows × its rim's).
-    fn p(&self, part: &Part) -> MatRef<'_, f64> {
-        p_of(&self.blocks, part)
+    /// Grows the Cholesky's scratch to parts of `k` interior rows (twice that: room for larger).
+    fn stack_for(&mut self, k: usize) {
+        let need = cholesky_in_place_scratch::<f64>(k, Par::Seq, Default::default());
+        if self.stack_bytes < need.unaligned_bytes_required() {
+            let twice = need.and(need);
+            self.stack = MemBuffer::new(twice);
+            self.stack_bytes = twice.unaligned_bytes_required();
+        }
     }
 
     /// I + G_ΓR·Q into `system` (`rim` × `rim`), from ΔK's columns `dk` and G_ΓR, the first
@@ -383,7 +387,7 @@ impl Interior {
         for part in self.parts.iter().filter(|p| !p.inner.is_empty()) {
             let to = inner.as_mut().subrows_mut(part.inner.start - rim, part.inner.len());
             let from = rims.as_ref().subrows(part.rim.start, part.rim.len());
-            matmul(to, Accum::Replace, self.p(part), from, 1.0, Par::Seq);
+            matmul(to, Accum::Replace, p_of(&self.blocks, part), from, 1.0, Par::Seq);
         }
     }
 }
