@@ -21,6 +21,16 @@ pub(crate) fn room<T>(v: &mut Vec<T>, total: usize) {
     v.reserve(total.saturating_sub(v.len()));
 }
 
+/// Grows `stack` (holding `bytes`) to `need`, and twice that (room for larger systems to come),
+/// when it holds less: a solve's scratch that then settles.
+pub(crate) fn stack_room(stack: &mut MemBuffer, bytes: &mut usize, need: StackReq) {
+    if *bytes < need.unaligned_bytes_required() {
+        let twice = need.and(need);
+        *stack = MemBuffer::new(twice);
+        *bytes = twice.unaligned_bytes_required();
+    }
+}
+
 /// Solves small dense systems in place by LU with partial pivoting (faer's), keeping its
 /// buffers, so that a solve allocates nothing once they have grown.
 pub(crate) struct DenseLu {
@@ -60,11 +70,7 @@ impl DenseLu {
         >(
             n, rhs.ncols(), Par::Seq
         ));
-        if self.stack_bytes < need.unaligned_bytes_required() {
-            let twice = need.and(need); // room for larger systems to come
-            self.stack = MemBuffer::new(twice);
-            self.stack_bytes = twice.unaligned_bytes_required();
-        }
+        stack_room(&mut self.stack, &mut self.stack_bytes, need);
         self.perm.resize(n, 0);
         self.perm_inv.resize(n, 0);
         let (_, permutation) = lu_in_place(

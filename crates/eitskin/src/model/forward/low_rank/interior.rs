@@ -333,11 +333,7 @@ impl Interior {
     /// Grows the Cholesky's scratch to parts of `k` interior rows (twice that: room for larger).
     fn stack_for(&mut self, k: usize) {
         let need = cholesky_in_place_scratch::<f64>(k, Par::Seq, Default::default());
-        if self.stack_bytes < need.unaligned_bytes_required() {
-            let twice = need.and(need);
-            self.stack = MemBuffer::new(twice);
-            self.stack_bytes = twice.unaligned_bytes_required();
-        }
+        crate::scratch::stack_room(&mut self.stack, &mut self.stack_bytes, need);
     }
 
     /// I + G_ΓR·Q into `system` (`rim` × `rim`), from ΔK's columns `dk` and G_ΓR, the first
