@@ -181,6 +181,10 @@ pub struct PressModel {
     /// Per coarse point, the contrast fitted to a press of each drop of [`PressModel::LADDER`] there; NaN
     /// outside the outline.
     ladder: Vec<[f64; LADDER.len()]>,
+    /// Per grid point, the largest contrast whose drop there is at most [`MAX_DROP`]
+    /// ([`PressModel::drop_limit`]; NaN where the ladder read there is not increasing): the
+    /// scans' test of every point, without the ladder's interpolation.
+    drop_limits: Vec<f64>,
     /// The exact responses, shared by the model's copies (`None` for one read from its table).
     exact: Option<Arc<ExactPresses>>,
     /// One press's exact response tabulated ([`PressModel::with_tabulated`]), shared likewise.
@@ -416,7 +420,7 @@ impl PressModel {
             return None;
         }
         let norms = responses.chunks_exact(measurements).map(|g| g.iter().map(|x| x * x).sum()).collect();
-        Some(PressModel {
+        let mut model = PressModel {
             grid,
             measurements,
             radius,
@@ -425,10 +429,13 @@ impl PressModel {
             norms,
             coarse,
             ladder,
+            drop_limits: Vec::new(),
             exact: None,
             tabulated: None,
             every_radius: false,
-        })
+        };
+        model.drop_limits = model.drop_limits();
+        Some(model)
     }
 
     /// Tabulates the responses of `model` linearised at the homogeneous `background` (S/m).
@@ -485,6 +492,7 @@ impl PressModel {
             norms,
             coarse,
             ladder: Vec::new(),
+            drop_limits: Vec::new(),
             exact: None,
             tabulated: None,
             every_radius: false,
@@ -492,6 +500,7 @@ impl PressModel {
         let values = solution.measurements(model.protocol());
         let exact = press_model.exact_of(exact_model, background, &values)?;
         press_model.ladder = press_model.ladder(&exact, &locator)?;
+        press_model.drop_limits = press_model.drop_limits();
         press_model.exact = Some(Arc::new(exact));
         Ok(press_model)
     }
@@ -615,6 +624,22 @@ impl PressModel {
     /// The drop (fraction of the background) whose press at `p` (m) fits to `contrast`: piecewise
     /// linear through (0, 0) and the ladder read bilinearly at `p`, extended past its ends.
     pub fn drop(&self, contrast: f64, p: [f64; 2]) -> f64 {
+        let Some(rungs) = self.rungs(p) else { return contrast };
+        let mut previous = (0.0, 0.0);
+        for (k, (&r, d)) in rungs.iter().zip(LADDER).enumerate() {
+            let rung = (r, d);
+            if contrast <= rung.0 || k == LADDER.len() - 1 {
+                let ((c0, d0), (c1, d1)) = (previous, rung);
+                return if c1 > c0 { d0 + (contrast - c0) * (d1 - d0) / (c1 - c0) } else { d0 };
+            }
+            previous = rung;
+        }
+        contrast
+    }
+
+    /// The ladder's contrasts read bilinearly at `p` (m), one per drop of [`PressModel::LADDER`];
+    /// `None` where no coarse point around `p` has them.
+    fn rungs(&self, p: [f64; 2]) -> Option<[f64; LADDER.len()]> {
         let mut rungs = [0.0; LADDER.len()];
         let mut total = 0.0;
         for (j, w) in self.coarse.corners(p) {
@@ -623,19 +648,42 @@ impl PressModel {
                 rungs.iter_mut().zip(&self.ladder[j]).for_each(|(r, c)| *r += w * c);
             }
         }
-        if total <= 0.0 {
-            return contrast;
-        }
+        (total > 0.0).then(|| rungs.map(|r| r / total))
+    }
+
+    /// The largest contrast whose drop at `p` (m) is at most [`MAX_DROP`]: where the rungs
+    /// increase, [`PressModel::drop`] is increasing and exceeds it past this one contrast; NaN
+    /// where they do not (the drop itself must then be read).
+    fn drop_limit(&self, p: [f64; 2]) -> f64 {
+        let Some(rungs) = self.rungs(p) else { return MAX_DROP };
         let mut previous = (0.0, 0.0);
-        for (k, (&r, d)) in rungs.iter().zip(LADDER).enumerate() {
-            let rung = (r / total, d);
-            if contrast <= rung.0 || k == LADDER.len() - 1 {
-                let ((c0, d0), (c1, d1)) = (previous, rung);
-                return if c1 > c0 { d0 + (contrast - c0) * (d1 - d0) / (c1 - c0) } else { d0 };
+        for (k, (&c, d)) in rungs.iter().zip(LADDER).enumerate() {
+            let ((c0, d0), (c1, d1)) = (previous, (c, d));
+            if c1.partial_cmp(&c0) != Some(std::cmp::Ordering::Greater) {
+                return f64::NAN;
             }
-            previous = rung;
+            if MAX_DROP <= d1 || k == LADDER.len() - 1 {
+                return c0 + (MAX_DROP - d0) * (c1 - c0) / (d1 - d0);
+            }
+            previous = (c1, d1);
         }
-        contrast
+        f64::NAN
+    }
+
+    /// [`PressModel::drop_limit`] at each grid point.
+    fn drop_limits(&self) -> Vec<f64> {
+        (0..self.grid.len()).map(|j| self.drop_limit(self.grid.point(j))).collect()
+    }
+
+    /// Whether a press of `contrast` at grid point `j` would lower the conductivity by more
+    /// than [`MAX_DROP`]: a blend of presses elsewhere (a weakly sensitive middle between them).
+    fn too_deep(&self, contrast: f64, j: usize) -> bool {
+        let limit = self.drop_limits[j];
+        if limit.is_nan() {
+            self.drop(contrast, self.grid.point(j)) > MAX_DROP
+        } else {
+            contrast > limit
+        }
     }
 
     /// The same model blind to the channels with `used[m] = false`: their responses are zeroed,
@@ -761,7 +809,7 @@ impl PressModel {
         let c: f64 = g.iter().zip(dv).map(|(g, v)| g * v).sum();
         // A press lowers the conductivity by at most all of it: a point that would need more
         // is a blend of presses elsewhere (a weakly sensitive middle between them), not a press.
-        (c > 0.0 && self.drop(c / norm, self.grid.point(j)) <= MAX_DROP).then(|| c * c / norm)
+        (c > 0.0 && !self.too_deep(c / norm, j)).then(|| c * c / norm)
     }
 
     fn fit_one(&self, dv: &[f64], start: [f64; 2], search: f64, response: &mut [f64]) -> Option<PressFit> {
@@ -902,6 +950,32 @@ mod tests {
             assert!(fit.contrast > 1.2 * 0.8, "{centre:?}: contrast {}", fit.contrast);
             assert!((fit.drop - 0.8).abs() < 0.05, "{centre:?}: drop {}", fit.drop);
         }
+    }
+
+    /// The scans' test of a contrast against each grid point's limit says what the ladder's
+    /// drop says: at most [`MAX_DROP`] just under the limit, more just over it; and a model read
+    /// from its table has the same limits.
+    #[test]
+    fn the_drop_limit_is_where_the_drop_passes_its_most() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 300;
+        let model = PressModel::new(&spec.forward_model().unwrap(), 1.0, &PressModelParams::default()).unwrap();
+        let mut tested = 0;
+        for j in (0..model.grid.len()).filter(|&j| model.norms[j] > 0.0) {
+            let (limit, p) = (model.drop_limits[j], model.grid.point(j));
+            assert!(limit.is_finite(), "the ladder increases at {p:?}");
+            assert!(model.drop(limit * (1.0 - 1e-9), p) <= MAX_DROP, "{p:?}");
+            assert!(model.drop(limit * (1.0 + 1e-9), p) > MAX_DROP, "{p:?}");
+            assert!(!model.too_deep(limit * (1.0 - 1e-9), j) && model.too_deep(limit * (1.0 + 1e-9), j));
+            tested += 1;
+        }
+        assert!(tested > 1000, "{tested} points");
+        let back = PressModel::from_table(model.table()).unwrap();
+        assert!(back.drop_limits.iter().zip(&model.drop_limits).all(|(a, b)| a.to_bits() == b.to_bits()));
+        // Rungs that do not increase leave the drop to be read.
+        let mut flat = model.clone();
+        flat.ladder.iter_mut().for_each(|rungs| rungs[3] = rungs[2]);
+        assert!(flat.drop_limits().iter().all(|l| l.is_nan() || *l == MAX_DROP));
     }
 
     #[test]

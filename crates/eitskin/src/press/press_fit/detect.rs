@@ -32,7 +32,7 @@ use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 use super::exact::ExactPresses;
 use super::tabulated::TabulatedPresses;
-use super::{PressFit, PressModel, PressScratch, MAX_DROP, SWEEPS};
+use super::{PressFit, PressModel, PressScratch, SWEEPS};
 use crate::inverse::{BlockedMatrix, InverseError};
 use crate::noise::{threshold_of, CALIBRATION_SAMPLES};
 
@@ -258,7 +258,7 @@ impl PressModel {
             }
             let p = self.grid.point(j);
             let near = |f: &[f64; 2]| (f[0] - p[0]).powi(2) + (f[1] - p[1]).powi(2) < apart;
-            if found.iter().any(near) || self.drop(c / norm, p) > MAX_DROP {
+            if found.iter().any(near) || self.too_deep(c / norm, j) {
                 continue;
             }
             best = Some((j, c / left.sqrt()));
