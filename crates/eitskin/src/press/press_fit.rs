@@ -77,6 +77,18 @@ pub use refine::{refine, refine_tabulated, RefineParams, RefineScratch, DEEPEST}
 pub use tabulated::TabulatedPresses;
 pub use track::{PressTrack, Tracked, WINDOW};
 
+/// Σ aᵢbᵢ over the shorter of `a` and `b`, in eight running sums: the scans' and the fits'
+/// products of responses of a hundred-odd values, which one running sum makes a chain of adds.
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (a, b) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f64 = a.remainder().iter().zip(b.remainder()).map(|(x, y)| x * y).sum();
+    let mut sums = [0.0; 8];
+    for (a, b) in a.zip(b) {
+        (0..8).for_each(|k| sums[k] += a[k] * b[k]);
+    }
+    sums.iter().sum::<f64>() + tail
+}
+
 /// A square grid of points over a box: the first at `lo`, row-major.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Grid {
@@ -310,7 +322,7 @@ pub struct PressScratch {
     refits: usize,
     /// The scan for a new press next to fitted ones: an orthonormal basis of their Jacobian,
     /// each scan point's projection on it, and what of its gᵀg is left.
-    basis: Mat<f64>,
+    basis: Vec<f64>,
     projections: Mat<f64>,
     unexplained: Vec<f64>,
     /// Per press of the last exact fit, its equivalent drop's variance (whitened noise of 1).
@@ -333,7 +345,7 @@ impl Default for PressScratch {
             sizes: Vec::new(),
             exact: ExactScratch::default(),
             refits: 0,
-            basis: Mat::zeros(0, 0),
+            basis: Vec::new(),
             projections: Mat::zeros(0, 0),
             unexplained: Vec::new(),
             variances: Vec::new(),
@@ -805,8 +817,7 @@ impl PressModel {
         if norm <= 0.0 {
             return None;
         }
-        let g = &self.responses[j * self.measurements..(j + 1) * self.measurements];
-        let c: f64 = g.iter().zip(dv).map(|(g, v)| g * v).sum();
+        let c = dot(&self.responses[j * self.measurements..(j + 1) * self.measurements], dv);
         // A press lowers the conductivity by at most all of it: a point that would need more
         // is a blend of presses elsewhere (a weakly sensitive middle between them), not a press.
         (c > 0.0 && !self.too_deep(c / norm, j)).then(|| c * c / norm)
@@ -853,8 +864,7 @@ impl PressModel {
         if !self.response_into(centre, response) {
             return None;
         }
-        let gg: f64 = response.iter().map(|g| g * g).sum();
-        let gv: f64 = response.iter().zip(dv).map(|(g, v)| g * v).sum();
+        let (gg, gv) = (dot(response, response), dot(response, dv));
         let (contrast, z) = (gv / gg, gv / gg.sqrt());
         let drop = self.drop(contrast, centre);
         (gg > 0.0 && gv > 0.0).then_some(PressFit {

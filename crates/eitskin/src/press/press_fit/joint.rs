@@ -25,29 +25,29 @@
 use super::detect::{Exact, Scan, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter};
 use super::refine::{refine, refine_tabulated, RefineParams, DEEPEST};
-use super::{PressFit, PressModel, PressScratch};
+use super::{dot, PressFit, PressModel, PressScratch};
 use crate::inverse::InverseError;
 use crate::scratch::{grow, room};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 
 /// Per scan point, the part of its response's gᵀg that presses cannot take up by moving, into
-/// `unexplained`: gᵀg − |Qᵀg|², Q the first `rank` rows of `basis` (an orthonormal basis of the
+/// `unexplained`: gᵀg − |Qᵀg|², Q the first `rank` vectors of `basis` (an orthonormal basis of the
 /// presses' Jacobian, [`orthonormal_rows`]), but at least [`UNEXPLAINED_FLOOR`] of gᵀg. A misfit
 /// orthogonal to that span gives gᵀr/√(gᵀg − |Qᵀg|²) as the z of a new press with the others
 /// fitted again: a weak press whose signal a strong one has partly taken up (by moving towards
 /// it and deepening) is still found. `projections` is a buffer.
 pub(crate) fn unexplained_into(
     scan: &Scan,
-    basis: &Mat<f64>,
+    basis: &[f64],
     rank: usize,
     projections: &mut Mat<f64>,
     unexplained: &mut Vec<f64>,
 ) {
-    let points = scan.matrix.nrows();
+    let (points, m) = (scan.matrix.nrows(), scan.matrix.ncols());
     grow(projections, points, rank);
-    let q = basis.as_ref().subrows(0, rank);
-    matmul(projections.as_mut(), Accum::Replace, scan.matrix.as_ref(), q.transpose(), 1.0, Par::Seq);
+    let q = MatRef::from_column_major_slice(&basis[..rank * m], m, rank);
+    matmul(projections.as_mut(), Accum::Replace, scan.matrix.as_ref(), q, 1.0, Par::Seq);
     unexplained.clear();
     unexplained.extend((0..points).map(|p| {
         let taken: f64 = (0..rank).map(|k| projections[(p, k)].powi(2)).sum();
@@ -55,30 +55,28 @@ pub(crate) fn unexplained_into(
     }));
 }
 
-/// An orthonormal basis of the rows of `jacobian` into the first rows of `basis`; their number.
-/// Modified Gram–Schmidt, twice for orthogonality; a row that adds nothing is left out.
-pub(crate) fn orthonormal_rows(jacobian: MatRef<'_, f64>, basis: &mut Mat<f64>) -> usize {
+/// An orthonormal basis of the rows of `jacobian` into `basis`, one vector after another (each
+/// of the Jacobian's columns long); their number. Modified Gram–Schmidt, twice for
+/// orthogonality; a row that adds nothing is left out.
+pub(crate) fn orthonormal_rows(jacobian: MatRef<'_, f64>, basis: &mut Vec<f64>) -> usize {
     let (n, m) = (jacobian.nrows(), jacobian.ncols());
-    grow(basis, n, m);
+    basis.clear();
+    basis.resize(n * m, 0.0);
     let mut rank = 0;
     for a in 0..n {
-        for q in 0..m {
-            basis[(rank, q)] = jacobian[(a, q)];
-        }
-        let original: f64 = (0..m).map(|q| basis[(rank, q)].powi(2)).sum::<f64>().sqrt();
+        let (done, rest) = basis.split_at_mut(rank * m);
+        let new = &mut rest[..m];
+        new.iter_mut().enumerate().for_each(|(q, b)| *b = jacobian[(a, q)]);
+        let original = dot(new, new).sqrt();
         for _ in 0..2 {
-            for b in 0..rank {
-                let dot: f64 = (0..m).map(|q| basis[(rank, q)] * basis[(b, q)]).sum();
-                for q in 0..m {
-                    basis[(rank, q)] -= dot * basis[(b, q)];
-                }
+            for b in done.chunks_exact(m) {
+                let along = dot(new, b);
+                new.iter_mut().zip(b).for_each(|(x, y)| *x -= along * y);
             }
         }
-        let norm: f64 = (0..m).map(|q| basis[(rank, q)].powi(2)).sum::<f64>().sqrt();
+        let norm = dot(new, new).sqrt();
         if norm > 1e-9 * original && norm > 0.0 {
-            for q in 0..m {
-                basis[(rank, q)] /= norm;
-            }
+            new.iter_mut().for_each(|x| *x /= norm);
             rank += 1;
         }
     }
@@ -387,7 +385,7 @@ impl PressModel {
     /// The score test of press `i`'s radius at the last exact fit: ∂χ²/∂r over its standard
     /// deviation (∂F/∂r of the presses together, or of press `i` alone where the fit read
     /// each from the table), gᵀr / |g|, g = ∂F/∂r less its part in the span of the fit's
-    /// Jacobian (the first `rank` rows of the scratch's basis), r the whitened misfit; N(0, 1)
+    /// Jacobian (the first `rank` vectors of the scratch's basis), r the whitened misfit; N(0, 1)
     /// if the indenter's radius is the press's. (With ∂F/∂r itself in place of g in gᵀr, what
     /// the fit had not converged, up to a hundredth of χ² along directions tens of times g,
     /// made presses of the indenter's size fit for their size in 13 % of frames of three.)
@@ -415,13 +413,13 @@ impl PressModel {
         // Both along the part of ∂F/∂r the fit's own parameters cannot take up: r's part along
         // them is what the fit has not yet converged (up to a hundredth of χ²), and ∂F/∂r's part
         // along them tens of times its own (a wider press is nearly a deeper one).
-        let mut along: f64 = response.iter().zip(residual.iter()).map(|(d, r)| d * r).sum();
-        let mut left: f64 = response.iter().map(|d| d * d).sum();
+        let mut along = dot(response, residual);
+        let mut left = dot(response, response);
         for k in 0..rank {
-            let dot: f64 = response.iter().enumerate().map(|(q, d)| d * basis[(k, q)]).sum();
-            let share: f64 = residual.iter().enumerate().map(|(q, r)| r * basis[(k, q)]).sum();
-            left -= dot * dot;
-            along -= dot * share;
+            let q = &basis[k * response.len()..(k + 1) * response.len()];
+            let (on, share) = (dot(response, q), dot(residual, q));
+            left -= on * on;
+            along -= on * share;
         }
         Ok(if left > 0.0 { along / left.sqrt() } else { 0.0 })
     }
@@ -550,8 +548,8 @@ impl PressModel {
         let misfit = scratch.refine.residual();
         for (i, press) in presses.iter_mut().enumerate() {
             let g = &scratch.responses[i * m..(i + 1) * m];
-            let gg: f64 = g.iter().map(|g| g * g).sum();
-            let gr: f64 = g.iter().zip(misfit).map(|(g, r)| g * (r + g)).sum();
+            let gg = dot(g, g);
+            let gr = dot(g, misfit) + gg;
             press.z = if gg > 0.0 { gr / gg.sqrt() } else { 0.0 };
         }
         Ok(cost)

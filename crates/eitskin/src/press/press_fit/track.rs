@@ -7,7 +7,7 @@ use super::detect::{Exact, PressDetection, Scan, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter, ExactScratch};
 use super::joint::{disk_of, orthonormal_rows, unexplained_into};
 use super::refine::DEEPEST;
-use super::{PressFit, PressScratch};
+use super::{dot, PressFit, PressScratch};
 use crate::inverse::InverseError;
 use crate::scratch::{grow, room, DenseLu};
 
@@ -103,7 +103,7 @@ pub struct PressTrack {
     local: Vec<f64>,
     /// Per press and parameter, the model's half-width h.
     widths: Vec<f64>,
-    /// The rank of the Jacobian's orthonormal basis (its first rows in `basis`).
+    /// The rank of the Jacobian's orthonormal basis (its first vectors in `basis`).
     rank: usize,
     /// The model's response at the current step, whitened, J·r there and JJᵀ's lower
     /// triangle, row by row.
@@ -112,7 +112,7 @@ pub struct PressTrack {
     packed: Vec<f64>,
     /// Per scan point, the part of its gᵀg the presses cannot take up.
     unexplained: Vec<f64>,
-    basis: Mat<f64>,
+    basis: Vec<f64>,
     projections: Mat<f64>,
     disks: Vec<Disk>,
     exact: ExactScratch,
@@ -144,7 +144,7 @@ impl Default for PressTrack {
             gradient: Vec::new(),
             packed: Vec::new(),
             unexplained: Vec::new(),
-            basis: empty(),
+            basis: Vec::new(),
             projections: empty(),
             disks: Vec::new(),
             exact: ExactScratch::default(),
@@ -353,10 +353,6 @@ impl PressTrack {
             }
         }
     }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 impl PressTrack {
