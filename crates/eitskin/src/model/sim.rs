@@ -32,7 +32,7 @@ use rand_distr::{Distribution, StandardNormal};
 
 use crate::calibration::MAX_FORCE;
 use crate::conductivity::{box_distance, mixed, Inclusion};
-use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
+use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate, UPDATE_AFTER};
 use crate::mesh::TriangleBuckets;
 use crate::spec::{SensorSpec, SpecError};
 
@@ -420,11 +420,6 @@ impl VirtualSensor {
         add_relative_noise(frame, self.params.noise_relative, &mut self.rng);
     }
 }
-
-/// Frames [`VirtualSensor::clean_frames`] solves in full before it makes the low-rank update:
-/// on the default truth mesh the update's setup (0.65 s) is about a hundred full solves, and
-/// each frame then takes 0.1 ms instead of 3 ms.
-pub const UPDATE_AFTER: usize = 100;
 
 /// Presses over time: each held from a start to an end time (s) at a position (m) with a force (N).
 #[derive(Debug, Clone, PartialEq, Default)]

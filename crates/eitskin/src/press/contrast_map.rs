@@ -17,7 +17,7 @@
 use crate::conductivity::Inclusion;
 use crate::forward::ForwardModel;
 use crate::inverse::{InverseError, Reconstructor};
-use crate::sensitivity::strongest_touches;
+use crate::sensitivity::{strongest_touches, InclusionFrames};
 use crate::touch::Touch;
 
 /// Settings of [`ContrastMap::new`]; `Default` is the study's: 41 × 41 points, a 10 mm indenter.
@@ -89,12 +89,13 @@ impl ContrastMap {
         let drops: Vec<f64> = (1..=9).map(|k| 0.1 * k as f64).collect();
         let grid: Vec<[f64; 2]> =
             (0..n * n).map(|k| [lo[0] + (k % n) as f64 * step[0], lo[1] + (k / n) as f64 * step[1]]).collect();
+        let frames = InclusionFrames::new(model, background, grid.len() * (MAP_ITERATIONS + drops.len()), radius)?;
         let at = |centres: &[[f64; 2]], drop: f64| -> Result<Vec<Option<Touch>>, InverseError> {
             let inclusions: Vec<Inclusion> = centres
                 .iter()
                 .map(|&centre| Inclusion { centre, radius, conductivity: (1.0 - drop) * background })
                 .collect();
-            strongest_touches(model, background, recon, &inclusions)
+            strongest_touches(&frames, recon, &inclusions)
         };
         // Move each map inclusion until its image's centre of gravity sits on the grid point.
         let mut centres = grid.clone();

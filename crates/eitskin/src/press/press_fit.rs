@@ -584,15 +584,7 @@ impl PressModel {
     /// of K₀⁻¹ between nodes a press can join (on a model too large to keep it whole).
     fn update(&self, model: &ForwardModel, background: f64) -> Result<LowRankUpdate, InverseError> {
         let mesh = model.mesh();
-        // A press's nodes lie within its radius and a triangle's longest edge of its centre, so
-        // within twice that of each other.
-        let longest = (0..mesh.triangles().len())
-            .map(|t| {
-                let c = mesh.corners(t);
-                (0..3).map(|k| crate::geometry::dist(c[k], c[(k + 1) % 3])).fold(0.0, f64::max)
-            })
-            .fold(0.0, f64::max);
-        let reach = 2.5 * (self.radius + longest); // with room to spare: 2× is the bound
+        let reach = crate::sensitivity::disk_reach(mesh, self.radius);
         Ok(LowRankUpdate::with_reach(model, &vec![background; mesh.triangles().len()], reach)?)
     }
 

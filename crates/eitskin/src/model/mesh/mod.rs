@@ -198,6 +198,16 @@ impl Mesh {
         (0..n).min_by(|&a, &b| distance(a).total_cmp(&distance(b))).into_iter().collect()
     }
 
+    /// The longest edge of any triangle, in m.
+    pub fn longest_edge(&self) -> f64 {
+        (0..self.triangles.len())
+            .map(|t| {
+                let c = self.corners(t);
+                (0..3).map(|k| crate::geometry::dist(c[k], c[(k + 1) % 3])).fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// Bounding box of the nodes, `[[x_min, y_min], [x_max, y_max]]`, in m.
     pub fn bounds(&self) -> [[f64; 2]; 2] {
         self.nodes.iter().fold([[f64::INFINITY; 2], [f64::NEG_INFINITY; 2]], |[lo, hi], p| {
