@@ -13,7 +13,9 @@
 //! its noise has changed, and when only its reference has grown) and `auto_hyperparameter_2356` and `reconstructor_2356` (λ, then the reconstructor at it, on a
 //! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table and, by low-rank updates, the ladder
 //! of strong presses), `press_table` (one press's exact response tabulated over the sheet and
-//! its drop, [`PressModel::with_tabulated`], which a model fits with on request) and `press_detection` (its noise threshold, from 400 noise frames) and,
+//! its drop, [`PressModel::with_tabulated`], which a model fits with on request), `contrast_map`
+//! (the contrast calibrations' map: 41 × 41 places × 11 presses simulated on the model and
+//! imaged) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch), `fleet_frame_half` and `fleet_frame_shared` (one image on one
 //! core from each of 100 sensors of one spec in turn, λ from each one's noise: from their own
@@ -24,7 +26,8 @@
 //! `frame_three_presses_carried` (those frames as a stream, the presses carried from frame to
 //! frame) and `frame_three_presses_carried_80db` (the same stream at 0.01 % noise, the reference
 //! of 100 frames); `simulated_frame` and `simulated_three_presses` (the virtual
-//! sensor's frame on its finer truth mesh, one press and three apart); `learn_1000_presses` and
+//! sensor's frame on its finer truth mesh, one press and three apart) and `simulated_frames_bulk`
+//! (one frame of 200 single presses asked for at once, as the study asks, on two cores); `learn_1000_presses` and
 //! `learned_frame` (a Gaussian process on 1,000 robot presses of 192 channels, and its answer
 //! for one frame), and the same on the fitted press (`learn_1000_presses_press`,
 //! `learned_press_frame`); and `replay`: a file of 5,000 text frames through the lines decoder, the
@@ -36,6 +39,7 @@ use std::time::Instant;
 use anyhow::Result;
 use eitskin::chain::Chain;
 use eitskin::conductivity::{with_inclusions, Inclusion};
+use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
 use eitskin::inverse::Channels;
 use eitskin::memory::Stage;
 use eitskin::pipeline::{Deferred, Pipeline, PipelineParams};
@@ -400,6 +404,10 @@ fn frames(
     let (mut press_scratch, mut fits) = (PressScratch::default(), Vec::with_capacity(16));
     let (t_fit, ()) = time(FRAMES, || Ok(press_model.fit_into(&dv, &starts, &mut press_scratch, &mut fits)?))?;
     stages.setup.push(("press_model", t_press_model));
+    let bounds = spec.outline.bounds();
+    let map_params = ContrastMapParams::default();
+    let (t_contrast_map, _) = time(n.min(3), || Ok(ContrastMap::new(model, background, recon, bounds, &map_params)?))?;
+    stages.setup.push(("contrast_map", t_contrast_map));
     stages.per_frame.extend([("frame_image", t_image), ("frame_touches", t_touches), ("frame_press_fit", t_fit)]);
     if let Some((t_own, t_shared)) = fleet_frames(recon, values, &frame)? {
         stages.per_frame.extend([("fleet_frame_half", t_own), ("fleet_frame_shared", t_shared)]);
@@ -476,7 +484,22 @@ fn simulated(spec: &eitskin::SensorSpec, n: usize, stages: &mut Stages) -> Resul
     sensor.press([-0.5 * half, 0.5 * half], 9.0);
     sensor.press([0.5 * half, 0.5 * half], 3.0);
     let (t_simulated_three, _) = time(n.min(15), || Ok(sensor.frame()?))?;
-    stages.per_frame.extend([("simulated_frame", t_simulated), ("simulated_three_presses", t_simulated_three)]);
+    // Frames in bulk, as the study asks for them: 200 single presses across the sheet, in
+    // parallel through the update the sensor has made; per frame.
+    let cases: Vec<Vec<eitskin::sim::Press>> = (0..200)
+        .map(|k| {
+            let (x, y) = ((k % 20) as f64 / 19.0 - 0.5, (k / 20) as f64 / 9.0 - 0.5);
+            vec![eitskin::sim::Press { position: [1.4 * half * x, 1.4 * half * y], force: 1.0 + (k % 7) as f64 }]
+        })
+        .collect();
+    let (bulk, _) = time(n.min(5), || Ok(sensor.clean_frames(&cases)?))?;
+    let per_frame = |t: f64| t / cases.len() as f64;
+    let t_bulk = Timing { median: per_frame(bulk.median), min: per_frame(bulk.min) };
+    stages.per_frame.extend([
+        ("simulated_frame", t_simulated),
+        ("simulated_three_presses", t_simulated_three),
+        ("simulated_frames_bulk", t_bulk),
+    ]);
     Ok(())
 }
 
