@@ -212,7 +212,9 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     }
     let mut scenes = Vec::new();
     let bounds = spec.outline.bounds();
-    for (k, skin) in skins.iter().enumerate() {
+    // Each kind's skin goes once its scenes are made, and with it the update its frames came
+    // through (about 115 MB on the paper's sensor): one is held at a time.
+    for (k, skin) in skins.into_iter().enumerate() {
         for (n, &count) in params.scenes.iter().enumerate() {
             progress("sweep: simulating presses", k * 3 + n, kinds.len() * 3);
             let cases: Vec<Vec<Press>> = (0..count).filter_map(|_| scene(spec, &mut rng, n + 1)).collect();
