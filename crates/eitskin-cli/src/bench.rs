@@ -27,7 +27,8 @@
 //! frame) and `frame_three_presses_carried_80db` (the same stream at 0.01 % noise, the reference
 //! of 100 frames); `simulated_frame` and `simulated_three_presses` (the virtual
 //! sensor's frame on its finer truth mesh, one press and three apart) and `simulated_frames_bulk`
-//! (one frame of 200 single presses asked for at once, as the study asks, on two cores); `learn_1000_presses` and
+//! (one frame of 200 single presses asked for at once, as the study asks, in parallel on every
+//! core: `--cores` sets the frame path's products only); `learn_1000_presses` and
 //! `learned_frame` (a Gaussian process on 1,000 robot presses of 192 channels, and its answer
 //! for one frame), and the same on the fitted press (`learn_1000_presses_press`,
 //! `learned_press_frame`); and `replay`: a file of 5,000 text frames through the lines decoder, the

@@ -102,21 +102,27 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     assert_eq!(pipeline.chain().tracked(), Some(eitskin::press_fit::Tracked::Found));
     assert_eq!(pipeline.touches().len(), 2, "{:?}", pipeline.touches());
     assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame of presses found afresh");
-    // The same with the press model's tabulated response (presses found afresh fitted on it,
-    // in every frame: whether a stream carried would find these afresh or fit them again from
-    // its model is the fit's to decide).
+    // The same with the press model's tabulated response: a stream that carries its presses
+    // (the default: whether it finds these afresh or fits them again from its model is the
+    // fit's to decide), and one that finds them afresh in every frame.
     let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap().with_tabulated().unwrap();
-    let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
-    let chain = Chain::new(recon, TouchParams::default()).with_press_model(press_model);
-    let mut on_table = Pipeline::new(chain, PipelineParams { carry_presses: false, ..PipelineParams::default() });
-    for frame in &frames[..12] {
-        on_table.process(frame).unwrap(); // the reference, and presses found afresh once
+    for carry_presses in [true, false] {
+        let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
+        let chain = Chain::new(recon, TouchParams::default()).with_press_model(press_model.clone());
+        let mut on_table = Pipeline::new(chain, PipelineParams { carry_presses, ..PipelineParams::default() });
+        for frame in &frames[..12] {
+            on_table.process(frame).unwrap(); // the reference, and the presses found once
+        }
+        ALLOCATIONS.store(0, Ordering::Relaxed);
+        COUNTING.store(true, Ordering::Relaxed);
+        on_table.process(&moved).unwrap();
+        COUNTING.store(false, Ordering::Relaxed);
+        let tracked = on_table.chain().tracked();
+        let fitted = [eitskin::press_fit::Tracked::Found, eitskin::press_fit::Tracked::Refitted].map(Some);
+        assert!(fitted.contains(&tracked), "{carry_presses}: {tracked:?}");
+        assert!(carry_presses || tracked == Some(eitskin::press_fit::Tracked::Found));
+        assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame fitted afresh on the table");
     }
-    COUNTING.store(true, Ordering::Relaxed);
-    on_table.process(&moved).unwrap();
-    COUNTING.store(false, Ordering::Relaxed);
-    assert_eq!(on_table.chain().tracked(), Some(eitskin::press_fit::Tracked::Found));
-    assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame found afresh on the table");
     // A channel going bad is an event (the reconstructor is derived again); after it, the frames
     // that still miss the channel cost nothing again.
     let mut lost = frames[11].clone();

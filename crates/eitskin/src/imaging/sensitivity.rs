@@ -7,17 +7,10 @@
 //! calibration (that needs forces): this measures the imaging chain's sensitivity alone.
 
 use crate::conductivity::{mixed, with_inclusions, Inclusion};
-use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate, UPDATE_AFTER};
+use crate::forward::{disk_reach, ChangeScratch, ForwardError, ForwardModel, LowRankUpdate, UPDATE_AFTER};
 use crate::inverse::{InverseError, Reconstructor};
-use crate::mesh::{Mesh, TriangleBuckets};
+use crate::mesh::TriangleBuckets;
 use crate::touch::{detect_into, Touch, TouchParams, TouchScratch};
-
-/// How far apart (m) the nodes a disk of `radius` (m) changes on `mesh` can lie, with room to
-/// spare: its nodes lie within its radius and a triangle's longest edge of its centre, so within
-/// twice that of each other (the reach a [`LowRankUpdate`] keeps K₀⁻¹ for).
-pub fn disk_reach(mesh: &Mesh, radius: f64) -> f64 {
-    2.5 * (radius + mesh.longest_edge())
-}
 
 /// Frames (V) of one inclusion at a time on a model at a homogeneous background: by a
 /// low-rank update of the background's factorisation (the triangles each inclusion covers)
@@ -69,12 +62,7 @@ impl<'a> InclusionFrames<'a> {
             .map(|t| (t, mixed(mesh.corners(t), mesh.area(t), self.background, &[*inclusion]) - self.background))
             .filter(|(_, d)| *d != 0.0)
             .collect();
-        let mut frame = vec![0.0; self.reference.len()];
-        if !changes.is_empty() {
-            update.measurement_change_into(&changes, scratch, &mut frame)?;
-        }
-        frame.iter_mut().zip(&self.reference).for_each(|(d, v)| *d += v);
-        Ok(frame)
+        update.measurements_with(&changes, scratch)
     }
 }
 

@@ -190,8 +190,8 @@ pub struct VirtualSensor {
     unpressed: std::sync::OnceLock<Vec<f64>>,
     /// The update's buffers, kept from frame to frame.
     scratch: std::sync::Mutex<ChangeScratch>,
-    /// Frames [`VirtualSensor::clean_frames`] was asked for before it had the update.
-    solved_in_full: std::sync::atomic::AtomicUsize,
+    /// Frames [`VirtualSensor::clean_frames`] has been asked for, in all.
+    asked: std::sync::atomic::AtomicUsize,
     background: f64,
     params: SimParams,
     presses: Vec<Press>,
@@ -216,7 +216,7 @@ impl VirtualSensor {
             update: std::sync::OnceLock::new(),
             unpressed: std::sync::OnceLock::new(),
             scratch: std::sync::Mutex::new(ChangeScratch::default()),
-            solved_in_full: std::sync::atomic::AtomicUsize::new(0),
+            asked: std::sync::atomic::AtomicUsize::new(0),
             background: spec.conductivity,
             params,
             presses: Vec::new(),
@@ -361,12 +361,7 @@ impl VirtualSensor {
             .map(|t| (t, self.triangle(t, presses, self.background, &inclusions) - self.background))
             .filter(|(_, d)| *d != 0.0)
             .collect();
-        let mut frame = vec![0.0; update.background_measurements().len()];
-        if !changes.is_empty() {
-            update.measurement_change_into(&changes, scratch, &mut frame)?;
-        }
-        frame.iter_mut().zip(update.background_measurements()).for_each(|(d, v)| *d += v);
-        Ok(frame)
+        update.measurements_with(&changes, scratch)
     }
 
     /// The update of the background, keeping K₀⁻¹ between nodes as far apart as the widest
@@ -382,13 +377,14 @@ impl VirtualSensor {
 
     /// Noise-free frames (V at 1 A) for several sets of presses, in parallel; the presses on the
     /// sheet are left as they are. Each by the update of [`VirtualSensor::clean_frame`] once the
-    /// sensor has it, or once it has solved [`UPDATE_AFTER`] frames in full (the update's setup
-    /// costs about as many): the study's thousands of frames in a fraction of the time, the
-    /// same to rounding. With drift, each is solved in full.
+    /// sensor has it, or once it has been asked for [`UPDATE_AFTER`] frames in all, this call's
+    /// included (the update's setup costs about as many full solves): the study's thousands of
+    /// frames in a fraction of the time, the same to rounding. Before that, and with drift,
+    /// each is solved in full.
     pub fn clean_frames(&self, cases: &[Vec<Press>]) -> Result<Vec<Vec<f64>>, ForwardError> {
         use rayon::prelude::*;
-        let solved = self.solved_in_full.fetch_add(cases.len(), std::sync::atomic::Ordering::Relaxed);
-        let worth = self.update.get().is_some() || solved + cases.len() >= UPDATE_AFTER;
+        let asked = self.asked.fetch_add(cases.len(), std::sync::atomic::Ordering::Relaxed) + cases.len();
+        let worth = self.update.get().is_some() || asked >= UPDATE_AFTER;
         let drifted = self.background() != self.background;
         let update = (worth && !drifted).then(|| self.update.get_or_init(|| self.low_rank_update()).as_ref()).flatten();
         match update {
@@ -663,9 +659,9 @@ mod tests {
         }
     }
 
-    /// Frames asked for in bulk are solved in full until the sensor has made [`UPDATE_AFTER`]
-    /// of them, then by the update: the same frames to rounding, an empty case included; with
-    /// drift, in full again.
+    /// Frames asked for in bulk are solved in full until the sensor has been asked for
+    /// [`UPDATE_AFTER`] of them, then by the update: the same frames to rounding, an empty case
+    /// included; with drift, in full again.
     #[test]
     fn frames_in_bulk_are_full_solves_through_the_update() {
         let mut spec = SensorSpec::square_hydrogel();

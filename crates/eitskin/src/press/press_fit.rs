@@ -80,7 +80,8 @@ pub use track::{PressTrack, Tracked, WINDOW};
 /// Σ aᵢbᵢ over the shorter of `a` and `b`, in eight running sums: the scans' and the fits'
 /// products of responses of a hundred-odd values, which one running sum makes a chain of adds.
 pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let (a, b) = (a.chunks_exact(8), b.chunks_exact(8));
+    let n = a.len().min(b.len());
+    let (a, b) = (a[..n].chunks_exact(8), b[..n].chunks_exact(8));
     let tail: f64 = a.remainder().iter().zip(b.remainder()).map(|(x, y)| x * y).sum();
     let mut sums = [0.0; 8];
     for (a, b) in a.zip(b) {
@@ -584,7 +585,7 @@ impl PressModel {
     /// of K₀⁻¹ between nodes a press can join (on a model too large to keep it whole).
     fn update(&self, model: &ForwardModel, background: f64) -> Result<LowRankUpdate, InverseError> {
         let mesh = model.mesh();
-        let reach = crate::sensitivity::disk_reach(mesh, self.radius);
+        let reach = crate::forward::disk_reach(mesh, self.radius);
         Ok(LowRankUpdate::with_reach(model, &vec![background; mesh.triangles().len()], reach)?)
     }
 

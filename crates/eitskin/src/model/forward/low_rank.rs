@@ -67,6 +67,13 @@ mod interior;
 /// whole against 1.2 ms; a frame then 25 µs).
 pub const UPDATE_AFTER: usize = 100;
 
+/// How far apart (m) the nodes a disk of `radius` (m) changes on `mesh` can lie, with room to
+/// spare: its nodes lie within its radius and a triangle's longest edge of its centre, so within
+/// twice that of each other (the reach [`LowRankUpdate::with_reach`] keeps K₀⁻¹ for).
+pub fn disk_reach(mesh: &crate::mesh::Mesh, radius: f64) -> f64 {
+    2.5 * (radius + mesh.longest_edge())
+}
+
 /// Unknowns up to which the whole inverse of the background system is kept (8 bytes each squared:
 /// 72 MB at the limit).
 pub const DENSE_LIMIT: usize = 3000;
@@ -479,6 +486,22 @@ impl LowRankUpdate {
         let mut out = vec![0.0; self.background.len()];
         self.measurement_change_into(changes, &mut ChangeScratch::default(), &mut out)?;
         Ok(out)
+    }
+
+    /// The measurements (V, protocol order) with `changes` made to the background: its own
+    /// measurements plus [`LowRankUpdate::measurement_change_into`] (nothing to solve for no
+    /// change).
+    pub fn measurements_with(
+        &self,
+        changes: &[(usize, f64)],
+        scratch: &mut ChangeScratch,
+    ) -> Result<Vec<f64>, ForwardError> {
+        let mut frame = vec![0.0; self.background.len()];
+        if !changes.is_empty() {
+            self.measurement_change_into(changes, scratch, &mut frame)?;
+        }
+        frame.iter_mut().zip(&self.background).for_each(|(d, v)| *d += v);
+        Ok(frame)
     }
 
     /// [`LowRankUpdate::measurement_change`] into `out` (one value per measurement; a

@@ -199,6 +199,8 @@ impl PressModel {
         room(&mut scratch.rejected, ROUNDS);
         room(&mut scratch.sizes, MAX_PRESSES);
         room(&mut scratch.disks, MAX_PRESSES);
+        // The fit's Jacobian's rows: four parameters a press at most (its radius fitted).
+        room(&mut scratch.basis, 4 * MAX_PRESSES * m);
         scratch.sizes.clear();
         scratch.sizes.resize(presses.len(), Size::Untested);
         let mut cost = self.refit(exact, presses, scratch)?;

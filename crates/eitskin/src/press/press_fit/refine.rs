@@ -35,6 +35,8 @@ const TOLERANCE: [f64; 2] = [1e-5, 1e-4];
 /// by 80 % over 2 mm on the paper's mesh), so the quadratic model fails at that scale, and the
 /// damped tries that followed (five of six rejected, each an exact solve) moved the presses
 /// back and forth within it: a quarter of an afresh frame of three presses at 0.05 % noise.
+/// A fit on the tabulated response stops the same way: its interpolant's curvature changes from
+/// one cell of the table to the next (Catmull–Rom cubics join with continuous slopes only).
 const UNRESOLVED: f64 = 0.25;
 
 /// The parameters of a disk, in the order of the Jacobian's rows.

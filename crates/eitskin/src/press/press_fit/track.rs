@@ -199,6 +199,7 @@ impl PressTrack {
         room(&mut self.unexplained, scan.points.len());
         grow(&mut self.jacobian, n, m);
         room(&mut self.coupling, CARRIED.len() * MAX_PRESSES * m);
+        room(&mut self.basis, CARRIED.len() * MAX_PRESSES * m);
         self.coupling.resize(n * m, 0.0);
         let most = CARRIED.len() * MAX_PRESSES;
         room(&mut self.packed, most * (most + 1) / 2);
@@ -465,8 +466,8 @@ impl PressTrack {
             for (q, g) in self.row.iter_mut().enumerate() {
                 *g = self.own[i * m + q] + dot(&terms, &self.local[(i * m + q) * MODEL_ROWS..][..MODEL_ROWS]);
             }
-            let gg: f64 = self.row.iter().map(|g| g * g).sum();
-            let gr: f64 = self.row.iter().zip(&self.residual).map(|(g, r)| g * (r + g)).sum();
+            let gg = dot(&self.row, &self.row);
+            let gr = dot(&self.row, &self.residual) + gg;
             carried.z = if gg > 0.0 { gr / gg.sqrt() } else { 0.0 };
             changed |= carried.z < detection.threshold || carried.drop < MIN_DROP || carried.drop > DEEPEST;
         }
