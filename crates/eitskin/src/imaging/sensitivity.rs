@@ -54,9 +54,7 @@ impl<'a> InclusionFrames<'a> {
         let mesh = self.model.mesh();
         let ([x, y], r) = (inclusion.centre, inclusion.radius);
         let mut near = Vec::new();
-        buckets.near_into([x - r, y - r], [x + r, y + r], &mut near);
-        near.sort_unstable();
-        near.dedup();
+        buckets.near_once_into([x - r, y - r], [x + r, y + r], &mut near);
         let changes: Vec<(usize, f64)> = near
             .into_iter()
             .map(|t| (t, mixed(mesh.corners(t), mesh.area(t), self.background, &[*inclusion]) - self.background))

@@ -102,6 +102,13 @@ impl TriangleBuckets {
             out.extend_from_slice(&self.items[from..to]);
         }
     }
+
+    /// [`TriangleBuckets::near_into`], each triangle once, in increasing order.
+    pub fn near_once_into(&self, min: [f64; 2], max: [f64; 2], out: &mut Vec<usize>) {
+        self.near_into(min, max, out);
+        out.sort_unstable();
+        out.dedup();
+    }
 }
 
 /// Finds the triangle that holds a point, through a uniform grid of triangle buckets.
@@ -215,6 +222,12 @@ mod tests {
                     assert!(near.contains(&t), "triangle {t} meets {min:?}–{max:?}");
                 }
             }
+            // Each once, in order.
+            let mut once = Vec::new();
+            buckets.near_once_into(min, max, &mut once);
+            near.sort_unstable();
+            near.dedup();
+            assert_eq!(once, near);
         }
         // A box of negative size (a press of negative radius) or NaN meets nothing.
         for (min, max) in [([0.5, 2.0], [0.4, 2.0]), ([0.1, 0.1], [0.0, 0.2]), ([f64::NAN, 0.0], [0.1, 0.1])] {

@@ -168,9 +168,7 @@ impl ExactPresses {
         let mesh = self.update.model().mesh();
         let [x, y] = disk.centre;
         let r = disk.radius;
-        self.buckets.near_into([x - r, y - r], [x + r, y + r], near);
-        near.sort_unstable();
-        near.dedup();
+        self.buckets.near_once_into([x - r, y - r], [x + r, y + r], near);
         for &t in near.iter() {
             push(t, mesh.corners(t), mesh.area(t));
         }
