@@ -12,22 +12,20 @@
 //!   ΔV = −U_Rᵀ·ΔK_RR·(I + G_RR·ΔK_RR)⁻¹·U_R,   Δv_m = w_mᵀ·ΔV·I_m,
 //!
 //! (w_m the measurement's weights and I_m its stimulation's currents on the basis e_p − e_L):
-//! one system per change, exact up to rounding however strong the change (with the far part
-//! below kept in f32, up to its rounding: a test bounds it). The rows of nodes inside the
+//! one system per change, exact up to rounding however strong the change. The rows of nodes inside the
 //! change (every triangle of theirs changed, none on the boundary) are first eliminated onto
 //! the rest, the change's rim Γ (`interior`), so the system solved is |Γ| × |Γ| and G is read
 //! on Γ × R only: 97 of 231 rows for three presses on the virtual sensor's truth mesh. That is
 //! done where the change has two or more parts with an interior (for one, it costs what it
 //! saves), and where each part's changed conductivity is positive (else all rows are solved).
 //!
-//! G_RR is |R| columns of K₀⁻¹. A model of up to [`DENSE_LIMIT`] unknowns keeps K₀⁻¹ whole (one
-//! solve of the identity at setup, stored in Z-order of the nodes so that a press's rows are
-//! neighbours in memory; then a change costs no sparse solve). A larger one made
+//! G_RR is |R| columns of K₀⁻¹. A model of up to [`DENSE_LIMIT`] unknowns keeps K₀⁻¹ whole (its
+//! columns solved at setup, its lower triangle stored in Z-order of the nodes so that a press's
+//! rows are neighbours in memory; then a change costs no sparse solve), and one made
+//! [`LowRankUpdate::whole_or_near`] up to [`WHOLE_LIMIT`] unknowns. A larger one made
 //! [`LowRankUpdate::with_reach`] keeps the part of K₀⁻¹ between nodes within a reach of each
-//! other in f64 (a press's own block, for presses that fit in it), and one made
-//! [`LowRankUpdate::with_far`] also, up to [`FAR_LIMIT`] unknowns, the rest in f32 (packed): the
-//! coupling of presses far apart. G_RR is then gathered for changes of up to [`GATHERED_ROWS`]
-//! rows. Otherwise it solves the |R| columns per change, unless they are more than
+//! other (a press's own block, for presses that fit in it); G_RR is then gathered for changes
+//! of up to [`GATHERED_ROWS`] rows. Otherwise it solves the |R| columns per change, unless they are more than
 //! [`SOLVED_ROWS`]: then a new factorisation costs less than that many solves, and the change is
 //! solved in full (exact either way).
 //!
@@ -59,6 +57,9 @@ use super::{Factor, ForwardError, ForwardModel};
 use crate::scratch::{grow, room, DenseLu};
 
 mod interior;
+mod stiffness;
+
+use stiffness::{Adjacency, Nonzeros};
 
 /// Frames of changes from one background past which a low-rank update repays its setup, by
 /// rule of thumb: its setup costs about a hundred full solves on the paper's sensor, both on the
@@ -74,8 +75,8 @@ pub fn disk_reach(mesh: &crate::mesh::Mesh, radius: f64) -> f64 {
     2.5 * (radius + mesh.longest_edge())
 }
 
-/// Unknowns up to which the whole inverse of the background system is kept (8 bytes each squared:
-/// 72 MB at the limit).
+/// Unknowns up to which [`LowRankUpdate::new`] keeps the whole inverse of the background system
+/// (its lower triangle, 8 bytes an entry: 36 MB at the limit).
 pub const DENSE_LIMIT: usize = 3000;
 
 /// Rows of a change beyond which, without the whole inverse, it is solved in full instead.
@@ -87,9 +88,9 @@ pub const SOLVED_ROWS: usize = 64;
 /// presses, 378 rows, 2.4 ms gathered; the full solve 5–11 ms on two cores or one).
 pub const GATHERED_ROWS: usize = 500;
 
-/// Unknowns up to which [`LowRankUpdate::with_reach`] keeps K₀⁻¹ between nodes far apart, in
-/// f32 (4 bytes each, one triangle of the symmetric matrix: 134 MB at the limit).
-pub const FAR_LIMIT: usize = 8192;
+/// Unknowns up to which [`LowRankUpdate::whole_or_near`] keeps K₀⁻¹ whole (its lower
+/// triangle, 8 bytes an entry: 268 MB at the limit), so that presses far apart are gathered too.
+pub const WHOLE_LIMIT: usize = 8192;
 
 /// Local corner pairs of a triangle's stiffness entries, in the order of the stored coefficients.
 const LOCAL: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -105,10 +106,11 @@ pub struct LowRankUpdate {
     /// The background's basis fields, (L − 1) × unknowns (a row's fields a contiguous
     /// column, as a change reads them), in V.
     fields: Mat<f64>,
-    /// K₀⁻¹ whole, for models of at most [`DENSE_LIMIT`] unknowns.
+    /// K₀⁻¹ whole, for models of at most [`DENSE_LIMIT`] unknowns (or [`WHOLE_LIMIT`], made
+    /// [`LowRankUpdate::whole_or_near`]).
     inverse: Option<WholeGreen>,
-    /// K₀⁻¹ between nodes near each other, and where kept the rest in f32, for larger models
-    /// made [`LowRankUpdate::with_reach`] or [`LowRankUpdate::with_far`].
+    /// K₀⁻¹ between nodes near each other, for larger models made [`LowRankUpdate::with_reach`]
+    /// or [`LowRankUpdate::whole_or_near`].
     near: Option<NearGreen>,
     background: Vec<f64>,
     /// The background conductivity per triangle, S/m (for changes solved in full, and the
@@ -117,6 +119,8 @@ pub struct LowRankUpdate {
     /// Per row of the system, the triangles its node is in (a change's interior rows are those
     /// whose every triangle changes; see `interior`).
     incident: Vec<u32>,
+    /// Each row's neighbours in the system's pattern, for ΔK's columns.
+    adjacency: Adjacency,
     readout: Readout,
 }
 
@@ -146,14 +150,9 @@ impl Readout {
     }
 }
 
-/// K₀⁻¹ between the rows of nodes at most a reach apart, in f64, and, where kept, the rest of
-/// it in f32; rows numbered by their nodes' place along a Z-order curve (electrode unknowns
-/// last), so that the nodes of one press are neighbours in memory.
-///
-/// Presses far apart couple only through the far entries, a small part of each press's change
-/// (second order in the changes). ΔK's columns sum to zero, so G·ΔK sees differences of G along
-/// a row, and f32's relative 6·10⁻⁸ of G is more of those; measured against full solves, a
-/// frame moves by at most 8·10⁻⁹ of its largest change (a test), far below any sensor's noise.
+/// K₀⁻¹ between the rows of nodes at most a reach apart (for a model too large to keep it
+/// whole); rows numbered by their nodes' place along a Z-order curve (electrode unknowns last),
+/// so that the nodes of one press are neighbours in memory.
 #[derive(Debug, Clone)]
 struct NearGreen {
     /// Each row's place on the curve.
@@ -164,42 +163,83 @@ struct NearGreen {
     /// The places near each place and not before it, sorted.
     near: Vec<usize>,
     values: Vec<f64>,
-    /// The lower triangle of K₀⁻¹ between places, column after column.
-    far: Option<Vec<f32>>,
 }
 
-/// K₀⁻¹ whole, its rows and columns numbered by their nodes' place along a Z-order curve (as
-/// [`NearGreen`]'s), so that the rows of one press are neighbours in memory and its G_RR is read
-/// from a few cache lines a column rather than from all over a matrix larger than the cache.
+/// K₀⁻¹ whole, its lower triangle packed column after column, rows and columns numbered by
+/// their nodes' place along a Z-order curve (as [`NearGreen`]'s), so that the rows of one press
+/// are neighbours in memory and its G_RR is read from a few cache lines a column rather than
+/// from all over a matrix larger than the cache.
 #[derive(Debug, Clone)]
 struct WholeGreen {
     /// Each row's place on the curve.
     place: Vec<usize>,
-    /// K₀⁻¹ between places.
-    matrix: Mat<f64>,
+    /// The lower triangle of K₀⁻¹ between places, column after column ([`packed_offset`]).
+    packed: Vec<f64>,
 }
 
 impl WholeGreen {
-    /// K₀⁻¹ of `model`'s factored system `factor`, in Z-order: column j solved for the unit
-    /// vector of the row at place j, then its rows moved to their places (one matrix, no copy).
+    /// K₀⁻¹ of `model`'s factored system `factor`, in Z-order: columns solved for the unit
+    /// vectors of the rows at their places, in batches (in parallel), each batch writing its own
+    /// stretch of the packed triangle.
     fn of(model: &ForwardModel, factor: &Factor) -> WholeGreen {
+        use rayon::prelude::*;
         let n = model.system_size();
         let place = z_order(&node_of_row(model), model.mesh().nodes(), model.mesh().bounds());
-        let mut matrix = Mat::<f64>::zeros(n, n);
-        place.iter().enumerate().for_each(|(row, &p)| matrix[(row, p)] = 1.0);
-        factor.llt.solve_in_place(matrix.as_mut());
-        let mut by_row = vec![0.0; n];
-        for j in 0..n {
-            let column = matrix.col_as_slice_mut(j);
-            by_row.copy_from_slice(column);
-            place.iter().zip(&by_row).for_each(|(&p, &g)| column[p] = g);
+        let mut row_at = vec![0; n];
+        place.iter().enumerate().for_each(|(row, &p)| row_at[p] = row);
+        let mut packed = vec![0.0; packed_offset(n, n)];
+        let mut stretches = Vec::new();
+        let mut rest = packed.as_mut_slice();
+        for first in (0..n).step_by(BATCH) {
+            let len = packed_offset(n, (first + BATCH).min(n)) - packed_offset(n, first);
+            let (stretch, after) = rest.split_at_mut(len);
+            stretches.push((first, stretch));
+            rest = after;
         }
-        WholeGreen { place, matrix }
+        stretches.into_par_iter().for_each(|(first, stretch)| {
+            let columns = first..(first + BATCH).min(n);
+            let mut rhs = Mat::<f64>::zeros(n, columns.len());
+            columns.clone().enumerate().for_each(|(k, p)| rhs[(row_at[p], k)] = 1.0);
+            factor.llt.solve_in_place(rhs.as_mut());
+            let mut packed = stretch.iter_mut();
+            for (k, p) in columns.enumerate() {
+                let column = rhs.col(k);
+                row_at[p..].iter().zip(packed.by_ref()).for_each(|(&row, g)| *g = column[row]);
+            }
+        });
+        WholeGreen { place, packed }
     }
 
     /// K₀⁻¹ between rows `a` and `b` of the system.
     fn at(&self, a: usize, b: usize) -> f64 {
-        self.matrix[(self.place[a], self.place[b])]
+        let (p, q) = (self.place[a], self.place[b]);
+        let (lo, hi) = (p.min(q), p.max(q));
+        self.packed[packed_offset(self.place.len(), lo) + hi - lo]
+    }
+
+    /// G_ΓR for the rows `rows` into `green`, as [`NearGreen::block_into`] reads it, every
+    /// entry kept.
+    fn block_into(&self, rows: &[usize], rim: usize, green: &mut Mat<f64>, sorted: &mut Vec<(usize, usize)>) {
+        let n = self.place.len();
+        sorted.clear();
+        sorted.extend(rows.iter().enumerate().map(|(i, &row)| (self.place[row], i)));
+        sorted.sort_unstable();
+        for (b, &(pj, j)) in sorted.iter().enumerate() {
+            let column = &self.packed[packed_offset(n, pj)..];
+            for &(pi, i) in &sorted[b..] {
+                // Between two interior rows: not needed.
+                if i >= rim && j >= rim {
+                    continue;
+                }
+                let g = column[pi - pj];
+                if i < rim {
+                    green[(i, j)] = g;
+                }
+                if j < rim {
+                    green[(j, i)] = g;
+                }
+            }
+        }
     }
 }
 
@@ -222,16 +262,13 @@ fn packed_offset(n: usize, j: usize) -> usize {
 impl NearGreen {
     /// G_ΓR for the rows `rows` into `green` (`rim` × |R|: the first `rim` rows against all of
     /// them; G_RR when `rim` is |R|), read place by place: each column from its diagonal down,
-    /// along the packed far part, and mirrored. `sorted` is a buffer. `false` if an entry is kept
-    /// neither near nor far.
+    /// and mirrored. `sorted` is a buffer. `false` if an entry is not kept.
     fn block_into(&self, rows: &[usize], rim: usize, green: &mut Mat<f64>, sorted: &mut Vec<(usize, usize)>) -> bool {
-        let n = self.place.len();
         sorted.clear();
         sorted.extend(rows.iter().enumerate().map(|(i, &row)| (self.place[row], i)));
         sorted.sort_unstable();
         for (b, &(pj, j)) in sorted.iter().enumerate() {
             let (near, values) = (&self.near[self.start[pj]..self.start[pj + 1]], &self.values[self.start[pj]..]);
-            let far = self.far.as_deref().map(|far| &far[packed_offset(n, pj)..]);
             let mut k = 0;
             for &(pi, i) in &sorted[b..] {
                 // Between two interior rows: not needed (the near list is walked on by the next).
@@ -241,11 +278,10 @@ impl NearGreen {
                 while k < near.len() && near[k] < pi {
                     k += 1;
                 }
-                let g = match far {
-                    _ if k < near.len() && near[k] == pi => values[k],
-                    Some(far) => f64::from(far[pi - pj]),
-                    None => return false,
-                };
+                if k == near.len() || near[k] != pi {
+                    return false;
+                }
+                let g = values[k];
                 if i < rim {
                     green[(i, j)] = g;
                 }
@@ -314,6 +350,7 @@ impl LowRankUpdate {
             background,
             conductivity,
             incident: interior::incident_triangles(model),
+            adjacency: Adjacency::of(&model.pattern),
             readout,
         })
     }
@@ -323,31 +360,37 @@ impl LowRankUpdate {
     /// batches (in parallel), and a change whose nodes lie within `reach` of each other then
     /// needs no sparse solve.
     pub fn with_reach(model: &ForwardModel, conductivity: &[f64], reach: f64) -> Result<LowRankUpdate, ForwardError> {
-        LowRankUpdate::keeping(model, conductivity, reach, false)
+        LowRankUpdate::keeping(model, conductivity, reach, DENSE_LIMIT)
     }
 
-    /// [`LowRankUpdate::with_reach`], keeping too, up to [`FAR_LIMIT`] unknowns, the rest of
-    /// K₀⁻¹ in f32 (at most 134 MB), so that changes far apart need no sparse solve either.
-    pub fn with_far(model: &ForwardModel, conductivity: &[f64], reach: f64) -> Result<LowRankUpdate, ForwardError> {
-        LowRankUpdate::keeping(model, conductivity, reach, model.system_size() <= FAR_LIMIT)
+    /// [`LowRankUpdate::with_reach`], keeping K₀⁻¹ whole up to [`WHOLE_LIMIT`] unknowns
+    /// instead, so that changes far apart need no sparse solve either.
+    pub fn whole_or_near(
+        model: &ForwardModel,
+        conductivity: &[f64],
+        reach: f64,
+    ) -> Result<LowRankUpdate, ForwardError> {
+        LowRankUpdate::keeping(model, conductivity, reach, WHOLE_LIMIT)
     }
 
+    /// [`LowRankUpdate::new`], keeping K₀⁻¹ whole up to `whole` unknowns, else its near part.
     fn keeping(
         model: &ForwardModel,
         conductivity: &[f64],
         reach: f64,
-        far: bool,
+        whole: usize,
     ) -> Result<LowRankUpdate, ForwardError> {
         let mut update = LowRankUpdate::new(model, conductivity)?;
-        if update.inverse.is_none() && reach > 0.0 && reach.is_finite() {
-            update.near = Some(update.near_green(reach, far));
+        if update.inverse.is_none() && model.system_size() <= whole {
+            update.inverse = Some(WholeGreen::of(model, &update.factor));
+        } else if update.inverse.is_none() && reach > 0.0 && reach.is_finite() {
+            update.near = Some(update.near_green(reach));
         }
         Ok(update)
     }
 
-    /// The part of K₀⁻¹ between node rows at most `reach` (m) apart, and the rest in f32 if
-    /// `far`.
-    fn near_green(&self, reach: f64, far: bool) -> NearGreen {
+    /// The part of K₀⁻¹ between node rows at most `reach` (m) apart.
+    fn near_green(&self, reach: f64) -> NearGreen {
         use rayon::prelude::*;
         let model = &self.model;
         let mesh = model.mesh();
@@ -388,33 +431,18 @@ impl LowRankUpdate {
             near
         };
         let factor = &self.factor;
-        // Columns solved in batches of places; each batch writes its own stretch of the packed
-        // far part.
+        // Columns solved in batches of places (in parallel).
         let firsts: Vec<usize> = (0..n).step_by(BATCH).collect();
-        let mut far_values = vec![0.0_f32; if far { packed_offset(n, n) } else { 0 }];
-        let mut stretches: Vec<&mut [f32]> = Vec::with_capacity(firsts.len());
-        let mut rest = far_values.as_mut_slice();
-        for &first in &firsts {
-            let len = if far { packed_offset(n, (first + BATCH).min(n)) - packed_offset(n, first) } else { 0 };
-            let (stretch, after) = rest.split_at_mut(len);
-            stretches.push(stretch);
-            rest = after;
-        }
         let batches: Vec<(Vec<usize>, Vec<f64>, Vec<usize>)> = firsts
             .into_par_iter()
-            .zip(stretches)
-            .map(|(first, stretch)| {
+            .map(|first| {
                 let columns = first..(first + BATCH).min(n);
                 let mut rhs = Mat::<f64>::zeros(n, columns.len());
                 columns.clone().enumerate().for_each(|(k, p)| rhs[(row_at[p], k)] = 1.0);
                 factor.llt.solve_in_place(rhs.as_mut());
                 let (mut counts, mut near, mut values) = (Vec::new(), Vec::new(), Vec::new());
-                let mut packed = stretch.iter_mut();
                 for (k, p) in columns.enumerate() {
                     let column = rhs.col(k);
-                    if far {
-                        row_at[p..].iter().zip(packed.by_ref()).for_each(|(&row, g)| *g = column[row] as f32);
-                    }
                     let places = near_places(row_at[p]);
                     counts.push(places.len());
                     values.extend(places.iter().map(|&q| column[row_at[q]]));
@@ -423,8 +451,7 @@ impl LowRankUpdate {
                 (near, values, counts)
             })
             .collect();
-        let far = far.then_some(far_values);
-        let mut green = NearGreen { place, start: vec![0], near: Vec::new(), values: Vec::new(), far };
+        let mut green = NearGreen { place, start: vec![0], near: Vec::new(), values: Vec::new() };
         for (near, values, counts) in batches {
             for count in counts {
                 let last = *green.start.last().unwrap_or(&0);
@@ -506,8 +533,8 @@ impl LowRankUpdate {
 
     /// [`LowRankUpdate::measurement_change`] into `out` (one value per measurement; a
     /// triangle may appear more than once, its changes add). Allocates nothing once `scratch`
-    /// has grown, where G_RR needs no sparse solve (the inverse kept whole, or its near part,
-    /// and its far part where kept, covers the change's rows, at most [`GATHERED_ROWS`]);
+    /// has grown, where G_RR needs no sparse solve (the inverse kept whole, or its near part
+    /// covers the change's rows, at most [`GATHERED_ROWS`]);
     /// otherwise it solves the rows' columns of K₀⁻¹, or, past 64 of them (`SOLVED_ROWS`), the
     /// whole changed system.
     pub fn measurement_change_into(
@@ -571,7 +598,7 @@ impl LowRankUpdate {
         for (i, &row) in rows.iter().enumerate() {
             fields.col_as_slice_mut(i).copy_from_slice(self.fields.col_as_slice(row));
         }
-        nonzeros.stiffness_change(self, changes, local, s);
+        nonzeros.stiffness_change(self, changes, rows, local);
         // X_Γ = (I + G_ΓR·Q)⁻¹·U_Γ by an LU in place, X_I = P·X_Γ, then ΔV = −U_Rᵀ·ΔK·X.
         if rim < s {
             interior.rim_system(nonzeros, green, system, rim);
@@ -617,7 +644,7 @@ impl LowRankUpdate {
     /// for the whole inverse would: for tests of that path on a small model.
     #[cfg(test)]
     pub(crate) fn near_only(mut self, reach: f64) -> LowRankUpdate {
-        self.near = Some(self.near_green(reach, false));
+        self.near = Some(self.near_green(reach));
         self.inverse = None;
         self
     }
@@ -629,19 +656,13 @@ impl LowRankUpdate {
 
     /// G_ΓR of the change's rows `rows` into `green` (`rim` × |R|, in a buffer of |R| × |R|:
     /// the same shape from frame to frame, not filled again), from the inverse kept or its near
-    /// and far parts; `false` where they lack an entry.
+    /// part; `false` where it lacks an entry.
     fn gather(&self, rows: &[usize], rim: usize, green: &mut Mat<f64>, places: &mut Vec<(usize, usize)>) -> bool {
         let s = rows.len();
         grow(green, s, s);
         match (&self.inverse, &self.near) {
             (Some(inverse), _) => {
-                places.clear();
-                places.extend(rows.iter().map(|&r| (inverse.place[r], 0)));
-                for (j, &(pj, _)) in places.iter().enumerate() {
-                    let column = inverse.matrix.col_as_slice(pj);
-                    let to = &mut green.col_as_slice_mut(j)[..rim];
-                    to.iter_mut().zip(&places[..rim]).for_each(|(g, &(pi, _))| *g = column[pi]);
-                }
+                inverse.block_into(rows, rim, green, places);
                 true
             }
             (None, Some(near)) => near.block_into(rows, rim, green, places),
@@ -768,88 +789,6 @@ fn add_columns_portable(column: &mut [f64], green: &Mat<f64>, entries: &[(usize,
     }
 }
 
-/// The nonzero entries of ΔK_RR, column by column (built from the changed triangles,
-/// [`Nonzeros::stiffness_change`]).
-#[derive(Debug, Default)]
-struct Nonzeros {
-    /// Per column, where its entries start (one more than columns).
-    start: Vec<usize>,
-    /// (row, value).
-    entries: Vec<(usize, f64)>,
-}
-
-impl Nonzeros {
-    /// ΔK_RR of `changes` from the triangles' stiffness, column by column, each column's rows
-    /// in order with repeats summed: `local` maps a row of the system to its index in R (every
-    /// row of a changed triangle is in R, or grounded), R of `columns` rows. Counted, placed,
-    /// then each column sorted and merged: no |R| × |R| matrix is filled or scanned.
-    fn stiffness_change(&mut self, update: &LowRankUpdate, changes: &[(usize, f64)], local: &[u32], columns: usize) {
-        let entries_of = |t: usize| update.triangle_entries(t, local).into_iter().flatten();
-        self.start.clear();
-        self.start.resize(columns + 2, 0);
-        for &(t, _) in changes {
-            for (i, j, _) in entries_of(t) {
-                self.start[j + 2] += 1;
-                if i != j {
-                    self.start[i + 2] += 1;
-                }
-            }
-        }
-        for j in 2..self.start.len() {
-            self.start[j] += self.start[j - 1];
-        }
-        // start[j + 1] is now where column j's entries go: placing moves it to their end.
-        self.entries.clear();
-        self.entries.resize(self.start[columns + 1], (0, 0.0));
-        for &(t, delta) in changes {
-            for (i, j, coef) in entries_of(t) {
-                let value = delta * coef;
-                self.entries[self.start[j + 1]] = (i, value);
-                self.start[j + 1] += 1;
-                if i != j {
-                    self.entries[self.start[i + 1]] = (j, value);
-                    self.start[i + 1] += 1;
-                }
-            }
-        }
-        self.start.pop();
-        // Each column sorted by row, its repeats (a node's edge shared by two triangles) summed,
-        // zeros dropped, and the columns closed up.
-        let mut kept = 0;
-        for j in 0..columns {
-            let (from, to) = (self.start[j], self.start[j + 1]);
-            self.start[j] = kept;
-            self.entries[from..to].sort_unstable_by_key(|e| e.0);
-            let mut k = from;
-            while k < to {
-                let (row, mut value) = self.entries[k];
-                k += 1;
-                while k < to && self.entries[k].0 == row {
-                    value += self.entries[k].1;
-                    k += 1;
-                }
-                if value != 0.0 {
-                    self.entries[kept] = (row, value);
-                    kept += 1;
-                }
-            }
-        }
-        self.start[columns] = kept;
-        self.entries.truncate(kept);
-    }
-
-    fn column(&self, j: usize) -> &[(usize, f64)] {
-        &self.entries[self.start[j]..self.start[j + 1]]
-    }
-
-    fn reserve(&mut self, columns: usize) {
-        room(&mut self.start, columns + 2);
-        // A node of a triangulation is in about six triangles, each putting three entries in its
-        // column before they are merged.
-        room(&mut self.entries, 20 * columns);
-    }
-}
-
 /// Buffers of [`LowRankUpdate::measurement_change_into`].
 #[derive(Debug)]
 pub struct ChangeScratch {
@@ -957,37 +896,32 @@ mod tests {
                 Inclusion { centre: [-0.05, 0.04], radius: 0.01, conductivity: 0.3 },
                 Inclusion { centre: [0.04, 0.05], radius: 0.015, conductivity: 2.0 },
             ],
-            // The most rows of the four: without the whole inverse or the far part, column solves.
+            // The most rows of the four: without the whole inverse, column solves.
             vec![Inclusion { centre: [0.0, 0.02], radius: 0.05, conductivity: 0.5 }],
         ];
         assert!(model.mesh().triangles().iter().any(|t| t.contains(&model.ground_node())));
         let mut near = LowRankUpdate::new(&model, &background).unwrap();
         near.inverse = None;
-        near.near = Some(near.near_green(0.08, false));
+        near.near = Some(near.near_green(0.08));
         // A 10 mm press's nodes are near each other: no sparse solve.
         let press = with_inclusions(model.mesh(), 1.0, &cases[0]);
         let local = near.local_rows((0..press.len()).filter(|&t| press[t] < 0.999));
         assert!(local.green.is_some() && local.rows.len() > 3);
-        // Near each other within 30 mm in f64, the rest in f32: the two presses 90 mm apart
-        // couple through f32 entries, gathered, where the near part alone lacks them.
-        let mut far = near.clone();
-        far.near = Some(far.near_green(0.03, true));
+        // Two presses 91 mm apart: their coupling lies outside a near part of 30 mm, inside one
+        // of 300 mm.
         let two = with_inclusions(model.mesh(), 1.0, &cases[2]);
-        let rows = far.local_rows((0..two.len()).filter(|&t| two[t] != 1.0)).rows;
+        let rows = near.local_rows((0..two.len()).filter(|&t| two[t] != 1.0)).rows;
         let gathered = |green: &NearGreen| {
             green.block_into(&rows, rows.len(), &mut Mat::zeros(rows.len(), rows.len()), &mut Vec::new())
         };
-        assert!(far.near.as_ref().is_some_and(gathered) && !gathered(&near.near_green(0.03, false)));
-        for (path, dense) in [("dense", true), ("column solves", false), ("near", false), ("near and far", false)] {
+        assert!(gathered(&near.near_green(0.3)) && !gathered(&near.near_green(0.03)));
+        for (path, dense) in [("dense", true), ("column solves", false), ("near", false)] {
             if path == "near" {
                 update = near.clone();
-            } else if path == "near and far" {
-                update = far.clone();
             } else if !dense {
                 update.inverse = None;
             }
-            // f32's rounding of the far entries: 8e-9 of the largest change measured.
-            let tolerance = if path == "near and far" { 3e-8 } else { 1e-9 };
+            let tolerance = 1e-9;
             for inclusions in &cases {
                 let sigma = with_inclusions(model.mesh(), 1.0, inclusions);
                 let changes: Vec<(usize, f64)> =
@@ -1043,15 +977,16 @@ mod tests {
         for (m, (d, (v, v0))) in dv.iter().zip(solved.iter().zip(update.background_measurements())).enumerate() {
             assert!((d - (v - v0)).abs() < 1e-9 * scale, "m {m}: {d} vs {}", v - v0);
         }
-        // The same through the near part and the far part in f32 (G_ΓR gathered place by place).
-        let mut far = update.clone();
-        far.inverse = None;
-        far.near = Some(far.near_green(0.03, true));
-        let (mut apart, mut through_far) = (ChangeScratch::default(), dv.clone());
-        far.measurement_change_into(&changes, &mut apart, &mut through_far).unwrap();
+        // The same through a near part that holds the whole sheet (G_ΓR gathered place by place
+        // along its near lists).
+        let mut near = update.clone();
+        near.inverse = None;
+        near.near = Some(near.near_green(0.3));
+        let (mut apart, mut through_near) = (ChangeScratch::default(), dv.clone());
+        near.measurement_change_into(&changes, &mut apart, &mut through_near).unwrap();
         let (rows, rim) = apart.rows_and_rim();
         assert!(apart.updated() && rim < rows / 2, "{rim} of {rows} rows kept");
-        assert!(through_far.iter().zip(&dv).all(|(f, d)| (f - d).abs() < 3e-8 * scale));
+        assert!(through_near.iter().zip(&dv).all(|(f, d)| (f - d).abs() < 1e-12 * scale));
         // Along the change itself (every changed triangle's δσ scaled): central differences.
         let scaled = |by: f64| changes.iter().map(|&(t, d)| (t, by * d)).collect::<Vec<_>>();
         let (h, mut up, mut down) = (1e-4, dv.clone(), dv.clone());

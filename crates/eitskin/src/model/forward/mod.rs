@@ -15,7 +15,7 @@ mod low_rank;
 mod quadratic;
 
 pub use jacobian::JacobianFactors;
-pub use low_rank::{disk_reach, ChangeScratch, LowRankUpdate, DENSE_LIMIT, FAR_LIMIT, GATHERED_ROWS, UPDATE_AFTER};
+pub use low_rank::{disk_reach, ChangeScratch, LowRankUpdate, DENSE_LIMIT, GATHERED_ROWS, UPDATE_AFTER, WHOLE_LIMIT};
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
