@@ -189,7 +189,7 @@ pub struct VirtualSensor {
     /// The measurements of the sheet with no press at the spec's conductivity, solved once.
     unpressed: std::sync::OnceLock<Vec<f64>>,
     /// The update's buffers, kept from frame to frame.
-    scratch: std::sync::Mutex<ChangeScratch>,
+    scratch: std::sync::Mutex<FrameScratch>,
     /// Frames [`VirtualSensor::clean_frames`] has been asked for, in all.
     asked: std::sync::atomic::AtomicUsize,
     background: f64,
@@ -215,7 +215,7 @@ impl VirtualSensor {
             model,
             update: std::sync::OnceLock::new(),
             unpressed: std::sync::OnceLock::new(),
-            scratch: std::sync::Mutex::new(ChangeScratch::default()),
+            scratch: std::sync::Mutex::new(FrameScratch::default()),
             asked: std::sync::atomic::AtomicUsize::new(0),
             background: spec.conductivity,
             params,
@@ -341,27 +341,39 @@ impl VirtualSensor {
         update: &LowRankUpdate,
         buckets: &TriangleBuckets,
         presses: &[Press],
-        scratch: &mut ChangeScratch,
+        scratch: &mut FrameScratch,
     ) -> Result<Vec<f64>, ForwardError> {
-        // Only triangles whose box a press reaches can change: found by the buckets kept, in
-        // order, each once.
+        // Only triangles whose box a press reaches can change: found by the buckets kept, each
+        // once (sorted and deduplicated where two presses' boxes overlap).
         let h = self.params.hydrogel;
-        let mut near = Vec::new();
-        let mut candidates = Vec::new();
-        for p in presses {
-            let ([x, y], r) = (p.position, h.contact_radius(p.force));
-            buckets.near_into([x - r, y - r], [x + r, y + r], &mut near);
-            candidates.extend_from_slice(&near);
-        }
-        candidates.sort_unstable();
-        candidates.dedup();
-        let inclusions = self.inclusions(presses);
-        let changes: Vec<(usize, f64)> = candidates
-            .into_iter()
-            .map(|t| (t, self.triangle(t, presses, self.background, &inclusions) - self.background))
-            .filter(|(_, d)| *d != 0.0)
+        let FrameScratch { change, near, candidates, changes } = scratch;
+        let boxes: Vec<[[f64; 2]; 2]> = presses
+            .iter()
+            .map(|p| {
+                let ([x, y], r) = (p.position, h.contact_radius(p.force));
+                [[x - r, y - r], [x + r, y + r]]
+            })
             .collect();
-        update.measurements_with(&changes, scratch)
+        candidates.clear();
+        for &[min, max] in &boxes {
+            buckets.near_once_into(min, max, near);
+            candidates.extend_from_slice(near);
+        }
+        let meet =
+            |[a, b]: [[f64; 2]; 2], [c, d]: [[f64; 2]; 2]| a[0] <= d[0] && c[0] <= b[0] && a[1] <= d[1] && c[1] <= b[1];
+        if boxes.iter().enumerate().any(|(k, &a)| boxes[k + 1..].iter().any(|&b| meet(a, b))) {
+            candidates.sort_unstable();
+            candidates.dedup();
+        }
+        let inclusions = self.inclusions(presses);
+        changes.clear();
+        changes.extend(
+            candidates
+                .iter()
+                .map(|&t| (t, self.triangle(t, presses, self.background, &inclusions) - self.background))
+                .filter(|(_, d)| *d != 0.0),
+        );
+        update.measurements_with(changes, change)
     }
 
     /// The update of the background, keeping K₀⁻¹ between nodes as far apart as the widest
@@ -390,7 +402,7 @@ impl VirtualSensor {
         match update {
             Some((update, buckets)) => cases
                 .par_iter()
-                .map_init(ChangeScratch::default, |scratch, presses| self.updated(update, buckets, presses, scratch))
+                .map_init(FrameScratch::default, |scratch, presses| self.updated(update, buckets, presses, scratch))
                 .collect(),
             _ => cases.par_iter().map(|presses| self.model.measure(&self.conductivity_with(presses))).collect(),
         }
@@ -415,6 +427,18 @@ impl VirtualSensor {
     pub fn add_noise(&mut self, frame: &mut [f64]) {
         add_relative_noise(frame, self.params.noise_relative, &mut self.rng);
     }
+}
+
+/// Buffers of a frame by the update, kept from frame to frame.
+#[derive(Debug, Default)]
+struct FrameScratch {
+    change: ChangeScratch,
+    /// The triangles one press's box meets.
+    near: Vec<usize>,
+    /// Those of every press, each once.
+    candidates: Vec<usize>,
+    /// (triangle, change of its conductivity, S/m).
+    changes: Vec<(usize, f64)>,
 }
 
 /// Presses over time: each held from a start to an end time (s) at a position (m) with a force (N).
@@ -650,7 +674,7 @@ mod tests {
                 let solved = skin.model().measure(&skin.conductivity()).unwrap();
                 let worst = updated.iter().zip(&solved).map(|(a, b)| ((a - b) / b).abs()).fold(0.0, f64::max);
                 assert!(worst < 1e-9, "{triangles}, {profile:?}, {} presses: {worst:e}", skin.presses().len());
-                assert!(skin.scratch.lock().unwrap().updated(), "{triangles}, {profile:?}");
+                assert!(skin.scratch.lock().unwrap().change.updated(), "{triangles}, {profile:?}");
             }
         }
     }

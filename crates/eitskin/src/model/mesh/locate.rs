@@ -12,6 +12,9 @@ pub struct TriangleBuckets {
     dims: [usize; 2],
     start: Vec<usize>,
     items: Vec<usize>,
+    /// Per item, the first cell (x, y) its triangle's box meets: a box query lists the triangle
+    /// once, from the first of its cells inside the query.
+    first: Vec<[u32; 2]>,
 }
 
 impl TriangleBuckets {
@@ -24,7 +27,8 @@ impl TriangleBuckets {
             ((hi[0] - lo[0]) / side as f64).max(f64::MIN_POSITIVE),
             ((hi[1] - lo[1]) / side as f64).max(f64::MIN_POSITIVE),
         ];
-        let mut buckets = TriangleBuckets { lo, cell, dims, start: vec![0; side * side + 1], items: Vec::new() };
+        let mut buckets =
+            TriangleBuckets { lo, cell, dims, start: vec![0; side * side + 1], items: Vec::new(), first: Vec::new() };
         // Two passes (count, then fill) give a compressed bucket list without per-bucket vectors.
         for pass in 0..2 {
             let mut fill = buckets.start.clone();
@@ -41,6 +45,7 @@ impl TriangleBuckets {
                             buckets.start[b + 1] += 1;
                         } else {
                             buckets.items[fill[b]] = t;
+                            buckets.first[fill[b]] = [i0 as u32, j0 as u32];
                             fill[b] += 1;
                         }
                     }
@@ -51,6 +56,7 @@ impl TriangleBuckets {
                     buckets.start[b + 1] += buckets.start[b];
                 }
                 buckets.items = vec![0; buckets.start[side * side]];
+                buckets.first = vec![[0, 0]; buckets.start[side * side]];
             }
         }
         buckets
@@ -103,11 +109,25 @@ impl TriangleBuckets {
         }
     }
 
-    /// [`TriangleBuckets::near_into`], each triangle once, in increasing order.
+    /// [`TriangleBuckets::near_into`], each triangle once: from the first cell inside the box
+    /// that the triangle's own box meets (no sorting).
     pub fn near_once_into(&self, min: [f64; 2], max: [f64; 2], out: &mut Vec<usize>) {
-        self.near_into(min, max, out);
-        out.sort_unstable();
-        out.dedup();
+        out.clear();
+        if !(min[0] <= max[0] && min[1] <= max[1]) {
+            return;
+        }
+        let [(i0, i1), (j0, j1)] = self.cell_range(min, max);
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                let b = j * self.dims[0] + i;
+                let (from, to) = (self.start[b], self.start[b + 1]);
+                for (&t, &[fi, fj]) in self.items[from..to].iter().zip(&self.first[from..to]) {
+                    if (fi as usize).max(i0) == i && (fj as usize).max(j0) == j {
+                        out.push(t);
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -222,9 +242,10 @@ mod tests {
                     assert!(near.contains(&t), "triangle {t} meets {min:?}–{max:?}");
                 }
             }
-            // Each once, in order.
+            // Each once.
             let mut once = Vec::new();
             buckets.near_once_into(min, max, &mut once);
+            once.sort_unstable();
             near.sort_unstable();
             near.dedup();
             assert_eq!(once, near);

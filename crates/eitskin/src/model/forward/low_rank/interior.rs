@@ -92,8 +92,8 @@ pub(super) struct Interior {
     /// Per part, K₁'s interior rows (k × (g + k), column-major: its rim's columns, then its
     /// interior's), then P in the first g columns.
     blocks: Vec<f64>,
-    /// Q, |R| × |Γ|, block diagonal by part.
-    q: Mat<f64>,
+    /// W = G_ΓR·ΔK, |Γ| × |R|.
+    w: Mat<f64>,
     stack: MemBuffer,
     /// Bytes `stack` holds.
     stack_bytes: usize,
@@ -112,7 +112,7 @@ impl Default for Interior {
             parts: Vec::new(),
             part_of: Vec::new(),
             blocks: Vec::new(),
-            q: Mat::zeros(0, 0),
+            w: Mat::zeros(0, 0),
             stack: MemBuffer::new(StackReq::EMPTY),
             stack_bytes: 0,
         }
@@ -337,41 +337,25 @@ impl Interior {
     }
 
     /// I + G_ΓR·Q into `system` (`rim` × `rim`), from ΔK's columns `dk` and G_ΓR, the first
-    /// `rim` rows of `green` (|R| columns), part by part.
+    /// `rim` rows of `green` (|R| columns): W = G_ΓR·ΔK first (each of ΔK's few entries in a
+    /// column adds a column of G_ΓR), then, part by part, W's rim columns plus its interior
+    /// columns times P (G_ΓR·Q = W_Γ + W_I·P, Q = ΔK_RΓ + ΔK_RI·P).
     pub(super) fn rim_system(&mut self, dk: &Nonzeros, green: &Mat<f64>, system: &mut Mat<f64>, rim: usize) {
         let s = green.ncols();
-        let green = green.as_ref().subrows(0, rim);
-        grow(&mut self.q, s, rim);
-        for part in &self.parts {
-            let (g, k) = (part.rim.len(), part.inner.len());
-            self.q.as_mut().submatrix_mut(part.rim.start, part.rim.start, g, g).fill(0.0);
-            self.q.as_mut().submatrix_mut(part.inner.start, part.rim.start, k, g).fill(0.0);
-        }
-        for j in 0..rim {
-            let column = self.q.col_as_slice_mut(j);
-            dk.column(j).iter().for_each(|&(r, v)| column[r] += v);
-        }
-        for part in &self.parts {
-            let p = p_of(&self.blocks, part);
-            for (c, j) in part.rim.clone().enumerate() {
-                let column = self.q.col_as_slice_mut(j);
-                for (i, &pc) in part.inner.clone().zip(p.col(c).iter()) {
-                    dk.column(i).iter().for_each(|&(r, v)| column[r] += v * pc);
-                }
-            }
+        grow(&mut self.w, rim, s);
+        for j in 0..s {
+            let column = self.w.col_as_slice_mut(j);
+            column.fill(0.0);
+            super::add_columns(column, green, dk.column(j));
         }
         grow(system, rim, rim);
+        let w = self.w.as_ref();
         for part in &self.parts {
             let (cols, g, k) = (part.rim.start, part.rim.len(), part.inner.len());
-            if g == 0 {
-                continue;
-            }
             let mut to = system.as_mut().subcols_mut(cols, g);
-            let q = self.q.as_ref();
-            matmul(to.as_mut(), Accum::Replace, green.subcols(cols, g), q.submatrix(cols, cols, g, g), 1.0, Par::Seq);
-            if k > 0 {
-                let (inner, rims) = (green.subcols(part.inner.start, k), q.submatrix(part.inner.start, cols, k, g));
-                matmul(to.as_mut(), Accum::Add, inner, rims, 1.0, Par::Seq);
+            to.copy_from(w.subcols(cols, g));
+            if k > 0 && g > 0 {
+                matmul(to, Accum::Add, w.subcols(part.inner.start, k), p_of(&self.blocks, part), 1.0, Par::Seq);
             }
         }
         (0..rim).for_each(|i| system[(i, i)] += 1.0);
