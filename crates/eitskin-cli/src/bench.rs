@@ -29,11 +29,11 @@
 //! sensor's frame on its finer truth mesh, one press and three apart, median of 201 frames)
 //! and `simulated_frames_bulk` (one frame of 200 single presses asked for at once, as the study
 //! asks, in parallel on every core: `--cores` sets the frame path's products only);
-//! `learn_1000_presses` and
-//! `learned_frame` (a Gaussian process on 1,000 robot presses of 192 channels, and its answer
-//! for one frame), and the same on the fitted press (`learn_1000_presses_press`,
-//! `learned_press_frame`); and `replay`: a file of 5,000 text frames through the lines decoder, the
-//! pipeline and the JSON line, as fast as possible (frames/s, median latency per frame).
+//! `learn_1000_presses` and `learned_frame` (a Gaussian process on 1,000 robot presses of 192
+//! channels, and its answer for one frame), and the same on the fitted press
+//! (`learn_1000_presses_press`, `learned_press_frame`); and `replay`: a file of 5,000 text
+//! frames through the lines decoder, the pipeline and the JSON line, as fast as possible
+//! (frames/s, median latency per frame).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -475,8 +475,9 @@ fn three_presses(press_model: &PressModel, values: &[f64], dv3: &[f64], n: usize
     Ok(())
 }
 
-/// Frames a virtual sensor's frame is timed over (a few hundred µs each). The median of
-/// `--repeat` frames (5) moved from 263 to 715 µs between runs of one binary on a busy machine.
+/// Frames a virtual sensor's frame is timed over (a few hundred µs each; the first, with the
+/// update's setup, about a second, which the median leaves out). The median of `--repeat`
+/// frames (5) moved from 263 to 715 µs between runs of one binary on a busy machine.
 const SIMULATED_FRAMES: usize = 201;
 
 /// The virtual sensor's frame on its finer truth mesh: one press, then three presses apart

@@ -213,7 +213,7 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     let mut scenes = Vec::new();
     let bounds = spec.outline.bounds();
     // Each kind's skin goes once its scenes are made, and with it the update its frames came
-    // through (K₀⁻¹ whole, 161 MB on the paper's sensor): one is held at a time.
+    // through (its K₀⁻¹ alone 161 MB on the paper's sensor): one is held at a time.
     for (k, skin) in skins.into_iter().enumerate() {
         for (n, &count) in params.scenes.iter().enumerate() {
             progress("sweep: simulating presses", k * 3 + n, kinds.len() * 3);

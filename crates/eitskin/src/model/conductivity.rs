@@ -194,7 +194,8 @@ fn sector_triangle(a: [f64; 2], b: [f64; 2], r: f64, mut gradient: Option<&mut [
     let mut sector = |u: [f64; 2], v: [f64; 2]| {
         let angle = cross(u, v).atan2(dot(u, v));
         if let Some(g) = gradient.as_deref_mut() {
-            let (nu, nv) = (u[0].hypot(u[1]), v[0].hypot(v[1]));
+            // Lengths on a sheet (m), far from overflow: no `hypot` needed.
+            let (nu, nv) = (dot(u, u).sqrt(), dot(v, v).sqrt());
             if nu > 0.0 && nv > 0.0 {
                 // ∫ (cos θ, sin θ) r dθ from θ_u to θ_v.
                 g[0] += r * (v[1] / nv - u[1] / nu);

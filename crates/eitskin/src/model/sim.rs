@@ -343,27 +343,27 @@ impl VirtualSensor {
         presses: &[Press],
         scratch: &mut FrameScratch,
     ) -> Result<Vec<f64>, ForwardError> {
-        // Only triangles whose box a press reaches can change: found by the buckets kept, each
-        // once (sorted and deduplicated where two presses' boxes overlap).
+        // Only triangles whose box a press reaches can change: found by the buckets kept.
         let h = self.params.hydrogel;
-        let FrameScratch { change, near, candidates, changes } = scratch;
-        let boxes: Vec<[[f64; 2]; 2]> = presses
-            .iter()
-            .map(|p| {
-                let ([x, y], r) = (p.position, h.contact_radius(p.force));
-                [[x - r, y - r], [x + r, y + r]]
-            })
-            .collect();
-        candidates.clear();
-        for &[min, max] in &boxes {
-            buckets.near_once_into(min, max, near);
-            candidates.extend_from_slice(near);
+        let FrameScratch { change, near, seen, generation, candidates, changes } = scratch;
+        // A triangle two presses' boxes list (their boxes meet, or share a bucket) is taken
+        // once: marked with this frame's generation as it comes.
+        seen.resize(self.model.mesh().triangles().len(), 0);
+        *generation = generation.wrapping_add(1);
+        if *generation == 0 {
+            seen.fill(0);
+            *generation = 1;
         }
-        let meet =
-            |[a, b]: [[f64; 2]; 2], [c, d]: [[f64; 2]; 2]| a[0] <= d[0] && c[0] <= b[0] && a[1] <= d[1] && c[1] <= b[1];
-        if boxes.iter().enumerate().any(|(k, &a)| boxes[k + 1..].iter().any(|&b| meet(a, b))) {
-            candidates.sort_unstable();
-            candidates.dedup();
+        candidates.clear();
+        for p in presses {
+            let ([x, y], r) = (p.position, h.contact_radius(p.force));
+            buckets.near_once_into([x - r, y - r], [x + r, y + r], near);
+            for &t in near.iter() {
+                if seen[t] != *generation {
+                    seen[t] = *generation;
+                    candidates.push(t);
+                }
+            }
         }
         let inclusions = self.inclusions(presses);
         changes.clear();
@@ -376,8 +376,9 @@ impl VirtualSensor {
         update.measurements_with(changes, change)
     }
 
-    /// The update of the background, keeping K₀⁻¹ between nodes as far apart as the widest
-    /// press reaches (its contact radius at 16 N, twice, and the cut triangles' nodes beyond it).
+    /// The update of the background, keeping K₀⁻¹ whole (up to [`crate::forward::WHOLE_LIMIT`]
+    /// unknowns), else between nodes as far apart as the widest press reaches (its contact
+    /// radius at 16 N, twice, and the cut triangles' nodes beyond it).
     fn low_rank_update(&self) -> Option<(LowRankUpdate, TriangleBuckets)> {
         let mesh = self.model.mesh();
         let area: f64 = (0..mesh.triangles().len()).map(|t| mesh.area(t)).sum();
@@ -435,6 +436,9 @@ struct FrameScratch {
     change: ChangeScratch,
     /// The triangles one press's box meets.
     near: Vec<usize>,
+    /// Per triangle, the generation of the last frame that listed it.
+    seen: Vec<u32>,
+    generation: u32,
     /// Those of every press, each once.
     candidates: Vec<usize>,
     /// (triangle, change of its conductivity, S/m).
@@ -644,8 +648,8 @@ mod tests {
     }
 
     /// Frames by the low-rank update are the full solve's, for one press and for three far
-    /// apart, flat and Hertz-like, and for a press wider than the near part would hold: on truth
-    /// meshes that keep K₀⁻¹ whole.
+    /// apart, two whose boxes nearly meet, flat and Hertz-like, and for a press wider than the
+    /// near part would hold: on truth meshes that keep K₀⁻¹ whole.
     #[test]
     fn updated_frames_are_full_solves() {
         let mut spec = SensorSpec::square_hydrogel();
@@ -664,6 +668,10 @@ mod tests {
             for presses in [
                 vec![([0.02, -0.03], 6.0)],
                 vec![([0.05, 0.05], 3.0), ([-0.06, 0.0], 12.0), ([0.0, -0.07], 8.0)],
+                // Boxes half a millimetre apart (flat), or meeting (Hertz): the triangles of the
+                // buckets both list are changed once.
+                vec![([0.0, 0.0], 6.0), ([0.0205, 0.0], 6.0)],
+                vec![([-0.0205, 0.0], 6.0), ([0.0, 0.0], 6.0), ([0.0205, 0.0], 6.0)],
                 vec![([0.0, 0.0], 2000.0)],
             ] {
                 skin.release();

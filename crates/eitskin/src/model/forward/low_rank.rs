@@ -12,22 +12,24 @@
 //!   ΔV = −U_Rᵀ·ΔK_RR·(I + G_RR·ΔK_RR)⁻¹·U_R,   Δv_m = w_mᵀ·ΔV·I_m,
 //!
 //! (w_m the measurement's weights and I_m its stimulation's currents on the basis e_p − e_L):
-//! one system per change, exact up to rounding however strong the change. The rows of nodes inside the
-//! change (every triangle of theirs changed, none on the boundary) are first eliminated onto
-//! the rest, the change's rim Γ (`interior`), so the system solved is |Γ| × |Γ| and G is read
-//! on Γ × R only: 97 of 231 rows for three presses on the virtual sensor's truth mesh. That is
-//! done where the change has two or more parts with an interior (for one, it costs what it
-//! saves), and where each part's changed conductivity is positive (else all rows are solved).
+//! one system per change, exact up to rounding however strong the change. The rows of nodes
+//! inside the change (every triangle of theirs changed, none on the boundary) are first
+//! eliminated onto the rest, the change's rim Γ (`interior`), so the system solved is |Γ| × |Γ|
+//! and G is read on Γ × R only: 97 of 231 rows for three presses on the virtual sensor's truth
+//! mesh. That is done where the change has two or more parts with an interior (for one, it
+//! costs what it saves), and where each part's changed conductivity is positive (else all rows
+//! are solved).
 //!
 //! G_RR is |R| columns of K₀⁻¹. A model of up to [`DENSE_LIMIT`] unknowns keeps K₀⁻¹ whole (its
 //! columns solved at setup, its lower triangle stored in Z-order of the nodes so that a press's
 //! rows are neighbours in memory; then a change costs no sparse solve), and one made
 //! [`LowRankUpdate::whole_or_near`] up to [`WHOLE_LIMIT`] unknowns. A larger one made
-//! [`LowRankUpdate::with_reach`] keeps the part of K₀⁻¹ between nodes within a reach of each
-//! other (a press's own block, for presses that fit in it); G_RR is then gathered for changes
-//! of up to [`GATHERED_ROWS`] rows. Otherwise it solves the |R| columns per change, unless they are more than
-//! [`SOLVED_ROWS`]: then a new factorisation costs less than that many solves, and the change is
-//! solved in full (exact either way).
+//! [`LowRankUpdate::with_reach`] or [`LowRankUpdate::whole_or_near`] keeps the part of K₀⁻¹
+//! between nodes within a reach of each other (a press's own block, for presses that fit in
+//! it); G_RR is then gathered for changes of up to [`GATHERED_ROWS`] rows. Otherwise it solves
+//! the |R| columns per change, unless they are more than [`SOLVED_ROWS`]: then a new
+//! factorisation costs less than that many solves, and the change is solved in full (exact
+//! either way).
 //!
 //! ```
 //! use eitskin::conductivity::{with_inclusions, Inclusion};
@@ -63,9 +65,9 @@ use stiffness::{Adjacency, Nonzeros};
 
 /// Frames of changes from one background past which a low-rank update repays its setup, by
 /// rule of thumb: its setup costs about a hundred full solves on the paper's sensor, both on the
-/// virtual sensor's truth mesh (0.65 s for the near and far parts of K₀⁻¹ against 6 ms a solve
-/// on one core; a one-press frame then 0.1 ms) and on the reconstruction mesh (0.13 s for K₀⁻¹
-/// whole against 1.2 ms; a frame then 25 µs).
+/// virtual sensor's truth mesh (0.75–0.86 s for K₀⁻¹ whole, its first frame with a press,
+/// against 6 ms a solve on one core; a one-press frame then 0.1 ms) and on the reconstruction
+/// mesh (0.13 s for K₀⁻¹ whole against 1.2 ms; a frame then 25 µs).
 pub const UPDATE_AFTER: usize = 100;
 
 /// How far apart (m) the nodes a disk of `radius` (m) changes on `mesh` can lie, with room to
@@ -198,9 +200,7 @@ impl WholeGreen {
         }
         stretches.into_par_iter().for_each(|(first, stretch)| {
             let columns = first..(first + BATCH).min(n);
-            let mut rhs = Mat::<f64>::zeros(n, columns.len());
-            columns.clone().enumerate().for_each(|(k, p)| rhs[(row_at[p], k)] = 1.0);
-            factor.llt.solve_in_place(rhs.as_mut());
+            let rhs = columns_at(factor, &row_at, columns.clone());
             let mut packed = stretch.iter_mut();
             for (k, p) in columns.enumerate() {
                 let column = rhs.col(k);
@@ -316,8 +316,17 @@ fn z_order(node_of_row: &[usize], nodes: &[[f64; 2]], [lo, hi]: [[f64; 2]; 2]) -
     place
 }
 
-/// Columns of K₀⁻¹ solved at once when the near part of it is built.
+/// Columns of K₀⁻¹ solved at once when it is kept, whole or its near part.
 const BATCH: usize = 256;
+
+/// The columns of K₀⁻¹ (`factor`'s) of the rows at `places` (`row_at` the row at each place),
+/// one solve of their unit vectors: n × |places|.
+fn columns_at(factor: &Factor, row_at: &[usize], places: std::ops::Range<usize>) -> Mat<f64> {
+    let mut rhs = Mat::<f64>::zeros(row_at.len(), places.len());
+    places.enumerate().for_each(|(k, p)| rhs[(row_at[p], k)] = 1.0);
+    factor.llt.solve_in_place(rhs.as_mut());
+    rhs
+}
 
 /// The rows a change touches, and what the update needs of them.
 #[derive(Debug, Clone)]
@@ -381,10 +390,12 @@ impl LowRankUpdate {
         whole: usize,
     ) -> Result<LowRankUpdate, ForwardError> {
         let mut update = LowRankUpdate::new(model, conductivity)?;
-        if update.inverse.is_none() && model.system_size() <= whole {
-            update.inverse = Some(WholeGreen::of(model, &update.factor));
-        } else if update.inverse.is_none() && reach > 0.0 && reach.is_finite() {
-            update.near = Some(update.near_green(reach));
+        if update.inverse.is_none() {
+            if model.system_size() <= whole {
+                update.inverse = Some(WholeGreen::of(model, &update.factor));
+            } else if reach > 0.0 && reach.is_finite() {
+                update.near = Some(update.near_green(reach));
+            }
         }
         Ok(update)
     }
@@ -437,9 +448,7 @@ impl LowRankUpdate {
             .into_par_iter()
             .map(|first| {
                 let columns = first..(first + BATCH).min(n);
-                let mut rhs = Mat::<f64>::zeros(n, columns.len());
-                columns.clone().enumerate().for_each(|(k, p)| rhs[(row_at[p], k)] = 1.0);
-                factor.llt.solve_in_place(rhs.as_mut());
+                let rhs = columns_at(factor, &row_at, columns.clone());
                 let (mut counts, mut near, mut values) = (Vec::new(), Vec::new(), Vec::new());
                 for (k, p) in columns.enumerate() {
                     let column = rhs.col(k);
@@ -795,7 +804,7 @@ pub struct ChangeScratch {
     rows: Vec<usize>,
     /// Each row of the system's index in `rows`, [`UNUSED`] for the others.
     local: Vec<u32>,
-    /// Each row's place (and, for the near part's gather, its index), for the gather of G.
+    /// Each row's place and its index in the change's rows, for the gather of G.
     places: Vec<(usize, usize)>,
     green: Mat<f64>,
     nonzeros: Nonzeros,
@@ -830,7 +839,8 @@ impl ChangeScratch {
         (self.rows.len(), self.kept)
     }
 
-    /// Room for changes touching up to `rows` rows of the system.
+    /// Room for changes touching up to `rows` rows of the system (ΔK's sums, one per entry of
+    /// the system's pattern, grow at the first change).
     pub fn reserve(&mut self, rows: usize) {
         room(&mut self.rows, rows);
         room(&mut self.local, rows);
@@ -926,7 +936,13 @@ mod tests {
                 let sigma = with_inclusions(model.mesh(), 1.0, inclusions);
                 let changes: Vec<(usize, f64)> =
                     sigma.iter().enumerate().filter(|(_, s)| **s != 1.0).map(|(t, s)| (t, s - 1.0)).collect();
-                let dv = update.measurement_change(&changes).unwrap();
+                let mut scratch = ChangeScratch::default();
+                let mut dv = vec![0.0; update.background_measurements().len()];
+                update.measurement_change_into(&changes, &mut scratch, &mut dv).unwrap();
+                // A press or two within the near part's reach are gathered from it.
+                if path == "near" && inclusions.len() == 1 && inclusions[0].radius < 0.02 {
+                    assert!(scratch.updated(), "{inclusions:?}");
+                }
                 let solved = model.measure(&sigma).unwrap();
                 let scale = dv.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
                 for (m, (d, (v, v0))) in dv.iter().zip(solved.iter().zip(update.background_measurements())).enumerate()

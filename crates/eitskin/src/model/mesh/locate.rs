@@ -254,6 +254,8 @@ mod tests {
         for (min, max) in [([0.5, 2.0], [0.4, 2.0]), ([0.1, 0.1], [0.0, 0.2]), ([f64::NAN, 0.0], [0.1, 0.1])] {
             buckets.near_into(min, max, &mut near);
             assert!(near.is_empty(), "{min:?}–{max:?}");
+            buckets.near_once_into(min, max, &mut near);
+            assert!(near.is_empty(), "{min:?}–{max:?}");
         }
     }
 

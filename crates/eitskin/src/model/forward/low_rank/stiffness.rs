@@ -22,6 +22,8 @@ impl Adjacency {
     /// The neighbours of every row of `pattern`.
     pub(super) fn of(pattern: &Pattern) -> Adjacency {
         let n = pattern.size;
+        // Rows and slots as u32: a system of billions of entries is far past any this solves.
+        debug_assert!(pattern.row_idx.len() <= u32::MAX as usize);
         let mut start = vec![0; n + 2];
         for c in 0..n {
             for &r in &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]] {
@@ -65,7 +67,8 @@ pub(super) struct Nonzeros {
     start: Vec<usize>,
     /// (row, value).
     entries: Vec<(usize, f64)>,
-    /// Per slot of the system's pattern, the change's sum there (zero outside a call).
+    /// Per slot of the system's pattern, the change's sum there (zero outside a call; grown at
+    /// the first change).
     sums: Vec<f64>,
 }
 
