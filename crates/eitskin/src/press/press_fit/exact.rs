@@ -9,7 +9,8 @@
 //! another, weak one, and biases every other press's drop. The exact response leaves nothing
 //! of a flat press.
 
-use crate::conductivity::{circle_triangle_area, circle_triangle_area_gradient, covered_whole};
+use super::detect::MAX_PRESSES;
+use crate::conductivity::{circle_triangle_area_gradient, covered_whole};
 use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
 use crate::mesh::TriangleBuckets;
 use crate::scratch::room;
@@ -69,19 +70,53 @@ pub struct ExactScratch {
     changes: Vec<(usize, f64)>,
     near: Vec<usize>,
     part: Vec<f64>,
-    /// The triangles a disk's edge crosses or covers, for its derivatives along each parameter.
-    edge: DiskEdge,
+    /// The triangles each disk's edge crosses or covers, for its response and its derivatives.
+    edges: DiskEdges,
 }
 
-/// The triangles a disk (centre and radius) covers or crosses, with each crossed one's covered
-/// area and its gradient: what every derivative of a press needs, computed once for its
-/// parameters; forgotten at each [`ExactPresses::response_into`], which the derivatives follow.
+/// The triangles each disk (centre and radius) covers or crosses, with each crossed one's
+/// covered area and its gradient: what a press's share of each triangle and every derivative of
+/// it need, computed once at each [`ExactPresses::response_into`], which the derivatives follow.
 #[derive(Debug, Clone, Default)]
-struct DiskEdge {
-    /// The disk's centre and radius these are of.
-    of: Option<([f64; 2], f64)>,
-    /// (triangle, its area, covered whole, covered area and its gradient along x, y, radius).
-    triangles: Vec<(usize, f64, bool, f64, [f64; 3])>,
+struct DiskEdges {
+    /// Per disk, the centre and radius its triangles are of (`None`: not computed).
+    of: Vec<Option<([f64; 2], f64)>>,
+    /// Per disk, where its triangles start (one more entry than disks).
+    start: Vec<usize>,
+    triangles: Vec<EdgeTriangle>,
+}
+
+/// (triangle, its area, covered whole, covered area and its gradient along x, y, radius), in
+/// m² and m² per m.
+type EdgeTriangle = (usize, f64, bool, f64, [f64; 3]);
+
+impl DiskEdges {
+    fn clear(&mut self) {
+        self.of.clear();
+        self.start.clear();
+        self.start.push(0);
+        self.triangles.clear();
+    }
+
+    /// The next disk's triangles, `disk`'s (`near` a buffer).
+    fn push(&mut self, exact: &ExactPresses, disk: &Disk, near: &mut Vec<usize>) {
+        exact.each_triangle(disk, near, |t, corners, area| match Overlap::of(corners, disk) {
+            Overlap::Outside => {}
+            Overlap::Inside => self.triangles.push((t, area, true, area, [0.0; 3])),
+            Overlap::Crossing => {
+                let (overlap, gradient) = circle_triangle_area_gradient(disk.centre, disk.radius, corners);
+                self.triangles.push((t, area, false, overlap, gradient));
+            }
+        });
+        self.of.push(Some((disk.centre, disk.radius)));
+        self.start.push(self.triangles.len());
+    }
+
+    /// Disk `k`'s triangles, if they were computed for `disk`'s centre and radius.
+    fn of_disk(&self, k: usize, disk: &Disk) -> Option<&[EdgeTriangle]> {
+        let computed = self.of.get(k).copied().flatten() == Some((disk.centre, disk.radius));
+        computed.then(|| &self.triangles[self.start[k]..self.start[k + 1]])
+    }
 }
 
 /// A parameter of a [`Disk`].
@@ -144,7 +179,9 @@ impl ExactPresses {
         room(&mut scratch.changes, triangles);
         room(&mut scratch.near, triangles);
         room(&mut scratch.part, self.update.background_measurements().len());
-        room(&mut scratch.edge.triangles, triangles);
+        room(&mut scratch.edges.triangles, triangles);
+        room(&mut scratch.edges.of, MAX_PRESSES);
+        room(&mut scratch.edges.start, MAX_PRESSES + 1);
         for group in &mut scratch.groups {
             group.reserve(self.update.model().system_size());
         }
@@ -182,9 +219,12 @@ impl ExactPresses {
         scratch: &mut ExactScratch,
         out: &mut [f64],
     ) -> Result<(), ForwardError> {
-        let ExactScratch { groups, changes, near, part, edge } = scratch;
-        // The derivatives that follow are at these disks, of this model: none kept from before.
-        edge.of = None;
+        let ExactScratch { groups, changes, near, part, edges } = scratch;
+        // Each disk's triangles, for its shares and for the derivatives that follow.
+        edges.clear();
+        for disk in disks {
+            edges.push(self, disk, near);
+        }
         let together = self.together(disks.len());
         let groups_needed = if together { 1 } else { disks.len() };
         while groups.len() < groups_needed {
@@ -195,20 +235,18 @@ impl ExactPresses {
         out.fill(0.0);
         part.resize(out.len(), 0.0);
         for (g, group) in groups.iter_mut().enumerate().take(groups_needed) {
-            let members = if together { disks } else { &disks[g..g + 1] };
+            let members = if together { 0..disks.len() } else { g..g + 1 };
             changes.clear();
-            for disk in members {
-                self.each_triangle(disk, near, |t, corners, area| {
-                    let share = match Overlap::of(corners, disk) {
-                        Overlap::Inside => 1.0,
-                        Overlap::Outside => return,
-                        Overlap::Crossing => (circle_triangle_area(disk.centre, disk.radius, corners) / area).min(1.0),
-                    };
+            for k in members {
+                let disk = &disks[k];
+                let triangles = &edges.triangles[edges.start[k]..edges.start[k + 1]];
+                for &(t, area, inside, overlap, _) in triangles {
+                    let share = if inside { 1.0 } else { (overlap / area).min(1.0) };
                     // Rounding leaves a share of about 1e-16 on some triangles the disk misses.
                     if share > 1e-9 {
                         changes.push((t, -self.background * disk.drop * share));
                     }
-                });
+                }
             }
             if changes.is_empty() {
                 continue;
@@ -233,24 +271,23 @@ impl ExactPresses {
         scratch: &mut ExactScratch,
         out: &mut [f64],
     ) -> bool {
-        let ExactScratch { groups, changes, near, edge, .. } = scratch;
+        let ExactScratch { groups, changes, near, edges, .. } = scratch;
         let disk = disks[i];
         let Some(group) = groups.get_mut(if self.together(disks.len()) { 0 } else { i }) else { return false };
         let scale = -self.background;
-        if edge.of != Some((disk.centre, disk.radius)) {
-            edge.triangles.clear();
-            self.each_triangle(&disk, near, |t, corners, area| match Overlap::of(corners, &disk) {
-                Overlap::Outside => {}
-                Overlap::Inside => edge.triangles.push((t, area, true, area, [0.0; 3])),
-                Overlap::Crossing => {
-                    let (overlap, gradient) = circle_triangle_area_gradient(disk.centre, disk.radius, corners);
-                    edge.triangles.push((t, area, false, overlap, gradient));
-                }
-            });
-            edge.of = Some((disk.centre, disk.radius));
+        // Computed by the response these derivatives follow; else (a disk it was not given)
+        // computed here, as disk i alone.
+        if edges.of_disk(i, &disk).is_none() {
+            edges.clear();
+            for _ in 0..i {
+                edges.of.push(None);
+                edges.start.push(0);
+            }
+            edges.push(self, &disk, near);
         }
+        let Some(triangles) = edges.of_disk(i, &disk) else { return false };
         changes.clear();
-        for &(t, area, inside, overlap, gradient) in &edge.triangles {
+        for &(t, area, inside, overlap, gradient) in triangles {
             let rate = match (inside, parameter) {
                 (true, DiskParameter::Drop) => 1.0,
                 // A triangle the disk's edge does not cross keeps its share.
