@@ -94,15 +94,18 @@ impl TriangleBuckets {
         }
     }
 
+    /// The cells a query box `[min, max]` (m) meets, as [`TriangleBuckets::cell_range`]; `None`
+    /// for a box that is empty (a min past its max, or NaN).
+    fn query(&self, min: [f64; 2], max: [f64; 2]) -> Option<[(usize, usize); 2]> {
+        (min[0] <= max[0] && min[1] <= max[1]).then(|| self.cell_range(min, max))
+    }
+
     /// Every triangle whose bounding box may meet the box `[min, max]` (m), some more than
     /// once (a triangle is listed in each cell it meets), into `out` (cleared); none for a box
     /// that is empty (a min past its max, or NaN).
     pub fn near_into(&self, min: [f64; 2], max: [f64; 2], out: &mut Vec<usize>) {
         out.clear();
-        if !(min[0] <= max[0] && min[1] <= max[1]) {
-            return;
-        }
-        let [(i0, i1), (j0, j1)] = self.cell_range(min, max);
+        let Some([(i0, i1), (j0, j1)]) = self.query(min, max) else { return };
         for j in j0..=j1 {
             let (from, to) = (self.start[j * self.dims[0] + i0], self.start[j * self.dims[0] + i1 + 1]);
             out.extend_from_slice(&self.items[from..to]);
@@ -113,10 +116,7 @@ impl TriangleBuckets {
     /// that the triangle's own box meets (no sorting).
     pub fn near_once_into(&self, min: [f64; 2], max: [f64; 2], out: &mut Vec<usize>) {
         out.clear();
-        if !(min[0] <= max[0] && min[1] <= max[1]) {
-            return;
-        }
-        let [(i0, i1), (j0, j1)] = self.cell_range(min, max);
+        let Some([(i0, i1), (j0, j1)]) = self.query(min, max) else { return };
         for j in j0..=j1 {
             for i in i0..=i1 {
                 let b = j * self.dims[0] + i;
