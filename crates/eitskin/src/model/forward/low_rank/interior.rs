@@ -1,21 +1,27 @@
-//! A change's interior rows eliminated onto its rim (static condensation), so that the
-//! update's dense system has the rim's rows only.
+//! A change's interior rows eliminated from the update (static condensation), so that its
+//! dense system has the rim's rows only and G is read between them alone.
 //!
 //! A node all of whose triangles change, and which is not on the boundary (so carries no
-//! electrode and no source), has a row of the changed system K₁ = K₀ + ΔK that involves the
-//! change's rows alone: K₁_II·u_I + K₁_IΓ·u_Γ = 0, so u_I = P·u_Γ with P = −K₁_II⁻¹·K₁_IΓ (the
-//! interior's potentials are the rim's, spread by the new conductivity). Put into the update on
-//! the rim's rows, u_Γ = u₀_Γ − G_ΓR·ΔK_RR·u_R, it leaves
+//! electrode and no source), has rows of both K₀ and K₁ = K₀ + ΔK that involve the change's
+//! rows alone. Eliminating those interior rows I from both systems leaves, on the rest, the
+//! Schur complements K̃₀ and K̃₁ = K̃₀ + ΔS, whose difference lies on the rim Γ alone:
 //!
-//!   (I + G_ΓR·Q)·u_Γ = u₀_Γ,   Q = ΔK_RΓ + ΔK_RI·P,
+//!   ΔS = ΔK_ΓΓ − K₁_ΓI·K₁_II⁻¹·K₁_IΓ + K₀_ΓI·K₀_II⁻¹·K₀_IΓ.
 //!
-//! exact, of the rim's rows Γ alone (three presses on the virtual sensor's 12k-triangle mesh: 97
-//! of 231 rows, a twelfth of the LU's work, and 0.4 of G to gather). ΔK and K₁_II are block
-//! diagonal over the change's connected parts (presses apart), so each part's K₁_II, a few
-//! dozen rows, is factored on its own by Cholesky: it is the part's stiffness with its rim held,
-//! positive definite while the conductivity there is positive. Where it is not (a conductivity
-//! at or below 0), the change is solved on all its rows instead; so is a change of one part,
-//! for which the elimination costs about what it saves ([`PARTS_TO_ELIMINATE`]).
+//! The inverse of a Schur complement is the block of the inverse, so K̃₀⁻¹ on Γ is G_ΓΓ, and
+//! with no source inside, the fields on the rest are the full system's: the update of the
+//! module above holds on Γ with ΔS for ΔK,
+//!
+//!   X_Γ = (I + G_ΓΓ·ΔS)⁻¹·U_Γ,   ΔV = −U_Γᵀ·ΔS·X_Γ,
+//!
+//! exact (three presses on the virtual sensor's 12k-triangle mesh: 97 of 231 rows in the LU,
+//! and 97 × 97 of G read where the rim's rows against all took 97 × 231). The interior's fields,
+//! X_I = −K₁_II⁻¹·K₁_IΓ·X_Γ, are found only for a derivative that asks for them. ΔK and K_II
+//! are block diagonal over the change's connected parts (presses apart), so each part's K₀_II
+//! and K₁_II, a few dozen rows, are factored on their own by Cholesky (L·Lᵀ, with Y = L⁻¹·K_IΓ
+//! the term is Yᵀ·Y): each is the part's stiffness with its rim held, positive definite while
+//! the conductivity there is positive. Where K₁_II is not (a conductivity at or below 0), the
+//! change is solved on all its rows instead, as is a change with no interior row.
 
 use std::ops::Range;
 
@@ -25,13 +31,7 @@ use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
-use super::{grow, LowRankUpdate, Nonzeros, GROUNDED};
-
-/// Parts with an interior from which a change's interior is eliminated: the dense system's
-/// work grows as the cube of all its rows, the elimination's as each part's, so for one part
-/// it costs about what it saves (measured: a press on the truth mesh 79 → 88 µs), and for three
-/// presses apart it saves a third of the frame (580 → 380 µs).
-pub(super) const PARTS_TO_ELIMINATE: usize = 2;
+use super::{grow, LowRankUpdate, GROUNDED};
 
 /// `rows` in order again, `local` their indices.
 pub(super) fn sorted(rows: &mut [usize], local: &mut [u32]) {
@@ -89,11 +89,10 @@ pub(super) struct Interior {
     /// Each row's part (index after ordering); in [`Interior::analyse`], 1 at each root with an
     /// interior row.
     part_of: Vec<u32>,
-    /// Per part, K₁'s interior rows (k × (g + k), column-major: its rim's columns, then its
-    /// interior's), then P in the first g columns.
+    /// Per part, K₁'s interior rows and K₀'s (each k × (g + k), column-major: its rim's
+    /// columns, then its interior's; then L in the interior's and Y = L⁻¹·K_IΓ in the rim's),
+    /// then ΔS (g × g).
     blocks: Vec<f64>,
-    /// W = G_ΓR·ΔK, |Γ| × |R|.
-    w: Mat<f64>,
     stack: MemBuffer,
     /// Bytes `stack` holds.
     stack_bytes: usize,
@@ -112,7 +111,6 @@ impl Default for Interior {
             parts: Vec::new(),
             part_of: Vec::new(),
             blocks: Vec::new(),
-            w: Mat::zeros(0, 0),
             stack: MemBuffer::new(StackReq::EMPTY),
             stack_bytes: 0,
         }
@@ -123,12 +121,6 @@ impl std::fmt::Debug for Interior {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Interior").field("parts", &self.parts.len()).finish_non_exhaustive()
     }
-}
-
-/// Part `part`'s P (its interior's rows × its rim's) in `blocks`.
-fn p_of<'a>(blocks: &'a [f64], part: &Part) -> MatRef<'a, f64> {
-    let (k, g) = (part.inner.len(), part.rim.len());
-    MatRef::from_column_major_slice(&blocks[part.block..part.block + k * g], k, g)
 }
 
 /// The root of `i` (path halving).
@@ -147,11 +139,12 @@ impl Interior {
             super::room(v, rows);
         }
         super::room(&mut self.order, rows);
-        // A part's block is its interior's rows by all its rows, about |R|²/2 entries for a
-        // press of |R| rows: 8 per row of the system holds a few presses of a hundred rows on
-        // the meshes presses are fitted on (more grows by doubling). Then the parts, and the
-        // Cholesky's scratch for a part as large as the system.
-        super::room(&mut self.blocks, 8 * rows);
+        // A part's blocks are its interior's rows by all its rows twice (K₀'s and K₁'s) and its
+        // rim's square, about 1.3·|R|² entries for a press of |R| rows: 24 per row of the
+        // system holds a few presses of a hundred rows on the meshes presses are fitted on (more
+        // grows by doubling). Then the parts, and the Cholesky's scratch for a part as large as
+        // the system.
+        super::room(&mut self.blocks, 24 * rows);
         super::room(&mut self.parts, 16);
         self.stack_for(rows);
     }
@@ -266,46 +259,50 @@ impl Interior {
         rim
     }
 
-    /// P of each part from K₁ on its triangles (`local` the rows' indices after
-    /// [`Interior::order_rows`], `rim` the rim's rows); `false` where a part's K₁_II is not
-    /// positive definite.
-    pub(super) fn eliminate(&mut self, update: &LowRankUpdate, local: &[u32], rim: usize) -> bool {
+    /// Each part's ΔS from K₀ and K₁ on its triangles (`local` the rows' indices after
+    /// [`Interior::order_rows`], `rim` the rim's rows): both conductivities' interior rows
+    /// assembled, each K_II factored (L·Lᵀ) with Y = L⁻¹·K_IΓ, and ΔS = ΔK_ΓΓ − Y₁ᵀ·Y₁ + Y₀ᵀ·Y₀;
+    /// `false` where a part's K₁_II is not positive definite.
+    pub(super) fn condense(&mut self, update: &LowRankUpdate, local: &[u32], rim: usize) -> bool {
         let mut offset = 0;
         for part in &mut self.parts {
             part.block = offset;
-            offset += part.inner.len() * (part.rim.len() + part.inner.len());
-        }
-        if offset == 0 {
-            return true;
+            let (k, g) = (part.inner.len(), part.rim.len());
+            offset += 2 * k * (g + k) + g * g;
         }
         // Grown by doubling: sizes that vary from frame to frame settle.
         super::room(&mut self.blocks, offset.next_power_of_two());
         self.blocks.clear();
         self.blocks.resize(offset, 0.0);
-        // Each triangle with an interior row adds its stiffness at the changed conductivity to
-        // its part's block (all its rows are of one part), on the interior's rows only.
+        // Each changed triangle adds, on its part's rows: its stiffness at the changed and at the
+        // background conductivity to the interior's rows of K₁ and K₀, and its change to ΔK_ΓΓ.
         let triangles = update.model.mesh.triangles();
         for &t in &self.triangles {
             let index = triangles[t].map(|node| {
                 let row = update.model.row_of_node[node];
                 (row != GROUNDED).then(|| local[row] as usize)
             });
-            let Some(&inner) = index.iter().flatten().find(|&&i| i >= rim) else { continue };
-            let part = &self.parts[self.part_of[inner] as usize];
-            let (k, sigma) = (part.inner.len(), update.conductivity[t] + self.delta[t]);
-            let column = index
-                .map(|i| i.map(|i| if i < rim { i - part.rim.start } else { part.rim.len() + i - part.inner.start }));
-            let block = &mut self.blocks[part.block..];
+            let Some(&any) = index.iter().flatten().next() else { continue };
+            let part = &self.parts[self.part_of[any] as usize];
+            let (k, g) = (part.inner.len(), part.rim.len());
+            let (background, delta) = (update.conductivity[t], self.delta[t]);
+            let column = index.map(|i| i.map(|i| if i < rim { i - part.rim.start } else { g + i - part.inner.start }));
+            let (k1, rest) = self.blocks[part.block..].split_at_mut(k * (g + k));
+            let (k0, rest) = rest.split_at_mut(k * (g + k));
+            let ds = &mut rest[..g * g];
             for (&(a, b), coef) in super::LOCAL.iter().zip(update.model.pattern.triangle_coefs[t]) {
-                let (Some(ia), Some(ib), Some(ca), Some(cb)) = (index[a], index[b], column[a], column[b]) else {
-                    continue;
+                let (Some(ca), Some(cb)) = (column[a], column[b]) else { continue };
+                let mut add = |row: usize, col: usize| {
+                    if row >= g {
+                        k1[col * k + row - g] += (background + delta) * coef;
+                        k0[col * k + row - g] += background * coef;
+                    } else if col < g {
+                        ds[col * g + row] += delta * coef;
+                    }
                 };
-                let value = sigma * coef;
-                if ia >= rim {
-                    block[cb * k + ia - part.inner.start] += value;
-                }
-                if a != b && ib >= rim {
-                    block[ca * k + ib - part.inner.start] += value;
+                add(ca, cb);
+                if a != b {
+                    add(cb, ca);
                 }
             }
         }
@@ -315,17 +312,20 @@ impl Interior {
             if k == 0 {
                 continue;
             }
-            let block = &mut self.blocks[part.block..part.block + k * (g + k)];
-            let (mut coupling, mut kii) = MatMut::from_column_major_slice_mut(block, k, g + k).split_at_col_mut(g);
-            let stack = MemStack::new(&mut self.stack);
-            let factored =
-                cholesky_in_place(kii.as_mut(), LltRegularization::default(), Par::Seq, stack, Default::default());
-            if factored.is_err() {
-                return false;
+            let (k1, rest) = self.blocks[part.block..].split_at_mut(k * (g + k));
+            let (k0, rest) = rest.split_at_mut(k * (g + k));
+            let mut ds = MatMut::from_column_major_slice_mut(&mut rest[..g * g], g, g);
+            for (block, sign) in [(k1, -1.0), (k0, 1.0)] {
+                let (mut coupling, mut kii) = MatMut::from_column_major_slice_mut(block, k, g + k).split_at_col_mut(g);
+                let stack = MemStack::new(&mut self.stack);
+                let factored =
+                    cholesky_in_place(kii.as_mut(), LltRegularization::default(), Par::Seq, stack, Default::default());
+                if factored.is_err() {
+                    return false;
+                }
+                solve_lower_triangular_in_place(kii.as_ref(), coupling.as_mut(), Par::Seq);
+                matmul(ds.as_mut(), Accum::Add, coupling.as_ref().transpose(), coupling.as_ref(), sign, Par::Seq);
             }
-            solve_lower_triangular_in_place(kii.as_ref(), coupling.as_mut(), Par::Seq);
-            solve_upper_triangular_in_place(kii.as_ref().transpose(), coupling.as_mut(), Par::Seq);
-            coupling.col_iter_mut().for_each(|c| c.iter_mut().for_each(|p| *p = -*p));
         }
         true
     }
@@ -336,38 +336,46 @@ impl Interior {
         crate::scratch::stack_room(&mut self.stack, &mut self.stack_bytes, need);
     }
 
-    /// I + G_ΓR·Q into `system` (`rim` × `rim`), from ΔK's columns `dk` and G_ΓR, the first
-    /// `rim` rows of `green` (|R| columns): W = G_ΓR·ΔK first (each of ΔK's few entries in a
-    /// column adds a column of G_ΓR), then, part by part, W's rim columns plus its interior
-    /// columns times P (G_ΓR·Q = W_Γ + W_I·P, Q = ΔK_RΓ + ΔK_RI·P).
-    pub(super) fn rim_system(&mut self, dk: &Nonzeros, green: &Mat<f64>, system: &mut Mat<f64>, rim: usize) {
-        let s = green.ncols();
-        grow(&mut self.w, rim, s);
-        for j in 0..s {
-            let column = self.w.col_as_slice_mut(j);
-            column.fill(0.0);
-            super::add_columns(column, green, dk.column(j));
-        }
+    /// I + G_ΓΓ·ΔS into `system` (`rim` × `rim`), G_ΓΓ in `green`: part by part, its rim's
+    /// columns of G times its ΔS.
+    pub(super) fn rim_system(&self, green: &Mat<f64>, system: &mut Mat<f64>, rim: usize) {
         grow(system, rim, rim);
-        let w = self.w.as_ref();
+        let green = green.as_ref().submatrix(0, 0, rim, rim);
         for part in &self.parts {
-            let (cols, g, k) = (part.rim.start, part.rim.len(), part.inner.len());
-            let mut to = system.as_mut().subcols_mut(cols, g);
-            to.copy_from(w.subcols(cols, g));
-            if k > 0 && g > 0 {
-                matmul(to, Accum::Add, w.subcols(part.inner.start, k), p_of(&self.blocks, part), 1.0, Par::Seq);
-            }
+            let (cols, g) = (part.rim.start, part.rim.len());
+            let to = system.as_mut().subcols_mut(cols, g);
+            matmul(to, Accum::Replace, green.subcols(cols, g), self.schur(part), 1.0, Par::Seq);
         }
         (0..rim).for_each(|i| system[(i, i)] += 1.0);
     }
 
-    /// The interior's rows of `x` (|R| × patterns) from its rim's: X_I = P·X_Γ, part by part.
+    /// Part `part`'s ΔS (its rim's rows × its rim's).
+    fn schur(&self, part: &Part) -> MatRef<'_, f64> {
+        let (k, g) = (part.inner.len(), part.rim.len());
+        let at = part.block + 2 * k * (g + k);
+        MatRef::from_column_major_slice(&self.blocks[at..at + g * g], g, g)
+    }
+
+    /// ΔS·X_Γ into `z` (`rim` × patterns), part by part.
+    pub(super) fn schur_times(&self, x: MatRef<'_, f64>, mut z: MatMut<'_, f64>) {
+        for part in &self.parts {
+            let (rows, g) = (part.rim.start, part.rim.len());
+            let to = z.as_mut().subrows_mut(rows, g);
+            matmul(to, Accum::Replace, self.schur(part), x.subrows(rows, g), 1.0, Par::Seq);
+        }
+    }
+
+    /// The interior's rows of `x` (|R| × patterns) from its rim's: X_I = −K₁_II⁻¹·K₁_IΓ·X_Γ =
+    /// −L⁻ᵀ·(Y·X_Γ), part by part.
     pub(super) fn extend(&self, x: MatMut<'_, f64>, rim: usize) {
         let (rims, mut inner) = x.split_at_row_mut(rim);
         for part in self.parts.iter().filter(|p| !p.inner.is_empty()) {
-            let to = inner.as_mut().subrows_mut(part.inner.start - rim, part.inner.len());
-            let from = rims.as_ref().subrows(part.rim.start, part.rim.len());
-            matmul(to, Accum::Replace, p_of(&self.blocks, part), from, 1.0, Par::Seq);
+            let (k, g) = (part.inner.len(), part.rim.len());
+            let block = MatRef::from_column_major_slice(&self.blocks[part.block..part.block + k * (g + k)], k, g + k);
+            let (y, l) = block.split_at_col(g);
+            let mut to = inner.as_mut().subrows_mut(part.inner.start - rim, k);
+            matmul(to.as_mut(), Accum::Replace, y, rims.as_ref().subrows(part.rim.start, g), -1.0, Par::Seq);
+            solve_upper_triangular_in_place(l.transpose(), to, Par::Seq);
         }
     }
 }
