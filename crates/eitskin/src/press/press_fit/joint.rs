@@ -403,14 +403,25 @@ impl PressModel {
         // radius's derivative: one press's solve, not all of theirs.
         let on_table = exact.table.is_some() && fitted(&scratch.sizes) == 0;
         let PressScratch { disks, exact: ex, response, refine: refining, basis, .. } = scratch;
-        let residual = refining.residual();
         disks.clear();
         disks.extend(presses.iter().map(disk_of));
-        let (solved, i) = if on_table { (&disks[i..=i], 0) } else { (&disks[..], i) };
-        exact.presses.response_into(solved, ex, response)?;
-        if !exact.presses.derivative_into(solved, i, DiskParameter::Radius, ex, response) {
+        // Of all of them, from the fit's own last solve where that was at these presses.
+        let kept = match on_table {
+            true => None,
+            false => refining.derivative_at_last_solve(exact.presses, disks, i, DiskParameter::Radius, response),
+        };
+        let derived = match kept {
+            Some(derived) => derived,
+            None => {
+                let (solved, i) = if on_table { (&disks[i..=i], 0) } else { (&disks[..], i) };
+                exact.presses.response_into(solved, ex, response)?;
+                exact.presses.derivative_into(solved, i, DiskParameter::Radius, ex, response)
+            }
+        };
+        if !derived {
             return Ok(0.0);
         }
+        let residual = refining.residual();
         response.iter_mut().zip(exact.weights).for_each(|(d, w)| *d *= w);
         // Both along the part of ∂F/∂r the fit's own parameters cannot take up: r's part along
         // them is what the fit has not yet converged (up to a hundredth of χ²), and ∂F/∂r's part

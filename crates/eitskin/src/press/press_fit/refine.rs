@@ -62,7 +62,11 @@ pub struct RefineParams {
 /// Buffers of [`refine`] and [`refine_tabulated`].
 #[derive(Debug, Default)]
 pub struct RefineScratch {
+    /// The last joint solve of the presses, and the disks it was made at.
     exact: ExactScratch,
+    solved_at: Vec<Disk>,
+    /// The solves of each press alone, for its own response (the joint solve kept beside them).
+    alone: ExactScratch,
     single: Vec<Disk>,
     /// Each press's own response, weighted.
     own: Vec<f64>,
@@ -127,6 +131,8 @@ impl RefineScratch {
     /// `exact`'s model, so that the frame path does not allocate when more presses come.
     pub fn reserve(&mut self, exact: &ExactPresses, presses: usize, measurements: usize) {
         exact.reserve(&mut self.exact);
+        exact.reserve(&mut self.alone);
+        room(&mut self.solved_at, presses);
         room(&mut self.lm.trial, presses);
         room(&mut self.single, 1);
         for buffer in [&mut self.lm.joint, &mut self.lm.residual, &mut self.lm.perturbed, &mut self.coupling] {
@@ -141,6 +147,21 @@ impl RefineScratch {
     /// row by row): exact after [`refine`], the table's after [`refine_tabulated`].
     pub fn own_responses(&self) -> &[f64] {
         &self.own
+    }
+
+    /// The derivative along `parameter` of `disks[i]` (V per unit) from the last joint solve
+    /// of the fits, if it was made at `disks` (the last step of an exact fit is its last
+    /// solve, unless that step was refused): the value it would be after a new solve there,
+    /// without it. `None` where that solve was elsewhere; `Some(false)` where it has none.
+    pub(crate) fn derivative_at_last_solve(
+        &mut self,
+        presses: &ExactPresses,
+        disks: &[Disk],
+        i: usize,
+        parameter: DiskParameter,
+        out: &mut [f64],
+    ) -> Option<bool> {
+        (self.solved_at == disks).then(|| presses.derivative_into(disks, i, parameter, &mut self.exact, out))
     }
 
     /// The weighted misfit w⊙(Δv − F) the last fit left, F the presses' joint response.
@@ -217,15 +238,21 @@ trait Responses {
     fn derivative_into(&mut self, disks: &[Disk], i: usize, parameter: DiskParameter, out: &mut [f64]) -> bool;
 }
 
-/// The exact responses, solved.
+/// The exact responses, solved; the disks of the last solve kept.
 struct Solved<'a> {
     presses: &'a ExactPresses,
     scratch: &'a mut ExactScratch,
+    solved_at: &'a mut Vec<Disk>,
 }
 
 impl Responses for Solved<'_> {
     fn response_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
-        self.presses.response_into(disks, self.scratch, out)
+        self.solved_at.clear();
+        let solved = self.presses.response_into(disks, self.scratch, out);
+        if solved.is_ok() {
+            self.solved_at.extend_from_slice(disks);
+        }
+        solved
     }
 
     fn derivative_into(&mut self, disks: &[Disk], i: usize, parameter: DiskParameter, out: &mut [f64]) -> bool {
@@ -297,15 +324,15 @@ pub fn refine(
     params: &RefineParams,
     scratch: &mut RefineScratch,
 ) -> Result<f64, ForwardError> {
-    let RefineScratch { exact: ex, single, own, lm, .. } = scratch;
-    let cost = iterate(&mut Solved { presses: exact, scratch: ex }, dv, weights, disks, params, lm)?;
+    let RefineScratch { exact: ex, solved_at, alone, single, own, lm, .. } = scratch;
+    let cost = iterate(&mut Solved { presses: exact, scratch: ex, solved_at }, dv, weights, disks, params, lm)?;
     // Each press's own response at the final place.
     let m = dv.len();
     own.resize(disks.len() * m, 0.0);
     for (disk, own_i) in disks.iter().zip(own.chunks_exact_mut(m)) {
         single.clear();
         single.push(*disk);
-        exact.response_into(single, ex, own_i)?;
+        exact.response_into(single, alone, own_i)?;
         own_i.iter_mut().zip(weights).for_each(|(f, w)| *f *= w);
     }
     Ok(cost)
@@ -330,7 +357,7 @@ pub fn refine_tabulated(
         return refine(exact, dv, weights, disks, params, scratch);
     }
     let m = dv.len();
-    let RefineScratch { exact: ex, own, lm, coupling, jets, work, .. } = scratch;
+    let RefineScratch { exact: ex, solved_at, own, lm, coupling, jets, work, .. } = scratch;
     coupling.clear();
     coupling.resize(m, 0.0);
     lm.joint.resize(m, 0.0);
@@ -340,7 +367,7 @@ pub fn refine_tabulated(
             // The table's joint response at the fit (its jets there), then the exact one.
             let mut table_only = Interpolated { table, coupling, jets, work };
             table_only.response_into(disks, &mut lm.perturbed)?;
-            exact.response_into(disks, ex, &mut lm.joint)?;
+            Solved { presses: exact, scratch: ex, solved_at: &mut *solved_at }.response_into(disks, &mut lm.joint)?;
             for ((c, f), t) in coupling.iter_mut().zip(&lm.joint).zip(&lm.perturbed) {
                 *c += f - t;
             }
