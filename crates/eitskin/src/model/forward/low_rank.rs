@@ -818,7 +818,7 @@ pub struct ChangeScratch {
     places: Vec<(usize, usize)>,
     green: Mat<f64>,
     nonzeros: Nonzeros,
-    /// U_Rᵀ, (L − 1) × |R|.
+    /// U_Γᵀ, (L − 1) × |Γ| (U_Rᵀ where nothing is eliminated).
     fields: Mat<f64>,
     system: Mat<f64>,
     x: Mat<f64>,

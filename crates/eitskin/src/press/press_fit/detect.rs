@@ -326,6 +326,10 @@ impl PressModel {
             count += 1;
             for sweep in 0..SWEEPS {
                 for i in 0..count {
+                    // A first press placed anywhere is where it was just picked and fitted.
+                    if sweep == 0 && count == 1 {
+                        continue;
+                    }
                     rest(i, count, residual, centres, responses, &found);
                     // Anywhere on the sheet first, then near where it is.
                     let start = match (sweep, found[i]) {
