@@ -216,9 +216,9 @@ impl WholeGreen {
         self.packed[packed_offset(self.place.len(), lo) + hi - lo]
     }
 
-    /// G_ΓR for the rows `rows` into `green`, as [`NearGreen::block_into`] reads it, every
-    /// entry kept.
-    fn block_into(&self, rows: &[usize], rim: usize, green: &mut Mat<f64>, sorted: &mut Vec<(usize, usize)>) {
+    /// G between the rows `rows` into `green` (|R| × |R|), as [`NearGreen::block_into`] reads
+    /// it, every entry kept.
+    fn block_into(&self, rows: &[usize], green: &mut Mat<f64>, sorted: &mut Vec<(usize, usize)>) {
         let n = self.place.len();
         sorted.clear();
         sorted.extend(rows.iter().enumerate().map(|(i, &row)| (self.place[row], i)));
@@ -226,17 +226,9 @@ impl WholeGreen {
         for (b, &(pj, j)) in sorted.iter().enumerate() {
             let column = &self.packed[packed_offset(n, pj)..];
             for &(pi, i) in &sorted[b..] {
-                // Between two interior rows: not needed.
-                if i >= rim && j >= rim {
-                    continue;
-                }
                 let g = column[pi - pj];
-                if i < rim {
-                    green[(i, j)] = g;
-                }
-                if j < rim {
-                    green[(j, i)] = g;
-                }
+                green[(i, j)] = g;
+                green[(j, i)] = g;
             }
         }
     }
@@ -259,10 +251,9 @@ fn packed_offset(n: usize, j: usize) -> usize {
 }
 
 impl NearGreen {
-    /// G_ΓR for the rows `rows` into `green` (`rim` × |R|: the first `rim` rows against all of
-    /// them; G_RR when `rim` is |R|), read place by place: each column from its diagonal down,
-    /// and mirrored. `sorted` is a buffer. `false` if an entry is not kept.
-    fn block_into(&self, rows: &[usize], rim: usize, green: &mut Mat<f64>, sorted: &mut Vec<(usize, usize)>) -> bool {
+    /// G between the rows `rows` into `green` (|R| × |R|), read place by place: each column from
+    /// its diagonal down, and mirrored. `sorted` is a buffer. `false` if an entry is not kept.
+    fn block_into(&self, rows: &[usize], green: &mut Mat<f64>, sorted: &mut Vec<(usize, usize)>) -> bool {
         sorted.clear();
         sorted.extend(rows.iter().enumerate().map(|(i, &row)| (self.place[row], i)));
         sorted.sort_unstable();
@@ -270,10 +261,6 @@ impl NearGreen {
             let (near, values) = (&self.near[self.start[pj]..self.start[pj + 1]], &self.values[self.start[pj]..]);
             let mut k = 0;
             for &(pi, i) in &sorted[b..] {
-                // Between two interior rows: not needed (the near list is walked on by the next).
-                if i >= rim && j >= rim {
-                    continue;
-                }
                 while k < near.len() && near[k] < pi {
                     k += 1;
                 }
@@ -281,12 +268,8 @@ impl NearGreen {
                     return false;
                 }
                 let g = values[k];
-                if i < rim {
-                    green[(i, j)] = g;
-                }
-                if j < rim {
-                    green[(j, i)] = g;
-                }
+                green[(i, j)] = g;
+                green[(j, i)] = g;
             }
         }
         true
@@ -498,7 +481,7 @@ impl LowRankUpdate {
         let s = rows.len();
         let near = self.near.as_ref().filter(|_| s <= GATHERED_ROWS).and_then(|near| {
             let mut green = Mat::<f64>::zeros(s, s);
-            near.block_into(&rows, s, &mut green, &mut Vec::new()).then_some(green)
+            near.block_into(&rows, &mut green, &mut Vec::new()).then_some(green)
         });
         let green = match (&self.inverse, near) {
             (Some(inverse), _) => Some(Mat::from_fn(s, s, |i, j| inverse.at(rows[i], rows[j]))),
@@ -674,10 +657,10 @@ impl LowRankUpdate {
         grow(green, s, s);
         match (&self.inverse, &self.near) {
             (Some(inverse), _) => {
-                inverse.block_into(rows, s, green, places);
+                inverse.block_into(rows, green, places);
                 true
             }
-            (None, Some(near)) => near.block_into(rows, s, green, places),
+            (None, Some(near)) => near.block_into(rows, green, places),
             (None, None) => false,
         }
     }
@@ -816,21 +799,23 @@ pub struct ChangeScratch {
     local: Vec<u32>,
     /// Each row's place and its index in the change's rows, for the gather of G.
     places: Vec<(usize, usize)>,
+    /// G between the rows kept in the dense solve: G_ΓΓ, or G_RR where nothing is eliminated.
     green: Mat<f64>,
     nonzeros: Nonzeros,
     /// U_Γᵀ, (L − 1) × |Γ| (U_Rᵀ where nothing is eliminated).
     fields: Mat<f64>,
     system: Mat<f64>,
+    /// X, |R| × (L − 1): the rows kept in the dense solve, and the interior's once `extended`.
     x: Mat<f64>,
-    /// Xᵀ of the last solve.
+    /// Xᵀ of the last solve, once `extended`.
     xt: Mat<f64>,
-    /// (ΔK·X)ᵀ, then a derivative's (∂K·X)ᵀ.
+    /// (ΔK·X)ᵀ where nothing is eliminated, and a derivative's (∂K·X)ᵀ.
     dkxt: Mat<f64>,
     change: Mat<f64>,
     lu: DenseLu,
-    /// Whether `rows`, `local`, `x` and `xt` hold the last change's solve.
+    /// Whether `rows`, `local` and `x` hold the last change's solve (and `xt`, once `extended`).
     solved: bool,
-    /// The change's interior eliminated onto its rim.
+    /// The change's interior eliminated from K₀ and K₁ alike.
     interior: interior::Interior,
     /// The rows the last change kept in its dense solve (the rim's, or all).
     kept: usize,
@@ -938,9 +923,8 @@ mod tests {
         // of 300 mm.
         let two = with_inclusions(model.mesh(), 1.0, &cases[2]);
         let rows = near.local_rows((0..two.len()).filter(|&t| two[t] != 1.0)).rows;
-        let gathered = |green: &NearGreen| {
-            green.block_into(&rows, rows.len(), &mut Mat::zeros(rows.len(), rows.len()), &mut Vec::new())
-        };
+        let gathered =
+            |green: &NearGreen| green.block_into(&rows, &mut Mat::zeros(rows.len(), rows.len()), &mut Vec::new());
         assert!(gathered(&near.near_green(0.3)) && !gathered(&near.near_green(0.03)));
         for (path, dense) in [("dense", true), ("column solves", false), ("near", false)] {
             if path == "near" {
@@ -974,8 +958,10 @@ mod tests {
         }
     }
 
-    /// Wide presses' interior rows are eliminated onto their rims: the change is a full solve's,
-    /// a triangle listed twice adds, and the derivative is the central difference's; a
+    /// Presses' interior rows are eliminated, the dense solve kept to their rims: the change is
+    /// a full solve's (for three presses, for one, and for a change of a thousandth), a triangle
+    /// listed twice adds, and the derivative is the central difference's (after a solve of
+    /// several presses or of one, and on a scratch whose last solve kept every row); a
     /// conductivity below nothing (K₁_II not positive definite) is solved on all its rows, as
     /// the update without elimination solves it.
     #[test]
@@ -1010,7 +996,7 @@ mod tests {
         for (m, (d, (v, v0))) in dv.iter().zip(solved.iter().zip(update.background_measurements())).enumerate() {
             assert!((d - (v - v0)).abs() < 1e-9 * scale, "m {m}: {d} vs {}", v - v0);
         }
-        // The same through a near part that holds the whole sheet (G_ΓR gathered place by place
+        // The same through a near part that holds the whole sheet (G_ΓΓ gathered place by place
         // along its near lists).
         let mut near = update.clone();
         near.inverse = None;
@@ -1020,28 +1006,42 @@ mod tests {
         let (rows, rim) = apart.rows_and_rim();
         assert!(apart.updated() && rim < rows / 2, "{rim} of {rows} rows kept");
         assert!(through_near.iter().zip(&dv).all(|(f, d)| (f - d).abs() < 1e-12 * scale));
-        // Along the change itself (every changed triangle's δσ scaled): central differences.
-        let scaled = |by: f64| changes.iter().map(|&(t, d)| (t, by * d)).collect::<Vec<_>>();
-        let (h, mut up, mut down) = (1e-4, dv.clone(), dv.clone());
-        let mut other = ChangeScratch::default();
-        update.measurement_change_into(&scaled(1.0 + h), &mut other, &mut up).unwrap();
-        update.measurement_change_into(&scaled(1.0 - h), &mut other, &mut down).unwrap();
-        let mut derivative = dv.clone();
-        assert!(update.derivative_into(&changes, &mut scratch, &mut derivative));
-        let scale = derivative.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-        for (m, (d, (u, w))) in derivative.iter().zip(up.iter().zip(&down)).enumerate() {
-            let difference = (u - w) / (2.0 * h);
-            assert!((d - difference).abs() < 1e-6 * scale, "m {m}: {d} vs {difference}");
+        // Along the change itself (every changed triangle's δσ scaled): central differences,
+        // twice from the same solve (the interior's fields found once).
+        let along_itself = |changes: &[(usize, f64)], scratch: &mut ChangeScratch| {
+            let scaled = |by: f64| changes.iter().map(|&(t, d)| (t, by * d)).collect::<Vec<_>>();
+            let n = update.background_measurements().len();
+            let (h, mut up, mut down) = (1e-4, vec![0.0; n], vec![0.0; n]);
+            let mut other = ChangeScratch::default();
+            update.measurement_change_into(&scaled(1.0 + h), &mut other, &mut up).unwrap();
+            update.measurement_change_into(&scaled(1.0 - h), &mut other, &mut down).unwrap();
+            for _ in 0..2 {
+                let mut derivative = vec![0.0; n];
+                assert!(update.derivative_into(changes, scratch, &mut derivative));
+                let scale = derivative.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+                for (m, (d, (u, w))) in derivative.iter().zip(up.iter().zip(&down)).enumerate() {
+                    let difference = (u - w) / (2.0 * h);
+                    assert!((d - difference).abs() < 1e-6 * scale, "m {m}: {d} vs {difference}");
+                }
+            }
+        };
+        along_itself(&changes, &mut scratch);
+        // One press, and one changed by a thousandth: solved on the rim too, as a full solve.
+        let one = &two[..1];
+        let faint = [Inclusion { conductivity: 0.999, ..two[0] }];
+        for presses in [one, &faint[..]] {
+            let changes = change_of(presses);
+            update.measurement_change_into(&changes, &mut scratch, &mut dv).unwrap();
+            let (rows, rim) = scratch.rows_and_rim();
+            assert!(rim < rows, "{rim} of {rows} rows kept");
+            let solved = model.measure(&with_inclusions(model.mesh(), 1.0, presses)).unwrap();
+            let scale = dv.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+            for (m, (d, (v, v0))) in dv.iter().zip(solved.iter().zip(update.background_measurements())).enumerate() {
+                assert!((d - (v - v0)).abs() < 1e-9 * scale, "m {m}: {d} vs {}", v - v0);
+            }
         }
-        // One press: solved on its rim too, as a full solve.
-        update.measurement_change_into(&change_of(&two[..1]), &mut scratch, &mut dv).unwrap();
-        let (rows, rim) = scratch.rows_and_rim();
-        assert!(rim < rows, "{rim} of {rows} rows kept");
-        let solved = model.measure(&with_inclusions(model.mesh(), 1.0, &two[..1])).unwrap();
-        let scale = dv.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-        for (m, (d, (v, v0))) in dv.iter().zip(solved.iter().zip(update.background_measurements())).enumerate() {
-            assert!((d - (v - v0)).abs() < 1e-9 * scale, "m {m}: {d} vs {}", v - v0);
-        }
+        update.measurement_change_into(&change_of(one), &mut scratch, &mut dv).unwrap();
+        along_itself(&change_of(one), &mut scratch);
         // σ = −0.5 under a press: every row kept, the same as the update on all rows.
         let mut under = two;
         under[0].conductivity = -0.5;
@@ -1053,5 +1053,12 @@ mod tests {
         let scale = whole.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
         assert!(scale.is_finite() && scale > 0.0);
         assert!(dv.iter().zip(&whole).all(|(d, w)| (d - w).abs() < 1e-8 * scale), "{dv:?} vs {whole:?}");
+        // The derivative from a solve that kept every row (a narrow press, with no interior row),
+        // on the scratch of eliminated ones.
+        let narrow = change_of(&two[2..]);
+        update.measurement_change_into(&narrow, &mut scratch, &mut dv).unwrap();
+        let (rows, rim) = scratch.rows_and_rim();
+        assert_eq!(rim, rows);
+        along_itself(&narrow, &mut scratch);
     }
 }

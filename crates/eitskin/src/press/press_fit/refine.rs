@@ -62,8 +62,9 @@ pub struct RefineParams {
 /// Buffers of [`refine`] and [`refine_tabulated`].
 #[derive(Debug, Default)]
 pub struct RefineScratch {
-    /// The last joint solve of the presses, and the disks it was made at.
+    /// The last joint solve of the presses.
     exact: ExactScratch,
+    /// The disks `exact` was last solved at (none after a solve that failed).
     solved_at: Vec<Disk>,
     /// The solves of each press alone, for its own response (the joint solve kept beside them).
     alone: ExactScratch,

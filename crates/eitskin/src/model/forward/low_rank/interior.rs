@@ -20,7 +20,7 @@
 //! are block diagonal over the change's connected parts (presses apart), so each part's K₀_II
 //! and K₁_II, a few dozen rows, are factored on their own by Cholesky (L·Lᵀ, with Y = L⁻¹·K_IΓ
 //! the term is Yᵀ·Y): each is the part's stiffness with its rim held, positive definite while
-//! the conductivity there is positive. Where K₁_II is not (a conductivity at or below 0), the
+//! the conductivity there is positive. Where either is not (a conductivity at or below 0), the
 //! change is solved on all its rows instead, as is a change with no interior row.
 
 use std::ops::Range;
@@ -262,7 +262,7 @@ impl Interior {
     /// Each part's ΔS from K₀ and K₁ on its triangles (`local` the rows' indices after
     /// [`Interior::order_rows`], `rim` the rim's rows): both conductivities' interior rows
     /// assembled, each K_II factored (L·Lᵀ) with Y = L⁻¹·K_IΓ, and ΔS = ΔK_ΓΓ − Y₁ᵀ·Y₁ + Y₀ᵀ·Y₀;
-    /// `false` where a part's K₁_II is not positive definite.
+    /// `false` where a part's K₁_II or K₀_II is not positive definite.
     pub(super) fn condense(&mut self, update: &LowRankUpdate, local: &[u32], rim: usize) -> bool {
         let mut offset = 0;
         for part in &mut self.parts {
