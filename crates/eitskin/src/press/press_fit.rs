@@ -554,7 +554,7 @@ impl PressModel {
     }
 
     /// The same model with one press's exact response at the indenter's radius tabulated over
-    /// the sheet ([`TabulatedPresses`], at the response grid's spacing: about 21 MB and 0.7 s on
+    /// the sheet ([`TabulatedPresses`], at the response grid's spacing: about 21 MB and 0.26 s on
     /// two cores for the paper's sensor), so that presses found afresh are fitted on the table
     /// with one exact solve per fit ([`refine_tabulated`]) instead of several per iteration:
     /// three presses at 0.05 % noise in about a third of the time, found as near where they

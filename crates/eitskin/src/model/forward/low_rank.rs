@@ -65,7 +65,7 @@ use stiffness::{Adjacency, Nonzeros};
 /// Frames of changes from one background past which a low-rank update repays its setup, by
 /// rule of thumb: its setup costs about a hundred full solves on the paper's sensor, both on the
 /// virtual sensor's truth mesh (0.75–0.86 s for K₀⁻¹ whole, its first frame with a press,
-/// against 6 ms a solve on one core; a one-press frame then 0.1 ms) and on the reconstruction
+/// against 6 ms a solve on one core; a one-press frame then about 30 µs) and on the reconstruction
 /// mesh (0.13 s for K₀⁻¹ whole against 1.2 ms; a frame then 25 µs).
 pub const UPDATE_AFTER: usize = 100;
 
