@@ -38,7 +38,7 @@ pub struct Args {
     /// with three (300: a share found near 95 % is known to about ±2.5 points, at 60 it was ±5;
     /// a pair's force RMS, which a few strong presses dominate, to about ±20 %, and at half as
     /// many frames one seed's RMS lay 30 % from another's), 0–10,000; 0 (the default) leaves the
-    /// sweep out: `--sweep-presses 300` runs it (about 30 minutes on 2 cores).
+    /// sweep out: `--sweep-presses 300` runs it (about 6 minutes on 2 cores).
     #[arg(long, default_value_t = 0, value_parser = ranges::whole("a number of presses", 0, 10_000))]
     sweep_presses: usize,
     /// Noise sweep: untouched frames per level, for the false touches, 1–100,000 (10,000: a
