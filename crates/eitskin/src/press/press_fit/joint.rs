@@ -406,9 +406,10 @@ impl PressModel {
         disks.clear();
         disks.extend(presses.iter().map(disk_of));
         // Of all of them, from the fit's own last solve where that was at these presses.
-        let kept = match on_table {
-            true => None,
-            false => refining.derivative_at_last_solve(exact.presses, disks, i, DiskParameter::Radius, response),
+        let kept = if on_table {
+            None
+        } else {
+            refining.derivative_at_last_solve(exact.presses, disks, i, DiskParameter::Radius, response)
         };
         let derived = match kept {
             Some(derived) => derived,
