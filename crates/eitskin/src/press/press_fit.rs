@@ -67,6 +67,7 @@ mod exact;
 mod joint;
 mod locate;
 mod refine;
+mod scan;
 mod tabulated;
 mod track;
 

@@ -26,14 +26,14 @@
 //! nearly the same vector), or a press much larger than the indenter.
 
 use crate::SeededRng;
-use faer::Mat;
 use rand::SeedableRng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 use super::exact::ExactPresses;
+use super::scan::Scan;
 use super::tabulated::TabulatedPresses;
 use super::{PressFit, PressModel, PressScratch, SWEEPS};
-use crate::inverse::{BlockedMatrix, InverseError};
+use crate::inverse::InverseError;
 use crate::noise::{threshold_of, CALIBRATION_SAMPLES};
 
 /// The most presses found in one frame.
@@ -45,47 +45,9 @@ pub const MAX_PRESSES: usize = 16;
 /// sweep, half of such false presses had a drop under 0.02).
 pub const MIN_DROP: f64 = 0.05;
 
-/// The responses of the scan grid (every other point of the response grid each way) as one
-/// matrix, points × measurements, so that all their correlations with Δv are one product.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Scan {
-    /// The response-grid index of each row.
-    pub(crate) points: Vec<usize>,
-    pub(crate) matrix: Mat<f64>,
-    /// The same matrix in f32, in the image product's blocks: every frame's correlations read
-    /// it at the memory limit (half the bytes of f64; a z needs no more than f32's 7 digits).
-    blocked: BlockedMatrix,
-    pub(crate) norms: Vec<f64>,
-}
-
-impl Scan {
-    fn new(model: &PressModel) -> Scan {
-        Scan::with_stride(model, 2)
-    }
-
-    /// The scan of every `stride`-th point of the response grid each way.
-    pub(crate) fn with_stride(model: &PressModel, stride: usize) -> Scan {
-        let [nx, ny] = model.grid.dims;
-        let points: Vec<usize> = (0..ny)
-            .step_by(stride)
-            .flat_map(|row| (0..nx).step_by(stride).map(move |col| row * nx + col))
-            .filter(|&j| model.norms[j] > 0.0)
-            .collect();
-        let m = model.measurements;
-        let matrix = Mat::from_fn(points.len(), m, |i, k| model.responses[points[i] * m + k]);
-        let mut blocked = BlockedMatrix::zeros(points.len(), m);
-        for i in 0..points.len() {
-            (0..m).for_each(|k| blocked.set(i, k, matrix[(i, k)] as f32));
-        }
-        let norms = points.iter().map(|&j| model.norms[j]).collect();
-        Scan { points, matrix, blocked, norms }
-    }
-
-    /// The row of response-grid point `point`, if it is a scan point.
-    pub(crate) fn row(&self, point: usize) -> Option<usize> {
-        self.points.binary_search(&point).ok()
-    }
-}
+/// Response-grid points between the search's scan points each way (a scan step of half the
+/// indenter's radius).
+const SCAN_STRIDE: usize = 2;
 
 /// The exact fit of presses found: their exact responses, Δv (V) and each channel's weight
 /// (1/std, 0 for a channel not used).
@@ -134,7 +96,7 @@ impl PressDetection {
         assert!(false_alarm_rate > 0.0 && false_alarm_rate <= 0.5, "a false-alarm rate in (0, 0.5]");
         let std: Vec<f64> = std.iter().map(|s| if *s > 0.0 && s.is_finite() { *s } else { f64::INFINITY }).collect();
         let model = model.whitened(&std);
-        let scan = Scan::new(&model);
+        let scan = Scan::with_stride(&model, SCAN_STRIDE);
         let mut rng = SeededRng::seed_from_u64(0x0d37_ec75);
         let (mut noise, mut correlations) = (vec![0.0; model.measurements()], Vec::new());
         let misestimate = ChiSquared::new(dof).ok().filter(|_| dof.is_finite() && dof > 0.0);
@@ -219,51 +181,6 @@ impl PressModel {
         whitened.norms =
             whitened.responses.chunks_exact(self.measurements).map(|g| g.iter().map(|x| x * x).sum()).collect();
         whitened
-    }
-
-    /// The point of `scan` whose press matches `dv` best, with its z = gᵀΔv/|g| (for a press:
-    /// gᵀΔv > 0, and a drop of at most the whole conductivity), leaving out points within two
-    /// indenter radii of `found` (m); `None` if no point's does. The fit then refines it on the
-    /// full grid. `correlations` is a buffer.
-    pub(crate) fn best_point(
-        &self,
-        scan: &Scan,
-        dv: &[f64],
-        found: &[[f64; 2]],
-        correlations: &mut Vec<f32>,
-    ) -> Option<(usize, f64)> {
-        self.best_point_in(scan, dv, found, &scan.norms, correlations)
-    }
-
-    /// [`PressModel::best_point`] with z = gᵀΔv/√`unexplained`: per scan point, the part of gᵀg
-    /// the presses already fitted cannot take up by moving (for a Δv orthogonal to what they can).
-    pub(crate) fn best_point_in(
-        &self,
-        scan: &Scan,
-        dv: &[f64],
-        found: &[[f64; 2]],
-        unexplained: &[f64],
-        correlations: &mut Vec<f32>,
-    ) -> Option<(usize, f64)> {
-        correlations.resize(scan.points.len(), 0.0);
-        scan.blocked.mul_into(correlations, |k| dv[k] as f32);
-        // Distances compared squared, without hypot: the test runs for every point near a press found.
-        let apart = (2.0 * self.radius).powi(2);
-        let mut best: Option<(usize, f64)> = None;
-        let points = scan.points.iter().zip(correlations.iter()).zip(scan.norms.iter().zip(unexplained));
-        for ((&j, &c), (&norm, &left)) in points {
-            let c = f64::from(c);
-            if c <= 0.0 || best.is_some_and(|(_, b)| c * c <= b * b * left) {
-                continue;
-            }
-            let p = self.grid.point(j);
-            let near = |f: &[f64; 2]| (f[0] - p[0]).powi(2) + (f[1] - p[1]).powi(2) < apart;
-            if found.iter().any(near) || self.too_deep(c / norm, j) {
-                continue;
-            }
-            best = Some((j, c / left.sqrt()));
-        }
-        best
     }
 
     /// Presses found one after another in `dv`, each starting where the largest z is left and

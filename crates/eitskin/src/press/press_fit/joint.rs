@@ -22,9 +22,10 @@
 //!
 //! until none of these changes anything.
 
-use super::detect::{Exact, Scan, MAX_PRESSES, MIN_DROP};
+use super::detect::{Exact, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter};
 use super::refine::{refine, refine_tabulated, RefineParams, DEEPEST};
+use super::scan::Scan;
 use super::{dot, PressFit, PressModel, PressScratch};
 use crate::inverse::InverseError;
 use crate::scratch::{grow, room};
@@ -48,11 +49,13 @@ pub(crate) fn unexplained_into(
     grow(projections, points, rank);
     let q = MatRef::from_column_major_slice(&basis[..rank * m], m, rank);
     matmul(projections.as_mut(), Accum::Replace, scan.matrix.as_ref(), q, 1.0, Par::Seq);
+    // |Qᵀg|² summed a column of projections at a time (contiguous), in the order of k.
     unexplained.clear();
-    unexplained.extend((0..points).map(|p| {
-        let taken: f64 = (0..rank).map(|k| projections[(p, k)].powi(2)).sum();
-        (scan.norms[p] - taken).max(UNEXPLAINED_FLOOR * scan.norms[p])
-    }));
+    unexplained.resize(points, 0.0);
+    for k in 0..rank {
+        unexplained.iter_mut().zip(projections.col_as_slice(k)).for_each(|(taken, q)| *taken += q.powi(2));
+    }
+    unexplained.iter_mut().zip(&scan.norms).for_each(|(u, norm)| *u = (norm - *u).max(UNEXPLAINED_FLOOR * norm));
 }
 
 /// An orthonormal basis of the rows of `jacobian` into `basis`, one vector after another (each

@@ -2,7 +2,7 @@
 //! frame (where, and how strong), for data whose scale nobody states (a board's counts, a data
 //! set's arbitrary units).
 
-use super::detect::Scan;
+use super::scan::Scan;
 use super::{PressFit, PressModel, PressScratch};
 
 /// Response-grid points between scan points: a quarter of the indenter's radius each, so the

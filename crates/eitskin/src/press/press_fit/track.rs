@@ -3,10 +3,11 @@
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
 
-use super::detect::{Exact, PressDetection, Scan, MAX_PRESSES, MIN_DROP};
+use super::detect::{Exact, PressDetection, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter, ExactScratch};
 use super::joint::{disk_of, orthonormal_rows, unexplained_into};
 use super::refine::DEEPEST;
+use super::scan::Scan;
 use super::{dot, PressFit, PressScratch};
 use crate::inverse::InverseError;
 use crate::scratch::{grow, room, DenseLu};

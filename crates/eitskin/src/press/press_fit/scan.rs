@@ -1,0 +1,397 @@
+//! The scan of the sheet: for a whitened Δv, the grid point whose press matches it best, the
+//! largest z = gᵀΔv/|g| over every point of a grid (the matched filter of
+//! [`super::detect`]), which the search for presses runs a dozen times a frame.
+//!
+//! The responses of the points span few directions: on the paper's sheet the 1,681 points'
+//! 120 values lie within 1 % of their own length of their first 55 right singular vectors V.
+//! So each scan reads them in that basis: y = VᵀΔv (r values), c̃ = (GV)·y in f32 (points × r,
+//! the image product's blocks), against the full G·Δv (points × 120). What the basis misses is
+//! bounded, |c − c̃| ≤ |g − VVᵀg|·|Δv − VVᵀΔv| + the f32 rounding of c̃ (per point, both known),
+//! so the best point is still the best of the exact z: the largest z any point surely reaches
+//! (its bound taken against it) sets a floor, and only the points whose bound reaches over it
+//! (a handful around the peak) are scored again exactly, in f64 from their responses. The pick
+//! and its z are those of the exact product, from a product of under half its size. (Where the
+//! measurements are more than [`MAX_RANK`], the scan reads the responses whole, as before.)
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, Par, Side};
+
+use super::{dot, PressModel};
+use crate::inverse::BlockedMatrix;
+
+/// The largest share of a point's |g| the basis of a scan may miss: the scan's rank is the
+/// smallest that leaves every point within it. Smaller costs more rank a product, larger more
+/// points scored again around the peak (the bound grows with it).
+const MISSED: f64 = 0.01;
+
+/// The responses of a grid's points (every `stride`-th point of the response grid each way), as
+/// one matrix, and in the basis its scan reads them in.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Scan {
+    /// The response-grid index of each row.
+    pub(crate) points: Vec<usize>,
+    /// The responses, points × measurements.
+    pub(crate) matrix: Mat<f64>,
+    /// Per point, gᵀg.
+    pub(crate) norms: Vec<f64>,
+    /// V: the responses' leading right singular vectors, measurements × rank, row-major; `None`
+    /// where the responses are read whole (V = I).
+    basis: Option<Vec<f64>>,
+    /// V's columns.
+    rank: usize,
+    /// G·V in f32, in the image product's blocks: every scan's product.
+    reduced: BlockedMatrix,
+    /// Per point, |g − VVᵀg| (a bound, the rounding of its computation added).
+    missed: Vec<f64>,
+    /// Per point, |g|.
+    roots: Vec<f64>,
+}
+
+impl Scan {
+    /// The scan of every `stride`-th point of `model`'s response grid each way, outside points
+    /// left out.
+    pub(crate) fn with_stride(model: &PressModel, stride: usize) -> Scan {
+        Scan::read(model, stride, model.measurements <= MAX_RANK)
+    }
+
+    /// [`Scan::with_stride`], its responses read in a basis of their own or (`reduce` false) whole.
+    fn read(model: &PressModel, stride: usize, reduce_them: bool) -> Scan {
+        let [nx, ny] = model.grid.dims;
+        let points: Vec<usize> = (0..ny)
+            .step_by(stride)
+            .flat_map(|row| (0..nx).step_by(stride).map(move |col| row * nx + col))
+            .filter(|&j| model.norms[j] > 0.0)
+            .collect();
+        let m = model.measurements;
+        let matrix = Mat::from_fn(points.len(), m, |i, k| model.responses[points[i] * m + k]);
+        let norms: Vec<f64> = points.iter().map(|&j| model.norms[j]).collect();
+        let (basis, projections, missed) = if reduce_them {
+            let (basis, projections, missed) = reduce(&matrix, &norms);
+            let rows = (0..m).flat_map(|q| (0..basis.ncols()).map(move |k| (q, k))).map(|(q, k)| basis[(q, k)]);
+            (Some(rows.collect()), projections, missed)
+        } else {
+            (None, matrix.clone(), vec![0.0; points.len()])
+        };
+        let rank = projections.ncols();
+        let mut reduced = BlockedMatrix::zeros(points.len(), rank);
+        for i in 0..points.len() {
+            (0..rank).for_each(|k| reduced.set(i, k, projections[(i, k)] as f32));
+        }
+        let roots = norms.iter().map(|n| n.sqrt()).collect();
+        Scan { points, matrix, norms, basis, rank, reduced, missed, roots }
+    }
+
+    /// The row of response-grid point `point`, if it is a scan point.
+    pub(crate) fn row(&self, point: usize) -> Option<usize> {
+        self.points.binary_search(&point).ok()
+    }
+
+    /// The basis's rank: the scan's product's columns.
+    pub(crate) fn rank(&self) -> usize {
+        self.rank
+    }
+
+    /// c̃ = (GV)·(VᵀΔv) into `correlations`; the bound on |c − c̃| is then
+    /// `missed[i]·outside + rounding·√norms[i]`, and `(outside, rounding)` is returned.
+    fn correlate(&self, dv: &[f64], projection: &mut [f64; MAX_RANK], correlations: &mut Vec<f32>) -> (f64, f64) {
+        let r = self.rank();
+        let y = match &self.basis {
+            Some(basis) => {
+                project(basis, dv, &mut projection[..r]);
+                &projection[..r]
+            }
+            None => dv,
+        };
+        correlations.resize(self.points.len(), 0.0);
+        self.reduced.mul_into(correlations, |k| y[k] as f32);
+        let (dd, yy) = (dot(dv, dv), dot(y, y));
+        // |Δv − VVᵀΔv|, its cancellation's rounding added.
+        let outside = ((dd - yy).max(0.0) + 1e-12 * dd).sqrt();
+        // Each of the r products and sums, and the two roundings to f32, within 2⁻²⁴ of itself
+        // (f32's epsilon is 2⁻²³), of Σ|a||y| ≤ |a||y| ≤ |g||y|.
+        let rounding = (r + 2) as f64 * f64::from(f32::EPSILON) * yy.sqrt();
+        (outside, rounding)
+    }
+}
+
+/// Points a pass of the scan's selection tests at once.
+const LANES: usize = 8;
+
+/// The bound on |c − c̃| of each point of a scan, for one Δv.
+struct Bounds<'a> {
+    missed: &'a [f64],
+    roots: &'a [f64],
+    /// |Δv − VVᵀΔv|.
+    outside: f64,
+    /// The f32 rounding of c̃ per unit of |g|.
+    rounding: f64,
+}
+
+impl Bounds<'_> {
+    /// The bound at point `i`.
+    fn at(&self, i: usize) -> f64 {
+        self.missed[i] * self.outside + self.rounding * self.roots[i]
+    }
+}
+
+crate::parallel::widest! {
+    /// The first point from `start` on whose c̃ + `side`·bound is positive with a square of at
+    /// least `floor`·`left` (`side` −1: its c surely as large; +1: possibly), if any.
+    fn next_reaching = next_reaching_portable(bounds: &Bounds<'_>, c: &[f32], left: &[f64], side: f64, floor: f64, start: usize) -> Option<usize>
+}
+
+/// The kernel: [`LANES`] points tested at once without a branch (c's sign, the noise's where
+/// there is no press, is a coin toss), then the first of a chunk that passes.
+#[inline(always)]
+fn next_reaching_portable(
+    bounds: &Bounds<'_>,
+    c: &[f32],
+    left: &[f64],
+    side: f64,
+    floor: f64,
+    start: usize,
+) -> Option<usize> {
+    let Bounds { missed, roots, outside, rounding } = *bounds;
+    let n = c.len().min(left.len()).min(missed.len()).min(roots.len());
+    let reaches = |c: f32, missed: f64, root: f64, left: f64| {
+        let v = f64::from(c) + side * (missed * outside + rounding * root);
+        (v > 0.0) & (v * v >= floor * left)
+    };
+    let first = |from: usize, to: usize| (from..to).find(|&i| reaches(c[i], missed[i], roots[i], left[i]));
+    let mut at = start;
+    while at + LANES <= n {
+        let (cs, ms, rs, ls) =
+            (&c[at..at + LANES], &missed[at..at + LANES], &roots[at..at + LANES], &left[at..at + LANES]);
+        let any =
+            cs.iter().zip(ms).zip(rs.iter().zip(ls)).fold(false, |any, ((&c, &m), (&r, &l))| any | reaches(c, m, r, l));
+        if any {
+            return first(at, at + LANES);
+        }
+        at += LANES;
+    }
+    first(at.min(n), n)
+}
+
+crate::parallel::widest! {
+    /// y = Vᵀ·`dv`, V `basis` (measurements × `y.len()`, row-major): each measurement's row added in.
+    fn project = project_portable(basis: &[f64], dv: &[f64], y: &mut [f64]) -> ()
+}
+
+/// The kernel: y's r values in lanes, one row of V a measurement.
+#[inline(always)]
+fn project_portable(basis: &[f64], dv: &[f64], y: &mut [f64]) {
+    y.fill(0.0);
+    if y.is_empty() {
+        return;
+    }
+    for (row, d) in basis.chunks_exact(y.len()).zip(dv) {
+        y.iter_mut().zip(row).for_each(|(y, v)| *y += d * v);
+    }
+}
+
+/// The most measurements whose scan reads its responses in a basis of their own (the projection
+/// of Δv lives on the stack; past it, the basis's decomposition would cost seconds).
+const MAX_RANK: usize = 512;
+
+/// V, G·V and per row |g − VVᵀg| of `matrix` (points × measurements, rows' gᵀg `norms`): the
+/// eigenvectors of GᵀG by decreasing eigenvalue, as many as leave every row within
+/// [`MISSED`] of its length (all of them where the eigen-decomposition fails).
+fn reduce(matrix: &Mat<f64>, norms: &[f64]) -> (Mat<f64>, Mat<f64>, Vec<f64>) {
+    let (points, m) = (matrix.nrows(), matrix.ncols());
+    let mut gram = Mat::<f64>::zeros(m, m);
+    matmul(gram.as_mut(), Accum::Replace, matrix.transpose(), matrix.as_ref(), 1.0, Par::Seq);
+    // Decreasing eigenvalue; the identity where there is no decomposition (every row kept whole).
+    let order = match gram.self_adjoint_eigen(Side::Lower) {
+        Ok(eigen) => Mat::from_fn(m, m, |q, k| eigen.U()[(q, m - 1 - k)]),
+        Err(_) => Mat::identity(m, m),
+    };
+    let mut projections = Mat::<f64>::zeros(points, m);
+    matmul(projections.as_mut(), Accum::Replace, matrix.as_ref(), order.as_ref(), 1.0, Par::Seq);
+    // Per row, Σ over the directions left out of its projection's squares: the tail sums.
+    let tail = |i: usize, r: usize| (r..m).map(|k| projections[(i, k)].powi(2)).sum::<f64>();
+    let fits = |r: usize| (0..points).all(|i| tail(i, r) <= MISSED * MISSED * norms[i]);
+    let rank = (1..=m).find(|&r| fits(r)).unwrap_or(m);
+    // The eigenvectors' own departure from orthonormality is about 1e-14 of a row's length.
+    let missed = (0..points).map(|i| tail(i, rank).sqrt() + 1e-12 * norms[i].sqrt()).collect();
+    let basis = order.subcols(0, rank).to_owned();
+    let projections = projections.subcols(0, rank).to_owned();
+    (basis, projections, missed)
+}
+
+impl PressModel {
+    /// The point of `scan` whose press matches `dv` best, with its z = gᵀΔv/|g| (for a press:
+    /// gᵀΔv > 0, and a drop of at most the whole conductivity), leaving out points within two
+    /// indenter radii of `found` (m); `None` if no point's does. The fit then refines it on the
+    /// full grid. `correlations` is a buffer.
+    pub(crate) fn best_point(
+        &self,
+        scan: &Scan,
+        dv: &[f64],
+        found: &[[f64; 2]],
+        correlations: &mut Vec<f32>,
+    ) -> Option<(usize, f64)> {
+        self.best_point_in(scan, dv, found, &scan.norms, correlations)
+    }
+
+    /// [`PressModel::best_point`] with z = gᵀΔv/√`unexplained`: per scan point, the part of gᵀg
+    /// the presses already fitted cannot take up by moving (for a Δv orthogonal to what they can).
+    /// `scan` must be of this model (its points' responses are read to score them exactly).
+    pub(crate) fn best_point_in(
+        &self,
+        scan: &Scan,
+        dv: &[f64],
+        found: &[[f64; 2]],
+        unexplained: &[f64],
+        correlations: &mut Vec<f32>,
+    ) -> Option<(usize, f64)> {
+        let mut projection = [0.0; MAX_RANK];
+        let (outside, rounding) = scan.correlate(dv, &mut projection, correlations);
+        // Distances compared squared, without hypot: the test runs for every point near a press found.
+        let apart = (2.0 * self.radius).powi(2);
+        let near = |j: usize| {
+            let p = self.grid.point(j);
+            found.iter().any(|f| (f[0] - p[0]).powi(2) + (f[1] - p[1]).powi(2) < apart)
+        };
+        let n = scan.points.len();
+        let (c, left) = (&correlations[..n], &unexplained[..n]);
+        let bounds = Bounds { missed: &scan.missed[..n], roots: &scan.roots[..n], outside, rounding };
+        // The largest z² some point surely reaches: its c's bound below, its drop's above. Each
+        // pass tests a chunk of points at once without a branch (c's sign, the noise's where there
+        // is no press, is a coin toss), then each point of a chunk that may pass in turn.
+        let mut floor = 0.0_f64;
+        let mut i = 0;
+        while let Some(at) = next_reaching(&bounds, c, left, -1.0, floor, i) {
+            let (low, high) = (f64::from(c[at]) - bounds.at(at), f64::from(c[at]) + bounds.at(at));
+            // A NaN limit (the ladder not increasing there) is never sure.
+            let j = scan.points[at];
+            if low * low > floor * left[at] && high / scan.norms[at] <= self.drop_limits[j] && !near(j) {
+                floor = low * low / left[at];
+            }
+            i = at + 1;
+        }
+        // Every point whose bound reaches that floor, scored exactly; the first of the largest.
+        let m = self.measurements;
+        let mut best: Option<(usize, f64)> = None;
+        let mut i = 0;
+        while let Some(at) = next_reaching(&bounds, c, left, 1.0, floor, i) {
+            i = at + 1;
+            let (j, high) = (scan.points[at], f64::from(c[at]) + bounds.at(at));
+            if best.is_some_and(|(_, b)| high * high <= b * b * left[at]) || near(j) {
+                continue;
+            }
+            let c = dot(&self.responses[j * m..(j + 1) * m], dv);
+            if c <= 0.0 || self.too_deep(c / scan.norms[at], j) {
+                continue;
+            }
+            let z = c / left[at].sqrt();
+            if best.is_none_or(|(_, b)| z > b) {
+                best = Some((j, z));
+            }
+        }
+        best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::press_fit::PressModelParams;
+    use crate::{SeededRng, SensorSpec};
+    use rand::{RngExt, SeedableRng};
+    use rand_distr::StandardNormal;
+
+    /// A whitened press model of the paper's sheet on a coarse mesh, and its scan.
+    fn whitened() -> (PressModel, Scan) {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 1500;
+        let model = spec.forward_model().unwrap();
+        let values = model.measure(&spec.homogeneous(model.mesh())).unwrap();
+        let press = PressModel::new(&model, spec.conductivity, &PressModelParams::default()).unwrap();
+        let std: Vec<f64> = values.iter().map(|v| 5e-4 * v.abs()).collect();
+        let press = press.whitened(&std);
+        let scan = Scan::with_stride(&press, 2);
+        (press, scan)
+    }
+
+    /// Δv of whitened noise and up to two presses of z up to 60, at random places.
+    fn frame(press: &PressModel, rng: &mut SeededRng) -> Vec<f64> {
+        let m = press.measurements();
+        let mut dv: Vec<f64> = (0..m).map(|_| rng.sample(StandardNormal)).collect();
+        let mut g = vec![0.0; m];
+        for _ in 0..rng.random_range(0..3) {
+            let p = [rng.random_range(-0.09..0.09), rng.random_range(-0.09..0.09)];
+            if press.response_into(p, &mut g) {
+                let scale = rng.random_range(0.0..60.0) / dot(&g, &g).sqrt();
+                dv.iter_mut().zip(&g).for_each(|(d, g)| *d += scale * g);
+            }
+        }
+        dv
+    }
+
+    /// The scan's basis leaves out most directions of the paper's sheet, and its bound holds at
+    /// every point, in that basis and with the responses read whole: |c − c̃| for c in f64 from
+    /// the responses themselves.
+    #[test]
+    fn the_bound_holds_at_every_point() {
+        let (press, scan) = whitened();
+        let m = press.measurements();
+        assert!(scan.rank() < m * 2 / 3, "rank {} of {m}", scan.rank());
+        let mut rng = SeededRng::seed_from_u64(5);
+        let (mut projection, mut correlations) = ([0.0; MAX_RANK], Vec::new());
+        let whole = Scan::read(&press, 2, false);
+        for _ in 0..50 {
+            let dv = frame(&press, &mut rng);
+            for scan in [&scan, &whole] {
+                let (outside, rounding) = scan.correlate(&dv, &mut projection, &mut correlations);
+                let bounds = Bounds { missed: &scan.missed, roots: &scan.roots, outside, rounding };
+                for (i, &j) in scan.points.iter().enumerate() {
+                    let c = dot(&press.responses[j * m..(j + 1) * m], &dv);
+                    let off = (c - f64::from(correlations[i])).abs();
+                    assert!(off <= bounds.at(i), "point {i}: {off} over its bound {}", bounds.at(i));
+                }
+            }
+        }
+    }
+
+    /// The pick and its z are those of scoring every point exactly, with presses found left out
+    /// and the share of gᵀg left unexplained in the z; with the responses in their basis, and
+    /// read whole.
+    #[test]
+    fn the_pick_is_the_exact_scans() {
+        let (press, scan) = whitened();
+        let whole = Scan::read(&press, 2, false);
+        assert_eq!(whole.rank(), press.measurements());
+        let m = press.measurements();
+        let mut rng = SeededRng::seed_from_u64(6);
+        let mut correlations = Vec::new();
+        let apart = 2.0 * press.radius();
+        for case in 0..200 {
+            let dv = frame(&press, &mut rng);
+            let found: Vec<[f64; 2]> = (0..rng.random_range(0..3))
+                .map(|_| [rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1)])
+                .collect();
+            let unexplained: Vec<f64> = scan.norms.iter().map(|n| n * rng.random_range(0.25..=1.0)).collect();
+            let mut exact: Option<(usize, f64)> = None;
+            for (i, &j) in scan.points.iter().enumerate() {
+                let p = press.grid.point(j);
+                let c = dot(&press.responses[j * m..(j + 1) * m], &dv);
+                let near = found.iter().any(|f| (f[0] - p[0]).hypot(f[1] - p[1]) < apart);
+                if c <= 0.0 || near || press.too_deep(c / scan.norms[i], j) {
+                    continue;
+                }
+                let z = c / unexplained[i].sqrt();
+                if exact.is_none_or(|(_, b)| z > b) {
+                    exact = Some((j, z));
+                }
+            }
+            for scan in [&scan, &whole] {
+                let picked = press.best_point_in(scan, &dv, &found, &unexplained, &mut correlations);
+                assert_eq!(picked.map(|(j, _)| j), exact.map(|(j, _)| j), "case {case}");
+                if let (Some((_, a)), Some((_, b))) = (picked, exact) {
+                    assert!((a - b).abs() <= 1e-12 * b.abs(), "case {case}: z {a} against {b}");
+                }
+            }
+        }
+        assert!(press.best_point(&scan, &vec![0.0; m], &[], &mut correlations).is_none());
+    }
+}
