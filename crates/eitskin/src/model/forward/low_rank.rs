@@ -697,17 +697,7 @@ impl LowRankUpdate {
         // (∂K·X)ᵀ, a row of ∂K·X a contiguous column, each entry of ∂K adding a row of X.
         grow(dkxt, basis, s);
         dkxt.fill(0.0);
-        for &(t, delta) in direction {
-            let Some(entries) = self.triangle_entries(t, local_of) else { continue };
-            for (i, j, coef) in entries {
-                let c = delta * coef;
-                let axpy = |to: &mut [f64], from: &[f64]| to.iter_mut().zip(from).for_each(|(t, f)| *t += c * f);
-                axpy(dkxt.col_as_slice_mut(i), xt.col_as_slice(j));
-                if i != j {
-                    axpy(dkxt.col_as_slice_mut(j), xt.col_as_slice(i));
-                }
-            }
-        }
+        add_direction(self, direction, local_of, xt, dkxt);
         grow(change, basis, basis);
         matmul(change.as_mut(), Accum::Replace, xt.as_ref(), dkxt.transpose(), -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
@@ -882,6 +872,35 @@ impl Clone for ChangeScratch {
     /// Buffers are not worth copying: a clone starts empty.
     fn clone(&self) -> Self {
         ChangeScratch::default()
+    }
+}
+
+crate::parallel::widest! {
+    /// (∂K·X)ᵀ along `direction` ((t, ∂σ_t)) added into `dkxt` (basis × rows), from Xᵀ `xt`:
+    /// each entry of ∂K adding a row of X (a few hundred additions of a row of L − 1 values a
+    /// derivative, in the widest vectors the processor has).
+    fn add_direction = add_direction_portable(update: &LowRankUpdate, direction: &[(usize, f64)], local: &[u32], xt: &Mat<f64>, dkxt: &mut Mat<f64>) -> ()
+}
+
+/// The kernel of [`add_direction`].
+#[inline(always)]
+fn add_direction_portable(
+    update: &LowRankUpdate,
+    direction: &[(usize, f64)],
+    local: &[u32],
+    xt: &Mat<f64>,
+    dkxt: &mut Mat<f64>,
+) {
+    for &(t, delta) in direction {
+        let Some(entries) = update.triangle_entries(t, local) else { continue };
+        for (i, j, coef) in entries {
+            let c = delta * coef;
+            let axpy = |to: &mut [f64], from: &[f64]| to.iter_mut().zip(from).for_each(|(t, f)| *t += c * f);
+            axpy(dkxt.col_as_slice_mut(i), xt.col_as_slice(j));
+            if i != j {
+                axpy(dkxt.col_as_slice_mut(j), xt.col_as_slice(i));
+            }
+        }
     }
 }
 
