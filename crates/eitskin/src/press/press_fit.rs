@@ -78,9 +78,22 @@ pub use refine::{refine, refine_tabulated, RefineParams, RefineScratch, DEEPEST}
 pub use tabulated::TabulatedPresses;
 pub use track::{PressTrack, Tracked, WINDOW};
 
-/// Σ aᵢbᵢ over the shorter of `a` and `b`, in eight running sums: the scans' and the fits'
-/// products of responses of a hundred-odd values, which one running sum makes a chain of adds.
+crate::parallel::widest! {
+    /// Σ aᵢbᵢ over the shorter of `a` and `b`, in eight running sums: the scans' and the fits'
+    /// products of responses of a hundred-odd values, which one running sum makes a chain of adds
+    /// (the same sums in the same order on every processor, in its widest vectors).
+    fn dot_widest = dot_portable(a: &[f64], b: &[f64]) -> f64
+}
+
+/// [`dot_widest`]: Σ aᵢbᵢ over the shorter of `a` and `b`.
+#[inline]
 pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    dot_widest(a, b)
+}
+
+/// The kernel of [`dot_widest`].
+#[inline(always)]
+fn dot_portable(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (a[..n].chunks_exact(8), b[..n].chunks_exact(8));
     let tail: f64 = a.remainder().iter().zip(b.remainder()).map(|(x, y)| x * y).sum();
