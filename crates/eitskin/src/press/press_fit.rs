@@ -94,14 +94,24 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// The kernel of [`dot_widest`].
 #[inline(always)]
 fn dot_portable(a: &[f64], b: &[f64]) -> f64 {
+    // Plain loops: a closure's fold may be left uninlined, compiled for the baseline alone.
     let n = a.len().min(b.len());
     let (a, b) = (a[..n].chunks_exact(8), b[..n].chunks_exact(8));
-    let tail: f64 = a.remainder().iter().zip(b.remainder()).map(|(x, y)| x * y).sum();
+    let mut tail = 0.0;
+    for (x, y) in a.remainder().iter().zip(b.remainder()) {
+        tail += x * y;
+    }
     let mut sums = [0.0; 8];
     for (a, b) in a.zip(b) {
-        (0..8).for_each(|k| sums[k] += a[k] * b[k]);
+        for k in 0..8 {
+            sums[k] += a[k] * b[k];
+        }
     }
-    sums.iter().sum::<f64>() + tail
+    let mut total = 0.0;
+    for sum in sums {
+        total += sum;
+    }
+    total + tail
 }
 
 /// A square grid of points over a box: the first at `lo`, row-major.

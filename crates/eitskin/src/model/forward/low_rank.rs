@@ -96,6 +96,9 @@ pub const WHOLE_LIMIT: usize = 8192;
 /// Local corner pairs of a triangle's stiffness entries, in the order of the stored coefficients.
 const LOCAL: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
+/// A corner's index in R where it is the grounded node: past every row's.
+const GROUND: u32 = UNUSED - 1;
+
 /// A row of the system outside the change's rows ([`ChangeScratch`]'s map).
 const UNUSED: u32 = u32::MAX;
 
@@ -709,8 +712,16 @@ impl LowRankUpdate {
     /// grounded node left out; `None` if a row of it is outside R. The one place ΔK's entries
     /// are read from the mesh, for the update, its derivative and the solve of a whole place.
     fn triangle_entries(&self, t: usize, local: &[u32]) -> Option<impl Iterator<Item = (usize, usize, f64)>> {
-        // The grounded node's index: past every row's.
-        const GROUND: u32 = UNUSED - 1;
+        let (index, coefs) = self.triangle_rows(t, local)?;
+        Some(LOCAL.iter().zip(coefs).filter_map(move |(&(a, b), coef)| {
+            let (i, j) = (index[a], index[b]);
+            (i != GROUND && j != GROUND).then_some((i as usize, j as usize, coef))
+        }))
+    }
+
+    /// Triangle `t`'s corners' indices in R ([`GROUND`] for the grounded node) and its
+    /// stiffness entries in [`LOCAL`]'s order: what [`LowRankUpdate::triangle_entries`] reads.
+    fn triangle_rows(&self, t: usize, local: &[u32]) -> Option<([u32; 3], [f64; 6])> {
         let mut index = [GROUND; 3];
         for (k, &n) in self.model.mesh.triangles()[t].iter().enumerate() {
             let row = self.model.row_of_node[n];
@@ -718,11 +729,7 @@ impl LowRankUpdate {
                 index[k] = *local.get(row).filter(|&&i| i != UNUSED)?;
             }
         }
-        let coefs = self.model.pattern.triangle_coefs[t];
-        Some(LOCAL.iter().zip(coefs).filter_map(move |(&(a, b), coef)| {
-            let (i, j) = (index[a], index[b]);
-            (i != GROUND && j != GROUND).then_some((i as usize, j as usize, coef))
-        }))
+        Some((index, self.model.pattern.triangle_coefs[t]))
     }
 
     /// Every measurement (V, protocol order) of a change `change` of the basis voltages
@@ -882,7 +889,13 @@ crate::parallel::widest! {
     fn add_direction = add_direction_portable(update: &LowRankUpdate, direction: &[(usize, f64)], local: &[u32], xt: &Mat<f64>, dkxt: &mut Mat<f64>) -> ()
 }
 
-/// The kernel of [`add_direction`].
+/// Rows of the basis a pass of [`add_direction`] keeps in registers per column.
+const PASS_ROWS: usize = 16;
+
+/// The kernel of [`add_direction`]: a triangle's three columns of (∂K·X)ᵀ held in registers
+/// while its entries add into them, [`PASS_ROWS`] of the basis at a time (through memory, each
+/// addition into a column waited on the last one's store). Every element receives the same
+/// additions in the same order either way: [`LowRankUpdate::triangle_entries`]'s.
 #[inline(always)]
 fn add_direction_portable(
     update: &LowRankUpdate,
@@ -891,14 +904,35 @@ fn add_direction_portable(
     xt: &Mat<f64>,
     dkxt: &mut Mat<f64>,
 ) {
-    for &(t, delta) in direction {
-        let Some(entries) = update.triangle_entries(t, local) else { continue };
-        for (i, j, coef) in entries {
-            let c = delta * coef;
-            let axpy = |to: &mut [f64], from: &[f64]| to.iter_mut().zip(from).for_each(|(t, f)| *t += c * f);
-            axpy(dkxt.col_as_slice_mut(i), xt.col_as_slice(j));
-            if i != j {
-                axpy(dkxt.col_as_slice_mut(j), xt.col_as_slice(i));
+    let basis = xt.nrows();
+    for first in (0..basis).step_by(PASS_ROWS) {
+        let rows = first..(first + PASS_ROWS).min(basis);
+        let n = rows.len();
+        for &(t, delta) in direction {
+            let Some((index, coefs)) = update.triangle_rows(t, local) else { continue };
+            let present = index.map(|i| i != GROUND);
+            let (mut sums, mut x) = ([[0.0; PASS_ROWS]; 3], [[0.0; PASS_ROWS]; 3]);
+            for corner in (0..3).filter(|&k| present[k]) {
+                let column = index[corner] as usize;
+                sums[corner][..n].copy_from_slice(&dkxt.col_as_slice(column)[rows.clone()]);
+                x[corner][..n].copy_from_slice(&xt.col_as_slice(column)[rows.clone()]);
+            }
+            for (&(a, b), coef) in LOCAL.iter().zip(coefs) {
+                if !(present[a] && present[b]) {
+                    continue;
+                }
+                let c = delta * coef;
+                for k in 0..PASS_ROWS {
+                    sums[a][k] += c * x[b][k];
+                }
+                if a != b {
+                    for k in 0..PASS_ROWS {
+                        sums[b][k] += c * x[a][k];
+                    }
+                }
+            }
+            for corner in (0..3).filter(|&k| present[k]) {
+                dkxt.col_as_slice_mut(index[corner] as usize)[rows.clone()].copy_from_slice(&sums[corner][..n]);
             }
         }
     }
