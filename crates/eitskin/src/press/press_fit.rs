@@ -85,11 +85,19 @@ crate::parallel::widest! {
     fn dot_widest = dot_portable(a: &[f64], b: &[f64]) -> f64
 }
 
-/// [`dot_widest`]: Σ aᵢbᵢ over the shorter of `a` and `b`.
+/// [`dot_widest`]: Σ aᵢbᵢ over the shorter of `a` and `b`; inline where too short for the
+/// dispatch to pay (the carried presses' models take thousands of products of a dozen values).
 #[inline]
 pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    dot_widest(a, b)
+    if a.len().min(b.len()) < DISPATCHED {
+        dot_portable(a, b)
+    } else {
+        dot_widest(a, b)
+    }
 }
+
+/// The shortest products [`dot`] runs through the dispatch.
+const DISPATCHED: usize = 32;
 
 /// The kernel of [`dot_widest`].
 #[inline(always)]
