@@ -621,9 +621,8 @@ impl LowRankUpdate {
             // Xᵀ, each row of X contiguous (for the derivatives that follow too), then (ΔK·X)ᵀ,
             // each entry of ΔK (symmetric: its columns are its rows) adding a row of X, and
             // ΔV = −U_Rᵀ·ΔK·X.
-            grow(xt, basis, s);
-            xt.copy_from(x.transpose());
-            grow(dkxt, basis, s);
+            transpose_padded(x.as_ref(), xt);
+            grow(dkxt, xt.nrows(), s);
             for i in 0..s {
                 let to = dkxt.col_as_slice_mut(i);
                 to.fill(0.0);
@@ -631,7 +630,8 @@ impl LowRankUpdate {
                     to.iter_mut().zip(xt.col_as_slice(j)).for_each(|(t, x)| *t += value * x);
                 }
             }
-            matmul(change.as_mut(), Accum::Replace, fields.as_ref(), dkxt.transpose(), -1.0, Par::Seq);
+            let dkx = dkxt.as_ref().subrows(0, basis).transpose();
+            matmul(change.as_mut(), Accum::Replace, fields.as_ref(), dkx, -1.0, Par::Seq);
             *extended = true;
         }
         self.measurements_of(change.as_ref(), out);
@@ -693,16 +693,16 @@ impl LowRankUpdate {
         let (s, basis) = (rows.len(), x.ncols());
         if !*extended {
             interior.extend(x.as_mut(), *kept);
-            grow(xt, basis, s);
-            xt.copy_from(x.transpose());
+            transpose_padded(x.as_ref(), xt);
             *extended = true;
         }
         // (∂K·X)ᵀ, a row of ∂K·X a contiguous column, each entry of ∂K adding a row of X.
-        grow(dkxt, basis, s);
+        grow(dkxt, xt.nrows(), s);
         dkxt.fill(0.0);
         add_direction(self, direction, local_of, xt, dkxt);
         grow(change, basis, basis);
-        matmul(change.as_mut(), Accum::Replace, xt.as_ref(), dkxt.transpose(), -1.0, Par::Seq);
+        let (x_t, dkx) = (xt.as_ref().subrows(0, basis), dkxt.as_ref().subrows(0, basis).transpose());
+        matmul(change.as_mut(), Accum::Replace, x_t, dkx, -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
         true
     }
@@ -889,8 +889,18 @@ crate::parallel::widest! {
     fn add_direction = add_direction_portable(update: &LowRankUpdate, direction: &[(usize, f64)], local: &[u32], xt: &Mat<f64>, dkxt: &mut Mat<f64>) -> ()
 }
 
-/// Rows of the basis a pass of [`add_direction`] keeps in registers per column.
+/// Rows of the basis a pass of [`add_direction`] keeps in registers per column; Xᵀ and
+/// (∂K·X)ᵀ have a multiple of it, the rows past the basis 0.
 const PASS_ROWS: usize = 16;
+
+/// Xᵀ of `x` (rows × basis) into `xt`, its rows padded with zeros to a multiple of [`PASS_ROWS`].
+fn transpose_padded(x: MatRef<'_, f64>, xt: &mut Mat<f64>) {
+    let (s, basis) = (x.nrows(), x.ncols());
+    let padded = basis.next_multiple_of(PASS_ROWS);
+    grow(xt, padded, s);
+    xt.as_mut().subrows_mut(0, basis).copy_from(x.transpose());
+    xt.as_mut().subrows_mut(basis, padded - basis).fill(0.0);
+}
 
 /// The kernel of [`add_direction`]: a triangle's three columns of (∂K·X)ᵀ held in registers
 /// while its entries add into them, [`PASS_ROWS`] of the basis at a time (through memory, each
@@ -904,18 +914,21 @@ fn add_direction_portable(
     xt: &Mat<f64>,
     dkxt: &mut Mat<f64>,
 ) {
-    let basis = xt.nrows();
-    for first in (0..basis).step_by(PASS_ROWS) {
-        let rows = first..(first + PASS_ROWS).min(basis);
-        let n = rows.len();
+    let padded = xt.nrows().min(dkxt.nrows());
+    for first in (0..padded).step_by(PASS_ROWS) {
+        let rows = first..first + PASS_ROWS;
+        // A pass's rows of a column, as a whole register block.
+        let block = |column: &[f64]| -> [f64; PASS_ROWS] {
+            column.get(rows.clone()).and_then(|rows| rows.try_into().ok()).unwrap_or([0.0; PASS_ROWS])
+        };
         for &(t, delta) in direction {
             let Some((index, coefs)) = update.triangle_rows(t, local) else { continue };
             let present = index.map(|i| i != GROUND);
             let (mut sums, mut x) = ([[0.0; PASS_ROWS]; 3], [[0.0; PASS_ROWS]; 3]);
             for corner in (0..3).filter(|&k| present[k]) {
                 let column = index[corner] as usize;
-                sums[corner][..n].copy_from_slice(&dkxt.col_as_slice(column)[rows.clone()]);
-                x[corner][..n].copy_from_slice(&xt.col_as_slice(column)[rows.clone()]);
+                sums[corner] = block(dkxt.col_as_slice(column));
+                x[corner] = block(xt.col_as_slice(column));
             }
             for (&(a, b), coef) in LOCAL.iter().zip(coefs) {
                 if !(present[a] && present[b]) {
@@ -932,7 +945,9 @@ fn add_direction_portable(
                 }
             }
             for corner in (0..3).filter(|&k| present[k]) {
-                dkxt.col_as_slice_mut(index[corner] as usize)[rows.clone()].copy_from_slice(&sums[corner][..n]);
+                if let Some(to) = dkxt.col_as_slice_mut(index[corner] as usize).get_mut(rows.clone()) {
+                    to.copy_from_slice(&sums[corner]);
+                }
             }
         }
     }
