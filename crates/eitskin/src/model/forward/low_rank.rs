@@ -701,16 +701,17 @@ impl LowRankUpdate {
         dkxt.fill(0.0);
         add_direction(self, direction, local_of, xt, dkxt);
         grow(change, basis, basis);
-        let (x_t, dkx) = (xt.as_ref().subrows(0, basis), dkxt.as_ref().subrows(0, basis).transpose());
-        matmul(change.as_mut(), Accum::Replace, x_t, dkx, -1.0, Par::Seq);
+        let (fields_t, dkx) = (xt.as_ref().subrows(0, basis), dkxt.as_ref().subrows(0, basis).transpose());
+        matmul(change.as_mut(), Accum::Replace, fields_t, dkx, -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
         true
     }
 
     /// Triangle `t`'s stiffness entries (i, j, per unit conductivity and thickness) between its
     /// rows' indices in R (`local`: a row of the system's index, [`UNUSED`] outside R), the
-    /// grounded node left out; `None` if a row of it is outside R. The one place ΔK's entries
-    /// are read from the mesh, for the update, its derivative and the solve of a whole place.
+    /// grounded node left out; `None` if a row of it is outside R: [`LowRankUpdate::triangle_rows`]
+    /// as pairs, for the update and the solve of a whole place (the derivative's kernel reads the
+    /// rows themselves, in the same order).
     fn triangle_entries(&self, t: usize, local: &[u32]) -> Option<impl Iterator<Item = (usize, usize, f64)>> {
         let (index, coefs) = self.triangle_rows(t, local)?;
         Some(LOCAL.iter().zip(coefs).filter_map(move |(&(a, b), coef)| {
@@ -720,7 +721,8 @@ impl LowRankUpdate {
     }
 
     /// Triangle `t`'s corners' indices in R ([`GROUND`] for the grounded node) and its
-    /// stiffness entries in [`LOCAL`]'s order: what [`LowRankUpdate::triangle_entries`] reads.
+    /// stiffness entries in [`LOCAL`]'s order; `None` if a row of it is outside R. The one place
+    /// ΔK's entries are read from the mesh.
     fn triangle_rows(&self, t: usize, local: &[u32]) -> Option<([u32; 3], [f64; 6])> {
         let mut index = [GROUND; 3];
         for (k, &n) in self.model.mesh.triangles()[t].iter().enumerate() {
@@ -804,9 +806,11 @@ pub struct ChangeScratch {
     system: Mat<f64>,
     /// X, |R| × (L − 1): the rows kept in the dense solve, and the interior's once `extended`.
     x: Mat<f64>,
-    /// Xᵀ of the last solve, once `extended`.
+    /// Xᵀ of the last solve, once `extended`: (L − 1) × |R|, padded with rows of zeros to a
+    /// multiple of [`PASS_ROWS`].
     xt: Mat<f64>,
-    /// (ΔK·X)ᵀ where nothing is eliminated, and a derivative's (∂K·X)ᵀ.
+    /// (ΔK·X)ᵀ where nothing is eliminated, and a derivative's (∂K·X)ᵀ, padded as `xt` (its rows
+    /// past the basis never read).
     dkxt: Mat<f64>,
     change: Mat<f64>,
     lu: DenseLu,
@@ -883,14 +887,14 @@ impl Clone for ChangeScratch {
 }
 
 crate::parallel::widest! {
-    /// (∂K·X)ᵀ along `direction` ((t, ∂σ_t)) added into `dkxt` (basis × rows), from Xᵀ `xt`:
+    /// (∂K·X)ᵀ along `direction` ((t, ∂σ_t)) added into `dkxt` (padded basis × rows), from Xᵀ `xt`:
     /// each entry of ∂K adding a row of X (a few hundred additions of a row of L − 1 values a
     /// derivative, in the widest vectors the processor has).
     fn add_direction = add_direction_portable(update: &LowRankUpdate, direction: &[(usize, f64)], local: &[u32], xt: &Mat<f64>, dkxt: &mut Mat<f64>) -> ()
 }
 
 /// Rows of the basis a pass of [`add_direction`] keeps in registers per column; Xᵀ and
-/// (∂K·X)ᵀ have a multiple of it, the rows past the basis 0.
+/// (∂K·X)ᵀ have a multiple of it (Xᵀ's rows past the basis 0).
 const PASS_ROWS: usize = 16;
 
 /// Xᵀ of `x` (rows × basis) into `xt`, its rows padded with zeros to a multiple of [`PASS_ROWS`].
@@ -914,6 +918,10 @@ fn add_direction_portable(
     xt: &Mat<f64>,
     dkxt: &mut Mat<f64>,
 ) {
+    debug_assert!(
+        xt.nrows().is_multiple_of(PASS_ROWS) && dkxt.nrows() == xt.nrows(),
+        "padded as transpose_padded pads"
+    );
     let padded = xt.nrows().min(dkxt.nrows());
     for first in (0..padded).step_by(PASS_ROWS) {
         let rows = first..first + PASS_ROWS;
@@ -924,6 +932,8 @@ fn add_direction_portable(
         for &(t, delta) in direction {
             let Some((index, coefs)) = update.triangle_rows(t, local) else { continue };
             let present = index.map(|i| i != GROUND);
+            // A mesh's triangle has three corners of three nodes, each its own row.
+            debug_assert!((0..3).all(|a| (0..a).all(|b| !present[a] || index[a] != index[b])), "distinct rows");
             let (mut sums, mut x) = ([[0.0; PASS_ROWS]; 3], [[0.0; PASS_ROWS]; 3]);
             for corner in (0..3).filter(|&k| present[k]) {
                 let column = index[corner] as usize;
@@ -958,6 +968,52 @@ mod tests {
     use super::*;
     use crate::conductivity::{with_inclusions, Inclusion};
     use crate::SensorSpec;
+
+    /// The derivative's kernel adds each entry of ∂K's rows of X into (∂K·X)ᵀ exactly as entry
+    /// after entry through memory would, to the bit, over a basis of several passes (32
+    /// electrodes: 31 rows, padded to 32), with Xᵀ's padding zero.
+    #[test]
+    fn the_derivatives_kernel_adds_entry_after_entry() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.electrodes.count = 32;
+        spec.mesh.triangles = 1200;
+        let model = spec.forward_model().unwrap();
+        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let presses = [
+            Inclusion { centre: [-0.04, 0.03], radius: 0.02, conductivity: 0.4 },
+            Inclusion { centre: [0.05, -0.05], radius: 0.012, conductivity: 0.7 },
+        ];
+        let sigma = with_inclusions(model.mesh(), 1.0, &presses);
+        let changes: Vec<(usize, f64)> =
+            sigma.iter().enumerate().filter(|(_, s)| **s != 1.0).map(|(t, s)| (t, s - 1.0)).collect();
+        let (mut scratch, mut dv) = (ChangeScratch::default(), vec![0.0; update.background_measurements().len()]);
+        update.measurement_change_into(&changes, &mut scratch, &mut dv).unwrap();
+        let direction: Vec<(usize, f64)> = changes.iter().map(|&(t, d)| (t, 0.7 * d + 0.01 * t as f64)).collect();
+        assert!(update.derivative_into(&direction, &mut scratch, &mut dv));
+        let basis = scratch.x.ncols();
+        assert_eq!((basis, scratch.xt.nrows()), (31, 32));
+        assert!(scratch.xt.row(31).iter().all(|x| *x == 0.0));
+        let mut reference = Mat::<f64>::zeros(basis, scratch.rows.len());
+        for &(t, delta) in &direction {
+            let Some(entries) = update.triangle_entries(t, &scratch.local) else { continue };
+            for (i, j, coef) in entries {
+                let c = delta * coef;
+                for k in 0..basis {
+                    reference[(k, i)] += c * scratch.xt[(k, j)];
+                    if i != j {
+                        reference[(k, j)] += c * scratch.xt[(k, i)];
+                    }
+                }
+            }
+        }
+        let touched = (0..scratch.rows.len()).filter(|&i| reference.col(i).iter().any(|x| *x != 0.0)).count();
+        assert!(touched > 20, "{touched} columns touched");
+        for i in 0..scratch.rows.len() {
+            for k in 0..basis {
+                assert_eq!(scratch.dkxt[(k, i)].to_bits(), reference[(k, i)].to_bits(), "row {k}, column {i}");
+            }
+        }
+    }
 
     /// Against full solves: strong and weak presses, one over the ground node, two at once, and
     /// both ways of getting G_RR.

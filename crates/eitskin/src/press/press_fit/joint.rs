@@ -53,7 +53,7 @@ pub(crate) fn unexplained_into(
     unexplained.clear();
     unexplained.resize(points, 0.0);
     for k in 0..rank {
-        unexplained.iter_mut().zip(projections.col_as_slice(k)).for_each(|(taken, q)| *taken += q.powi(2));
+        unexplained.iter_mut().zip(projections.col_as_slice(k)).for_each(|(taken, along)| *taken += along.powi(2));
     }
     unexplained.iter_mut().zip(&scan.norms).for_each(|(u, norm)| *u = (norm - *u).max(UNEXPLAINED_FLOOR * norm));
 }

@@ -54,7 +54,8 @@ impl Scan {
         Scan::read(model, stride, model.measurements <= MAX_RANK)
     }
 
-    /// [`Scan::with_stride`], its responses read in a basis of their own or (`reduce` false) whole.
+    /// [`Scan::with_stride`], its responses read in a basis of their own or (`reduce_them`
+    /// false) whole.
     fn read(model: &PressModel, stride: usize, reduce_them: bool) -> Scan {
         let [nx, ny] = model.grid.dims;
         let points: Vec<usize> = (0..ny)
@@ -91,9 +92,15 @@ impl Scan {
         self.rank
     }
 
-    /// c̃ = (GV)·(VᵀΔv) into `correlations`; the bound on |c − c̃| is then
-    /// `missed[i]·outside + rounding·√norms[i]`, and `(outside, rounding)` is returned.
-    fn correlate(&self, dv: &[f64], projection: &mut [f64; MAX_RANK], correlations: &mut Vec<f32>) -> (f64, f64) {
+    /// c̃ = (GV)·(VᵀΔv) into `correlations`, in units of the power of two returned with it in
+    /// [`Bounds`] (so that the f32 product neither overflows nor leaves the normal range,
+    /// whatever Δv's scale); the bound on |c − c̃| is then `missed[i]·outside + rounding·|g|`.
+    fn correlate<'a>(
+        &'a self,
+        dv: &[f64],
+        projection: &mut [f64; MAX_RANK],
+        correlations: &mut Vec<f32>,
+    ) -> Bounds<'a> {
         let r = self.rank();
         let y = match &self.basis {
             Some(basis) => {
@@ -102,15 +109,20 @@ impl Scan {
             }
             None => dv,
         };
+        let largest = y.iter().fold(0.0_f64, |a, y| a.max(y.abs()));
+        let unit = if largest > 0.0 && largest.is_finite() { 2.0_f64.powi(largest.log2().ceil() as i32) } else { 1.0 };
         correlations.resize(self.points.len(), 0.0);
-        self.reduced.mul_into(correlations, |k| y[k] as f32);
+        self.reduced.mul_into(correlations, |k| (y[k] / unit) as f32);
         let (dd, yy) = (dot(dv, dv), dot(y, y));
         // |Δv − VVᵀΔv|, its cancellation's rounding added.
         let outside = ((dd - yy).max(0.0) + 1e-12 * dd).sqrt();
-        // Each of the r products and sums, and the two roundings to f32, within 2⁻²⁴ of itself
-        // (f32's epsilon is 2⁻²³), of Σ|a||y| ≤ |a||y| ≤ |g||y|.
-        let rounding = (r + 2) as f64 * f64::from(f32::EPSILON) * yy.sqrt();
-        (outside, rounding)
+        // Each of the r products and sums and the two roundings to f32 within 2⁻²⁴ of itself,
+        // and f32's epsilon 2⁻²³ (twice that, for the terms of higher order): of the sum of
+        // |aₖyₖ|, at most |a||y| ≤ |g||y| (a = Vᵀg). Then 10⁻¹⁰|Δv| for f64's own rounding of y,
+        // of `missed` and of V's departure from orthonormality, whatever the measurements.
+        let rounding = (r + 2) as f64 * f64::from(f32::EPSILON) * yy.sqrt() + 1e-10 * dd.sqrt();
+        let n = self.points.len();
+        Bounds { missed: &self.missed[..n], roots: &self.roots[..n], outside, rounding, unit }
     }
 }
 
@@ -123,8 +135,10 @@ struct Bounds<'a> {
     roots: &'a [f64],
     /// |Δv − VVᵀΔv|.
     outside: f64,
-    /// The f32 rounding of c̃ per unit of |g|.
+    /// The rounding of c̃ per unit of |g|.
     rounding: f64,
+    /// The power of two the correlations are in units of.
+    unit: f64,
 }
 
 impl Bounds<'_> {
@@ -132,11 +146,18 @@ impl Bounds<'_> {
     fn at(&self, i: usize) -> f64 {
         self.missed[i] * self.outside + self.rounding * self.roots[i]
     }
+
+    /// c̃ at point `i` (of `correlations`, in their unit) less and plus its bound.
+    fn range(&self, correlations: &[f32], i: usize) -> (f64, f64) {
+        let (c, e) = (self.unit * f64::from(correlations[i]), self.at(i));
+        (c - e, c + e)
+    }
 }
 
 crate::parallel::widest! {
     /// The first point from `start` on whose c̃ + `side`·bound is positive with a square of at
-    /// least `floor`·`left` (`side` −1: its c surely as large; +1: possibly), if any.
+    /// least `floor`·`left` (`side` −1: its c surely as large; +1: possibly, a c̃ not finite
+    /// included), if any.
     fn next_reaching = next_reaching_portable(bounds: &Bounds<'_>, c: &[f32], left: &[f64], side: f64, floor: f64, start: usize) -> Option<usize>
 }
 
@@ -151,11 +172,18 @@ fn next_reaching_portable(
     floor: f64,
     start: usize,
 ) -> Option<usize> {
-    let Bounds { missed, roots, outside, rounding } = *bounds;
+    let Bounds { missed, roots, outside, rounding, unit } = *bounds;
     let n = c.len().min(left.len()).min(missed.len()).min(roots.len());
+    let surely = side < 0.0;
     let reaches = |c: f32, missed: f64, root: f64, left: f64| {
-        let v = f64::from(c) + side * (missed * outside + rounding * root);
-        (v > 0.0) & (v * v >= floor * left)
+        let v = unit * f64::from(c) + side * (missed * outside + rounding * root);
+        // A v not finite is never sure, and a NaN may reach.
+        let reaches = (v > 0.0) & (v * v >= floor * left);
+        if surely {
+            reaches & v.is_finite()
+        } else {
+            reaches | v.is_nan()
+        }
     };
     let first = |from: usize, to: usize| (from..to).find(|&i| reaches(c[i], missed[i], roots[i], left[i]));
     let mut at = start;
@@ -190,7 +218,8 @@ fn project_portable(basis: &[f64], dv: &[f64], y: &mut [f64]) {
 }
 
 /// The most measurements whose scan reads its responses in a basis of their own (the projection
-/// of Δv lives on the stack; past it, the basis's decomposition would cost seconds).
+/// of Δv, at most as many values, lives on the stack; past it, the basis's decomposition would
+/// cost seconds).
 const MAX_RANK: usize = 512;
 
 /// V, G·V and per row |g − VVᵀg| of `matrix` (points × measurements, rows' gᵀg `norms`): the
@@ -234,8 +263,9 @@ impl PressModel {
     }
 
     /// [`PressModel::best_point`] with z = gᵀΔv/√`unexplained`: per scan point, the part of gᵀg
-    /// the presses already fitted cannot take up by moving (for a Δv orthogonal to what they can).
-    /// `scan` must be of this model (its points' responses are read to score them exactly).
+    /// the presses already fitted cannot take up by moving (for a Δv orthogonal to what they can;
+    /// positive). `scan` must be of this model (its points' responses are read to score them
+    /// exactly); points past `unexplained`'s length are not scanned.
     pub(crate) fn best_point_in(
         &self,
         scan: &Scan,
@@ -245,23 +275,22 @@ impl PressModel {
         correlations: &mut Vec<f32>,
     ) -> Option<(usize, f64)> {
         let mut projection = [0.0; MAX_RANK];
-        let (outside, rounding) = scan.correlate(dv, &mut projection, correlations);
+        let bounds = scan.correlate(dv, &mut projection, correlations);
         // Distances compared squared, without hypot: the test runs for every point near a press found.
         let apart = (2.0 * self.radius).powi(2);
         let near = |j: usize| {
             let p = self.grid.point(j);
             found.iter().any(|f| (f[0] - p[0]).powi(2) + (f[1] - p[1]).powi(2) < apart)
         };
-        let n = scan.points.len();
+        let n = scan.points.len().min(unexplained.len());
         let (c, left) = (&correlations[..n], &unexplained[..n]);
-        let bounds = Bounds { missed: &scan.missed[..n], roots: &scan.roots[..n], outside, rounding };
         // The largest z² some point surely reaches: its c's bound below, its drop's above. Each
         // pass tests a chunk of points at once without a branch (c's sign, the noise's where there
         // is no press, is a coin toss), then each point of a chunk that may pass in turn.
         let mut floor = 0.0_f64;
         let mut i = 0;
         while let Some(at) = next_reaching(&bounds, c, left, -1.0, floor, i) {
-            let (low, high) = (f64::from(c[at]) - bounds.at(at), f64::from(c[at]) + bounds.at(at));
+            let (low, high) = bounds.range(c, at);
             // A NaN limit (the ladder not increasing there) is never sure.
             let j = scan.points[at];
             if low * low > floor * left[at] && high / scan.norms[at] <= self.drop_limits[j] && !near(j) {
@@ -275,7 +304,7 @@ impl PressModel {
         let mut i = 0;
         while let Some(at) = next_reaching(&bounds, c, left, 1.0, floor, i) {
             i = at + 1;
-            let (j, high) = (scan.points[at], f64::from(c[at]) + bounds.at(at));
+            let (j, (_, high)) = (scan.points[at], bounds.range(c, at));
             if best.is_some_and(|(_, b)| high * high <= b * b * left[at]) || near(j) {
                 continue;
             }
@@ -313,8 +342,11 @@ mod tests {
         (press, scan)
     }
 
-    /// Δv of whitened noise and up to two presses of z up to 60, at random places.
-    fn frame(press: &PressModel, rng: &mut SeededRng) -> Vec<f64> {
+    /// Δv of whitened noise and up to two presses of z up to 60, at random places; for `case`
+    /// 1 and 2 of every five the same scaled by 10⁴⁰ and 10⁻⁴⁵ (past f32's range), for 3 and 4 only its part outside
+    /// the scan's basis and only its part inside it (where the bound is tightest and where it is
+    /// rounding alone).
+    fn frame(press: &PressModel, scan: &Scan, case: usize, rng: &mut SeededRng) -> Vec<f64> {
         let m = press.measurements();
         let mut dv: Vec<f64> = (0..m).map(|_| rng.sample(StandardNormal)).collect();
         let mut g = vec![0.0; m];
@@ -324,6 +356,17 @@ mod tests {
                 let scale = rng.random_range(0.0..60.0) / dot(&g, &g).sqrt();
                 dv.iter_mut().zip(&g).for_each(|(d, g)| *d += scale * g);
             }
+        }
+        let (r, basis) = (scan.rank(), scan.basis.as_deref().unwrap_or(&[]));
+        let mut y = vec![0.0; r];
+        project(basis, &dv, &mut y);
+        let inside: Vec<f64> = (0..m).map(|q| dot(&basis[q * r..(q + 1) * r], &y)).collect();
+        match case % 5 {
+            1 => dv.iter_mut().for_each(|d| *d *= 1e40),
+            2 => dv.iter_mut().for_each(|d| *d *= 1e-45),
+            3 if r > 0 => dv.iter_mut().zip(&inside).for_each(|(d, i)| *d -= i),
+            4 if r > 0 => dv.copy_from_slice(&inside),
+            _ => {}
         }
         dv
     }
@@ -339,14 +382,13 @@ mod tests {
         let mut rng = SeededRng::seed_from_u64(5);
         let (mut projection, mut correlations) = ([0.0; MAX_RANK], Vec::new());
         let whole = Scan::read(&press, 2, false);
-        for _ in 0..50 {
-            let dv = frame(&press, &mut rng);
+        for case in 0..50 {
+            let dv = frame(&press, &scan, case, &mut rng);
             for scan in [&scan, &whole] {
-                let (outside, rounding) = scan.correlate(&dv, &mut projection, &mut correlations);
-                let bounds = Bounds { missed: &scan.missed, roots: &scan.roots, outside, rounding };
+                let bounds = scan.correlate(&dv, &mut projection, &mut correlations);
                 for (i, &j) in scan.points.iter().enumerate() {
                     let c = dot(&press.responses[j * m..(j + 1) * m], &dv);
-                    let off = (c - f64::from(correlations[i])).abs();
+                    let off = (c - bounds.unit * f64::from(correlations[i])).abs();
                     assert!(off <= bounds.at(i), "point {i}: {off} over its bound {}", bounds.at(i));
                 }
             }
@@ -364,9 +406,9 @@ mod tests {
         let m = press.measurements();
         let mut rng = SeededRng::seed_from_u64(6);
         let mut correlations = Vec::new();
-        let apart = 2.0 * press.radius();
+        let apart = (2.0 * press.radius()).powi(2);
         for case in 0..200 {
-            let dv = frame(&press, &mut rng);
+            let dv = frame(&press, &scan, case, &mut rng);
             let found: Vec<[f64; 2]> = (0..rng.random_range(0..3))
                 .map(|_| [rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1)])
                 .collect();
@@ -375,7 +417,7 @@ mod tests {
             for (i, &j) in scan.points.iter().enumerate() {
                 let p = press.grid.point(j);
                 let c = dot(&press.responses[j * m..(j + 1) * m], &dv);
-                let near = found.iter().any(|f| (f[0] - p[0]).hypot(f[1] - p[1]) < apart);
+                let near = found.iter().any(|f| (f[0] - p[0]).powi(2) + (f[1] - p[1]).powi(2) < apart);
                 if c <= 0.0 || near || press.too_deep(c / scan.norms[i], j) {
                     continue;
                 }
@@ -387,9 +429,8 @@ mod tests {
             for scan in [&scan, &whole] {
                 let picked = press.best_point_in(scan, &dv, &found, &unexplained, &mut correlations);
                 assert_eq!(picked.map(|(j, _)| j), exact.map(|(j, _)| j), "case {case}");
-                if let (Some((_, a)), Some((_, b))) = (picked, exact) {
-                    assert!((a - b).abs() <= 1e-12 * b.abs(), "case {case}: z {a} against {b}");
-                }
+                // The same z to the bit: the same product, the same division.
+                assert_eq!(picked.map(|(_, z)| z.to_bits()), exact.map(|(_, z)| z.to_bits()), "case {case}");
             }
         }
         assert!(press.best_point(&scan, &vec![0.0; m], &[], &mut correlations).is_none());
