@@ -701,8 +701,8 @@ impl LowRankUpdate {
         dkxt.fill(0.0);
         add_direction(self, direction, local_of, xt, dkxt);
         grow(change, basis, basis);
-        let (fields_t, dkx) = (xt.as_ref().subrows(0, basis), dkxt.as_ref().subrows(0, basis).transpose());
-        matmul(change.as_mut(), Accum::Replace, fields_t, dkx, -1.0, Par::Seq);
+        let (xt_basis, dkx) = (xt.as_ref().subrows(0, basis), dkxt.as_ref().subrows(0, basis).transpose());
+        matmul(change.as_mut(), Accum::Replace, xt_basis, dkx, -1.0, Par::Seq);
         self.measurements_of(change.as_ref(), out);
         true
     }

@@ -37,8 +37,6 @@ pub(crate) struct Scan {
     /// V: the responses' leading right singular vectors, measurements × rank, row-major; `None`
     /// where the responses are read whole (V = I).
     basis: Option<Vec<f64>>,
-    /// V's columns.
-    rank: usize,
     /// G·V in f32, in the image product's blocks: every scan's product.
     reduced: BlockedMatrix,
     /// Per point, |g − VVᵀg| (a bound, the rounding of its computation added).
@@ -79,7 +77,7 @@ impl Scan {
             (0..rank).for_each(|k| reduced.set(i, k, projections[(i, k)] as f32));
         }
         let roots = norms.iter().map(|n| n.sqrt()).collect();
-        Scan { points, matrix, norms, basis, rank, reduced, missed, roots }
+        Scan { points, matrix, norms, basis, reduced, missed, roots }
     }
 
     /// The row of response-grid point `point`, if it is a scan point.
@@ -89,7 +87,7 @@ impl Scan {
 
     /// The basis's rank: the scan's product's columns.
     pub(crate) fn rank(&self) -> usize {
-        self.rank
+        self.reduced.columns()
     }
 
     /// c̃ = (GV)·(VᵀΔv) into `correlations`, in units of the power of two returned with it in
