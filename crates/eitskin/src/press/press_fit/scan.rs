@@ -43,6 +43,11 @@ pub(crate) struct Scan {
     missed: Vec<f64>,
     /// Per point, |g|.
     roots: Vec<f64>,
+    /// Per point, its x and its y (m).
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    /// Per point, the largest contrast of a press there (the model's; NaN: read from its ladder).
+    limits: Vec<f64>,
 }
 
 impl Scan {
@@ -77,7 +82,9 @@ impl Scan {
             (0..rank).for_each(|k| reduced.set(i, k, projections[(i, k)] as f32));
         }
         let roots = norms.iter().map(|n| n.sqrt()).collect();
-        Scan { points, matrix, norms, basis, reduced, missed, roots }
+        let (xs, ys) = points.iter().map(|&j| model.grid.point(j)).map(|[x, y]| (x, y)).unzip();
+        let limits = points.iter().map(|&j| model.drop_limits[j]).collect();
+        Scan { points, matrix, norms, basis, reduced, missed, roots, xs, ys, limits }
     }
 
     /// The row of response-grid point `point`, if it is a scan point.
@@ -152,11 +159,109 @@ impl Bounds<'_> {
     }
 }
 
+/// The scan points a pick may not be: those within a distance of the presses already found.
+struct Away<'a> {
+    /// Per point, its x and its y (m).
+    xs: &'a [f64],
+    ys: &'a [f64],
+    /// The presses' centres (m).
+    found: &'a [[f64; 2]],
+    /// The distance's square (m²).
+    apart: f64,
+}
+
+/// Whether (`x`, `y`) is at least √`apart` from `centre` (m; squared, without hypot: the test
+/// runs for every point a scan tests).
+#[inline(always)]
+fn apart_from(centre: [f64; 2], apart: f64, x: f64, y: f64) -> bool {
+    (centre[0] - x) * (centre[0] - x) + (centre[1] - y) * (centre[1] - y) >= apart
+}
+
 crate::parallel::widest! {
-    /// The first point from `start` on whose c̃ + `side`·bound is positive with a square of at
-    /// least `floor`·`left` (`side` −1: its c surely as large; +1: possibly, a c̃ not finite
-    /// included), if any.
-    fn next_reaching = next_reaching_portable(bounds: &Bounds<'_>, c: &[f32], left: &[f64], side: f64, floor: f64, start: usize) -> Option<usize>
+    /// The largest z² some point away from the presses found surely reaches: over the points
+    /// whose c̃ less its bound (`low`) is positive and finite and whose c̃ plus it is a contrast
+    /// of at most their `limits` (a NaN limit: never sure), the largest low²/`left`; 0 if none.
+    fn surest = surest_portable(bounds: &Bounds<'_>, away: &Away<'_>, c: &[f32], left: &[f64], norms: &[f64], limits: &[f64]) -> f64
+}
+
+/// Per lane of [`surest`], the largest low²/left so far, as a fraction (no division a point).
+struct Largest {
+    num: [f64; LANES],
+    den: [f64; LANES],
+}
+
+/// The kernel: [`LANES`] lanes without a branch (a smooth field scanned row after row sets a
+/// new largest at most points on its way up to a peak), the last chunk overlapping the one
+/// before it (a point counted twice leaves a largest as it is).
+#[inline(always)]
+fn surest_portable(
+    bounds: &Bounds<'_>,
+    away: &Away<'_>,
+    c: &[f32],
+    left: &[f64],
+    norms: &[f64],
+    limits: &[f64],
+) -> f64 {
+    let n = c.len().min(left.len()).min(norms.len()).min(limits.len()).min(bounds.missed.len());
+    let n = n.min(bounds.roots.len()).min(away.xs.len()).min(away.ys.len());
+    let mut largest = Largest { num: [0.0; LANES], den: [1.0; LANES] };
+    let (c, left, norms, limits) = (&c[..n], &left[..n], &norms[..n], &limits[..n]);
+    if n < LANES {
+        (0..n).for_each(|at| consider::<1>(bounds, away, c, left, [norms, limits], at, &mut largest));
+    } else {
+        let mut at = 0;
+        while at < n {
+            consider::<LANES>(bounds, away, c, left, [norms, limits], at.min(n - LANES), &mut largest);
+            at += LANES;
+        }
+    }
+    largest.num.iter().zip(&largest.den).fold(0.0, |floor: f64, (num, den)| floor.max(num / den))
+}
+
+/// [`surest`]'s points `at`..`at + L` into the first `L` lanes of `largest`, each test in a
+/// plain loop over the lanes (a closure called a point may be left uninlined).
+#[inline(always)]
+fn consider<const L: usize>(
+    bounds: &Bounds<'_>,
+    away: &Away<'_>,
+    c: &[f32],
+    left: &[f64],
+    [norms, limits]: [&[f64]; 2],
+    at: usize,
+    largest: &mut Largest,
+) {
+    let Bounds { missed, roots, outside, rounding, unit } = *bounds;
+    let Away { xs, ys, found, apart } = *away;
+    let (c, left, norms, limits) = (&c[at..at + L], &left[at..at + L], &norms[at..at + L], &limits[at..at + L]);
+    let (missed, roots, xs, ys) = (&missed[at..at + L], &roots[at..at + L], &xs[at..at + L], &ys[at..at + L]);
+    // low², 0 where not sure (then never larger): selections of values, not masks of bytes.
+    let mut q = [0.0; L];
+    for k in 0..L {
+        let (c, e) = (unit * f64::from(c[k]), missed[k] * outside + rounding * roots[k]);
+        let (low, high) = (c - e, c + e);
+        // low positive and finite (it is at most high); compared as values, which stay in vectors.
+        // (high ≤ limit·norm in place of high/norm ≤ limit: c is under high by more than the
+        // product's rounding, the bound's own margin.)
+        let sure = (low > 0.0) & (high < f64::INFINITY) & (high <= limits[k] * norms[k]);
+        q[k] = if sure { low * low } else { 0.0 };
+    }
+    for f in found {
+        for k in 0..L {
+            q[k] = if apart_from(*f, apart, xs[k], ys[k]) { q[k] } else { 0.0 };
+        }
+    }
+    for k in 0..L {
+        let larger = q[k] * largest.den[k] > largest.num[k] * left[k];
+        largest.num[k] = if larger { q[k] } else { largest.num[k] };
+        largest.den[k] = if larger { left[k] } else { largest.den[k] };
+    }
+}
+
+crate::parallel::widest! {
+    /// The first point from `start` on, away from the presses found, whose c̃ plus its bound
+    /// is positive with a square of at least `floor`·`left`, or not a number: whose c may be
+    /// as large; if any.
+    fn next_reaching = next_reaching_portable(bounds: &Bounds<'_>, away: &Away<'_>, c: &[f32], left: &[f64], floor: f64, start: usize) -> Option<usize>
 }
 
 /// The kernel: [`LANES`] points tested at once without a branch (c's sign, the noise's where
@@ -164,33 +269,39 @@ crate::parallel::widest! {
 #[inline(always)]
 fn next_reaching_portable(
     bounds: &Bounds<'_>,
+    away: &Away<'_>,
     c: &[f32],
     left: &[f64],
-    side: f64,
     floor: f64,
     start: usize,
 ) -> Option<usize> {
     let Bounds { missed, roots, outside, rounding, unit } = *bounds;
-    let n = c.len().min(left.len()).min(missed.len()).min(roots.len());
-    let surely = side < 0.0;
+    let Away { xs, ys, found, apart } = *away;
+    let n = c.len().min(left.len()).min(missed.len()).min(roots.len()).min(xs.len()).min(ys.len());
     let reaches = |c: f32, missed: f64, root: f64, left: f64| {
-        let v = unit * f64::from(c) + side * (missed * outside + rounding * root);
-        // A v not finite is never sure, and a NaN may reach.
-        let reaches = (v > 0.0) & (v * v >= floor * left);
-        if surely {
-            reaches & v.is_finite()
-        } else {
-            reaches | v.is_nan()
-        }
+        let v = unit * f64::from(c) + (missed * outside + rounding * root);
+        ((v > 0.0) & (v * v >= floor * left)) | v.is_nan()
     };
-    let first = |from: usize, to: usize| (from..to).find(|&i| reaches(c[i], missed[i], roots[i], left[i]));
+    let passes = |i: usize| {
+        reaches(c[i], missed[i], roots[i], left[i]) && found.iter().all(|f| apart_from(*f, apart, xs[i], ys[i]))
+    };
+    let first = |from: usize, to: usize| (from..to).find(|&i| passes(i));
     let mut at = start;
     while at + LANES <= n {
+        let mut pass = [false; LANES];
         let (cs, ms, rs, ls) =
             (&c[at..at + LANES], &missed[at..at + LANES], &roots[at..at + LANES], &left[at..at + LANES]);
-        let any =
-            cs.iter().zip(ms).zip(rs.iter().zip(ls)).fold(false, |any, ((&c, &m), (&r, &l))| any | reaches(c, m, r, l));
-        if any {
+        for (k, pass) in pass.iter_mut().enumerate() {
+            *pass = reaches(cs[k], ms[k], rs[k], ls[k]);
+        }
+        // Each press found against the chunk's eight points at once.
+        let (x, y) = (&xs[at..at + LANES], &ys[at..at + LANES]);
+        for f in found {
+            for (k, pass) in pass.iter_mut().enumerate() {
+                *pass &= apart_from(*f, apart, x[k], y[k]);
+            }
+        }
+        if pass.iter().fold(false, |any, p| any | p) {
             return first(at, at + LANES);
         }
         at += LANES;
@@ -274,36 +385,20 @@ impl PressModel {
     ) -> Option<(usize, f64)> {
         let mut projection = [0.0; MAX_RANK];
         let bounds = scan.correlate(dv, &mut projection, correlations);
-        // Distances compared squared, without hypot: the test runs for every point near a press found.
-        let apart = (2.0 * self.radius).powi(2);
-        let near = |j: usize| {
-            let p = self.grid.point(j);
-            found.iter().any(|f| (f[0] - p[0]).powi(2) + (f[1] - p[1]).powi(2) < apart)
-        };
+        // Not within two indenter radii of a press found.
         let n = scan.points.len().min(unexplained.len());
+        let away = Away { xs: &scan.xs[..n], ys: &scan.ys[..n], found, apart: (2.0 * self.radius).powi(2) };
         let (c, left) = (&correlations[..n], &unexplained[..n]);
-        // The largest z² some point surely reaches: its c's bound below, its drop's above. Each
-        // pass tests a chunk of points at once without a branch (c's sign, the noise's where there
-        // is no press, is a coin toss), then each point of a chunk that may pass in turn.
-        let mut floor = 0.0_f64;
-        let mut i = 0;
-        while let Some(at) = next_reaching(&bounds, c, left, -1.0, floor, i) {
-            let (low, high) = bounds.range(c, at);
-            // A NaN limit (the ladder not increasing there) is never sure.
-            let j = scan.points[at];
-            if low * low > floor * left[at] && high / scan.norms[at] <= self.drop_limits[j] && !near(j) {
-                floor = low * low / left[at];
-            }
-            i = at + 1;
-        }
+        // The largest z² some point surely reaches: its c's bound below, its drop's above.
+        let floor = surest(&bounds, &away, c, left, &scan.norms[..n], &scan.limits[..n]);
         // Every point whose bound reaches that floor, scored exactly; the first of the largest.
         let m = self.measurements;
         let mut best: Option<(usize, f64)> = None;
         let mut i = 0;
-        while let Some(at) = next_reaching(&bounds, c, left, 1.0, floor, i) {
+        while let Some(at) = next_reaching(&bounds, &away, c, left, floor, i) {
             i = at + 1;
             let (j, (_, high)) = (scan.points[at], bounds.range(c, at));
-            if best.is_some_and(|(_, b)| high * high <= b * b * left[at]) || near(j) {
+            if best.is_some_and(|(_, b)| high * high <= b * b * left[at]) {
                 continue;
             }
             let c = dot(&self.responses[j * m..(j + 1) * m], dv);
@@ -432,5 +527,36 @@ mod tests {
             }
         }
         assert!(press.best_point(&scan, &vec![0.0; m], &[], &mut correlations).is_none());
+    }
+
+    /// The floor's kernel takes the largest low²/left of the points surely reached, eligible and
+    /// away from the presses found, at any count of points (fewer than a chunk, a last chunk
+    /// overlapping the one before): against one point after another.
+    #[test]
+    fn the_floor_is_the_largest_sure_z() {
+        let mut rng = SeededRng::seed_from_u64(8);
+        for trial in 0..400 {
+            let n = trial % 40;
+            let values = |rng: &mut SeededRng, lo: f64, hi: f64| (0..n).map(|_| rng.random_range(lo..hi)).collect();
+            let c: Vec<f32> = (0..n).map(|_| rng.random_range(-1.0..4.0)).collect();
+            let (missed, roots): (Vec<f64>, Vec<f64>) = (values(&mut rng, 0.0, 0.1), values(&mut rng, 0.5, 2.0));
+            let (left, norms): (Vec<f64>, Vec<f64>) = (values(&mut rng, 0.5, 2.0), values(&mut rng, 0.5, 2.0));
+            let mut limits: Vec<f64> = values(&mut rng, 0.5, 4.0);
+            limits.iter_mut().step_by(7).for_each(|l| *l = f64::NAN);
+            let (xs, ys): (Vec<f64>, Vec<f64>) = (values(&mut rng, 0.0, 1.0), values(&mut rng, 0.0, 1.0));
+            let bounds = Bounds { missed: &missed, roots: &roots, outside: 1.3, rounding: 1e-3, unit: 0.5 };
+            let found = [[0.3, 0.4], [0.8, 0.1]];
+            let away = Away { xs: &xs, ys: &ys, found: &found[..trial % 3], apart: 0.04 };
+            let mut expected = 0.0_f64;
+            for i in 0..n {
+                let (low, high) = bounds.range(&c, i);
+                let apart = away.found.iter().all(|f| (f[0] - xs[i]).powi(2) + (f[1] - ys[i]).powi(2) >= 0.04);
+                if low > 0.0 && high <= limits[i] * norms[i] && apart {
+                    expected = expected.max(low * low / left[i]);
+                }
+            }
+            let floor = surest(&bounds, &away, &c, &left, &norms, &limits);
+            assert_eq!(floor.to_bits(), expected.to_bits(), "trial {trial}, {n} points");
+        }
     }
 }
