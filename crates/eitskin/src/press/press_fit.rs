@@ -37,8 +37,6 @@
 
 use std::sync::Arc;
 
-use faer::Mat;
-
 use crate::conductivity::circle_triangle_area;
 use crate::forward::{ForwardModel, LowRankUpdate};
 use crate::inverse::InverseError;
@@ -335,7 +333,7 @@ impl Default for PressModelParams {
 }
 
 /// Buffers for [`PressModel::fit_into`], so that it allocates nothing once they have grown.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct PressScratch {
     residual: Vec<f64>,
     response: Vec<f64>,
@@ -354,36 +352,11 @@ pub struct PressScratch {
     /// Exact fits made in this frame.
     refits: usize,
     /// The scan for a new press next to fitted ones: an orthonormal basis of their Jacobian,
-    /// each scan point's projection on it, and what of its gᵀg is left.
+    /// and what of each scan point's gᵀg it leaves (where a new press could be found).
     basis: Vec<f64>,
-    projections: Mat<f64>,
     unexplained: Vec<f64>,
     /// Per press of the last exact fit, its equivalent drop's variance (whitened noise of 1).
     variances: Vec<f64>,
-}
-
-impl Default for PressScratch {
-    fn default() -> Self {
-        PressScratch {
-            residual: Vec::new(),
-            response: Vec::new(),
-            responses: Vec::new(),
-            centres: Vec::new(),
-            correlations: Vec::new(),
-            disks: Vec::new(),
-            refine: RefineScratch::default(),
-            saved: Vec::new(),
-            saved_responses: Vec::new(),
-            rejected: Vec::new(),
-            sizes: Vec::new(),
-            exact: ExactScratch::default(),
-            refits: 0,
-            basis: Vec::new(),
-            projections: Mat::zeros(0, 0),
-            unexplained: Vec::new(),
-            variances: Vec::new(),
-        }
-    }
 }
 
 /// Triangles of the mesh the exact responses are solved on when the sensor's own mesh is too

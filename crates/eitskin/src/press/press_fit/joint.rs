@@ -25,7 +25,7 @@
 use super::detect::{Exact, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter};
 use super::refine::{refine, refine_tabulated, RefineParams, DEEPEST};
-use super::scan::Scan;
+use super::scan::{Reach, Scan};
 use super::{dot, PressFit, PressModel, PressScratch};
 use crate::inverse::InverseError;
 use crate::scratch::{grow, room};
@@ -56,6 +56,13 @@ pub(crate) fn unexplained_into(
         unexplained.iter_mut().zip(projections.col_as_slice(k)).for_each(|(taken, along)| *taken += along.powi(2));
     }
     unexplained.iter_mut().zip(&scan.norms).for_each(|(u, norm)| *u = (norm - *u).max(UNEXPLAINED_FLOOR * norm));
+}
+
+/// [`unexplained_into`] at one scan point, whose response is `g` and gᵀg `norm`.
+pub(crate) fn unexplained_at(g: &[f64], norm: f64, basis: &[f64], rank: usize) -> f64 {
+    let m = g.len();
+    let taken = basis.chunks_exact(m).take(rank).fold(0.0, |taken, q| taken + dot(g, q).powi(2));
+    (norm - taken).max(UNEXPLAINED_FLOOR * norm)
 }
 
 /// An orthonormal basis of the rows of `jacobian` into `basis`, one vector after another (each
@@ -94,7 +101,7 @@ fn fit_basis(scratch: &mut PressScratch) -> usize {
 
 /// The least share of a response's gᵀg counted as not taken up by the presses fitted (z grows
 /// by at most 1/√ of it): right beside a press, what is left of g is mostly noise in the fit.
-const UNEXPLAINED_FLOOR: f64 = 0.25;
+pub(crate) const UNEXPLAINED_FLOOR: f64 = 0.25;
 
 /// Whether a press's radius is its own.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -346,12 +353,16 @@ impl PressModel {
                 centres.clear();
                 centres.extend(presses.iter().map(|p| p.centre));
                 let rank = fit_basis(scratch);
-                let PressScratch { basis, projections, unexplained, .. } = &mut *scratch;
-                unexplained_into(scan, basis, rank, projections, unexplained);
-                let PressScratch { residual, response, centres, correlations, unexplained, rejected, .. } =
+                let PressScratch { residual, response, centres, correlations, unexplained, rejected, basis, .. } =
                     &mut *scratch;
                 centres.extend_from_slice(rejected);
-                let best = self.best_point_in(scan, residual, centres, unexplained, correlations);
+                // Each point's unexplained share only where a new press's z could pass there.
+                let share = |i: usize| {
+                    let g = &self.responses[scan.points[i] * m..(scan.points[i] + 1) * m];
+                    unexplained_at(g, scan.norms[i], basis, rank)
+                };
+                let reach = Reach { threshold, least: UNEXPLAINED_FLOOR, share };
+                let best = self.best_point_reaching(scan, residual, centres, reach, unexplained, correlations);
                 let new = best.filter(|(_, z)| *z >= threshold).and_then(|(j, _)| {
                     let mut press = self.fit_one(residual, self.grid.point(j), window, response)?;
                     // Its contrast in the presses' joint fit, linearised: the others give back

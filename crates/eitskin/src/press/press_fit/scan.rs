@@ -159,6 +159,14 @@ impl Bounds<'_> {
     }
 }
 
+/// What [`PressModel::best_point_reaching`] asks of a pick: its z at least `threshold`, with at
+/// least `least` of each point's gᵀg unexplained, `share` a point's (its row's) unexplained gᵀg.
+pub(crate) struct Reach<F> {
+    pub(crate) threshold: f64,
+    pub(crate) least: f64,
+    pub(crate) share: F,
+}
+
 /// The scan points a pick may not be: those within a distance of the presses already found.
 struct Away<'a> {
     /// Per point, its x and its y (m).
@@ -385,17 +393,64 @@ impl PressModel {
     ) -> Option<(usize, f64)> {
         let mut projection = [0.0; MAX_RANK];
         let bounds = scan.correlate(dv, &mut projection, correlations);
+        self.pick(scan, &bounds, dv, found, unexplained, correlations)
+    }
+
+    /// [`PressModel::best_point_in`] where only the pick matters if its z reaches `reach`'s
+    /// threshold: the unexplained share is computed (`reach.share` of a point's row, into
+    /// `unexplained`) only at the points whose z could reach it, at least `reach.least` of their
+    /// gᵀg left; the others' share is +∞ (never picked). So the pick is `best_point_in`'s with
+    /// every share computed wherever that pick's z reaches the threshold.
+    pub(crate) fn best_point_reaching(
+        &self,
+        scan: &Scan,
+        dv: &[f64],
+        found: &[[f64; 2]],
+        reach: Reach<impl Fn(usize) -> f64>,
+        unexplained: &mut Vec<f64>,
+        correlations: &mut Vec<f32>,
+    ) -> Option<(usize, f64)> {
+        let mut projection = [0.0; MAX_RANK];
+        let bounds = scan.correlate(dv, &mut projection, correlations);
+        let apart = (2.0 * self.radius).powi(2);
+        // z = c/√u ≤ high/√(least·gᵀg): within reach where high² ≥ threshold²·least·gᵀg.
+        let within = reach.threshold.powi(2) * reach.least;
+        unexplained.clear();
+        unexplained.resize(scan.points.len(), f64::INFINITY);
+        for (i, u) in unexplained.iter_mut().enumerate() {
+            let (_, high) = bounds.range(correlations, i);
+            // Rare (a few points a scan): the test of the presses found only then.
+            if ((high > 0.0 && high * high >= within * scan.norms[i]) || high.is_nan())
+                && found.iter().all(|f| apart_from(*f, apart, scan.xs[i], scan.ys[i]))
+            {
+                *u = (reach.share)(i);
+            }
+        }
+        self.pick(scan, &bounds, dv, found, unexplained, correlations)
+    }
+
+    /// The pick of a scan whose correlations of `dv` and their `bounds` are made (see
+    /// [`PressModel::best_point_in`]).
+    fn pick(
+        &self,
+        scan: &Scan,
+        bounds: &Bounds<'_>,
+        dv: &[f64],
+        found: &[[f64; 2]],
+        unexplained: &[f64],
+        correlations: &[f32],
+    ) -> Option<(usize, f64)> {
         // Not within two indenter radii of a press found.
         let n = scan.points.len().min(unexplained.len());
         let away = Away { xs: &scan.xs[..n], ys: &scan.ys[..n], found, apart: (2.0 * self.radius).powi(2) };
         let (c, left) = (&correlations[..n], &unexplained[..n]);
         // The largest z² some point surely reaches: its c's bound below, its drop's above.
-        let floor = surest(&bounds, &away, c, left, &scan.norms[..n], &scan.limits[..n]);
+        let floor = surest(bounds, &away, c, left, &scan.norms[..n], &scan.limits[..n]);
         // Every point whose bound reaches that floor, scored exactly; the first of the largest.
         let m = self.measurements;
         let mut best: Option<(usize, f64)> = None;
         let mut i = 0;
-        while let Some(at) = next_reaching(&bounds, &away, c, left, floor, i) {
+        while let Some(at) = next_reaching(bounds, &away, c, left, floor, i) {
             i = at + 1;
             let (j, (_, high)) = (scan.points[at], bounds.range(c, at));
             if best.is_some_and(|(_, b)| high * high <= b * b * left[at]) {
@@ -527,6 +582,45 @@ mod tests {
             }
         }
         assert!(press.best_point(&scan, &vec![0.0; m], &[], &mut correlations).is_none());
+    }
+
+    /// A new press's scan computes each point's unexplained share only where a z of the
+    /// threshold is within reach: wherever the pick with every share computed reaches the
+    /// threshold, it is the same point and the same z to the bit; else nothing reaches it.
+    #[test]
+    fn the_pick_within_reach_is_the_pick_with_every_share() {
+        use crate::press_fit::joint::{orthonormal_rows, unexplained_at, UNEXPLAINED_FLOOR};
+        let (press, scan) = whitened();
+        let m = press.measurements();
+        let mut rng = SeededRng::seed_from_u64(9);
+        let (mut correlations, mut unexplained, mut basis) = (Vec::new(), Vec::new(), Vec::new());
+        let mut reached = 0;
+        for case in 0..200 {
+            let dv = frame(&press, &scan, case, &mut rng);
+            // Responses of a few scan points: the points near them keep little of their gᵀg.
+            let picks: Vec<usize> =
+                (0..rng.random_range(1..10)).map(|_| rng.random_range(0..scan.points.len())).collect();
+            let rows = Mat::from_fn(picks.len(), m, |a, q| press.responses[scan.points[picks[a]] * m + q]);
+            let rank = orthonormal_rows(rows.as_ref(), &mut basis);
+            let found: Vec<[f64; 2]> = (0..rng.random_range(0..3))
+                .map(|_| [rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1)])
+                .collect();
+            let every: Vec<f64> = (0..scan.points.len())
+                .map(|i| unexplained_at(&press.responses[scan.points[i] * m..][..m], scan.norms[i], &basis, rank))
+                .collect();
+            let whole = press.best_point_in(&scan, &dv, &found, &every, &mut correlations);
+            let threshold = rng.random_range(2.0..8.0);
+            let reach = Reach { threshold, least: UNEXPLAINED_FLOOR, share: |i: usize| every[i] };
+            let within = press.best_point_reaching(&scan, &dv, &found, reach, &mut unexplained, &mut correlations);
+            match whole {
+                Some((j, z)) if z >= threshold => {
+                    reached += 1;
+                    assert_eq!(within.map(|(j, z)| (j, z.to_bits())), Some((j, z.to_bits())), "case {case}");
+                }
+                _ => assert!(within.is_none_or(|(_, z)| z < threshold), "case {case}"),
+            }
+        }
+        assert!(reached >= 40, "{reached} of 200 picks reached the threshold");
     }
 
     /// The floor's kernel takes the largest low²/left of the points surely reached, eligible and
