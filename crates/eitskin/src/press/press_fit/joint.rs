@@ -399,8 +399,8 @@ impl PressModel {
     }
 
     /// The score test of press `i`'s radius at the last exact fit: ∂χ²/∂r over its standard
-    /// deviation (∂F/∂r of the presses together, or of press `i` alone where the fit read
-    /// each from the table), gᵀr / |g|, g = ∂F/∂r less its part in the span of the fit's
+    /// deviation (∂F/∂r of the presses together; where the fit read each from the table, at its
+    /// one exact solve, before the table's fit with that solve's correction), gᵀr / |g|, g = ∂F/∂r less its part in the span of the fit's
     /// Jacobian (the first `rank` vectors of the scratch's basis), r the whitened misfit; N(0, 1)
     /// if the indenter's radius is the press's. (With ∂F/∂r itself in place of g in gᵀr, what
     /// the fit had not converged, up to a hundredth of χ² along directions tens of times g,
@@ -413,15 +413,15 @@ impl PressModel {
         rank: usize,
         scratch: &mut PressScratch,
     ) -> Result<f64, InverseError> {
-        // Where the fit read each press from the table (no radius fitted), alone, so is its
-        // radius's derivative: one press's solve, not all of theirs.
+        // Where the fit read each press from the table (no radius fitted), from its one exact
+        // solve, where the presses were before the table's fit with that solve's correction.
         let on_table = exact.table.is_some() && fitted(&scratch.sizes) == 0;
         let PressScratch { disks, exact: ex, response, refine: refining, basis, .. } = scratch;
         disks.clear();
         disks.extend(presses.iter().map(disk_of));
         // Of all of them, from the fit's own last solve where that was at these presses.
         let kept = if on_table {
-            None
+            refining.derivative_near_last_solve(exact.presses, disks.len(), i, DiskParameter::Radius, response)
         } else {
             refining.derivative_at_last_solve(exact.presses, disks, i, DiskParameter::Radius, response)
         };

@@ -177,6 +177,23 @@ impl RefineScratch {
         (self.solved_at == disks).then(|| presses.derivative_into(disks, i, parameter, &mut self.exact, out))
     }
 
+    /// The derivative along `parameter` of press `i` (V per unit) from the last joint solve of
+    /// the fits, wherever it was made, if it was of `count` presses: a fit on the table solves
+    /// once, and then moves the presses by what that solve's correction asks, a fraction of
+    /// their standard deviation. `None` where there was no such solve; `Some(false)` where it has
+    /// no derivative.
+    pub(crate) fn derivative_near_last_solve(
+        &mut self,
+        presses: &ExactPresses,
+        count: usize,
+        i: usize,
+        parameter: DiskParameter,
+        out: &mut [f64],
+    ) -> Option<bool> {
+        let RefineScratch { solved_at, exact, .. } = self;
+        (solved_at.len() == count && i < count).then(|| presses.derivative_into(solved_at, i, parameter, exact, out))
+    }
+
     /// The weighted misfit w⊙(Δv − F) the last fit left, F the presses' joint response.
     pub fn residual(&self) -> &[f64] {
         &self.lm.residual
