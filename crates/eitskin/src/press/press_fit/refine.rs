@@ -36,8 +36,8 @@ const TOLERANCE: [f64; 2] = [1e-5, 1e-4];
 /// model fails at that scale: the damped tries after such a step raised the misfit (five of six
 /// rejected, each an exact solve) and moved the presses back and forth within it, a quarter of
 /// an afresh frame of three presses at 0.05 % noise; the iterations after one that lowered it
-/// (1.4 a fit, each a Jacobian and a solve) bought a few hundredths of χ² between them, and
-/// raised it as often. A fit on the tabulated response stops the same way: its interpolant's
+/// (about one a fit of three presses, each a Jacobian and a solve) bought a few hundredths of χ²
+/// between them, and raised it as often. A fit on the tabulated response stops the same way: its interpolant's
 /// curvature changes from one cell of the table to the next (Catmull–Rom cubics join with
 /// continuous slopes only).
 const UNRESOLVED: f64 = 0.25;
