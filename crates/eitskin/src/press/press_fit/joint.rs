@@ -400,9 +400,10 @@ impl PressModel {
 
     /// The score test of press `i`'s radius at the last exact fit: ∂χ²/∂r over its standard
     /// deviation (∂F/∂r of the presses together; where the fit read each from the table, at its
-    /// one exact solve, before the table's fit with that solve's correction), gᵀr / |g|, g = ∂F/∂r less its part in the span of the fit's
-    /// Jacobian (the first `rank` vectors of the scratch's basis), r the whitened misfit; N(0, 1)
-    /// if the indenter's radius is the press's. (With ∂F/∂r itself in place of g in gᵀr, what
+    /// one exact solve, a short step from where its last fit on the table left them),
+    /// gᵀr / |g|, g = ∂F/∂r less its part in the span of the fit's Jacobian (the first `rank`
+    /// vectors of the scratch's basis), r the whitened misfit; N(0, 1) if the indenter's radius
+    /// is the press's. (With ∂F/∂r itself in place of g in gᵀr, what
     /// the fit had not converged, up to a hundredth of χ² along directions tens of times g,
     /// made presses of the indenter's size fit for their size in 13 % of frames of three.)
     fn size_z(
@@ -414,23 +415,24 @@ impl PressModel {
         scratch: &mut PressScratch,
     ) -> Result<f64, InverseError> {
         // Where the fit read each press from the table (no radius fitted), from its one exact
-        // solve, where the presses were before the table's fit with that solve's correction.
+        // solve, where the presses were before the table's fit with that solve's correction
+        // (within a short step of where they are).
         let on_table = exact.table.is_some() && fitted(&scratch.sizes) == 0;
         let PressScratch { disks, exact: ex, response, refine: refining, basis, .. } = scratch;
         disks.clear();
         disks.extend(presses.iter().map(disk_of));
         // Of all of them, from the fit's own last solve where that was at these presses.
         let kept = if on_table {
-            refining.derivative_near_last_solve(exact.presses, disks.len(), i, DiskParameter::Radius, response)
+            refining.derivative_near_last_solve(exact.presses, disks, i, DiskParameter::Radius, response)
         } else {
             refining.derivative_at_last_solve(exact.presses, disks, i, DiskParameter::Radius, response)
         };
+        // Else (a solve elsewhere: another set of presses, or moved far since) solved again here.
         let derived = match kept {
             Some(derived) => derived,
             None => {
-                let (solved, i) = if on_table { (&disks[i..=i], 0) } else { (&disks[..], i) };
-                exact.presses.response_into(solved, ex, response)?;
-                exact.presses.derivative_into(solved, i, DiskParameter::Radius, ex, response)
+                exact.presses.response_into(disks, ex, response)?;
+                exact.presses.derivative_into(disks, i, DiskParameter::Radius, ex, response)
             }
         };
         if !derived {

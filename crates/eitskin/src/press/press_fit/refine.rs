@@ -30,8 +30,8 @@ const TOLERANCE: [f64; 2] = [1e-5, 1e-4];
 
 /// Where a fit stops at a tolerance ([`RefineParams::converged_below`]), a Gauss–Newton step
 /// predicted to lower the misfit by less than this (χ², whitened: moving the presses by under
-/// half their standard deviation) is the last if it is short ([`SETTLED`]): kept if it lowers the
-/// misfit, and the iterations end either way. On the exact model the misfit's curvature changes within a fraction of a
+/// half their standard deviation) ends the iterations if it raises the misfit, and if it lowers
+/// it and is short ([`SETTLED`]), kept. On the exact model the misfit's curvature changes within a fraction of a
 /// triangle (a press's derivatives by 80 % over 2 mm on the paper's mesh), so the quadratic
 /// model fails at that scale: the damped tries after such a step raised the misfit (five of six
 /// rejected, each an exact solve) and moved the presses back and forth within it, a quarter of
@@ -50,6 +50,17 @@ const UNRESOLVED: f64 = 0.25;
 /// alone, the force error of sized presses rose by 65 % in two rows of `eitskin study
 /// --as-users`, and a weak press beside a strong one was left 31 mm off).
 const SETTLED: [f64; 2] = [0.1, 0.01];
+
+/// Whether disk `b` is within `centre` (m; its centre, and its radius) and `drop` of `a`.
+fn within(a: &Disk, b: &Disk, [centre, drop]: [f64; 2]) -> bool {
+    let shift = (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]).max((a.radius - b.radius).abs());
+    shift < centre && (a.drop - b.drop).abs() < drop
+}
+
+/// Whether disk `b` is a short step from `a` ([`SETTLED`]).
+fn short(a: &Disk, b: &Disk) -> bool {
+    within(a, b, [SETTLED[0] * a.radius, SETTLED[1]])
+}
 
 /// The parameters of a disk, in the order of the Jacobian's rows.
 const ALL: [DiskParameter; 4] = [DiskParameter::X, DiskParameter::Y, DiskParameter::Drop, DiskParameter::Radius];
@@ -177,21 +188,22 @@ impl RefineScratch {
         (self.solved_at == disks).then(|| presses.derivative_into(disks, i, parameter, &mut self.exact, out))
     }
 
-    /// The derivative along `parameter` of press `i` (V per unit) from the last joint solve of
-    /// the fits, wherever it was made, if it was of `count` presses: a fit on the table solves
-    /// once, and then moves the presses by what that solve's correction asks, a fraction of
-    /// their standard deviation. `None` where there was no such solve; `Some(false)` where it has
-    /// no derivative.
+    /// The derivative along `parameter` of `disks[i]` (V per unit) from the last joint solve of
+    /// the fits, made where it was, if that was near `disks`: each of them within a short step
+    /// ([`SETTLED`]) of where it was solved. A fit on the table solves once, and then moves the
+    /// presses by what that solve's correction asks, usually a fraction of their standard
+    /// deviation. `None` where there was no such solve; `Some(false)` where it has no derivative.
     pub(crate) fn derivative_near_last_solve(
         &mut self,
         presses: &ExactPresses,
-        count: usize,
+        disks: &[Disk],
         i: usize,
         parameter: DiskParameter,
         out: &mut [f64],
     ) -> Option<bool> {
         let RefineScratch { solved_at, exact, .. } = self;
-        (solved_at.len() == count && i < count).then(|| presses.derivative_into(solved_at, i, parameter, exact, out))
+        let near = solved_at.len() == disks.len() && solved_at.iter().zip(disks).all(|(a, b)| short(a, b));
+        (near && i < disks.len()).then(|| presses.derivative_into(solved_at, i, parameter, exact, out))
     }
 
     /// The weighted misfit w⊙(Δv − F) the last fit left, F the presses' joint response.
@@ -208,7 +220,7 @@ impl RefineScratch {
     /// Per disk of the last [`refine`] (`disks` as it left them), the variance of its drop at
     /// radius `radius` (m), [`Disk::equivalent_drop`], into `out`: gᵀ(JJᵀ)⁻¹g, J that fit's weighted
     /// Jacobian ([`RefineScratch::jacobian`], made before its last step, which a fit that
-    /// converged took short) and g the gradient of that drop along the
+    /// converged took short: [`SETTLED`]) and g the gradient of that drop along the
     /// parameters fitted; with weights of one over each channel's noise, the Cramér–Rao bound
     /// at the fit, every other parameter unknown too. `false` where the fit left no whole
     /// Jacobian of these disks or JJᵀ is singular. Allocates nothing once `out` has grown.
@@ -525,13 +537,8 @@ fn iterate(
             }
             trial.clear();
             trial.extend(disks.iter().enumerate().map(|(i, d)| moved(d, step.as_ref(), i * per, per, params)));
-            let within = |a: &Disk, b: &Disk, [centre, drop]: [f64; 2]| {
-                let shift =
-                    (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]).max((a.radius - b.radius).abs());
-                shift < centre && (a.drop - b.drop).abs() < drop
-            };
             moved_little = disks.iter().zip(trial.iter()).all(|(a, b)| within(a, b, TOLERANCE));
-            settled = disks.iter().zip(trial.iter()).all(|(a, b)| within(a, b, [SETTLED[0] * a.radius, SETTLED[1]]));
+            settled = disks.iter().zip(trial.iter()).all(|(a, b)| short(a, b));
             let trial_cost = misfit(model, dv, weights, trial, joint, perturbed)?;
             if trial_cost <= cost {
                 cost = trial_cost;

@@ -178,11 +178,12 @@ struct Away<'a> {
     apart: f64,
 }
 
-/// Whether (`x`, `y`) is at least √`apart` from `centre` (m; squared, without hypot: the test
-/// runs for every point a scan tests).
+/// Whether (`x`, `y`) is not within √`apart` of `centre` (m; squared, without hypot: the test
+/// runs for every point a scan tests). A centre not a number is near no point.
 #[inline(always)]
 fn apart_from(centre: [f64; 2], apart: f64, x: f64, y: f64) -> bool {
-    (centre[0] - x) * (centre[0] - x) + (centre[1] - y) * (centre[1] - y) >= apart
+    let squared = (centre[0] - x) * (centre[0] - x) + (centre[1] - y) * (centre[1] - y);
+    squared >= apart || squared.is_nan()
 }
 
 crate::parallel::widest! {
@@ -491,9 +492,9 @@ mod tests {
     }
 
     /// Δv of whitened noise and up to two presses of z up to 60, at random places; for `case`
-    /// 1 and 2 of every five the same scaled by 10⁴⁰ and 10⁻⁴⁵ (past f32's range), for 3 and 4 only its part outside
-    /// the scan's basis and only its part inside it (where the bound is tightest and where it is
-    /// rounding alone).
+    /// 1 and 2 of every five the same scaled by 10⁴⁰ and 10⁻⁴⁵ (past f32's range), for 3 and 4
+    /// only its part outside the scan's basis and only its part inside it (where the bound is
+    /// tightest and where it is rounding alone).
     fn frame(press: &PressModel, scan: &Scan, case: usize, rng: &mut SeededRng) -> Vec<f64> {
         let m = press.measurements();
         let mut dv: Vec<f64> = (0..m).map(|_| rng.sample(StandardNormal)).collect();
@@ -586,14 +587,16 @@ mod tests {
 
     /// A new press's scan computes each point's unexplained share only where a z of the
     /// threshold is within reach: wherever the pick with every share computed reaches the
-    /// threshold, it is the same point and the same z to the bit; else nothing reaches it.
+    /// threshold, it is the same point and the same z to the bit; else nothing reaches it. Each
+    /// point's share is the tracker's, computed for all points at once.
     #[test]
     fn the_pick_within_reach_is_the_pick_with_every_share() {
-        use crate::press_fit::joint::{orthonormal_rows, unexplained_at, UNEXPLAINED_FLOOR};
+        use crate::press_fit::joint::{orthonormal_rows, unexplained_at, unexplained_into, UNEXPLAINED_FLOOR};
         let (press, scan) = whitened();
         let m = press.measurements();
         let mut rng = SeededRng::seed_from_u64(9);
         let (mut correlations, mut unexplained, mut basis) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut projections, mut whole_product) = (Mat::zeros(0, 0), Vec::new());
         let mut reached = 0;
         for case in 0..200 {
             let dv = frame(&press, &scan, case, &mut rng);
@@ -608,6 +611,11 @@ mod tests {
             let every: Vec<f64> = (0..scan.points.len())
                 .map(|i| unexplained_at(&press.responses[scan.points[i] * m..][..m], scan.norms[i], &basis, rank))
                 .collect();
+            // The same shares as the tracker's one product for every point, to rounding.
+            unexplained_into(&scan, &basis, rank, &mut projections, &mut whole_product);
+            for (a, b) in every.iter().zip(&whole_product) {
+                assert!((a - b).abs() <= 1e-12 * b, "case {case}: {a} against {b}");
+            }
             let whole = press.best_point_in(&scan, &dv, &found, &every, &mut correlations);
             let threshold = rng.random_range(2.0..8.0);
             let reach = Reach { threshold, least: UNEXPLAINED_FLOOR, share: |i: usize| every[i] };
@@ -637,6 +645,10 @@ mod tests {
             let (left, norms): (Vec<f64>, Vec<f64>) = (values(&mut rng, 0.5, 2.0), values(&mut rng, 0.5, 2.0));
             let mut limits: Vec<f64> = values(&mut rng, 0.5, 4.0);
             limits.iter_mut().step_by(7).for_each(|l| *l = f64::NAN);
+            // Points never picked (an unexplained share not computed) and a correlation not a number.
+            let (mut left, mut c) = (left, c);
+            left.iter_mut().skip(2).step_by(5).for_each(|l| *l = f64::INFINITY);
+            c.iter_mut().skip(3).step_by(11).for_each(|c| *c = f32::NAN);
             let (xs, ys): (Vec<f64>, Vec<f64>) = (values(&mut rng, 0.0, 1.0), values(&mut rng, 0.0, 1.0));
             let bounds = Bounds { missed: &missed, roots: &roots, outside: 1.3, rounding: 1e-3, unit: 0.5 };
             let found = [[0.3, 0.4], [0.8, 0.1]];
