@@ -220,7 +220,8 @@ impl RefineScratch {
     /// Per disk of the last [`refine`] (`disks` as it left them), the variance of its drop at
     /// radius `radius` (m), [`Disk::equivalent_drop`], into `out`: gᵀ(JJᵀ)⁻¹g, J that fit's weighted
     /// Jacobian ([`RefineScratch::jacobian`], made before its last step, which a fit that
-    /// converged took short: [`SETTLED`]) and g the gradient of that drop along the
+    /// converged took short: no press moved by a tenth of its radius or 0.01 in drop) and g the
+    /// gradient of that drop along the
     /// parameters fitted; with weights of one over each channel's noise, the Cramér–Rao bound
     /// at the fit, every other parameter unknown too. `false` where the fit left no whole
     /// Jacobian of these disks or JJᵀ is singular. Allocates nothing once `out` has grown.
