@@ -403,9 +403,9 @@ impl PressModel {
     /// one exact solve, a short step from where its last fit on the table left them),
     /// gᵀr / |g|, g = ∂F/∂r less its part in the span of the fit's Jacobian (the first `rank`
     /// vectors of the scratch's basis), r the whitened misfit; N(0, 1) if the indenter's radius
-    /// is the press's. (With ∂F/∂r itself in place of g in gᵀr, what
-    /// the fit had not converged, up to a hundredth of χ² along directions tens of times g,
-    /// made presses of the indenter's size fit for their size in 13 % of frames of three.)
+    /// is the press's. (With ∂F/∂r itself in place of g in gᵀr, what the fit had not converged,
+    /// up to a hundredth of χ² along directions tens of times g, made presses of the indenter's
+    /// size fit for their size in 13 % of frames of three.)
     fn size_z(
         &self,
         exact: Exact<'_>,

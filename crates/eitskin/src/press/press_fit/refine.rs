@@ -31,15 +31,15 @@ const TOLERANCE: [f64; 2] = [1e-5, 1e-4];
 /// Where a fit stops at a tolerance ([`RefineParams::converged_below`]), a Gauss–Newton step
 /// predicted to lower the misfit by less than this (χ², whitened: moving the presses by under
 /// half their standard deviation) ends the iterations if it raises the misfit, and if it lowers
-/// it and is short ([`SETTLED`]), kept. On the exact model the misfit's curvature changes within a fraction of a
-/// triangle (a press's derivatives by 80 % over 2 mm on the paper's mesh), so the quadratic
-/// model fails at that scale: the damped tries after such a step raised the misfit (five of six
-/// rejected, each an exact solve) and moved the presses back and forth within it, a quarter of
-/// an afresh frame of three presses at 0.05 % noise; the iterations after one that lowered it
-/// (about one a fit of three presses, each a Jacobian and a solve) bought a few hundredths of χ²
-/// between them, and raised it as often. A fit on the tabulated response stops the same way: its interpolant's
-/// curvature changes from one cell of the table to the next (Catmull–Rom cubics join with
-/// continuous slopes only).
+/// it and is short ([`SETTLED`]), kept. On the exact model the misfit's curvature changes
+/// within a fraction of a triangle (a press's derivatives by 80 % over 2 mm on the paper's
+/// mesh), so the quadratic model fails at that scale: the damped tries after such a step raised
+/// the misfit (five of six rejected, each an exact solve) and moved the presses back and forth
+/// within it, a quarter of an afresh frame of three presses at 0.05 % noise; the iterations
+/// after one that lowered it (about one a fit of three presses, each a Jacobian and a solve)
+/// bought a few hundredths of χ² between them, and raised it as often. A fit on the tabulated
+/// response stops the same way: its interpolant's curvature changes from one cell of the table
+/// to the next (Catmull–Rom cubics join with continuous slopes only).
 const UNRESOLVED: f64 = 0.25;
 
 /// A step that moves no press by more than this share of its radius (its centre, and its radius
@@ -221,10 +221,10 @@ impl RefineScratch {
     /// radius `radius` (m), [`Disk::equivalent_drop`], into `out`: gᵀ(JJᵀ)⁻¹g, J that fit's weighted
     /// Jacobian ([`RefineScratch::jacobian`], made before its last step, which a fit that
     /// converged took short: no press moved by a tenth of its radius or 0.01 in drop) and g the
-    /// gradient of that drop along the
-    /// parameters fitted; with weights of one over each channel's noise, the Cramér–Rao bound
-    /// at the fit, every other parameter unknown too. `false` where the fit left no whole
-    /// Jacobian of these disks or JJᵀ is singular. Allocates nothing once `out` has grown.
+    /// gradient of that drop along the parameters fitted; with weights of one over each
+    /// channel's noise, the Cramér–Rao bound at the fit, every other parameter unknown too.
+    /// `false` where the fit left no whole Jacobian of these disks or JJᵀ is singular.
+    /// Allocates nothing once `out` has grown.
     pub fn equivalent_drop_variances_into(&mut self, disks: &[Disk], radius: f64, out: &mut Vec<f64>) -> bool {
         let Iterations { jacobian, normal, damped, step, lu, jacobian_whole, jacobian_layout, .. } = &mut self.lm;
         out.clear();
