@@ -216,6 +216,10 @@ impl PressModel {
         let mut cost = self.refit(exact, presses, scratch)?;
         scratch.rejected.clear();
         scratch.refits = 0;
+        // Whether the last exact fit (its misfit, Jacobian and solve, which the sizes' tests and
+        // the search for a new press read) is of other presses than these: a candidate's,
+        // refused after its fit. Kept across rounds until these presses are fitted again.
+        let mut stale = false;
         for _ in 0..ROUNDS {
             // Each fit costs a few solves per iteration; a frame's work is bounded.
             if scratch.refits >= REFITS {
@@ -224,7 +228,7 @@ impl PressModel {
             if let Some(weaker) = self.overlapping(presses) {
                 scratch.sizes.remove(weaker);
                 scratch.rejected.push(presses.remove(weaker).centre);
-                cost = self.refit(exact, presses, scratch)?;
+                (cost, stale) = (self.refit(exact, presses, scratch)?, false);
                 continue;
             }
             let failing = presses
@@ -235,10 +239,10 @@ impl PressModel {
             if let Some((i, _)) = failing {
                 scratch.sizes.remove(i);
                 scratch.rejected.push(presses.remove(i).centre);
-                cost = self.refit(exact, presses, scratch)?;
+                (cost, stale) = (self.refit(exact, presses, scratch)?, false);
                 continue;
             }
-            let (mut changed, mut stale) = (false, false);
+            let mut changed = false;
             for i in 0..presses.len() {
                 if scratch.refits >= REFITS {
                     break;
@@ -257,7 +261,7 @@ impl PressModel {
                 let moved = self.refit(exact, presses, scratch)?;
                 // Clearly better, not the same place to rounding.
                 if moved < cost - 1.0 {
-                    (cost, changed) = (moved, true);
+                    (cost, changed, stale) = (moved, true, false);
                 } else {
                     scratch.sizes[i] = size;
                     restore(presses, scratch, m);
@@ -273,7 +277,7 @@ impl PressModel {
             // narrower press could by chance.
             // The sizes' test reads the last fit's misfit and Jacobian: of these presses.
             if stale {
-                cost = self.refit(exact, presses, scratch)?;
+                (cost, stale) = (self.refit(exact, presses, scratch)?, false);
             }
             let rank = fit_basis(scratch);
             // Every radius fitted: any fall of the misfit sizes a press.
@@ -307,11 +311,12 @@ impl PressModel {
                     if merged >= cost + threshold * threshold {
                         restore(presses, scratch, m);
                         scratch.sizes.insert(j, size_j);
+                        stale = true;
                         break;
                     }
                     presses[i] = press;
                     scratch.sizes[i] = Size::Fitted;
-                    cost = self.refit(exact, presses, scratch)?;
+                    (cost, stale) = (self.refit(exact, presses, scratch)?, false);
                     (at, merged_any) = (i, true);
                     neighbour = self.weaker_neighbour(presses, at);
                 }
@@ -322,7 +327,7 @@ impl PressModel {
                 }
                 if zz.powi(2) < size_test * scale && !held {
                     scratch.sizes[i] = Size::Nominal;
-                    cost = self.refit(exact, presses, scratch)?;
+                    (cost, stale) = (self.refit(exact, presses, scratch)?, false);
                     continue;
                 }
                 save(presses, scratch, m);
@@ -337,10 +342,13 @@ impl PressModel {
                     scratch.sizes[i] = Size::Nominal;
                 }
                 // Back to these presses' own fit (and misfit and Jacobian).
-                cost = self.refit(exact, presses, scratch)?;
+                (cost, stale) = (self.refit(exact, presses, scratch)?, false);
             }
             if changed {
                 continue;
+            }
+            if stale {
+                (cost, stale) = (self.refit(exact, presses, scratch)?, false);
             }
             if presses.len() < MAX_PRESSES {
                 // Not where a press was taken off: it would only come back.
