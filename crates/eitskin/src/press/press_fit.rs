@@ -685,6 +685,11 @@ impl PressModel {
         (0..self.grid.len()).map(|j| self.drop_limit(self.grid.point(j))).collect()
     }
 
+    /// The response of a press at grid point `j` (V per unit contrast, protocol order).
+    fn grid_response(&self, j: usize) -> &[f64] {
+        &self.responses[j * self.measurements..(j + 1) * self.measurements]
+    }
+
     /// Whether a press of `contrast` at grid point `j` would lower the conductivity by more
     /// than [`MAX_DROP`]: a blend of presses elsewhere (a weakly sensitive middle between them).
     fn too_deep(&self, contrast: f64, j: usize) -> bool {

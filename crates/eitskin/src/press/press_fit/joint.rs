@@ -365,10 +365,7 @@ impl PressModel {
                     &mut *scratch;
                 centres.extend_from_slice(rejected);
                 // Each point's unexplained share only where a new press's z could pass there.
-                let share = |i: usize| {
-                    let g = &self.responses[scan.points[i] * m..(scan.points[i] + 1) * m];
-                    unexplained_at(g, scan.norms[i], basis, rank)
-                };
+                let share = |i: usize| unexplained_at(self.grid_response(scan.points[i]), scan.norms[i], basis, rank);
                 let reach = Reach { threshold, least: UNEXPLAINED_FLOOR, share };
                 let best = self.best_point_reaching(scan, residual, centres, reach, unexplained, correlations);
                 let new = best.filter(|(_, z)| *z >= threshold).and_then(|(j, _)| {

@@ -438,7 +438,7 @@ impl PressModel {
     ) -> Option<(usize, f64)> {
         let mut projection = [0.0; MAX_RANK];
         let bounds = scan.correlate(dv, &mut projection, correlations);
-        let apart = (2.0 * self.radius).powi(2);
+        let apart = self.apart();
         // z = c/√u ≤ high/√(least·gᵀg): within reach where high² ≥ threshold²·least·gᵀg.
         let within = reach.threshold.powi(2) * reach.least;
         unexplained.clear();
@@ -455,6 +455,12 @@ impl PressModel {
         self.pick(scan, &bounds, dv, found, unexplained, correlations)
     }
 
+    /// The square of the distance from a press found within which no point is picked (m²):
+    /// two indenter radii.
+    fn apart(&self) -> f64 {
+        (2.0 * self.radius).powi(2)
+    }
+
     /// The pick of a scan whose correlations of `dv` and their `bounds` are made (see
     /// [`PressModel::best_point_in`]).
     fn pick(
@@ -468,12 +474,11 @@ impl PressModel {
     ) -> Option<(usize, f64)> {
         // Not within two indenter radii of a press found.
         let n = scan.points.len().min(unexplained.len());
-        let away = Away { xs: &scan.xs[..n], ys: &scan.ys[..n], found, apart: (2.0 * self.radius).powi(2) };
+        let away = Away { xs: &scan.xs[..n], ys: &scan.ys[..n], found, apart: self.apart() };
         let (c, left) = (&correlations[..n], &unexplained[..n]);
         // The largest z² some point surely reaches: its c's bound below, its drop's above.
         let floor = surest(bounds, &away, c, left, &scan.norms[..n], &scan.limits[..n]);
         // Every point whose bound reaches that floor, scored exactly; the first of the largest.
-        let m = self.measurements;
         let mut best: Option<(usize, f64)> = None;
         let mut i = 0;
         while let Some(at) = next_reaching(bounds, &away, c, left, floor, i) {
@@ -482,7 +487,7 @@ impl PressModel {
             if best.is_some_and(|(_, b)| high * high <= b * b * left[at]) {
                 continue;
             }
-            let c = dot(&self.responses[j * m..(j + 1) * m], dv);
+            let c = dot(self.grid_response(j), dv);
             if c <= 0.0 || self.too_deep(c / scan.norms[at], j) {
                 continue;
             }
