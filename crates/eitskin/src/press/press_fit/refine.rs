@@ -85,10 +85,14 @@ pub struct RefineParams {
 /// Buffers of [`refine`] and [`refine_tabulated`].
 #[derive(Debug, Default)]
 pub struct RefineScratch {
-    /// The last joint solve of the presses.
+    /// The last joint solve of the presses a fit kept (its derivatives are the Jacobian's).
     exact: ExactScratch,
     /// The disks `exact` was last solved at (none after a solve that failed).
     solved_at: Vec<Disk>,
+    /// A trial step's joint solve and its disks, kept apart until the step is taken (a step
+    /// refused leaves the solve at the presses where they stay).
+    trial: ExactScratch,
+    trial_at: Vec<Disk>,
     /// The solves of each press alone, for its own response (the joint solve kept beside them).
     alone: ExactScratch,
     single: Vec<Disk>,
@@ -155,8 +159,10 @@ impl RefineScratch {
     /// `exact`'s model, so that the frame path does not allocate when more presses come.
     pub fn reserve(&mut self, exact: &ExactPresses, presses: usize, measurements: usize) {
         exact.reserve(&mut self.exact);
+        exact.reserve(&mut self.trial);
         exact.reserve(&mut self.alone);
         room(&mut self.solved_at, presses);
+        room(&mut self.trial_at, presses);
         room(&mut self.lm.trial, presses);
         room(&mut self.single, 1);
         for buffer in [&mut self.lm.joint, &mut self.lm.residual, &mut self.lm.perturbed, &mut self.coupling] {
@@ -174,9 +180,9 @@ impl RefineScratch {
     }
 
     /// The derivative along `parameter` of `disks[i]` (V per unit) from the last joint solve
-    /// of the fits, if it was made at `disks` (the last step of an exact fit is its last
-    /// solve, unless that step was refused): the value it would be after a new solve there,
-    /// without it. `None` where that solve was elsewhere; `Some(false)` where it has none.
+    /// the fits kept, if it was made at `disks` (where an exact fit left its presses; a step it
+    /// refused was solved apart): the value it would be after a new solve there, without it.
+    /// `None` where that solve was elsewhere; `Some(false)` where it has none.
     pub(crate) fn derivative_at_last_solve(
         &mut self,
         presses: &ExactPresses,
@@ -276,26 +282,57 @@ impl RefineScratch {
 trait Responses {
     /// Δv of `disks` pressed together into `out`.
     fn response_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError>;
-    /// The derivative along `parameter` of `disks[i]` at the disks of the last
-    /// [`Responses::response_into`], into `out`; `false` where it has none.
+
+    /// [`Responses::response_into`] of a trial step's `disks`, the last response's kept for its
+    /// derivatives until [`Responses::accept`].
+    fn trial_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
+        self.response_into(disks, out)
+    }
+
+    /// The last trial's response becomes the one derivatives are read from.
+    fn accept(&mut self) {}
+
+    /// The derivative along `parameter` of `disks[i]` at the disks of the last response kept
+    /// ([`Responses::response_into`], or a trial accepted), into `out`; `false` where it has none.
     fn derivative_into(&mut self, disks: &[Disk], i: usize, parameter: DiskParameter, out: &mut [f64]) -> bool;
 }
 
-/// The exact responses, solved; the disks of the last solve kept.
+/// The exact responses, solved; the disks of the last solve kept, and a trial's apart.
 struct Solved<'a> {
     presses: &'a ExactPresses,
     scratch: &'a mut ExactScratch,
     solved_at: &'a mut Vec<Disk>,
+    trial: &'a mut ExactScratch,
+    trial_at: &'a mut Vec<Disk>,
+}
+
+/// `disks` solved with `presses` into `out` and `scratch`, `solved_at` set to them (cleared
+/// if the solve fails).
+fn solve_at(
+    presses: &ExactPresses,
+    disks: &[Disk],
+    scratch: &mut ExactScratch,
+    solved_at: &mut Vec<Disk>,
+    out: &mut [f64],
+) -> Result<(), ForwardError> {
+    solved_at.clear();
+    presses.response_into(disks, scratch, out)?;
+    solved_at.extend_from_slice(disks);
+    Ok(())
 }
 
 impl Responses for Solved<'_> {
     fn response_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
-        self.solved_at.clear();
-        let solved = self.presses.response_into(disks, self.scratch, out);
-        if solved.is_ok() {
-            self.solved_at.extend_from_slice(disks);
-        }
-        solved
+        solve_at(self.presses, disks, self.scratch, self.solved_at, out)
+    }
+
+    fn trial_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
+        solve_at(self.presses, disks, self.trial, self.trial_at, out)
+    }
+
+    fn accept(&mut self) {
+        std::mem::swap(self.scratch, self.trial);
+        std::mem::swap(self.solved_at, self.trial_at);
     }
 
     fn derivative_into(&mut self, disks: &[Disk], i: usize, parameter: DiskParameter, out: &mut [f64]) -> bool {
@@ -337,22 +374,15 @@ impl Responses for Interpolated<'_> {
     }
 }
 
-/// The misfit |w⊙(Δv − F(disks))|² and the weighted residual into `residual`.
-fn misfit(
-    model: &mut impl Responses,
-    dv: &[f64],
-    weights: &[f64],
-    disks: &[Disk],
-    joint: &mut [f64],
-    residual: &mut [f64],
-) -> Result<f64, ForwardError> {
-    model.response_into(disks, joint)?;
+/// The misfit |w⊙(Δv − F)|² of the joint response F `joint`, and the weighted residual into
+/// `residual`.
+fn misfit(dv: &[f64], weights: &[f64], joint: &[f64], residual: &mut [f64]) -> f64 {
     let mut cost = 0.0;
     for ((r, (f, v)), w) in residual.iter_mut().zip(joint.iter().zip(dv)).zip(weights) {
         *r = w * (v - f);
         cost += *r * *r;
     }
-    Ok(cost)
+    cost
 }
 
 /// Moves `disks` to the least noise-weighted misfit with `dv` (Δv in V, protocol order;
@@ -367,8 +397,9 @@ pub fn refine(
     params: &RefineParams,
     scratch: &mut RefineScratch,
 ) -> Result<f64, ForwardError> {
-    let RefineScratch { exact: ex, solved_at, alone, single, own, lm, .. } = scratch;
-    let cost = iterate(&mut Solved { presses: exact, scratch: ex, solved_at }, dv, weights, disks, params, lm)?;
+    let RefineScratch { exact: ex, solved_at, trial, trial_at, alone, single, own, lm, .. } = scratch;
+    let mut solved = Solved { presses: exact, scratch: ex, solved_at, trial, trial_at };
+    let cost = iterate(&mut solved, dv, weights, disks, params, lm)?;
     // Each press's own response at the final place.
     let m = dv.len();
     own.resize(disks.len() * m, 0.0);
@@ -410,7 +441,7 @@ pub fn refine_tabulated(
             // The table's joint response at the fit (its jets there), then the exact one.
             let mut table_only = Interpolated { table, coupling, jets, work };
             table_only.response_into(disks, &mut lm.perturbed)?;
-            Solved { presses: exact, scratch: ex, solved_at: &mut *solved_at }.response_into(disks, &mut lm.joint)?;
+            solve_at(exact, disks, ex, solved_at, &mut lm.joint)?;
             for ((c, f), t) in coupling.iter_mut().zip(&lm.joint).zip(&lm.perturbed) {
                 *c += f - t;
             }
@@ -471,7 +502,8 @@ fn iterate(
     grow(damped, n, n);
     grow(step, n, 1);
     grow(gradient, n, 1);
-    let mut cost = misfit(model, dv, weights, disks, joint, residual)?;
+    model.response_into(disks, joint)?;
+    let mut cost = misfit(dv, weights, joint, residual);
     let mut damping = 1e-3;
     'iterations: for _ in 0..ITERATIONS {
         if k == 0 {
@@ -540,9 +572,11 @@ fn iterate(
             trial.extend(disks.iter().enumerate().map(|(i, d)| moved(d, step.as_ref(), i * per, per, params)));
             moved_little = disks.iter().zip(trial.iter()).all(|(a, b)| within(a, b, TOLERANCE));
             settled = disks.iter().zip(trial.iter()).all(|(a, b)| short(a, b));
-            let trial_cost = misfit(model, dv, weights, trial, joint, perturbed)?;
+            model.trial_into(trial, joint)?;
+            let trial_cost = misfit(dv, weights, joint, perturbed);
             if trial_cost <= cost {
                 cost = trial_cost;
+                model.accept();
                 disks.copy_from_slice(trial);
                 residual.copy_from_slice(perturbed);
                 damping = (damping / 3.0).max(1e-9);
