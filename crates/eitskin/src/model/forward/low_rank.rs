@@ -934,16 +934,17 @@ fn add_direction_portable(
             let present = index.map(|i| i != GROUND);
             // A mesh's triangle has three corners of three nodes, each its own row.
             debug_assert!((0..3).all(|a| (0..a).all(|b| !present[a] || index[a] != index[b])), "distinct rows");
+            // A grounded corner reads as zeros, which add nothing (x + c·0 is x), and is not
+            // stored: every index below is a constant, so the blocks stay in registers.
             let (mut sums, mut x) = ([[0.0; PASS_ROWS]; 3], [[0.0; PASS_ROWS]; 3]);
-            for corner in (0..3).filter(|&k| present[k]) {
-                let column = index[corner] as usize;
-                sums[corner] = block(dkxt.col_as_slice(column));
-                x[corner] = block(xt.col_as_slice(column));
+            for corner in 0..3 {
+                if present[corner] {
+                    let column = index[corner] as usize;
+                    sums[corner] = block(dkxt.col_as_slice(column));
+                    x[corner] = block(xt.col_as_slice(column));
+                }
             }
             for (&(a, b), coef) in LOCAL.iter().zip(coefs) {
-                if !(present[a] && present[b]) {
-                    continue;
-                }
                 let c = delta * coef;
                 for k in 0..PASS_ROWS {
                     sums[a][k] += c * x[b][k];
@@ -954,9 +955,11 @@ fn add_direction_portable(
                     }
                 }
             }
-            for corner in (0..3).filter(|&k| present[k]) {
-                if let Some(to) = dkxt.col_as_slice_mut(index[corner] as usize).get_mut(rows.clone()) {
-                    to.copy_from_slice(&sums[corner]);
+            for corner in 0..3 {
+                if present[corner] {
+                    if let Some(to) = dkxt.col_as_slice_mut(index[corner] as usize).get_mut(rows.clone()) {
+                        to.copy_from_slice(&sums[corner]);
+                    }
                 }
             }
         }
