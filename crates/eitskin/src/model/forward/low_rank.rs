@@ -51,7 +51,7 @@
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
-use faer::{Accum, Mat, MatRef, Par};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::assemble::GROUNDED;
 use super::{Factor, ForwardError, ForwardModel};
@@ -134,8 +134,8 @@ pub struct LowRankUpdate {
 struct Readout {
     /// Per measurement, where its terms start (one more entry than measurements).
     start: Vec<usize>,
-    /// (a, p, w_a·I_p).
-    terms: Vec<(usize, usize, f64)>,
+    /// (a + p·basis, w_a·I_p): ΔV[a, p]'s place in ΔV stored column after column, its weight.
+    terms: Vec<(usize, f64)>,
 }
 
 impl Readout {
@@ -145,7 +145,7 @@ impl Readout {
             let current = &protocol.stimulations()[m.stimulation][..basis];
             for (a, w) in m.weights[..basis].iter().enumerate().filter(|(_, w)| **w != 0.0) {
                 for (p, i) in current.iter().enumerate().filter(|(_, i)| **i != 0.0) {
-                    readout.terms.push((a, p, w * i));
+                    readout.terms.push((a + p * basis, w * i));
                 }
             }
             readout.start.push(readout.terms.len());
@@ -596,7 +596,8 @@ impl LowRankUpdate {
         *kept = rim;
         grow(x, s, basis);
         x.as_mut().subrows_mut(0, rim).copy_from(fields.transpose());
-        grow(change, basis, basis);
+        change.resize(basis * basis, 0.0);
+        let change_mat = MatMut::from_column_major_slice_mut(change, basis, basis);
         if rim < s {
             // X_Γ = (I + G_ΓΓ·ΔS)⁻¹·U_Γ by an LU in place, then ΔV = −U_Γᵀ·ΔS·X_Γ; the
             // interior's rows of X only for a derivative that asks for them.
@@ -604,7 +605,7 @@ impl LowRankUpdate {
             lu.solve_in_place(system.as_mut(), x.as_mut().subrows_mut(0, rim));
             grow(z, rim, basis);
             interior.schur_times(x.as_ref().subrows(0, rim), z.as_mut());
-            matmul(change.as_mut(), Accum::Replace, fields.as_ref(), z.as_ref(), -1.0, Par::Seq);
+            matmul(change_mat, Accum::Replace, fields.as_ref(), z.as_ref(), -1.0, Par::Seq);
             *extended = false;
         } else {
             // I + G·ΔK: ΔK has a few entries per column (a node's neighbours), so each of its
@@ -631,10 +632,10 @@ impl LowRankUpdate {
                 }
             }
             let dkx = dkxt.as_ref().subrows(0, basis).transpose();
-            matmul(change.as_mut(), Accum::Replace, fields.as_ref(), dkx, -1.0, Par::Seq);
+            matmul(change_mat, Accum::Replace, fields.as_ref(), dkx, -1.0, Par::Seq);
             *extended = true;
         }
-        self.measurements_of(change.as_ref(), out);
+        self.measurements_of(change, out);
         *solved = true;
         Ok(())
     }
@@ -700,10 +701,11 @@ impl LowRankUpdate {
         grow(dkxt, xt.nrows(), s);
         dkxt.fill(0.0);
         add_direction(self, direction, local_of, xt, dkxt);
-        grow(change, basis, basis);
+        change.resize(basis * basis, 0.0);
         let (xt_basis, dkx) = (xt.as_ref().subrows(0, basis), dkxt.as_ref().subrows(0, basis).transpose());
-        matmul(change.as_mut(), Accum::Replace, xt_basis, dkx, -1.0, Par::Seq);
-        self.measurements_of(change.as_ref(), out);
+        let change_mat = MatMut::from_column_major_slice_mut(change, basis, basis);
+        matmul(change_mat, Accum::Replace, xt_basis, dkx, -1.0, Par::Seq);
+        self.measurements_of(change, out);
         true
     }
 
@@ -735,10 +737,11 @@ impl LowRankUpdate {
     }
 
     /// Every measurement (V, protocol order) of a change `change` of the basis voltages
-    /// ((L − 1) × (L − 1): electrode a's voltage under basis pattern p), into `out`.
-    fn measurements_of(&self, change: MatRef<'_, f64>, out: &mut [f64]) {
+    /// ((L − 1) × (L − 1), column after column: electrode a's voltage under basis pattern p at
+    /// a + p·(L − 1)), into `out`.
+    fn measurements_of(&self, change: &[f64], out: &mut [f64]) {
         for (o, terms) in out.iter_mut().zip(self.readout.start.windows(2)) {
-            *o = self.readout.terms[terms[0]..terms[1]].iter().map(|&(a, p, c)| c * change[(a, p)]).sum();
+            *o = self.readout.terms[terms[0]..terms[1]].iter().map(|&(at, c)| c * change[at]).sum();
         }
     }
 
@@ -772,8 +775,10 @@ impl LowRankUpdate {
         let system = Mat::<f64>::identity(local.rows.len(), local.rows.len()) + green * &dk;
         let x = system.partial_piv_lu().solve(&local.fields);
         let change = -(local.fields.transpose() * (&dk * &x));
+        let (rows, columns) = (change.nrows(), change.ncols());
+        let flat: Vec<f64> = (0..columns).flat_map(|p| (0..rows).map(move |a| (a, p))).map(|at| change[at]).collect();
         let mut out = vec![0.0; self.background.len()];
-        self.measurements_of(change.as_ref(), &mut out);
+        self.measurements_of(&flat, &mut out);
         Ok(out)
     }
 }
@@ -812,7 +817,8 @@ pub struct ChangeScratch {
     /// (ΔK·X)ᵀ where nothing is eliminated, and a derivative's (∂K·X)ᵀ, padded as `xt` (its rows
     /// past the basis never read).
     dkxt: Mat<f64>,
-    change: Mat<f64>,
+    /// ΔV, (L − 1) × (L − 1) column after column.
+    change: Vec<f64>,
     lu: DenseLu,
     /// Whether `rows`, `local` and `x` hold the last change's solve (and `xt`, once `extended`).
     solved: bool,
@@ -855,8 +861,7 @@ impl ChangeScratch {
 impl Default for ChangeScratch {
     fn default() -> Self {
         let empty = || Mat::zeros(0, 0);
-        let (green, fields, system, x, xt, dkxt, change, z) =
-            (empty(), empty(), empty(), empty(), empty(), empty(), empty(), empty());
+        let (green, fields, system, x, xt, dkxt, z) = (empty(), empty(), empty(), empty(), empty(), empty(), empty());
         ChangeScratch {
             rows: Vec::new(),
             local: Vec::new(),
@@ -868,7 +873,7 @@ impl Default for ChangeScratch {
             x,
             xt,
             dkxt,
-            change,
+            change: Vec::new(),
             lu: DenseLu::default(),
             solved: false,
             interior: interior::Interior::default(),
