@@ -12,8 +12,13 @@ use faer::{Mat, Par};
 /// that vary from frame to frame (a press's rows as it moves) then settle after a few
 /// doublings, and the frame path stops allocating.
 pub(crate) fn grow(mat: &mut Mat<f64>, rows: usize, cols: usize) {
-    mat.reserve(rows.max(8).next_power_of_two(), cols.max(8).next_power_of_two());
+    reserve(mat, rows, cols);
     mat.resize_with(rows, cols, |_, _| 0.0);
+}
+
+/// Makes room in `mat` for `rows` × `cols` as [`grow`] does, leaving its size as it is.
+pub(crate) fn reserve(mat: &mut Mat<f64>, rows: usize, cols: usize) {
+    mat.reserve(rows.max(8).next_power_of_two(), cols.max(8).next_power_of_two());
 }
 
 /// Makes room in `v` for `total` elements in all (`Vec::reserve` counts beyond its length).

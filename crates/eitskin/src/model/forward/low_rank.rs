@@ -55,7 +55,7 @@ use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::assemble::GROUNDED;
 use super::{Factor, ForwardError, ForwardModel};
-use crate::scratch::{grow, room, DenseLu};
+use crate::scratch::{grow, reserve, room, DenseLu};
 
 mod interior;
 mod stiffness;
@@ -555,6 +555,7 @@ impl LowRankUpdate {
             kept,
             z,
             extended,
+            part_x,
         } = scratch;
         *solved = false;
         rows.iter().for_each(|&r| local[r] = UNUSED);
@@ -595,6 +596,8 @@ impl LowRankUpdate {
         }
         *kept = rim;
         grow(x, s, basis);
+        // A part of the rim solved alone later ([`LowRankUpdate::part_change_into`]) fits.
+        reserve(part_x, rim, basis);
         x.as_mut().subrows_mut(0, rim).copy_from(fields.transpose());
         change.resize(basis * basis, 0.0);
         let change_mat = MatMut::from_column_major_slice_mut(change, basis, basis);
@@ -638,6 +641,45 @@ impl LowRankUpdate {
         self.measurements_of(change, out);
         *solved = true;
         Ok(())
+    }
+
+    /// The part of the last change solved with `scratch` (a connected set of its triangles, which
+    /// a press's are) that holds triangle `t`, if that solve eliminated the change's interior
+    /// rows, `t` was one of its triangles and that part has interior rows: what
+    /// [`LowRankUpdate::part_change_into`] reads.
+    pub fn part_holding(&self, scratch: &ChangeScratch, t: usize) -> Option<usize> {
+        let eliminated = scratch.solved && scratch.kept < scratch.rows.len();
+        eliminated.then(|| scratch.interior.part_holding(self, &scratch.local, t)).flatten()
+    }
+
+    /// The change of every measurement (V, protocol order) had part `part` of the last change
+    /// solved with `scratch` ([`LowRankUpdate::part_holding`]) changed alone, into `out`: its
+    /// rim's system I + G_ΓΓ·ΔS solved again from that solve's G and ΔS on its rows, which
+    /// are what a solve of its changes alone computes, the same to the bit, without reading the
+    /// change or the inverse again. That solve's fields (which derivatives read) are kept.
+    /// `false` (and `out` untouched) where there is no such part.
+    pub fn part_change_into(&self, part: usize, scratch: &mut ChangeScratch, out: &mut [f64]) -> bool {
+        let ChangeScratch { rows, green, fields, system, part_x, z, change, lu, solved, interior, kept, .. } = scratch;
+        if !*solved || *kept >= rows.len() {
+            return false;
+        }
+        let Some((rim, schur)) = interior.part_rim(part) else { return false };
+        let (g, basis) = (rim.len(), self.fields.nrows());
+        grow(system, g, g);
+        let green = green.as_ref().submatrix(rim.start, rim.start, g, g);
+        matmul(system.as_mut(), Accum::Replace, green, schur, 1.0, Par::Seq);
+        (0..g).for_each(|i| system[(i, i)] += 1.0);
+        let fields = fields.as_ref().subcols(rim.start, g);
+        grow(part_x, g, basis);
+        part_x.copy_from(fields.transpose());
+        lu.solve_in_place(system.as_mut(), part_x.as_mut());
+        grow(z, g, basis);
+        matmul(z.as_mut(), Accum::Replace, schur, part_x.as_ref(), 1.0, Par::Seq);
+        change.resize(basis * basis, 0.0);
+        let change_mat = MatMut::from_column_major_slice_mut(change, basis, basis);
+        matmul(change_mat, Accum::Replace, fields, z.as_ref(), -1.0, Par::Seq);
+        self.measurements_of(change, out);
+        true
     }
 
     /// The same update keeping only the near part of K₀⁻¹ (`reach` in m), as a model too large
@@ -819,6 +861,8 @@ pub struct ChangeScratch {
     dkxt: Mat<f64>,
     /// ΔV, (L − 1) × (L − 1) column after column.
     change: Vec<f64>,
+    /// X_Γ of one part solved alone ([`LowRankUpdate::part_change_into`]), `x` kept.
+    part_x: Mat<f64>,
     lu: DenseLu,
     /// Whether `rows`, `local` and `x` hold the last change's solve (and `xt`, once `extended`).
     solved: bool,
@@ -862,6 +906,7 @@ impl Default for ChangeScratch {
     fn default() -> Self {
         let empty = || Mat::zeros(0, 0);
         let (green, fields, system, x, xt, dkxt, z) = (empty(), empty(), empty(), empty(), empty(), empty(), empty());
+        let part_x = empty();
         ChangeScratch {
             rows: Vec::new(),
             local: Vec::new(),
@@ -874,6 +919,7 @@ impl Default for ChangeScratch {
             xt,
             dkxt,
             change: Vec::new(),
+            part_x,
             lu: DenseLu::default(),
             solved: false,
             interior: interior::Interior::default(),

@@ -400,13 +400,17 @@ pub fn refine(
     let RefineScratch { exact: ex, solved_at, trial, trial_at, alone, single, own, lm, .. } = scratch;
     let mut solved = Solved { presses: exact, scratch: ex, solved_at, trial, trial_at };
     let cost = iterate(&mut solved, dv, weights, disks, params, lm)?;
-    // Each press's own response at the final place.
+    // Each press's own response at the final place: from the fit's last solve where that was
+    // there (its pieces give each press's alone), else solved alone.
     let m = dv.len();
     own.resize(disks.len() * m, 0.0);
-    for (disk, own_i) in disks.iter().zip(own.chunks_exact_mut(m)) {
-        single.clear();
-        single.push(*disk);
-        exact.response_into(single, alone, own_i)?;
+    let at_last_solve = solved_at.as_slice() == &*disks;
+    for (k, (disk, own_i)) in disks.iter().zip(own.chunks_exact_mut(m)).enumerate() {
+        if !(at_last_solve && exact.alone_into(disks, k, ex, own_i)) {
+            single.clear();
+            single.push(*disk);
+            exact.response_into(single, alone, own_i)?;
+        }
         own_i.iter_mut().zip(weights).for_each(|(f, w)| *f *= w);
     }
     Ok(cost)

@@ -349,6 +349,28 @@ impl Interior {
         (0..rim).for_each(|i| system[(i, i)] += 1.0);
     }
 
+    /// The part of the last change whose triangles include triangle `t` (`local` the rows'
+    /// indices after [`Interior::order_rows`]), if `t` was one of them and its part has interior
+    /// rows.
+    pub(super) fn part_holding(&self, update: &LowRankUpdate, local: &[u32], t: usize) -> Option<usize> {
+        if self.seen.get(t) != Some(&self.generation) {
+            return None;
+        }
+        let row = update.model.mesh.triangles()[t]
+            .iter()
+            .map(|&node| update.model.row_of_node[node])
+            .find(|&row| row != GROUNDED)?;
+        let index = *self.part_of.get(*local.get(row)? as usize)? as usize;
+        self.parts.get(index).filter(|part| !part.inner.is_empty()).map(|_| index)
+    }
+
+    /// Part `part`'s rim (its indices among the change's rows, which come first) and ΔS, if it
+    /// has interior rows.
+    pub(super) fn part_rim(&self, part: usize) -> Option<(Range<usize>, MatRef<'_, f64>)> {
+        let part = self.parts.get(part).filter(|part| !part.inner.is_empty())?;
+        Some((part.rim.clone(), self.schur(part)))
+    }
+
     /// Part `part`'s ΔS (its rim's rows × its rim's).
     fn schur(&self, part: &Part) -> MatRef<'_, f64> {
         let (k, g) = (part.inner.len(), part.rim.len());
