@@ -49,6 +49,8 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+use std::ops::Range;
+
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
@@ -132,24 +134,27 @@ pub struct LowRankUpdate {
 /// weights w and its stimulation's currents I on the basis (both sparse), flattened.
 #[derive(Debug, Clone)]
 struct Readout {
-    /// Per measurement, where its terms start (one more entry than measurements).
-    start: Vec<usize>,
+    /// Per measurement, its index and where its terms start and end, ordered by how many terms
+    /// they are (a measurement against the grounded electrode has fewer): the sums' lengths
+    /// change a few times a readout, not at every other measurement.
+    sums: Vec<(usize, Range<usize>)>,
     /// (a + p·basis, w_a·I_p): ΔV[a, p]'s place in ΔV stored column after column, its weight.
     terms: Vec<(usize, f64)>,
 }
 
 impl Readout {
     fn new(protocol: &crate::Protocol, basis: usize) -> Readout {
-        let mut readout = Readout { start: vec![0], terms: Vec::new() };
-        for m in protocol.measurements() {
-            let current = &protocol.stimulations()[m.stimulation][..basis];
+        let mut readout = Readout { sums: Vec::new(), terms: Vec::new() };
+        for (q, m) in protocol.measurements().iter().enumerate() {
+            let (current, first) = (&protocol.stimulations()[m.stimulation][..basis], readout.terms.len());
             for (a, w) in m.weights[..basis].iter().enumerate().filter(|(_, w)| **w != 0.0) {
                 for (p, i) in current.iter().enumerate().filter(|(_, i)| **i != 0.0) {
                     readout.terms.push((a + p * basis, w * i));
                 }
             }
-            readout.start.push(readout.terms.len());
+            readout.sums.push((q, first..readout.terms.len()));
         }
+        readout.sums.sort_by_key(|(q, terms)| (terms.len(), *q));
         readout
     }
 }
@@ -782,8 +787,8 @@ impl LowRankUpdate {
     /// ((L − 1) × (L − 1), column after column: electrode a's voltage under basis pattern p at
     /// a + p·(L − 1)), into `out`.
     fn measurements_of(&self, change: &[f64], out: &mut [f64]) {
-        for (o, terms) in out.iter_mut().zip(self.readout.start.windows(2)) {
-            *o = self.readout.terms[terms[0]..terms[1]].iter().map(|&(at, c)| c * change[at]).sum();
+        for (q, terms) in &self.readout.sums {
+            out[*q] = self.readout.terms[terms.clone()].iter().map(|&(at, c)| c * change[at]).sum();
         }
     }
 
