@@ -600,10 +600,12 @@ fn iterate(
     Ok(cost)
 }
 
-/// Jᵀr into `out` (parameters × 1).
+/// Jᵀr into `out` (parameters × 1): each parameter's sum over the measurements in their order,
+/// all of them a column of J at a time (contiguous; a row of J is strided).
 fn gradient_into(jacobian: MatRef<'_, f64>, residual: &[f64], mut out: MatMut<'_, f64>) {
-    for a in 0..jacobian.nrows() {
-        out[(a, 0)] = (0..residual.len()).map(|q| jacobian[(a, q)] * residual[q]).sum();
+    out.fill(0.0);
+    for (q, r) in residual.iter().enumerate().take(jacobian.ncols()) {
+        out.as_mut().col_mut(0).iter_mut().zip(jacobian.col(q).iter()).for_each(|(o, j)| *o += j * r);
     }
 }
 
