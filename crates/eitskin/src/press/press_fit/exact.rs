@@ -56,6 +56,9 @@ impl Disk {
 pub struct ExactPresses {
     update: LowRankUpdate,
     buckets: TriangleBuckets,
+    /// Per triangle of the mesh, its corners (m) and area (m²), side by side: read for every
+    /// triangle near a press at every solve.
+    shapes: Vec<([[f64; 2]; 3], f64)>,
     background: f64,
     /// Per channel, the factor from this model's values to those Δv is given in (1 unless
     /// [`ExactPresses::scaled_to`] another mesh of the sensor).
@@ -151,9 +154,11 @@ impl ExactPresses {
     /// The exact responses of `model`'s presses at the homogeneous `background` (S/m), from
     /// `update` (made at that background).
     pub fn new(update: LowRankUpdate, background: f64) -> ExactPresses {
-        let buckets = TriangleBuckets::new(update.model().mesh());
+        let mesh = update.model().mesh();
+        let buckets = TriangleBuckets::new(mesh);
+        let shapes = (0..mesh.triangles().len()).map(|t| (mesh.corners(t), mesh.area(t))).collect();
         let scale = vec![1.0; update.background_measurements().len()];
-        ExactPresses { update, buckets, background, scale }
+        ExactPresses { update, buckets, shapes, background, scale }
     }
 
     /// The same responses in the units of `values`, another model's measurements of the same
@@ -213,12 +218,12 @@ impl ExactPresses {
     /// Calls `push` with each triangle (index, corners, area) whose bounding box may meet `disk`,
     /// each once; `near` is a buffer.
     fn each_triangle(&self, disk: &Disk, near: &mut Vec<usize>, mut push: impl FnMut(usize, [[f64; 2]; 3], f64)) {
-        let mesh = self.update.model().mesh();
         let [x, y] = disk.centre;
         let r = disk.radius;
         self.buckets.near_once_into([x - r, y - r], [x + r, y + r], near);
         for &t in near.iter() {
-            push(t, mesh.corners(t), mesh.area(t));
+            let (corners, area) = self.shapes[t];
+            push(t, corners, area);
         }
     }
 
