@@ -530,8 +530,8 @@ impl LowRankUpdate {
         Ok(frame)
     }
 
-    /// [`LowRankUpdate::measurement_change`] into `out` (one value per measurement; a
-    /// triangle may appear more than once, its changes add). Allocates nothing once `scratch`
+    /// [`LowRankUpdate::measurement_change`] into `out` (one value per measurement, else an
+    /// error; a triangle may appear more than once, its changes add). Allocates nothing once `scratch`
     /// has grown, where G_RR needs no sparse solve (the inverse kept whole, or its near part
     /// covers the change's rows, at most [`GATHERED_ROWS`]);
     /// otherwise it solves the rows' columns of K₀⁻¹, or, past 64 of them (`SOLVED_ROWS`), the
@@ -542,6 +542,9 @@ impl LowRankUpdate {
         scratch: &mut ChangeScratch,
         out: &mut [f64],
     ) -> Result<(), ForwardError> {
+        if out.len() != self.background.len() {
+            return Err(ForwardError::MeasurementCount { expected: self.background.len(), got: out.len() });
+        }
         let ChangeScratch {
             rows,
             local,
@@ -662,10 +665,11 @@ impl LowRankUpdate {
     /// rim's system I + G_ΓΓ·ΔS solved again from that solve's G and ΔS on its rows, which
     /// are what a solve of its changes alone computes, the same to the bit, without reading the
     /// change or the inverse again. That solve's fields (which derivatives read) are kept.
-    /// `false` (and `out` untouched) where there is no such part.
+    /// `false` (and `out` untouched) where there is no such part or `out` is not one value per
+    /// measurement.
     pub fn part_change_into(&self, part: usize, scratch: &mut ChangeScratch, out: &mut [f64]) -> bool {
         let ChangeScratch { rows, green, fields, system, part_x, z, change, lu, solved, interior, kept, .. } = scratch;
-        if !*solved || *kept >= rows.len() {
+        if !*solved || *kept >= rows.len() || out.len() != self.background.len() {
             return false;
         }
         let Some((rim, schur)) = interior.part_rim(part) else { return false };
@@ -731,11 +735,12 @@ impl LowRankUpdate {
     /// there (the adjoint Jacobian, exact, from the same solve). A triangle whose nodes are not
     /// all among that change's rows is left out: the direction must change no triangle outside
     /// it, as a press's edge moving does not to first order. `false` (and `out` untouched) if
-    /// the last change was solved in full, not by the update.
+    /// the last change was solved in full, not by the update, or `out` is not one value per
+    /// measurement.
     pub fn derivative_into(&self, direction: &[(usize, f64)], scratch: &mut ChangeScratch, out: &mut [f64]) -> bool {
         let ChangeScratch { rows, local: local_of, dkxt, x, xt, change, solved, interior, kept, extended, .. } =
             scratch;
-        if !*solved {
+        if !*solved || out.len() != self.background.len() {
             return false;
         }
         let (s, basis) = (rows.len(), x.ncols());
@@ -916,6 +921,12 @@ impl ChangeScratch {
     #[cfg(test)]
     fn rows_and_rim(&self) -> (usize, usize) {
         (self.rows.len(), self.kept)
+    }
+
+    /// Holds no solve from now on: derivatives and parts are refused until the next change is
+    /// solved with it.
+    pub fn forget(&mut self) {
+        self.solved = false;
     }
 
     /// Room for changes touching up to `rows` rows of the system (ΔK's sums, one per entry of
@@ -1175,6 +1186,29 @@ mod tests {
     /// several presses or of one, and on a scratch whose last solve kept every row); a
     /// conductivity below nothing (K₁_II not positive definite) is solved on all its rows, as
     /// the update without elimination solves it.
+    /// An output of another length than the protocol's measurements is refused, saying both,
+    /// and leaves no solve behind for derivatives or parts; one forgotten holds none either.
+    #[test]
+    fn an_output_of_the_wrong_length_is_refused() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 700;
+        let model = spec.forward_model().unwrap();
+        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let m = update.background_measurements().len();
+        let changes: Vec<(usize, f64)> = (0..12).map(|t| (t, -0.3)).collect();
+        let mut scratch = ChangeScratch::default();
+        let mut short = vec![0.0; m - 1];
+        let err = update.measurement_change_into(&changes, &mut scratch, &mut short).unwrap_err();
+        assert_eq!(err, ForwardError::MeasurementCount { expected: m, got: m - 1 });
+        assert_eq!(err.to_string(), format!("{} values where the protocol has {m} measurements", m - 1));
+        let mut out = vec![0.0; m];
+        update.measurement_change_into(&changes, &mut scratch, &mut out).unwrap();
+        assert!(!update.derivative_into(&changes, &mut scratch, &mut short));
+        assert!(update.derivative_into(&changes, &mut scratch, &mut out));
+        scratch.forget();
+        assert!(!update.derivative_into(&changes, &mut scratch, &mut out));
+    }
+
     #[test]
     fn a_change_is_solved_on_its_rim() {
         let mut spec = SensorSpec::square_hydrogel();

@@ -97,6 +97,14 @@ pub enum ForwardError {
     /// The sparse solver failed for a reason other than the matrix (e.g. memory).
     #[error("sparse factorisation failed: {0}")]
     Solver(String),
+    /// One value per measurement is needed.
+    #[error("{got} values where the protocol has {expected} measurements")]
+    MeasurementCount {
+        /// Measurements of the protocol.
+        expected: usize,
+        /// Values given.
+        got: usize,
+    },
     /// Quadratic elements are for complete electrodes only (a point electrode's potential is
     /// singular, which no higher order helps).
     #[error("quadratic elements need complete electrodes, and this model's are points")]

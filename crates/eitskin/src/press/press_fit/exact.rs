@@ -75,8 +75,9 @@ pub struct ExactScratch {
     part: Vec<f64>,
     /// The triangles each disk's edge crosses or covers, for its response and its derivatives.
     edges: DiskEdges,
-    /// Whether the last response solved its disks together (one solve, `groups[0]`).
-    together: bool,
+    /// The disks the last response solved together (one solve, `groups[0]`); empty where it
+    /// solved them apart or failed.
+    together: Vec<Disk>,
 }
 
 /// The triangles each disk (centre and radius) covers or crosses, with each crossed one's
@@ -198,6 +199,7 @@ impl ExactPresses {
         room(&mut scratch.edges.triangles, triangles);
         room(&mut scratch.edges.of, MAX_PRESSES);
         room(&mut scratch.edges.start, MAX_PRESSES + 1);
+        room(&mut scratch.together, MAX_PRESSES);
         for group in &mut scratch.groups {
             group.reserve(self.update.model().system_size());
         }
@@ -236,7 +238,7 @@ impl ExactPresses {
         out: &mut [f64],
     ) -> Result<(), ForwardError> {
         let ExactScratch { groups, changes, near, part, edges, together: solved_together } = scratch;
-        *solved_together = false;
+        solved_together.clear();
         // Each disk's triangles, for its shares and for the derivatives that follow.
         edges.clear();
         for disk in disks {
@@ -259,11 +261,15 @@ impl ExactPresses {
                 changes.extend(edges.shares(k).map(|(t, share)| (t, -self.background * drop * share)));
             }
             if changes.is_empty() {
+                // Nothing to solve: no solve left here for the derivatives to read.
+                group.forget();
                 continue;
             }
             self.update.measurement_change_into(changes, group, part)?;
             out.iter_mut().zip(part.iter()).for_each(|(o, p)| *o += p);
-            *solved_together = together;
+            if together {
+                solved_together.extend_from_slice(disks);
+            }
         }
         out.iter_mut().zip(&self.scale).for_each(|(o, s)| *o *= s);
         Ok(())
@@ -278,7 +284,7 @@ impl ExactPresses {
     /// where not; the solve's derivatives are kept either way.
     pub fn alone_into(&self, disks: &[Disk], k: usize, scratch: &mut ExactScratch, out: &mut [f64]) -> bool {
         let ExactScratch { groups, part, edges, together, .. } = scratch;
-        let solved_here = *together
+        let solved_here = together.as_slice() == disks
             && k < disks.len()
             && edges.start.len() == disks.len() + 1
             && disks.iter().enumerate().all(|(i, disk)| edges.of_disk(i, disk).is_some());
@@ -293,7 +299,8 @@ impl ExactPresses {
         if !alone || !update.part_change_into(own, group, part) {
             return false;
         }
-        out.iter_mut().zip(part.iter()).zip(&self.scale).for_each(|((o, p), s)| *o = p * s);
+        // As a response of it alone adds it: onto 0, then scaled.
+        out.iter_mut().zip(part.iter()).zip(&self.scale).for_each(|((o, p), s)| *o = (0.0 + p) * s);
         true
     }
 
@@ -336,7 +343,7 @@ impl ExactPresses {
                 (false, DiskParameter::Y) => disk.drop * gradient[1] / area,
                 (false, DiskParameter::Radius) => disk.drop * gradient[2] / area,
             };
-            if rate.abs() > 0.0 {
+            if rate.abs() > 0.0 && rate.is_finite() {
                 changes.push((t, scale * rate));
             }
         }
@@ -385,17 +392,23 @@ mod tests {
     use crate::conductivity::{with_inclusions, Inclusion};
     use crate::SensorSpec;
 
+    /// The paper's sensor meshed at about `triangles`, and its exact presses at a background of
+    /// 1 S/m.
+    fn paper_sensor(triangles: usize) -> (ForwardModel, ExactPresses) {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = triangles;
+        let model = spec.forward_model().unwrap();
+        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
+        (model, ExactPresses::new(update, 1.0))
+    }
+
     /// A 15 mm press read as a 10 mm one: the 10 mm drop whose exact response is closest to
     /// the wide press's is the one of the same polarisation, within 0.03, and not the one of
     /// the same drop × area, for a shallow and a deep press; the derivatives are central
     /// differences of the value; at its own radius the value is the drop.
     #[test]
     fn the_equivalent_drop_keeps_the_polarisation_the_response_reads() {
-        let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 3000;
-        let model = spec.forward_model().unwrap();
-        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
-        let exact = ExactPresses::new(update, 1.0);
+        let (model, exact) = paper_sensor(3000);
         let mut scratch = ExactScratch::default();
         let m = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap().len();
         let (mut wide_dv, mut narrow_dv) = (vec![0.0; m], vec![0.0; m]);
@@ -433,11 +446,7 @@ mod tests {
     /// Against full solves of the same presses: one, two at once, at an edge, a wide one.
     #[test]
     fn responses_are_full_solves() {
-        let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 800;
-        let model = spec.forward_model().unwrap();
-        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
-        let exact = ExactPresses::new(update, 1.0);
+        let (model, exact) = paper_sensor(800);
         let v0 = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
         let disk = |centre, radius, drop| Disk { centre, radius, drop };
         let cases = [
@@ -511,16 +520,13 @@ mod tests {
     }
 
     /// Each press's response alone read from a joint solve of several is a response of it alone,
-    /// to the bit; the solve's derivatives are unchanged by the read; where two presses touch
-    /// (one part of the change), after a solve of other disks, or after each press was solved
-    /// apart, there is none.
+    /// to the bit (its channels scaled as another mesh's); the solve's derivatives are unchanged
+    /// by the read; where two presses touch (one part of the change), for other disks than the
+    /// solve's, or after a solve of one press, there is none.
     #[test]
     fn a_press_alone_from_the_joint_solve_is_its_own_solve() {
-        let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 3000;
-        let model = spec.forward_model().unwrap();
-        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
-        let exact = ExactPresses::new(update, 1.0).scaled_to(&vec![2.0; model.protocol().measurements().len()]);
+        let (model, exact) = paper_sensor(3000);
+        let exact = exact.scaled_to(&vec![2.0; model.protocol().measurements().len()]);
         let m = exact.measurements();
         let disk = |centre: [f64; 2], radius: f64, drop: f64| Disk { centre, radius, drop };
         let apart = [disk([-0.05, 0.04], 0.01, 0.3), disk([0.04, 0.05], 0.015, 0.6), disk([0.03, -0.06], 0.01, 0.9)];
@@ -532,16 +538,22 @@ mod tests {
         for k in 0..apart.len() {
             assert!(exact.alone_into(&apart, k, &mut joint, &mut read), "press {k}");
             exact.response_into(&apart[k..=k], &mut alone, &mut solved).unwrap();
-            assert_eq!(read, solved, "press {k}");
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&read), bits(&solved), "press {k}");
             assert!(read.iter().any(|v| *v != 0.0));
         }
         assert!(exact.derivative_into(&apart, 1, DiskParameter::X, &mut joint, &mut after));
         assert_eq!(before, after);
-        // Other disks than the solve's: no read.
+        // Other disks than the solve's (moved, or only deeper): no read.
         let moved = [apart[0], disk([0.041, 0.05], 0.015, 0.6), apart[2]];
+        let deeper = [apart[0], disk([0.04, 0.05], 0.015, 0.7), apart[2]];
         read.fill(7.0);
         assert!(!exact.alone_into(&moved, 1, &mut joint, &mut read));
+        assert!(!exact.alone_into(&deeper, 1, &mut joint, &mut read));
         assert!(read.iter().all(|v| *v == 7.0));
+        // After a derivative of a disk the solve was not of: none either.
+        assert!(exact.derivative_into(&apart[1..2], 0, DiskParameter::X, &mut joint, &mut after));
+        assert!(!exact.alone_into(&apart[1..2], 0, &mut joint, &mut read));
         // Two presses whose triangles touch are one part: neither is read, the third is.
         let touching = [apart[0], disk([-0.05 + 0.019, 0.04], 0.01, 0.5), apart[2]];
         exact.response_into(&touching, &mut joint, &mut dv).unwrap();

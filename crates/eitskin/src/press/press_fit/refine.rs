@@ -283,8 +283,9 @@ trait Responses {
     /// Δv of `disks` pressed together into `out`.
     fn response_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError>;
 
-    /// [`Responses::response_into`] of a trial step's `disks`, the last response's kept for its
-    /// derivatives until [`Responses::accept`].
+    /// [`Responses::response_into`] of a trial step's `disks`; the last response's derivatives
+    /// may be kept until [`Responses::accept`] (the exact ones are; the table's are not, and
+    /// are read only after a step is taken).
     fn trial_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
         self.response_into(disks, out)
     }
@@ -603,7 +604,8 @@ fn iterate(
 /// Jᵀr into `out` (parameters × 1): each parameter's sum over the measurements in their order,
 /// all of them a column of J at a time (contiguous; a row of J is strided).
 fn gradient_into(jacobian: MatRef<'_, f64>, residual: &[f64], mut out: MatMut<'_, f64>) {
-    out.fill(0.0);
+    // From −0, as `Iterator::sum` starts.
+    out.fill(-0.0);
     for (q, r) in residual.iter().enumerate().take(jacobian.ncols()) {
         out.as_mut().col_mut(0).iter_mut().zip(jacobian.col(q).iter()).for_each(|(o, j)| *o += j * r);
     }
