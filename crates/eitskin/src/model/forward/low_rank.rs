@@ -1180,20 +1180,20 @@ mod tests {
         }
     }
 
-    /// Presses' interior rows are eliminated, the dense solve kept to their rims: the change is
-    /// a full solve's (for three presses, for one, and for a change of a thousandth), a triangle
-    /// listed twice adds, and the derivative is the central difference's (after a solve of
-    /// several presses or of one, and on a scratch whose last solve kept every row); a
-    /// conductivity below nothing (K₁_II not positive definite) is solved on all its rows, as
-    /// the update without elimination solves it.
+    /// The paper's sensor meshed at about `triangles`, and its update at 1 S/m everywhere.
+    fn paper_update(triangles: usize) -> (ForwardModel, LowRankUpdate) {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = triangles;
+        let model = spec.forward_model().unwrap();
+        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
+        (model, update)
+    }
+
     /// An output of another length than the protocol's measurements is refused, saying both,
     /// and leaves no solve behind for derivatives or parts; one forgotten holds none either.
     #[test]
     fn an_output_of_the_wrong_length_is_refused() {
-        let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 700;
-        let model = spec.forward_model().unwrap();
-        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let (_, update) = paper_update(700);
         let m = update.background_measurements().len();
         let changes: Vec<(usize, f64)> = (0..12).map(|t| (t, -0.3)).collect();
         let mut scratch = ChangeScratch::default();
@@ -1209,12 +1209,15 @@ mod tests {
         assert!(!update.derivative_into(&changes, &mut scratch, &mut out));
     }
 
+    /// Presses' interior rows are eliminated, the dense solve kept to their rims: the change is
+    /// a full solve's (for three presses, for one, and for a change of a thousandth), a triangle
+    /// listed twice adds, and the derivative is the central difference's (after a solve of
+    /// several presses or of one, and on a scratch whose last solve kept every row); a
+    /// conductivity below nothing (K₁_II not positive definite) is solved on all its rows, as
+    /// the update without elimination solves it.
     #[test]
     fn a_change_is_solved_on_its_rim() {
-        let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 2400;
-        let model = spec.forward_model().unwrap();
-        let update = LowRankUpdate::new(&model, &vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let (model, update) = paper_update(2400);
         assert!(update.inverse.is_some());
         let change_of = |inclusions: &[Inclusion]| -> Vec<(usize, f64)> {
             let sigma = with_inclusions(model.mesh(), 1.0, inclusions);
