@@ -607,8 +607,6 @@ impl LowRankUpdate {
         // A part of the rim solved alone later ([`LowRankUpdate::part_change_into`]) fits.
         reserve(part_x, rim, basis);
         x.as_mut().subrows_mut(0, rim).copy_from(fields.transpose());
-        change.resize(basis * basis, 0.0);
-        let change_mat = MatMut::from_column_major_slice_mut(change, basis, basis);
         if rim < s {
             // X_Γ = (I + G_ΓΓ·ΔS)⁻¹·U_Γ by an LU in place, then ΔV = −U_Γᵀ·ΔS·X_Γ; the
             // interior's rows of X only for a derivative that asks for them.
@@ -616,7 +614,7 @@ impl LowRankUpdate {
             lu.solve_in_place(system.as_mut(), x.as_mut().subrows_mut(0, rim));
             grow(z, rim, basis);
             interior.schur_times(x.as_ref().subrows(0, rim), z.as_mut());
-            matmul(change_mat, Accum::Replace, fields.as_ref(), z.as_ref(), -1.0, Par::Seq);
+            self.measurements_of_product(fields.as_ref(), z.as_ref(), change, out);
             *extended = false;
         } else {
             // I + G·ΔK: ΔK has a few entries per column (a node's neighbours), so each of its
@@ -643,10 +641,9 @@ impl LowRankUpdate {
                 }
             }
             let dkx = dkxt.as_ref().subrows(0, basis).transpose();
-            matmul(change_mat, Accum::Replace, fields.as_ref(), dkx, -1.0, Par::Seq);
+            self.measurements_of_product(fields.as_ref(), dkx, change, out);
             *extended = true;
         }
-        self.measurements_of(change, out);
         *solved = true;
         Ok(())
     }
@@ -684,10 +681,7 @@ impl LowRankUpdate {
         lu.solve_in_place(system.as_mut(), part_x.as_mut());
         grow(z, g, basis);
         matmul(z.as_mut(), Accum::Replace, schur, part_x.as_ref(), 1.0, Par::Seq);
-        change.resize(basis * basis, 0.0);
-        let change_mat = MatMut::from_column_major_slice_mut(change, basis, basis);
-        matmul(change_mat, Accum::Replace, fields, z.as_ref(), -1.0, Par::Seq);
-        self.measurements_of(change, out);
+        self.measurements_of_product(fields, z.as_ref(), change, out);
         true
     }
 
@@ -753,11 +747,8 @@ impl LowRankUpdate {
         grow(dkxt, xt.nrows(), s);
         dkxt.fill(0.0);
         add_direction(self, direction, local_of, xt, dkxt);
-        change.resize(basis * basis, 0.0);
         let (xt_basis, dkx) = (xt.as_ref().subrows(0, basis), dkxt.as_ref().subrows(0, basis).transpose());
-        let change_mat = MatMut::from_column_major_slice_mut(change, basis, basis);
-        matmul(change_mat, Accum::Replace, xt_basis, dkx, -1.0, Par::Seq);
-        self.measurements_of(change, out);
+        self.measurements_of_product(xt_basis, dkx, change, out);
         true
     }
 
@@ -786,6 +777,16 @@ impl LowRankUpdate {
             }
         }
         Some((index, self.model.pattern.triangle_coefs[t]))
+    }
+
+    /// Every measurement (V, protocol order) of the change ΔV = −`a`·`b` (basis × basis), made in
+    /// `change` (a buffer, ΔV column after column) and read with [`LowRankUpdate::measurements_of`].
+    fn measurements_of_product(&self, a: MatRef<'_, f64>, b: MatRef<'_, f64>, change: &mut Vec<f64>, out: &mut [f64]) {
+        let basis = self.fields.nrows();
+        change.resize(basis * basis, 0.0);
+        let change_mat = MatMut::from_column_major_slice_mut(change, basis, basis);
+        matmul(change_mat, Accum::Replace, a, b, -1.0, Par::Seq);
+        self.measurements_of(change, out);
     }
 
     /// Every measurement (V, protocol order) of a change `change` of the basis voltages
