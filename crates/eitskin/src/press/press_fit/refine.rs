@@ -100,10 +100,48 @@ pub struct RefineScratch {
     own: Vec<f64>,
     lm: Iterations,
     /// The tabulated fit: what the table leaves of the presses' exact joint response (V), each
-    /// press's value and derivatives from the table, its buffer.
+    /// press's value and derivatives from the table where the fit keeps them and at a trial
+    /// step, kept apart until the step is taken, and the table's buffer.
     coupling: Vec<f64>,
-    jets: Vec<f64>,
+    jets: Jets,
+    trial_jets: Jets,
     work: Vec<f32>,
+}
+
+/// Each press's value and derivatives read from a table (4 × measurements a press), and where
+/// each was read: its centre's and drop's bits. A press asked for again where it was read (the
+/// fit's correction and its last response are where its iterations left the presses) is not
+/// read again.
+#[derive(Debug, Clone, Default)]
+struct Jets {
+    values: Vec<f64>,
+    at: Vec<Option<[u64; 3]>>,
+}
+
+impl Jets {
+    /// `table`'s response of `disks` plus `coupling` into `out` (V), each disk's jet read
+    /// unless it holds it already (`work` the table's buffer).
+    fn read_into(
+        &mut self,
+        table: &TabulatedPresses,
+        disks: &[Disk],
+        coupling: &[f64],
+        work: &mut Vec<f32>,
+        out: &mut [f64],
+    ) {
+        let m = out.len();
+        self.values.resize(disks.len() * 4 * m, 0.0);
+        self.at.resize(disks.len(), None);
+        out.copy_from_slice(coupling);
+        for ((disk, jet), at) in disks.iter().zip(self.values.chunks_exact_mut(4 * m)).zip(self.at.iter_mut()) {
+            let here = [disk.centre[0].to_bits(), disk.centre[1].to_bits(), disk.drop.to_bits()];
+            if *at != Some(here) {
+                table.jet_into(disk.centre, disk.drop, work, jet);
+                *at = Some(here);
+            }
+            out.iter_mut().zip(&jet[..m]).for_each(|(o, v)| *o += v);
+        }
+    }
 }
 
 /// Buffers of the Levenberg–Marquardt iterations.
@@ -169,7 +207,10 @@ impl RefineScratch {
             room(buffer, measurements);
         }
         room(&mut self.own, presses * measurements);
-        room(&mut self.jets, presses * 4 * measurements);
+        for jets in [&mut self.jets, &mut self.trial_jets] {
+            room(&mut jets.values, presses * 4 * measurements);
+            room(&mut jets.at, presses);
+        }
         room(&mut self.work, tabulated::work_len(measurements));
     }
 
@@ -283,15 +324,13 @@ trait Responses {
     /// Δv of `disks` pressed together into `out`.
     fn response_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError>;
 
-    /// [`Responses::response_into`] of a trial step's `disks`; the last response's derivatives
-    /// may be kept until [`Responses::accept`] (the exact ones are; the table's are not, and
-    /// are read only after a step is taken).
-    fn trial_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
-        self.response_into(disks, out)
-    }
+    /// [`Responses::response_into`] of a trial step's `disks`, kept apart: the last response
+    /// kept (its derivatives, and what a response asked for there again reads) stays until
+    /// [`Responses::accept`].
+    fn trial_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError>;
 
-    /// The last trial's response becomes the one derivatives are read from.
-    fn accept(&mut self) {}
+    /// The last trial's response becomes the one kept.
+    fn accept(&mut self);
 
     /// The derivative along `parameter` of `disks[i]` at the disks of the last response kept
     /// ([`Responses::response_into`], or a trial accepted), into `out`; `false` where it has none.
@@ -345,21 +384,25 @@ impl Responses for Solved<'_> {
 struct Interpolated<'a> {
     table: &'a TabulatedPresses,
     coupling: &'a [f64],
-    /// Per disk of the last response, its value and derivatives (4 × measurements).
-    jets: &'a mut Vec<f64>,
+    /// Per disk of the last response kept, its value and derivatives; a trial step's apart.
+    jets: &'a mut Jets,
+    trial: &'a mut Jets,
     work: &'a mut Vec<f32>,
 }
 
 impl Responses for Interpolated<'_> {
     fn response_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
-        let m = out.len();
-        self.jets.resize(disks.len() * 4 * m, 0.0);
-        out.copy_from_slice(self.coupling);
-        for (disk, jet) in disks.iter().zip(self.jets.chunks_exact_mut(4 * m)) {
-            self.table.jet_into(disk.centre, disk.drop, self.work, jet);
-            out.iter_mut().zip(&jet[..m]).for_each(|(o, v)| *o += v);
-        }
+        self.jets.read_into(self.table, disks, self.coupling, self.work, out);
         Ok(())
+    }
+
+    fn trial_into(&mut self, disks: &[Disk], out: &mut [f64]) -> Result<(), ForwardError> {
+        self.trial.read_into(self.table, disks, self.coupling, self.work, out);
+        Ok(())
+    }
+
+    fn accept(&mut self) {
+        std::mem::swap(self.jets, self.trial);
     }
 
     fn derivative_into(&mut self, _: &[Disk], i: usize, parameter: DiskParameter, out: &mut [f64]) -> bool {
@@ -370,7 +413,7 @@ impl Responses for Interpolated<'_> {
             DiskParameter::Drop => 3,
             DiskParameter::Radius => return false,
         };
-        out.copy_from_slice(&self.jets[(4 * i + row) * m..(4 * i + row + 1) * m]);
+        out.copy_from_slice(&self.jets.values[(4 * i + row) * m..(4 * i + row + 1) * m]);
         true
     }
 }
@@ -436,7 +479,10 @@ pub fn refine_tabulated(
         return refine(exact, dv, weights, disks, params, scratch);
     }
     let m = dv.len();
-    let RefineScratch { exact: ex, solved_at, own, lm, coupling, jets, work, .. } = scratch;
+    let RefineScratch { exact: ex, solved_at, own, lm, coupling, jets, trial_jets: trial, work, .. } = scratch;
+    // Read from this table only (a scratch may serve another).
+    jets.at.clear();
+    trial.at.clear();
     coupling.clear();
     coupling.resize(m, 0.0);
     lm.joint.resize(m, 0.0);
@@ -444,19 +490,19 @@ pub fn refine_tabulated(
     for correction in 0..=CORRECTIONS {
         if correction > 0 {
             // The table's joint response at the fit (its jets there), then the exact one.
-            let mut table_only = Interpolated { table, coupling, jets, work };
+            let mut table_only = Interpolated { table, coupling, jets, trial, work };
             table_only.response_into(disks, &mut lm.perturbed)?;
             solve_at(exact, disks, ex, solved_at, &mut lm.joint)?;
             for ((c, f), t) in coupling.iter_mut().zip(&lm.joint).zip(&lm.perturbed) {
                 *c += f - t;
             }
         }
-        cost = iterate(&mut Interpolated { table, coupling, jets, work }, dv, weights, disks, params, lm)?;
+        cost = iterate(&mut Interpolated { table, coupling, jets, trial, work }, dv, weights, disks, params, lm)?;
     }
     // Each press's own response at the final place: the jets there.
-    Interpolated { table, coupling, jets, work }.response_into(disks, &mut lm.perturbed)?;
+    Interpolated { table, coupling, jets, trial, work }.response_into(disks, &mut lm.perturbed)?;
     own.resize(disks.len() * m, 0.0);
-    for (own_i, jet) in own.chunks_exact_mut(m).zip(jets.chunks_exact(4 * m)) {
+    for (own_i, jet) in own.chunks_exact_mut(m).zip(jets.values.chunks_exact(4 * m)) {
         own_i.iter_mut().zip(&jet[..m]).zip(weights).for_each(|((o, v), w)| *o = w * v);
     }
     Ok(cost)
@@ -809,6 +855,47 @@ mod tests {
         let a = refine(&exact, &dv, &weights, &mut solved, &free, &mut scratch).unwrap();
         let b = refine_tabulated(&exact, &table, &dv, &weights, &mut read, &free, &mut scratch).unwrap();
         assert_eq!((a.to_bits(), solved), (b.to_bits(), read));
+    }
+
+    /// What a fit on a table gives does not hang on what its scratch read before: again from
+    /// where it left the presses, and on another table from there, it is the fit with a new
+    /// scratch, to the bit; a press moved in its drop alone is read anew.
+    #[test]
+    fn a_fit_on_the_table_reads_no_stale_jets() {
+        let truth = [
+            Disk { centre: [0.03, -0.02], radius: 0.01, drop: 0.5 },
+            Disk { centre: [-0.04, 0.03], radius: 0.01, drop: 0.3 },
+        ];
+        let (model, exact, v0, dv) = setup(800, &truth);
+        let bounds = model.mesh().bounds();
+        let fine = TabulatedPresses::new(&exact, bounds, 0.01, 0.0025).unwrap();
+        let coarse = TabulatedPresses::new(&exact, bounds, 0.01, 0.004).unwrap();
+        let weights: Vec<f64> = v0.iter().map(|v| 1.0 / (5e-4 * v.abs())).collect();
+        let params = RefineParams { free_radii: 0, radius_range: [0.004, 0.025], bounds, converged_below: 0.01 };
+        let mut kept = RefineScratch::default();
+        let mut disks = [
+            Disk { centre: [0.033, -0.018], radius: 0.01, drop: 0.4 },
+            Disk { centre: [-0.043, 0.032], radius: 0.01, drop: 0.35 },
+        ];
+        for table in [&fine, &fine, &coarse] {
+            let mut again = disks;
+            let a = refine_tabulated(&exact, table, &dv, &weights, &mut disks, &params, &mut kept).unwrap();
+            let mut new = RefineScratch::default();
+            let b = refine_tabulated(&exact, table, &dv, &weights, &mut again, &params, &mut new).unwrap();
+            assert_eq!((a.to_bits(), disks), (b.to_bits(), again));
+            assert_eq!(kept.own_responses(), new.own_responses());
+        }
+        // A drop moved alone: read anew, as a new read of it.
+        let m = dv.len();
+        let (coupling, mut work) = (vec![0.0; m], Vec::new());
+        let (mut jets, mut new) = (Jets::default(), Jets::default());
+        let (mut first, mut read, mut fresh) = (vec![0.0; m], vec![0.0; m], vec![0.0; m]);
+        jets.read_into(&fine, &truth, &coupling, &mut work, &mut first);
+        let deeper = [truth[0], Disk { drop: 0.6, ..truth[1] }];
+        jets.read_into(&fine, &deeper, &coupling, &mut work, &mut read);
+        new.read_into(&fine, &deeper, &coupling, &mut work, &mut fresh);
+        assert_ne!(first, read);
+        assert_eq!((&read, &jets.values), (&fresh, &new.values));
     }
 
     /// A strong press fitted with its radius free from far off (drop 0.3 for 0.87): the first
