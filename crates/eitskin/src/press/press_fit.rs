@@ -348,7 +348,9 @@ pub struct PressScratch {
     saved_responses: Vec<f64>,
     rejected: Vec<[f64; 2]>,
     sizes: Vec<joint::Size>,
+    /// A solve of the presses where the fit's own is not near them, and the disks it is of.
     exact: ExactScratch,
+    exact_at: Vec<Disk>,
     /// Exact fits made in this frame.
     refits: usize,
     /// The scan for a new press next to fitted ones: an orthonormal basis of their Jacobian,

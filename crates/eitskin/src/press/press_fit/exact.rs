@@ -564,4 +564,29 @@ mod tests {
         exact.response_into(&apart[..1], &mut joint, &mut dv).unwrap();
         assert!(!exact.alone_into(&apart, 0, &mut joint, &mut read));
     }
+
+    /// Derivatives read one after another from one solve (a fit's Jacobian, the size tests of
+    /// each press in turn) are each what a new solve of the same presses gives, to the bit.
+    #[test]
+    fn derivatives_read_in_turn_are_those_of_a_new_solve() {
+        let (_, exact) = paper_sensor(3000);
+        let m = exact.measurements();
+        let disk = |centre: [f64; 2], drop: f64| Disk { centre, radius: 0.01, drop };
+        let presses = [disk([-0.05, 0.04], 0.3), disk([0.04, 0.05], 0.6), disk([0.03, -0.06], 0.9)];
+        let parameters = [DiskParameter::Radius, DiskParameter::X, DiskParameter::Y, DiskParameter::Drop];
+        let (mut kept, mut dv) = (ExactScratch::default(), vec![0.0; m]);
+        let (mut in_turn, mut fresh) = (vec![0.0; m], vec![0.0; m]);
+        exact.response_into(&presses, &mut kept, &mut dv).unwrap();
+        for i in (0..presses.len()).rev() {
+            for parameter in parameters {
+                assert!(exact.derivative_into(&presses, i, parameter, &mut kept, &mut in_turn));
+                let mut new = ExactScratch::default();
+                exact.response_into(&presses, &mut new, &mut dv).unwrap();
+                assert!(exact.derivative_into(&presses, i, parameter, &mut new, &mut fresh));
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&in_turn), bits(&fresh), "press {i}, {parameter:?}");
+                assert!(in_turn.iter().any(|v| *v != 0.0));
+            }
+        }
+    }
 }

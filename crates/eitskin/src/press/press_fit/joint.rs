@@ -209,10 +209,13 @@ impl PressModel {
         room(&mut scratch.rejected, ROUNDS);
         room(&mut scratch.sizes, MAX_PRESSES);
         room(&mut scratch.disks, MAX_PRESSES);
+        room(&mut scratch.exact_at, MAX_PRESSES);
         // The fit's Jacobian's rows: four parameters a press at most (its radius fitted).
         room(&mut scratch.basis, 4 * MAX_PRESSES * m);
         scratch.sizes.clear();
         scratch.sizes.resize(presses.len(), Size::Untested);
+        // Its solve is of another frame's presses, maybe on another model.
+        scratch.exact_at.clear();
         let mut cost = self.refit(exact, presses, scratch)?;
         scratch.rejected.clear();
         scratch.refits = 0;
@@ -423,7 +426,7 @@ impl PressModel {
         // solve, where the presses were before the table's fit with that solve's correction
         // (within a short step of where they are).
         let on_table = exact.table.is_some() && fitted(&scratch.sizes) == 0;
-        let PressScratch { disks, exact: ex, response, refine: refining, basis, .. } = scratch;
+        let PressScratch { disks, exact: ex, exact_at, response, refine: refining, basis, .. } = scratch;
         disks.clear();
         disks.extend(presses.iter().map(disk_of));
         // Of all of them, from the fit's own last solve where that was at these presses.
@@ -432,11 +435,16 @@ impl PressModel {
         } else {
             refining.derivative_at_last_solve(exact.presses, disks, i, DiskParameter::Radius, response)
         };
-        // Else (a solve elsewhere: another set of presses, or moved far since) solved again here.
+        // Else (a solve elsewhere: another set of presses, or moved far since) solved here, once
+        // for every press's test at these presses.
         let derived = match kept {
             Some(derived) => derived,
             None => {
-                exact.presses.response_into(disks, ex, response)?;
+                if exact_at != disks {
+                    exact_at.clear();
+                    exact.presses.response_into(disks, ex, response)?;
+                    exact_at.extend_from_slice(disks);
+                }
                 exact.presses.derivative_into(disks, i, DiskParameter::Radius, ex, response)
             }
         };
