@@ -10,7 +10,7 @@
 //! of a flat press.
 
 use super::detect::MAX_PRESSES;
-use crate::conductivity::{circle_triangle_area_gradient, covered_whole};
+use crate::conductivity::{circle_triangle_area_gradient, covered_whole, triangle_box};
 use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
 use crate::mesh::TriangleBuckets;
 use crate::scratch::room;
@@ -368,6 +368,14 @@ impl Overlap {
     fn of(corners: [[f64; 2]; 3], disk: &Disk) -> Overlap {
         let (centre, squared) = (disk.centre, disk.radius * disk.radius);
         let distance2 = |p: [f64; 2]| (p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2);
+        // Its box farther from the centre than the radius, by more than rounding: outside, as the
+        // edges' distances below would find (a third of a disk's triangles, in its box's corners).
+        let [x_lo, y_lo, x_hi, y_hi] = triangle_box(corners);
+        let off = |lo: f64, hi: f64, at: f64| (lo - at).max(at - hi).max(0.0);
+        let (dx, dy) = (off(x_lo, x_hi, centre[0]), off(y_lo, y_hi, centre[1]));
+        if dx * dx + dy * dy > squared * (1.0 + 1e-9) {
+            return Overlap::Outside;
+        }
         if covered_whole(centre, disk.radius, corners) {
             return Overlap::Inside;
         }
@@ -588,5 +596,53 @@ mod tests {
                 assert!(in_turn.iter().any(|v| *v != 0.0));
             }
         }
+    }
+
+    /// A triangle found outside a disk has none of it (to rounding: under the least share a
+    /// press changes, 1e-9), one inside is covered whole: over triangles of every size and place
+    /// around a disk, a quarter of them moved until their box's nearest point is on its circle.
+    #[test]
+    fn a_triangle_outside_has_none_of_the_disk() {
+        use crate::conductivity::circle_triangle_area;
+        use rand::{RngExt, SeedableRng};
+        let mut rng = crate::SeededRng::seed_from_u64(11);
+        let disk = Disk { centre: [0.01, -0.02], radius: 0.01, drop: 0.5 };
+        let mut counts = [0; 3];
+        for k in 0..20_000 {
+            let at = [rng.random_range(-0.01..0.03), rng.random_range(-0.04..0.0)];
+            let size = rng.random_range(1e-4..0.02);
+            let mut corners: [[f64; 2]; 3] =
+                std::array::from_fn(|_| [at[0] + size * rng.random::<f64>(), at[1] + size * rng.random::<f64>()]);
+            // Counter-clockwise, as the mesh's.
+            let signed = (corners[1][0] - corners[0][0]) * (corners[2][1] - corners[0][1])
+                - (corners[2][0] - corners[0][0]) * (corners[1][1] - corners[0][1]);
+            if signed < 0.0 {
+                corners.swap(1, 2);
+            }
+            // Every fourth moved so that its box's nearest point lies on the circle.
+            if k % 4 == 0 {
+                let [x_lo, y_lo, x_hi, y_hi] = triangle_box(corners);
+                let nearest = [disk.centre[0].clamp(x_lo, x_hi), disk.centre[1].clamp(y_lo, y_hi)];
+                let (dx, dy) = (nearest[0] - disk.centre[0], nearest[1] - disk.centre[1]);
+                let distance = dx.hypot(dy);
+                if distance > 0.0 {
+                    let shift = disk.radius / distance - 1.0;
+                    corners.iter_mut().for_each(|c| *c = [c[0] + shift * dx, c[1] + shift * dy]);
+                }
+            }
+            let area = circle_triangle_area(disk.centre, disk.radius, corners);
+            let whole = circle_triangle_area(disk.centre, 1.0, corners);
+            match Overlap::of(corners, &disk) {
+                Overlap::Outside => assert!(area.abs() <= 1e-9 * whole, "{corners:?}: {area} of {whole}"),
+                Overlap::Inside => assert!((area - whole).abs() <= 1e-9 * whole, "{corners:?}: {area} of {whole}"),
+                Overlap::Crossing => {}
+            }
+            counts[match Overlap::of(corners, &disk) {
+                Overlap::Outside => 0,
+                Overlap::Inside => 1,
+                Overlap::Crossing => 2,
+            }] += 1;
+        }
+        assert!(counts.iter().all(|&c| c > 1000), "{counts:?}");
     }
 }
