@@ -804,7 +804,11 @@ impl LowRankUpdate {
             let len = sums[k].1.len();
             if len > 0 && k + LANES <= sums.len() && sums[k + LANES - 1].1.len() == len {
                 let first: [usize; LANES] = std::array::from_fn(|j| sums[k + j].1.start);
-                let mut acc = first.map(term);
+                // A loop, not `first.map(term)`: the map was left a call (1 % of a three-press frame).
+                let mut acc = [0.0; LANES];
+                for j in 0..LANES {
+                    acc[j] = term(first[j]);
+                }
                 for t in 1..len {
                     for j in 0..LANES {
                         acc[j] += term(first[j] + t);

@@ -278,10 +278,13 @@ impl Interior {
         // background conductivity to the interior's rows of K₁ and K₀, and its change to ΔK_ΓΓ.
         let triangles = update.model.mesh.triangles();
         for &t in &self.triangles {
-            let index = triangles[t].map(|node| {
+            let index_of = |node: usize| {
                 let row = update.model.row_of_node[node];
                 (row != GROUNDED).then(|| local[row] as usize)
-            });
+            };
+            // Not `triangles[t].map(..)`: the map was left a call.
+            let [a, b, c] = triangles[t];
+            let index = [index_of(a), index_of(b), index_of(c)];
             let Some(&any) = index.iter().flatten().next() else { continue };
             let part = &self.parts[self.part_of[any] as usize];
             let (k, g) = (part.inner.len(), part.rim.len());
