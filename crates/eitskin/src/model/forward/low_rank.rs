@@ -549,6 +549,7 @@ impl LowRankUpdate {
             rows,
             local,
             places,
+            bits,
             green,
             nonzeros,
             fields,
@@ -579,7 +580,7 @@ impl LowRankUpdate {
                 }
             }
         }
-        interior::sorted(rows, local);
+        interior::sorted(rows, local, bits);
         let s = rows.len();
         *kept = s;
         let basis = self.fields.nrows();
@@ -590,7 +591,7 @@ impl LowRankUpdate {
         if gathered && interior.analyse(self, changes, rows, local) > 0 {
             rim = interior.order_rows(self, rows, local);
             if !interior.condense(self, local, rim) {
-                interior::sorted(rows, local);
+                interior::sorted(rows, local, bits);
                 rim = s;
             }
         }
@@ -883,6 +884,8 @@ pub struct ChangeScratch {
     local: Vec<u32>,
     /// Each row's place and its index in the change's rows, for the gather of G.
     places: Vec<(usize, usize)>,
+    /// One bit a row of the system, all zeros between sorts of the rows.
+    bits: Vec<u64>,
     /// G between the rows kept in the dense solve: G_ΓΓ, or G_RR where nothing is eliminated.
     green: Mat<f64>,
     nonzeros: Nonzeros,
@@ -955,6 +958,7 @@ impl Default for ChangeScratch {
             rows: Vec::new(),
             local: Vec::new(),
             places: Vec::new(),
+            bits: Vec::new(),
             green,
             nonzeros: Nonzeros::default(),
             fields,
