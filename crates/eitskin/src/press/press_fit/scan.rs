@@ -309,6 +309,11 @@ fn next_reaching_portable(
         for (k, pass) in pass.iter_mut().enumerate() {
             *pass = reaches(cs[k], ms[k], rs[k], ls[k]);
         }
+        // None reaches (most chunks): no distances to the presses found.
+        if !pass.iter().fold(false, |any, p| any | p) {
+            at += LANES;
+            continue;
+        }
         // Each press found against the chunk's eight points at once.
         let (x, y) = (&xs[at..at + LANES], &ys[at..at + LANES]);
         for f in found {
