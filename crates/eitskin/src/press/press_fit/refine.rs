@@ -572,9 +572,9 @@ fn iterate(
                 if !model.derivative_into(disks, i, parameter, perturbed) {
                     break 'iterations;
                 }
-                for (q, (d, w)) in perturbed.iter().zip(weights).enumerate() {
-                    jacobian[(i * per + p, q)] = w * d;
-                }
+                // Along the row's iterator: indexed, each entry's bounds were checked.
+                let row = jacobian.as_mut().row_mut(i * per + p);
+                row.iter_mut().zip(perturbed.iter().zip(weights)).for_each(|(j, (d, w))| *j = w * d);
             }
         }
         *jacobian_whole = true;
