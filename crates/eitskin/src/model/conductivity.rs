@@ -149,9 +149,14 @@ pub fn covered_whole(centre: [f64; 2], radius: f64, corners: [[f64; 2]; 3]) -> b
 
 /// Distance from `p` to the bounding box of a triangle's `corners`, in m (0 inside it).
 pub fn box_distance(p: [f64; 2], corners: [[f64; 2]; 3]) -> f64 {
+    box_distance_squared(p, corners).sqrt()
+}
+
+/// [`box_distance`] squared, in m² (without the root, for a test against a radius).
+pub fn box_distance_squared(p: [f64; 2], corners: [[f64; 2]; 3]) -> f64 {
     let [x_lo, y_lo, x_hi, y_hi] = triangle_box(corners);
     let (x, y) = ((x_lo - p[0]).max(p[0] - x_hi).max(0.0), (y_lo - p[1]).max(p[1] - y_hi).max(0.0));
-    (x * x + y * y).sqrt()
+    x * x + y * y
 }
 
 /// The bounding box of a triangle's `corners`: `[x_min, y_min, x_max, y_max]`, in m.

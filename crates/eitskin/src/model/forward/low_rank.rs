@@ -943,6 +943,7 @@ impl ChangeScratch {
         room(&mut self.rows, rows);
         room(&mut self.local, rows);
         room(&mut self.places, rows);
+        room(&mut self.bits, rows.div_ceil(64));
         self.nonzeros.reserve(rows);
         self.lu.reserve(rows);
         self.interior.reserve(rows);

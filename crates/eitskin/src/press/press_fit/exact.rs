@@ -10,7 +10,7 @@
 //! of a flat press.
 
 use super::detect::MAX_PRESSES;
-use crate::conductivity::{circle_triangle_area_gradient, covered_whole, triangle_box};
+use crate::conductivity::{box_distance_squared, circle_triangle_area_gradient, covered_whole};
 use crate::forward::{ChangeScratch, ForwardError, ForwardModel, LowRankUpdate};
 use crate::mesh::TriangleBuckets;
 use crate::scratch::room;
@@ -367,15 +367,18 @@ enum Overlap {
 impl Overlap {
     fn of(corners: [[f64; 2]; 3], disk: &Disk) -> Overlap {
         let (centre, squared) = (disk.centre, disk.radius * disk.radius);
-        let distance2 = |p: [f64; 2]| (p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2);
         // Its box farther from the centre than the radius, by more than rounding: outside, as the
-        // edges' distances below would find (a third of a disk's triangles, in its box's corners).
-        let [x_lo, y_lo, x_hi, y_hi] = triangle_box(corners);
-        let off = |lo: f64, hi: f64, at: f64| (lo - at).max(at - hi).max(0.0);
-        let (dx, dy) = (off(x_lo, x_hi, centre[0]), off(y_lo, y_hi, centre[1]));
-        if dx * dx + dy * dy > squared * (1.0 + 1e-9) {
+        // edges' distances would find (a third of a disk's triangles, in its box's corners).
+        if box_distance_squared(centre, corners) > squared * (1.0 + 1e-9) {
             return Overlap::Outside;
         }
+        Overlap::by_edges(corners, disk)
+    }
+
+    /// [`Overlap::of`] from the corners' and the edges' distances to the centre alone.
+    fn by_edges(corners: [[f64; 2]; 3], disk: &Disk) -> Overlap {
+        let (centre, squared) = (disk.centre, disk.radius * disk.radius);
+        let distance2 = |p: [f64; 2]| (p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2);
         if covered_whole(centre, disk.radius, corners) {
             return Overlap::Inside;
         }
@@ -599,11 +602,12 @@ mod tests {
     }
 
     /// A triangle found outside a disk has none of it (to rounding: under the least share a
-    /// press changes, 1e-9), one inside is covered whole: over triangles of every size and place
-    /// around a disk, a quarter of them moved until their box's nearest point is on its circle.
+    /// press changes, 1e-9) and is outside by the edges' distances too, one inside is covered
+    /// whole: over triangles of every size and place around a disk, a quarter of them moved
+    /// until their box's nearest point is on its circle.
     #[test]
     fn a_triangle_outside_has_none_of_the_disk() {
-        use crate::conductivity::circle_triangle_area;
+        use crate::conductivity::{circle_triangle_area, triangle_box};
         use rand::{RngExt, SeedableRng};
         let mut rng = crate::SeededRng::seed_from_u64(11);
         let disk = Disk { centre: [0.01, -0.02], radius: 0.01, drop: 0.5 };
@@ -632,6 +636,10 @@ mod tests {
             }
             let area = circle_triangle_area(disk.centre, disk.radius, corners);
             let whole = circle_triangle_area(disk.centre, 1.0, corners);
+            // Where the box's test says outside, the edges' says so too: the same triangles kept.
+            if matches!(Overlap::of(corners, &disk), Overlap::Outside) {
+                assert!(matches!(Overlap::by_edges(corners, &disk), Overlap::Outside), "{corners:?}");
+            }
             match Overlap::of(corners, &disk) {
                 Overlap::Outside => assert!(area.abs() <= 1e-9 * whole, "{corners:?}: {area} of {whole}"),
                 Overlap::Inside => assert!((area - whole).abs() <= 1e-9 * whole, "{corners:?}: {area} of {whole}"),

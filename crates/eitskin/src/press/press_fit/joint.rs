@@ -24,7 +24,7 @@
 
 use super::detect::{Exact, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter};
-use super::refine::{refine, refine_tabulated, RefineParams, DEEPEST};
+use super::refine::{refine, refine_tabulated, solve_at, RefineParams, DEEPEST};
 use super::scan::{Reach, Scan};
 use super::{dot, PressFit, PressModel, PressScratch};
 use crate::inverse::InverseError;
@@ -441,9 +441,7 @@ impl PressModel {
             Some(derived) => derived,
             None => {
                 if exact_at != disks {
-                    exact_at.clear();
-                    exact.presses.response_into(disks, ex, response)?;
-                    exact_at.extend_from_slice(disks);
+                    solve_at(exact.presses, disks, ex, exact_at, response)?;
                 }
                 exact.presses.derivative_into(disks, i, DiskParameter::Radius, ex, response)
             }

@@ -348,7 +348,7 @@ struct Solved<'a> {
 
 /// `disks` solved with `presses` into `out` and `scratch`, `solved_at` set to them (cleared
 /// if the solve fails).
-fn solve_at(
+pub(super) fn solve_at(
     presses: &ExactPresses,
     disks: &[Disk],
     scratch: &mut ExactScratch,
@@ -565,14 +565,14 @@ fn iterate(
         for i in 0..k {
             for (p, &parameter) in parameters.iter().enumerate() {
                 if pinned(i, parameter) {
-                    (0..m).for_each(|q| jacobian[(i * per + p, q)] = 0.0);
+                    jacobian.as_mut().row_mut(i * per + p).fill(0.0);
                     continue;
                 }
                 // A press solved in full (too wide for the update) stays where it is.
                 if !model.derivative_into(disks, i, parameter, perturbed) {
                     break 'iterations;
                 }
-                // Along the row's iterator: indexed, each entry's bounds were checked.
+                // Along the row's iterator, not indexed (which checks each entry's bounds).
                 let row = jacobian.as_mut().row_mut(i * per + p);
                 row.iter_mut().zip(perturbed.iter().zip(weights)).for_each(|(j, (d, w))| *j = w * d);
             }

@@ -237,9 +237,11 @@ crate::parallel::widest! {
     ) -> ()
 }
 
-/// [`GROUP`] blocks of [`LANES`] channels at a time, their four sums held in registers across
-/// the 16 points and their terms: each coefficient is read once, and each point's and term's
-/// four factors made once a group (not once a block), each sum's order the same.
+/// Blocks of [`LANES`] channels at a time, their four sums held in registers across the 16
+/// points and their terms: each coefficient is read once. Four blocks at once where the
+/// processor has 32 vector registers of 16 lanes (AVX-512: their 16 sums take half of them),
+/// one at once elsewhere (AVX2: one block's sums take 8 of its 16 registers of 8 lanes); each
+/// point's and term's four factors are made once a group, each sum's order the same.
 #[inline(always)]
 fn sum_stencil_portable(
     out: &mut [f32],
@@ -250,15 +252,34 @@ fn sum_stencil_portable(
     terms: &[f32; NODES],
     slopes: &[f32; NODES],
 ) {
-    for first in (0..stride).step_by(GROUP * LANES) {
-        let blocks = (stride - first).div_ceil(LANES).min(GROUP);
-        let mut sums = [[[0.0_f32; LANES]; 4]; GROUP];
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        return sum_groups::<4>(out, coefficients, stride, rows, weights, terms, slopes);
+    }
+    sum_groups::<1>(out, coefficients, stride, rows, weights, terms, slopes)
+}
+
+/// [`sum_stencil_portable`] `G` blocks at a time.
+#[inline(always)]
+fn sum_groups<const G: usize>(
+    out: &mut [f32],
+    coefficients: &[f32],
+    stride: usize,
+    rows: &[usize; STENCIL],
+    weights: &[[f32; 3]; STENCIL],
+    terms: &[f32; NODES],
+    slopes: &[f32; NODES],
+) {
+    for first in (0..stride).step_by(G * LANES) {
+        let blocks = (stride - first).div_ceil(LANES).min(G);
+        let mut sums = [[[0.0_f32; LANES]; 4]; G];
         for (&row, &[w, wx, wy]) in rows.iter().zip(weights) {
             for k in 0..NODES {
                 let factors = [w * terms[k], wx * terms[k], wy * terms[k], w * slopes[k]];
                 let start = row + k * stride + first;
-                // A block past the row's end reads the next row's (or nothing, at the table's
-                // end): its sums are not written.
+                // The last group's blocks past the row's end (where the row is not a whole number
+                // of groups) read the next row's, or nothing at the table's end: they are summed
+                // but not written.
                 for (b, sums) in sums.iter_mut().enumerate() {
                     let at = start + b * LANES;
                     let Some(c) = coefficients.get(at..).and_then(|c| c.first_chunk::<LANES>()) else { continue };
@@ -275,10 +296,6 @@ fn sum_stencil_portable(
         }
     }
 }
-
-/// Blocks of channels [`sum_stencil`] sums at once (4 × 4 sums of [`LANES`] in 16 of the 32
-/// vector registers).
-const GROUP: usize = 4;
 
 #[cfg(test)]
 mod tests {
@@ -343,8 +360,9 @@ mod tests {
     }
 
     /// The stencil's sums are each point's and term's products added in the order of the
-    /// points and terms, to the bit, whatever the rows' length (here not a whole number of
-    /// groups of blocks) and where the points lie (the last of the table's among them).
+    /// points and terms, to the bit, a block or four at a time, whatever the rows' length (here
+    /// not a whole number of groups of blocks) and where the points lie (the last of the
+    /// table's among them).
     #[test]
     fn the_stencils_sums_are_its_terms_added_in_turn() {
         let (points, stride) = (24, 3 * LANES);
@@ -354,8 +372,13 @@ mod tests {
         let weights: [[f32; 3]; STENCIL] = std::array::from_fn(|s| [value(3 * s), value(3 * s + 1), value(3 * s + 2)]);
         let (terms, slopes) = chebyshev(0.3);
         let (terms, slopes) = (terms.map(|t| t as f32), slopes.map(|t| t as f32));
-        let mut out = vec![f32::NAN; 4 * stride];
+        let (mut out, mut one, mut four) = (vec![f32::NAN; 4 * stride], vec![0.0; 4 * stride], vec![0.0; 4 * stride]);
         sum_stencil(&mut out, &coefficients, stride, &rows, &weights, &terms, &slopes);
+        // Both group sizes, whatever this processor takes.
+        sum_groups::<1>(&mut one, &coefficients, stride, &rows, &weights, &terms, &slopes);
+        sum_groups::<4>(&mut four, &coefficients, stride, &rows, &weights, &terms, &slopes);
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!((bits(&one), bits(&four)), (bits(&out), bits(&out)));
         for q in 0..stride {
             let mut sums = [0.0_f32; 4];
             for (&row, &[w, wx, wy]) in rows.iter().zip(&weights) {

@@ -40,6 +40,7 @@ pub(super) fn sorted(rows: &mut [usize], local: &mut [u32], bits: &mut Vec<u64>)
     bits.resize(local.len().div_ceil(64), 0);
     let (mut first, mut last) = (usize::MAX, 0);
     for &r in rows.iter() {
+        debug_assert!(r < local.len(), "a row of the system");
         bits[r / 64] |= 1 << (r % 64);
         (first, last) = (first.min(r / 64), last.max(r / 64));
     }
@@ -101,10 +102,11 @@ pub(super) struct Interior {
     count: Vec<u32>,
     /// Union–find over the change's rows (before ordering), for its connected parts.
     parent: Vec<u32>,
-    /// (interior, part, row) of each row, sorted: the new order; the same in the rows' order,
-    /// and how many rows each (interior, part) has, to sort it.
+    /// (interior, part, row) of each row, sorted: the new order.
     order: Vec<(bool, u32, usize)>,
+    /// The same in the rows' own order, before the sort.
     unsorted: Vec<(bool, u32, usize)>,
+    /// Per (interior, part), where its rows start in the sorted order (the counting sort's).
     starts: Vec<u32>,
     parts: Vec<Part>,
     /// Each row's part (index after ordering); in [`Interior::analyse`], 1 at each root with an
