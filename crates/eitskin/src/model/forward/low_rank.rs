@@ -568,19 +568,18 @@ impl LowRankUpdate {
         } = scratch;
         *solved = false;
         rows.iter().for_each(|&r| local[r] = UNUSED);
-        rows.clear();
         local.resize(self.fields.ncols(), UNUSED);
-        // Each row once (marked as it comes), then in order.
+        // The changed triangles' rows, each once, in increasing order.
+        bits.clear(local.len());
         for &(t, _) in changes {
             for node in self.model.mesh.triangles()[t] {
                 let row = self.model.row_of_node[node];
-                if row != GROUNDED && local[row] == UNUSED {
-                    local[row] = 0;
-                    rows.push(row);
+                if row != GROUNDED {
+                    bits.insert(row);
                 }
             }
         }
-        interior::sorted(rows, local, bits);
+        bits.drain_into(rows, local);
         let s = rows.len();
         *kept = s;
         let basis = self.fields.nrows();
@@ -884,8 +883,8 @@ pub struct ChangeScratch {
     local: Vec<u32>,
     /// Each row's place and its index in the change's rows, for the gather of G.
     places: Vec<(usize, usize)>,
-    /// One bit a row of the system, all zeros between sorts of the rows.
-    bits: Vec<u64>,
+    /// The change's rows as bits, to order them.
+    bits: interior::RowBits,
     /// G between the rows kept in the dense solve: G_ΓΓ, or G_RR where nothing is eliminated.
     green: Mat<f64>,
     nonzeros: Nonzeros,
@@ -943,7 +942,7 @@ impl ChangeScratch {
         room(&mut self.rows, rows);
         room(&mut self.local, rows);
         room(&mut self.places, rows);
-        room(&mut self.bits, rows.div_ceil(64));
+        self.bits.reserve(rows);
         self.nonzeros.reserve(rows);
         self.lu.reserve(rows);
         self.interior.reserve(rows);
@@ -959,7 +958,7 @@ impl Default for ChangeScratch {
             rows: Vec::new(),
             local: Vec::new(),
             places: Vec::new(),
-            bits: Vec::new(),
+            bits: interior::RowBits::default(),
             green,
             nonzeros: Nonzeros::default(),
             fields,

@@ -33,29 +33,60 @@ use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::{grow, LowRankUpdate, GROUNDED};
 
-/// `rows` (distinct rows of the system, each below `local`'s length) in increasing order again,
-/// `local` their indices. `bits` is a buffer, all zeros (and left so): each row set as a bit,
-/// read back a word at a time (a few dozen words; a comparison sort took 5 times as long).
-pub(super) fn sorted(rows: &mut [usize], local: &mut [u32], bits: &mut Vec<u64>) {
-    bits.resize(local.len().div_ceil(64), 0);
-    let (mut first, mut last) = (usize::MAX, 0);
-    for &r in rows.iter() {
-        debug_assert!(r < local.len(), "a row of the system");
-        bits[r / 64] |= 1 << (r % 64);
-        (first, last) = (first.min(r / 64), last.max(r / 64));
+/// `rows` (rows of the system, each below `local`'s length) in increasing order again, each
+/// once, `local` their indices (`bits` a buffer).
+pub(super) fn sorted(rows: &mut Vec<usize>, local: &mut [u32], bits: &mut RowBits) {
+    bits.clear(local.len());
+    rows.iter().for_each(|&r| bits.insert(r));
+    bits.drain_into(rows, local);
+}
+
+/// A set of the system's rows as bits, read back in increasing order a word at a time: a few
+/// dozen words, where a comparison sort of a change's few hundred rows was the larger part of
+/// ordering them.
+#[derive(Debug, Default)]
+pub(super) struct RowBits {
+    /// One bit a row; all zeros outside the words `first..=last`, and all zeros after a drain.
+    words: Vec<u64>,
+    first: usize,
+    last: usize,
+}
+
+impl RowBits {
+    /// Room for `rows` rows, so that a first change does not allocate.
+    pub(super) fn reserve(&mut self, rows: usize) {
+        super::room(&mut self.words, rows.div_ceil(64));
     }
-    let mut i = 0;
-    for (w, bits) in bits.iter_mut().enumerate().take(last + 1).skip(first) {
-        let mut word = std::mem::take(bits);
-        while word != 0 {
-            let r = w * 64 + word.trailing_zeros() as usize;
-            rows[i] = r;
-            local[r] = i as u32;
-            i += 1;
-            word &= word - 1;
+
+    /// Empty, for rows below `rows`.
+    pub(super) fn clear(&mut self, rows: usize) {
+        self.words.resize(rows.div_ceil(64), 0);
+        (self.first, self.last) = (usize::MAX, 0);
+    }
+
+    /// Adds row `r` (below the rows [`RowBits::clear`] was given; again: no change).
+    pub(super) fn insert(&mut self, r: usize) {
+        let w = r / 64;
+        self.words[w] |= 1 << (r % 64);
+        (self.first, self.last) = (self.first.min(w), self.last.max(w));
+    }
+
+    /// The rows added, in increasing order, into `rows` (cleared), each one's index into
+    /// `local`; the set left empty.
+    pub(super) fn drain_into(&mut self, rows: &mut Vec<usize>, local: &mut [u32]) {
+        rows.clear();
+        let words = self.words.iter_mut().enumerate().take(self.last + 1).skip(self.first);
+        for (w, bits) in words {
+            let mut word = std::mem::take(bits);
+            while word != 0 {
+                let r = w * 64 + word.trailing_zeros() as usize;
+                local[r] = rows.len() as u32;
+                rows.push(r);
+                word &= word - 1;
+            }
         }
+        (self.first, self.last) = (usize::MAX, 0);
     }
-    debug_assert_eq!(i, rows.len(), "distinct rows");
 }
 
 /// A row that is never interior: a node on the boundary, or an electrode's unknown
