@@ -348,8 +348,9 @@ pub struct PressScratch {
     saved_responses: Vec<f64>,
     rejected: Vec<[f64; 2]>,
     sizes: Vec<joint::Size>,
-    /// A solve of the presses where the fit's own is not near them, and the disks it is of.
+    /// A solve of the presses for their size tests where the fit's own is not near them.
     exact: ExactScratch,
+    /// The disks `exact` was last solved at (none after a solve that failed, or a new frame).
     exact_at: Vec<Disk>,
     /// Exact fits made in this frame.
     refits: usize,

@@ -42,8 +42,8 @@ pub(super) fn sorted(rows: &mut Vec<usize>, local: &mut [u32], bits: &mut RowBit
 }
 
 /// A set of the system's rows as bits, read back in increasing order a word at a time: a few
-/// dozen words, where a comparison sort of a change's few hundred rows was the larger part of
-/// ordering them.
+/// dozen words (a comparison sort of a change's few hundred rows had been 0.7 % of an exact
+/// frame of three presses).
 #[derive(Debug, Default)]
 pub(super) struct RowBits {
     /// One bit a row; all zeros outside the words `first..=last`, and all zeros after a drain.
@@ -286,7 +286,7 @@ impl Interior {
         }
         // Sorted by (interior, part, row): a counting sort on (interior, part), a part's root
         // being one of the s rows, which keeps the rows' own order within each (what a
-        // comparison sort of the triples did, at a sixth of its cost).
+        // comparison sort of the triples did: 2.6 % of an exact frame of three presses).
         let key = |&(inner, part, _): &(bool, u32, usize)| usize::from(inner) * s + part as usize;
         self.starts.clear();
         self.starts.resize(2 * s + 1, 0);
