@@ -238,10 +238,12 @@ crate::parallel::widest! {
 }
 
 /// Blocks of [`LANES`] channels at a time, their four sums held in registers across the 16
-/// points and their terms: each coefficient is read once. Four blocks at once where the
-/// processor has 32 vector registers of 16 lanes (AVX-512: their 16 sums take half of them),
-/// one at once elsewhere (AVX2: one block's sums take 8 of its 16 registers of 8 lanes); each
-/// point's and term's four factors are made once a group, each sum's order the same.
+/// points: each coefficient is read once. Each point's series is summed over its terms first
+/// (at the drop, and its slope there), then added into the four sums with the point's three
+/// weights: 2 multiply-adds a term and 4 a point, where a factor per point and term took 4 a
+/// term. Four blocks at once where the processor has 32 vector registers of 16 lanes (AVX-512:
+/// their sums and series take 24 of them), one at once elsewhere (AVX2: 6 of its 16 registers
+/// of 8 lanes); each sum's order the same either way.
 #[inline(always)]
 fn sum_stencil_portable(
     out: &mut [f32],
@@ -274,18 +276,28 @@ fn sum_groups<const G: usize>(
         let blocks = (stride - first).div_ceil(LANES).min(G);
         let mut sums = [[[0.0_f32; LANES]; 4]; G];
         for (&row, &[w, wx, wy]) in rows.iter().zip(weights) {
+            // The point's series at the drop and its slope, block by block.
+            let mut series = [[[0.0_f32; LANES]; 2]; G];
             for k in 0..NODES {
-                let factors = [w * terms[k], wx * terms[k], wy * terms[k], w * slopes[k]];
                 let start = row + k * stride + first;
                 // The last group's blocks past the row's end (where the row is not a whole number
                 // of groups) read the next row's, or nothing at the table's end: they are summed
                 // but not written.
-                for (b, sums) in sums.iter_mut().enumerate() {
+                for (b, [at_drop, slope]) in series.iter_mut().enumerate() {
                     let at = start + b * LANES;
                     let Some(c) = coefficients.get(at..).and_then(|c| c.first_chunk::<LANES>()) else { continue };
-                    for (sum, f) in sums.iter_mut().zip(factors) {
-                        sum.iter_mut().zip(c).for_each(|(s, c)| *s += f * c);
+                    for l in 0..LANES {
+                        at_drop[l] += terms[k] * c[l];
+                        slope[l] += slopes[k] * c[l];
                     }
+                }
+            }
+            for (sums, [at_drop, slope]) in sums.iter_mut().zip(&series) {
+                for l in 0..LANES {
+                    sums[0][l] += w * at_drop[l];
+                    sums[1][l] += wx * at_drop[l];
+                    sums[2][l] += wy * at_drop[l];
+                    sums[3][l] += w * slope[l];
                 }
             }
         }
@@ -359,8 +371,9 @@ mod tests {
         }
     }
 
-    /// The stencil's sums are each point's and term's products added in the order of the
-    /// points and terms, to the bit, a block or four at a time, whatever the rows' length (here
+    /// The stencil's sums are each point's series (its terms added in turn, at the drop and for
+    /// its slope) times the point's weights, added in the order of the points, to the bit, a
+    /// block or four at a time, whatever the rows' length (here
     /// not a whole number of groups of blocks) and where the points lie (the last of the
     /// table's among them).
     #[test]
@@ -382,11 +395,14 @@ mod tests {
         for q in 0..stride {
             let mut sums = [0.0_f32; 4];
             for (&row, &[w, wx, wy]) in rows.iter().zip(&weights) {
+                let (mut at_drop, mut slope) = (0.0_f32, 0.0_f32);
                 for k in 0..NODES {
                     let c = coefficients[row + k * stride + q];
-                    let factors = [w * terms[k], wx * terms[k], wy * terms[k], w * slopes[k]];
-                    sums.iter_mut().zip(factors).for_each(|(s, f)| *s += f * c);
+                    at_drop += terms[k] * c;
+                    slope += slopes[k] * c;
                 }
+                let products = [w * at_drop, wx * at_drop, wy * at_drop, w * slope];
+                sums.iter_mut().zip(products).for_each(|(s, p)| *s += p);
             }
             for (part, sum) in sums.iter().enumerate() {
                 assert_eq!(out[part * stride + q].to_bits(), sum.to_bits(), "channel {q}, sum {part}");
