@@ -12,6 +12,11 @@
 //! (a handful around the peak) are scored again exactly, in f64 from their responses. The pick
 //! and its z are those of the exact product, from a product of under half its size. (Where the
 //! measurements are more than [`MAX_RANK`], the scan reads the responses whole, as before.)
+//!
+//! Any floor some point surely reaches gives the same pick (a lower one only scores a few more
+//! points), so a scan against each point's whole gᵀg takes it at the one point a pass in f32
+//! steers to, the largest c̃/|g| under its drop limit and away from the presses found, where
+//! that point passes the same test; only elsewhere are all points tested in f64 ([`surest`]).
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par, Side};
@@ -49,6 +54,18 @@ pub(crate) struct Scan {
     ys: Vec<f64>,
     /// Per point, the largest contrast of a press there (the model's; NaN: read from its ladder).
     limits: Vec<f64>,
+    /// In f32, for the pass that steers the floor ([`likeliest`]): per point 1/|g|, the
+    /// largest c a press there may give (`limits` times gᵀg), x and y.
+    steering: Steering,
+}
+
+/// A scan's points in f32, for [`likeliest`].
+#[derive(Debug, Clone, PartialEq)]
+struct Steering {
+    inverse_roots: Vec<f32>,
+    ceilings: Vec<f32>,
+    xs: Vec<f32>,
+    ys: Vec<f32>,
 }
 
 impl Scan {
@@ -87,10 +104,16 @@ impl Scan {
         for i in 0..points.len() {
             (0..rank).for_each(|k| reduced.set(i, k, projections[(i, k)] as f32));
         }
-        let roots = norms.iter().map(|n| n.sqrt()).collect();
-        let (xs, ys) = points.iter().map(|&j| model.grid.point(j)).map(|[x, y]| (x, y)).unzip();
-        let limits = points.iter().map(|&j| model.drop_limits[j]).collect();
-        Scan { points, matrix, norms, basis, reduced, missed, roots, xs, ys, limits }
+        let roots: Vec<f64> = norms.iter().map(|n| n.sqrt()).collect();
+        let (xs, ys): (Vec<f64>, Vec<f64>) = points.iter().map(|&j| model.grid.point(j)).map(|[x, y]| (x, y)).unzip();
+        let limits: Vec<f64> = points.iter().map(|&j| model.drop_limits[j]).collect();
+        let steering = Steering {
+            inverse_roots: roots.iter().map(|r| (1.0 / r) as f32).collect(),
+            ceilings: limits.iter().zip(&norms).map(|(l, n)| (l * n) as f32).collect(),
+            xs: xs.iter().map(|&x| x as f32).collect(),
+            ys: ys.iter().map(|&y| y as f32).collect(),
+        };
+        Scan { points, matrix, norms, basis, reduced, missed, roots, xs, ys, limits, steering }
     }
 
     /// The row of response-grid point `point`, if it is a scan point.
@@ -273,6 +296,98 @@ fn consider<const L: usize>(
 }
 
 crate::parallel::widest! {
+    /// The point of the largest c̃/|g| (`c` times the inverse roots, f32) among those whose c̃ is
+    /// at most its ceiling times `per_unit` (the inverse of the correlations' unit; NaN: none)
+    /// and farther than √`apart` from each of `found`: where the largest sure z is likeliest to
+    /// be, so that [`surest`]'s floor can be had from that point alone. `None` if no point's
+    /// c̃ there is positive.
+    fn likeliest = likeliest_portable(c: &[f32], steering: &Steering, per_unit: f32, found: &[[f32; 2]], apart: f32) -> Option<usize>
+}
+
+/// Points [`likeliest`] takes at once (a 512-bit vector of f32).
+const STEER_LANES: usize = 16;
+
+/// The kernel: [`STEER_LANES`] lanes without a branch, each keeping its largest and where; the
+/// last chunk overlapping the one before it (a point seen twice is not larger than itself).
+#[inline(always)]
+fn likeliest_portable(c: &[f32], steering: &Steering, per_unit: f32, found: &[[f32; 2]], apart: f32) -> Option<usize> {
+    let Steering { inverse_roots, ceilings, xs, ys } = steering;
+    let n = c.len().min(inverse_roots.len()).min(ceilings.len()).min(xs.len()).min(ys.len());
+    let points = [&c[..n], &inverse_roots[..n], &ceilings[..n], &xs[..n], &ys[..n]];
+    let mut largest = ([0.0_f32; STEER_LANES], [0_u32; STEER_LANES]);
+    if n < STEER_LANES {
+        (0..n).for_each(|at| steer::<1>(points, per_unit, found, apart, at, &mut largest));
+    } else {
+        let mut at = 0;
+        while at < n {
+            steer::<STEER_LANES>(points, per_unit, found, apart, at.min(n - STEER_LANES), &mut largest);
+            at += STEER_LANES;
+        }
+    }
+    let (values, places) = largest;
+    let lane = (0..STEER_LANES).fold(0, |best, k| if values[k] > values[best] { k } else { best });
+    (values[lane] > 0.0).then_some(places[lane] as usize + lane)
+}
+
+/// [`likeliest`]'s points `at`..`at + L` into the first `L` lanes of `largest` (values, and the
+/// first point of the chunk each was found in: lane k's point is that plus k).
+#[inline(always)]
+fn steer<const L: usize>(
+    [c, inverse_roots, ceilings, xs, ys]: [&[f32]; 5],
+    per_unit: f32,
+    found: &[[f32; 2]],
+    apart: f32,
+    at: usize,
+    (values, places): &mut ([f32; STEER_LANES], [u32; STEER_LANES]),
+) {
+    let (c, inverse_roots, ceilings) = (&c[at..at + L], &inverse_roots[at..at + L], &ceilings[at..at + L]);
+    let (xs, ys) = (&xs[at..at + L], &ys[at..at + L]);
+    // Both products for every lane, then a selection (a product under a condition was branched).
+    let (mut v, mut below) = ([0.0_f32; L], [false; L]);
+    for k in 0..L {
+        v[k] = c[k] * inverse_roots[k];
+        below[k] = c[k] <= ceilings[k] * per_unit;
+    }
+    for k in 0..L {
+        v[k] = if below[k] { v[k] } else { 0.0 };
+    }
+    for f in found {
+        for k in 0..L {
+            let (dx, dy) = (xs[k] - f[0], ys[k] - f[1]);
+            v[k] = if dx * dx + dy * dy < apart { 0.0 } else { v[k] };
+        }
+    }
+    // Each lane's chunk, not its point: one value for all lanes, so the selections stay in vectors.
+    let chunk = at as u32;
+    for k in 0..L {
+        let larger = v[k] > values[k];
+        values[k] = if larger { v[k] } else { values[k] };
+        places[k] = if larger { chunk } else { places[k] };
+    }
+}
+
+/// The most presses found [`likeliest`] steers with (more: [`surest`] alone).
+const STEERED: usize = 64;
+
+/// [`surest`]'s z² at the one point [`likeliest`] steers to, if that point is sure (the same
+/// test, in f64): no higher than `surest`'s floor, so the pick is the same, and one pass over
+/// the points in f32 where `surest`'s tests each in f64. `left` must be each point's gᵀg.
+fn steered_floor(scan: &Scan, bounds: &Bounds<'_>, away: &Away<'_>, c: &[f32], left: &[f64]) -> Option<f64> {
+    if away.found.len() > STEERED {
+        return None;
+    }
+    let mut centres = [[0.0_f32; 2]; STEERED];
+    centres.iter_mut().zip(away.found).for_each(|(to, f)| *to = [f[0] as f32, f[1] as f32]);
+    let per_unit = (1.0 / bounds.unit) as f32;
+    let i = likeliest(c, &scan.steering, per_unit, &centres[..away.found.len()], away.apart as f32)?;
+    let n = c.len();
+    let mut one = Largest { num: [0.0; LANES], den: [1.0; LANES] };
+    consider::<1>(bounds, away, c, left, [&scan.norms[..n], &scan.limits[..n]], i, &mut one);
+    let floor = one.num[0] / one.den[0];
+    (floor > 0.0).then_some(floor)
+}
+
+crate::parallel::widest! {
     /// The first point from `start` on, away from the presses found, whose c̃ plus its bound
     /// is positive with a square of at least `floor`·`left`, or not a number: whose c may be
     /// as large; if any.
@@ -407,7 +522,9 @@ impl PressModel {
         found: &[[f64; 2]],
         correlations: &mut Vec<f32>,
     ) -> Option<(usize, f64)> {
-        self.best_point_in(scan, dv, found, &scan.norms, correlations)
+        let mut projection = [0.0; MAX_RANK];
+        let bounds = scan.correlate(dv, &mut projection, correlations);
+        self.pick(scan, &bounds, dv, found, &scan.norms, correlations, true)
     }
 
     /// [`PressModel::best_point`] with z = gᵀΔv/√`unexplained`: per scan point, the part of gᵀg
@@ -424,7 +541,7 @@ impl PressModel {
     ) -> Option<(usize, f64)> {
         let mut projection = [0.0; MAX_RANK];
         let bounds = scan.correlate(dv, &mut projection, correlations);
-        self.pick(scan, &bounds, dv, found, unexplained, correlations)
+        self.pick(scan, &bounds, dv, found, unexplained, correlations, false)
     }
 
     /// [`PressModel::best_point_in`] where only the pick matters if its z reaches `reach`'s
@@ -457,7 +574,7 @@ impl PressModel {
                 *u = (reach.share)(i);
             }
         }
-        self.pick(scan, &bounds, dv, found, unexplained, correlations)
+        self.pick(scan, &bounds, dv, found, unexplained, correlations, false)
     }
 
     /// The square of the distance from a press found within which no point is picked (m²):
@@ -467,7 +584,9 @@ impl PressModel {
     }
 
     /// The pick of a scan whose correlations of `dv` and their `bounds` are made (see
-    /// [`PressModel::best_point_in`]).
+    /// [`PressModel::best_point_in`]); with `steer` (`unexplained` each point's gᵀg), the floor
+    /// from the point [`likeliest`] steers to where it is sure.
+    #[allow(clippy::too_many_arguments, reason = "the scan's pieces and the one choice of how its floor is found")]
     fn pick(
         &self,
         scan: &Scan,
@@ -476,13 +595,16 @@ impl PressModel {
         found: &[[f64; 2]],
         unexplained: &[f64],
         correlations: &[f32],
+        steer: bool,
     ) -> Option<(usize, f64)> {
         // Not within two indenter radii of a press found.
         let n = scan.points.len().min(unexplained.len());
         let away = Away { xs: &scan.xs[..n], ys: &scan.ys[..n], found, apart: self.apart() };
         let (c, left) = (&correlations[..n], &unexplained[..n]);
-        // The largest z² some point surely reaches: its c's bound below, its drop's above.
-        let floor = surest(bounds, &away, c, left, &scan.norms[..n], &scan.limits[..n]);
+        // The largest z² some point surely reaches (its c's bound below, its drop's above), or
+        // one sure point's: a floor no higher, so the same pick.
+        let steered = if steer { steered_floor(scan, bounds, &away, c, left) } else { None };
+        let floor = steered.unwrap_or_else(|| surest(bounds, &away, c, left, &scan.norms[..n], &scan.limits[..n]));
         // Every point whose bound reaches that floor, scored exactly; the first of the largest.
         let mut best: Option<(usize, f64)> = None;
         let mut i = 0;
@@ -580,8 +702,8 @@ mod tests {
     }
 
     /// The pick and its z are those of scoring every point exactly, with presses found left out
-    /// and the share of gᵀg left unexplained in the z; with the responses in their basis, and
-    /// read whole.
+    /// and the share of gᵀg left unexplained in the z, and with the whole gᵀg (the floor
+    /// steered to one point); with the responses in their basis, and read whole.
     #[test]
     fn the_pick_is_the_exact_scans() {
         let (press, scan) = whitened();
@@ -597,24 +719,31 @@ mod tests {
                 .map(|_| [rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1)])
                 .collect();
             let unexplained: Vec<f64> = scan.norms.iter().map(|n| n * rng.random_range(0.25..=1.0)).collect();
-            let mut exact: Option<(usize, f64)> = None;
-            for (i, &j) in scan.points.iter().enumerate() {
-                let p = press.grid.point(j);
-                let c = dot(&press.responses[j * m..(j + 1) * m], &dv);
-                let near = found.iter().any(|f| (f[0] - p[0]).powi(2) + (f[1] - p[1]).powi(2) < apart);
-                if c <= 0.0 || near || press.too_deep(c / scan.norms[i], j) {
-                    continue;
+            let exact_with = |left: &[f64]| {
+                let mut exact: Option<(usize, f64)> = None;
+                for (i, &j) in scan.points.iter().enumerate() {
+                    let p = press.grid.point(j);
+                    let c = dot(&press.responses[j * m..(j + 1) * m], &dv);
+                    let near = found.iter().any(|f| (f[0] - p[0]).powi(2) + (f[1] - p[1]).powi(2) < apart);
+                    if c <= 0.0 || near || press.too_deep(c / scan.norms[i], j) {
+                        continue;
+                    }
+                    let z = c / left[i].sqrt();
+                    if exact.is_none_or(|(_, b)| z > b) {
+                        exact = Some((j, z));
+                    }
                 }
-                let z = c / unexplained[i].sqrt();
-                if exact.is_none_or(|(_, b)| z > b) {
-                    exact = Some((j, z));
-                }
-            }
+                exact
+            };
+            let (exact, exact_whole) = (exact_with(&unexplained), exact_with(&scan.norms));
             for scan in [&scan, &whole] {
                 let picked = press.best_point_in(scan, &dv, &found, &unexplained, &mut correlations);
                 assert_eq!(picked.map(|(j, _)| j), exact.map(|(j, _)| j), "case {case}");
                 // The same z to the bit: the same product, the same division.
                 assert_eq!(picked.map(|(_, z)| z.to_bits()), exact.map(|(_, z)| z.to_bits()), "case {case}");
+                let steered = press.best_point(scan, &dv, &found, &mut correlations);
+                let bits = |p: Option<(usize, f64)>| p.map(|(j, z)| (j, z.to_bits()));
+                assert_eq!(bits(steered), bits(exact_whole), "case {case}, steered");
             }
         }
         assert!(press.best_point(&scan, &vec![0.0; m], &[], &mut correlations).is_none());
@@ -664,6 +793,41 @@ mod tests {
             }
         }
         assert!(reached >= 40, "{reached} of 200 picks reached the threshold");
+    }
+
+    /// The steering pass takes the point of the largest c/|g| under its ceiling and away from the
+    /// presses found, at any count of points (fewer than a chunk, a last chunk overlapping the
+    /// one before): against one point after another.
+    #[test]
+    fn the_steering_takes_the_largest_eligible_ratio() {
+        let mut rng = SeededRng::seed_from_u64(10);
+        for trial in 0..400 {
+            let n = trial % 50;
+            let values = |rng: &mut SeededRng, lo: f32, hi: f32| (0..n).map(|_| rng.random_range(lo..hi)).collect();
+            let mut c: Vec<f32> = values(&mut rng, -1.0, 4.0);
+            c.iter_mut().skip(3).step_by(11).for_each(|c| *c = f32::NAN);
+            let mut ceilings: Vec<f32> = values(&mut rng, 0.0, 6.0);
+            ceilings.iter_mut().step_by(7).for_each(|l| *l = f32::NAN);
+            let steering = Steering {
+                inverse_roots: values(&mut rng, 0.5, 2.0),
+                ceilings,
+                xs: values(&mut rng, 0.0, 1.0),
+                ys: values(&mut rng, 0.0, 1.0),
+            };
+            let found = [[0.3_f32, 0.4], [0.8, 0.1]];
+            let found = &found[..trial % 3];
+            let per_unit = 0.5;
+            let eligible = |i: usize| {
+                c[i] <= steering.ceilings[i] * per_unit
+                    && found.iter().all(|f| (steering.xs[i] - f[0]).powi(2) + (steering.ys[i] - f[1]).powi(2) >= 0.04)
+            };
+            let ratio = |i: usize| c[i] * steering.inverse_roots[i];
+            let best = (0..n).filter(|&i| eligible(i) && ratio(i) > 0.0).map(ratio).fold(0.0_f32, f32::max);
+            match likeliest(&c, &steering, per_unit, found, 0.04) {
+                Some(i) => assert!(eligible(i) && ratio(i) == best, "trial {trial}, {n} points: {i}"),
+                None => assert_eq!(best, 0.0, "trial {trial}, {n} points"),
+            }
+        }
     }
 
     /// The floor's kernel takes the largest low²/left of the points surely reached, eligible and
