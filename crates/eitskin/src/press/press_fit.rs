@@ -357,6 +357,9 @@ pub struct PressScratch {
     /// The scan for a new press next to fitted ones: an orthonormal basis of their Jacobian,
     /// and what of each scan point's gᵀg it leaves (where a new press could be found).
     basis: Vec<f64>,
+    /// The fit (its count in `refits`) whose Jacobian `basis` is of, and its rank; `None` in a
+    /// new frame.
+    basis_of: Option<(usize, usize)>,
     unexplained: Vec<f64>,
     /// Per press of the last exact fit, its equivalent drop's variance (whitened noise of 1).
     variances: Vec<f64>,

@@ -93,10 +93,19 @@ pub(crate) fn orthonormal_rows(jacobian: MatRef<'_, f64>, basis: &mut Vec<f64>) 
     rank
 }
 
-/// [`orthonormal_rows`] of the last exact fit's Jacobian, into the scratch's basis.
+/// [`orthonormal_rows`] of the last exact fit's Jacobian, into the scratch's basis; its rank.
+/// Made again only after another fit (the sizes' tests and the search for a new press read the
+/// same one where no fit came between them).
 fn fit_basis(scratch: &mut PressScratch) -> usize {
-    let PressScratch { refine: refining, basis, .. } = scratch;
-    orthonormal_rows(refining.jacobian(), basis)
+    let PressScratch { refine: refining, basis, basis_of, refits, .. } = scratch;
+    match *basis_of {
+        Some((fit, rank)) if fit == *refits => rank,
+        _ => {
+            let rank = orthonormal_rows(refining.jacobian(), basis);
+            *basis_of = Some((*refits, rank));
+            rank
+        }
+    }
 }
 
 /// The least share of a response's gᵀg counted as not taken up by the presses fitted (z grows
@@ -218,7 +227,8 @@ impl PressModel {
         scratch.exact_at.clear();
         let mut cost = self.refit(exact, presses, scratch)?;
         scratch.rejected.clear();
-        scratch.refits = 0;
+        // Counted from here: the basis's fit is one of this frame's.
+        (scratch.refits, scratch.basis_of) = (0, None);
         // Whether the last exact fit (its misfit, Jacobian and solve, which the sizes' tests and
         // the search for a new press read) is of other presses than these: a candidate's,
         // refused after its fit. Kept across rounds until these presses are fitted again.
