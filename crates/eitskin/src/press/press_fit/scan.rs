@@ -560,19 +560,16 @@ impl PressModel {
     ) -> Option<(usize, f64)> {
         let mut projection = [0.0; MAX_RANK];
         let bounds = scan.correlate(dv, &mut projection, correlations);
-        let apart = self.apart();
-        // z = c/√u ≤ high/√(least·gᵀg): within reach where high² ≥ threshold²·least·gᵀg.
+        // z = c/√u ≤ high/√(least·gᵀg): within reach where high² ≥ threshold²·least·gᵀg, the
+        // test [`next_reaching`] makes of a floor against each point's gᵀg (a few points a scan).
         let within = reach.threshold.powi(2) * reach.least;
+        let away = Away { xs: &scan.xs, ys: &scan.ys, found, apart: self.apart() };
         unexplained.clear();
         unexplained.resize(scan.points.len(), f64::INFINITY);
-        for (i, u) in unexplained.iter_mut().enumerate() {
-            let (_, high) = bounds.range(correlations, i);
-            // Rare (a few points a scan): the test of the presses found only then.
-            if ((high > 0.0 && high * high >= within * scan.norms[i]) || high.is_nan())
-                && found.iter().all(|f| apart_from(*f, apart, scan.xs[i], scan.ys[i]))
-            {
-                *u = (reach.share)(i);
-            }
+        let mut i = 0;
+        while let Some(at) = next_reaching(&bounds, &away, correlations, &scan.norms, within, i) {
+            unexplained[at] = (reach.share)(at);
+            i = at + 1;
         }
         self.pick(scan, &bounds, dv, found, unexplained, correlations, false)
     }
