@@ -13,16 +13,18 @@
 //! its noise has changed, and when only its reference has grown) and `auto_hyperparameter_2356` and `reconstructor_2356` (λ, then the reconstructor at it, on a
 //! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table and, by low-rank updates, the ladder
 //! of strong presses), `press_table` (one press's exact response tabulated over the sheet and
-//! its drop, [`PressModel::with_tabulated`], which a model fits with on request), `contrast_map`
+//! its drop, [`PressModel::with_table_start`]: `run`'s exact fits start from it), `contrast_map`
 //! (the contrast calibrations' map: 41 × 41 places × 11 presses simulated on the model and
 //! imaged) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch), `fleet_frame_half` and `fleet_frame_shared` (one image on one
 //! core from each of 100 sensors of one spec in turn, λ from each one's noise: from their own
 //! half-precision matrices, and through their shared basis; left out where there is none) and `frame_three_presses` (three presses found in Δv against
-//! 0.05 % noise, median of 201 runs on the noiseless frame), `frame_three_presses_noisy` (the
-//! same on 201 frames of the presses held, each with its own 0.05 % noise;
-//! `frame_three_presses_noisy_tabulated` with the model's tabulated response) and
+//! 0.05 % noise, median of 201 runs on the noiseless frame, with `run`'s press model, whose
+//! exact fits start from the table), `frame_three_presses_noisy` (the same on 201 frames of the
+//! presses held, each with its own 0.05 % noise; `frame_three_presses_noisy_tabulated` fitted on
+//! the table, [`PressModel::with_tabulated`], `run --press-table`; `_noisy_no_table` without
+//! it, `run --no-table-start`) and
 //! `frame_three_presses_carried` (those frames as a stream, the presses carried from frame to
 //! frame) and `frame_three_presses_carried_80db` (the same stream at 0.01 % noise, the reference
 //! of 100 frames); `simulated_frame` and `simulated_three_presses` (the virtual
@@ -425,11 +427,15 @@ fn frames(
     Ok((frame, image.values.len(), touches.len()))
 }
 
-/// Three presses (Δv `dv3`) found against 0.05 % noise per value (the reference of 10 frames):
-/// on the noiseless frame, on 201 frames each with its own noise, found afresh and carried from
-/// frame to frame; and carried at 0.01 % (the virtual sensor's noise, a reference of 100 frames).
-fn three_presses(press_model: &PressModel, values: &[f64], dv3: &[f64], n: usize, stages: &mut Stages) -> Result<()> {
+/// Three presses (Δv `dv3`) found against 0.05 % noise per value (the reference of 10 frames),
+/// with `run`'s press model (each exact fit started from one press's tabulated response): on
+/// the noiseless frame, on 201 frames each with its own noise, found afresh and carried from
+/// frame to frame; and carried at 0.01 % (the virtual sensor's noise, a reference of 100
+/// frames). The noisy frames found afresh also without the table, and fitted on it.
+fn three_presses(linear: &PressModel, values: &[f64], dv3: &[f64], n: usize, stages: &mut Stages) -> Result<()> {
     let std: Vec<f64> = values.iter().map(|v| 5e-4 * v.abs() * 1.1_f64.sqrt()).collect();
+    let (t_table, press_model) = time(n.min(3), || Ok(linear.clone().with_table_start()?))?;
+    let press_model = &press_model;
     let (t_detection, detection) = time(n.min(3), || Ok(PressDetection::new(press_model, &std, 9.0, 1e-3)?))?;
     let (mut whitened, mut found, mut scratch) = (Vec::new(), Vec::with_capacity(16), PressScratch::default());
     let (t_detect, ()) = time(201, || Ok(detection.detect_into(dv3, &mut whitened, &mut scratch, &mut found)?))?;
@@ -444,12 +450,17 @@ fn three_presses(press_model: &PressModel, values: &[f64], dv3: &[f64], n: usize
         next += 1;
         Ok(detection.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
     })?;
-    let (t_table, tabulated) = time(n.min(3), || Ok(press_model.clone().with_tabulated()?))?;
-    let on_table = PressDetection::new(&tabulated, &std, 9.0, 1e-3)?;
+    let on_table = PressDetection::new(&linear.clone().with_tabulated()?, &std, 9.0, 1e-3)?;
     let mut next = 0;
     let (t_noisy_table, ()) = time(held.len(), || {
         next += 1;
         Ok(on_table.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
+    })?;
+    let without = PressDetection::new(linear, &std, 9.0, 1e-3)?;
+    let mut next = 0;
+    let (t_noisy_without, ()) = time(held.len(), || {
+        next += 1;
+        Ok(without.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
     })?;
     let (mut track, mut next) = (PressTrack::default(), 0);
     let (t_carried, _) = time(held.len(), || {
@@ -469,6 +480,7 @@ fn three_presses(press_model: &PressModel, values: &[f64], dv3: &[f64], n: usize
         ("frame_three_presses", t_detect),
         ("frame_three_presses_noisy", t_noisy),
         ("frame_three_presses_noisy_tabulated", t_noisy_table),
+        ("frame_three_presses_noisy_no_table", t_noisy_without),
         ("frame_three_presses_carried", t_carried),
         ("frame_three_presses_carried_80db", t_carried80),
     ]);

@@ -14,7 +14,7 @@ use eitskin::inverse::{
     choose_hyperparameter, Channels, HyperparameterRule, Linearisation, Reference, Weighting, WeightingUsed,
 };
 use eitskin::pipeline::{Pipeline, PipelineParams};
-use eitskin::press_fit::{PressModel, PressModelParams};
+use eitskin::press_fit::{PressModel, PressModelParams, TableUse};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::strength::Strength;
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
@@ -101,9 +101,12 @@ pub struct ChainSetup {
     pub strength: Strength,
     /// Fit a press to each touch (on by itself when the strength needs the press model).
     pub fit: bool,
-    /// Fit presses found afresh on the press model's tabulated response
-    /// ([`PressModel::with_tabulated`]; not cached: tabulated at each setup).
-    pub press_table: bool,
+    /// What one press's exact response tabulated is for, if it is made (not cached: tabulated
+    /// at each setup, about 0.25 s on two cores and 21 MB on the paper's sheet): exact fits of
+    /// presses found afresh started from it ([`TableUse::Start`], the default,
+    /// [`PressModel::with_table_start`]), or fits on it ([`TableUse::Fit`],
+    /// [`PressModel::with_tabulated`]); `None`: no table.
+    pub press_table: Option<TableUse>,
     /// The pseudo-array and curves that turn strengths into forces, N.
     pub calibration: Option<(PseudoArray, Calibration)>,
     /// Image frames from a half-precision copy of the matrix ([`Chain::set_half_precision`]).
@@ -119,7 +122,7 @@ impl ChainSetup {
             touch: TouchParams::default(),
             strength: Strength::Peak,
             fit: false,
-            press_table: false,
+            press_table: Some(TableUse::Start),
             calibration: None,
             half_precision: false,
         }
@@ -156,7 +159,11 @@ pub fn chain(spec: &SensorSpec, setup: ChainSetup) -> Result<Chain, Error> {
     let mut chain = Chain::new(recon, setup.touch);
     if setup.needs_press_model() {
         let press_model = press_model(spec)?;
-        chain = chain.with_press_model(if setup.press_table { press_model.with_tabulated()? } else { press_model });
+        chain = chain.with_press_model(match setup.press_table {
+            Some(TableUse::Start) => press_model.with_table_start()?,
+            Some(TableUse::Fit) => press_model.with_tabulated()?,
+            None => press_model,
+        });
     }
     if let Some(map) = map {
         chain = chain.with_contrast_map(map);

@@ -244,7 +244,9 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     let [lo, hi] = spec.outline.bounds();
     let side = hi[0] - lo[0];
     let radius = params.sim.hydrogel.indenter_radius;
-    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams { radius, ..Default::default() })?;
+    // As `eitskin run` fits presses: each exact fit started from one press's tabulated response.
+    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams { radius, ..Default::default() })?
+        .with_table_start()?;
     let reference_frames = rest_frames(&mut skin, params.repeats)?;
     let reference = mean_of_finite(&reference_frames);
 

@@ -191,7 +191,8 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     progress("sweep: setting up", 0, 1);
     let model = spec.forward_model()?;
     let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
-    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?;
+    // As `eitskin run` fits presses: each exact fit started from one press's tabulated response.
+    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?.with_table_start()?;
     let array = PseudoArray::of_sensor(spec, [1, 1])?;
     let mut rng = SeededRng::seed_from_u64(params.seed);
 

@@ -206,7 +206,8 @@ pub fn run(spec: &SensorSpec, params: &UsersParams, progress: Progress<'_>) -> R
     progress("as users calibrate: setting up", 0, 1);
     let model = spec.forward_model()?;
     let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
-    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?;
+    // As `eitskin run` fits presses: each exact fit started from one press's tabulated response.
+    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?.with_table_start()?;
     let electrodes = spec.electrode_positions()?;
     let paper_array = PseudoArray::by_symmetry(&spec.outline, &electrodes, [5, 5])?;
     let one = PseudoArray::by_symmetry(&spec.outline, &electrodes, [1, 1])?;

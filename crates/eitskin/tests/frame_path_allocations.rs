@@ -102,11 +102,13 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     assert_eq!(pipeline.chain().tracked(), Some(eitskin::press_fit::Tracked::Found));
     assert_eq!(pipeline.touches().len(), 2, "{:?}", pipeline.touches());
     assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame of presses found afresh");
-    // The same with the press model's tabulated response: a stream that carries its presses
-    // (the default: whether it finds these afresh or fits them again from its model is the
-    // fit's to decide), and one that finds them afresh in every frame.
-    let press_model = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap().with_tabulated().unwrap();
-    for carry_presses in [true, false] {
+    // The same with the press model's tabulated response, fitted on it and starting exact fits
+    // from it: a stream that carries its presses (the default: whether it finds these afresh or
+    // fits them again from its model is the fit's to decide), and one that finds them afresh in
+    // every frame.
+    let linear = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
+    let tabulated = [linear.clone().with_tabulated().unwrap(), linear.with_table_start().unwrap()];
+    for (press_model, carry_presses) in tabulated.iter().flat_map(|m| [(m, true), (m, false)]) {
         let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
         let chain = Chain::new(recon, TouchParams::default()).with_press_model(press_model.clone());
         let mut on_table = Pipeline::new(chain, PipelineParams { carry_presses, ..PipelineParams::default() });
@@ -121,7 +123,8 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
         let fitted = [eitskin::press_fit::Tracked::Found, eitskin::press_fit::Tracked::Refitted].map(Some);
         assert!(fitted.contains(&tracked), "{carry_presses}: {tracked:?}");
         assert!(carry_presses || tracked == Some(eitskin::press_fit::Tracked::Found));
-        assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame fitted afresh on the table");
+        let table_use = press_model.table_use();
+        assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame fitted afresh, table {table_use:?}");
     }
     // A channel going bad is an event (the reconstructor is derived again); after it, the frames
     // that still miss the channel cost nothing again.

@@ -7,6 +7,7 @@ use anyhow::{bail, Result};
 use eitskin::calibration::Strength;
 use eitskin::inverse::Hyperparameter;
 use eitskin::pipeline::{NoiseFloor, Pipeline, PipelineParams};
+use eitskin::press_fit::TableUse;
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::{ReconstructorParams, SensorSpec, TouchParams};
 use eitskin_io::build::ChainSetup;
@@ -165,7 +166,11 @@ fn chain_setup(
     ChainSetup {
         touch,
         fit: args.fit,
-        press_table: args.press_table,
+        press_table: match (args.press_table, args.no_table_start) {
+            (true, _) => Some(TableUse::Fit),
+            (false, true) => None,
+            (false, false) => Some(TableUse::Start),
+        },
         calibration,
         half_precision,
         ..ChainSetup::new(recon)

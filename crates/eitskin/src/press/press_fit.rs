@@ -72,7 +72,9 @@ mod track;
 pub use detect::PressDetection;
 pub use exact::{Disk, DiskParameter, ExactPresses, ExactScratch, JOINT_PRESSES};
 pub use locate::{Locator, STRIDE};
-pub use refine::{refine, refine_tabulated, RefineParams, RefineScratch, DEEPEST};
+pub use refine::{
+    refine, refine_from_table, refine_tabulated, RefineParams, RefineScratch, DEEPEST, TABLE_START_APART,
+};
 pub use tabulated::TabulatedPresses;
 pub use track::{PressTrack, Tracked, WINDOW};
 
@@ -232,6 +234,8 @@ pub struct PressModel {
     exact: Option<Arc<ExactPresses>>,
     /// One press's exact response tabulated ([`PressModel::with_tabulated`]), shared likewise.
     tabulated: Option<Arc<TabulatedPresses>>,
+    /// What the table is for: fits on it, or exact fits started from it.
+    table_use: TableUse,
     /// Whether every press's radius is fitted, not only where the misfit asks for it
     /// ([`PressModel::with_every_radius`]).
     every_radius: bool,
@@ -387,6 +391,18 @@ pub fn exact_model_for(
     coarse.forward_model().map(Some)
 }
 
+/// What a press model's tabulated response ([`TabulatedPresses`]) is used for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TableUse {
+    /// Presses found afresh are fitted on the table, with one exact solve per fit for what it
+    /// leaves ([`refine_tabulated`]): `eitskin run --press-table`.
+    Fit,
+    /// Each exact fit of presses at least [`TABLE_START_APART`] indenter radii apart starts
+    /// where a fit on the table alone leaves them ([`refine_from_table`]): the exact fit
+    /// decides, from nearer its optimum.
+    Start,
+}
+
 /// The most bytes a press model's tabulated response may take ([`PressModel::with_tabulated`]),
 /// 128 MiB: a sheet of 500 × 500 mm under a 10 mm indenter takes 122 MiB, the paper's sheet
 /// 21 MiB, and under an indenter narrower than 4 mm more than the limit.
@@ -456,6 +472,7 @@ impl PressModel {
             drop_limits: Vec::new(),
             exact: None,
             tabulated: None,
+            table_use: TableUse::Fit,
             every_radius: false,
         };
         model.drop_limits = model.drop_limits();
@@ -519,6 +536,7 @@ impl PressModel {
             drop_limits: Vec::new(),
             exact: None,
             tabulated: None,
+            table_use: TableUse::Fit,
             every_radius: false,
         };
         let values = solution.measurements(model.protocol());
@@ -575,21 +593,39 @@ impl PressModel {
     /// another basin and decide otherwise. A model without exact responses, or whose table would
     /// take more than [`TABLE_LIMIT`] bytes (a sheet wide against its indenter: the table grows
     /// as their ratio squared), is returned as it is.
-    pub fn with_tabulated(mut self) -> Result<PressModel, PressModelError> {
+    pub fn with_tabulated(self) -> Result<PressModel, PressModelError> {
+        self.with_table(TableUse::Fit)
+    }
+
+    /// The same model with the table of [`PressModel::with_tabulated`], used only where each
+    /// exact fit of presses found afresh starts ([`TableUse::Start`]): the exact fit and its
+    /// tests decide as without it, in fewer solves. The default of `eitskin run`.
+    pub fn with_table_start(self) -> Result<PressModel, PressModelError> {
+        self.with_table(TableUse::Start)
+    }
+
+    /// The same model with one press's exact response tabulated, for `table_use`.
+    fn with_table(mut self, table_use: TableUse) -> Result<PressModel, PressModelError> {
         let bytes = TabulatedPresses::bytes_for(self.grid.bounds(), self.grid.spacing, self.measurements);
         if bytes > TABLE_LIMIT {
             return Ok(self);
         }
         if let Some(exact) = &self.exact {
             let table = TabulatedPresses::new(exact, self.grid.bounds(), self.radius, self.grid.spacing)?;
-            self.tabulated = Some(Arc::new(table));
+            (self.tabulated, self.table_use) = (Some(Arc::new(table)), table_use);
         }
         Ok(self)
     }
 
-    /// The tabulated response presses are fitted with, if it has one ([`PressModel::with_tabulated`]).
+    /// The tabulated response, if it has one ([`PressModel::with_tabulated`],
+    /// [`PressModel::with_table_start`]).
     pub fn tabulated(&self) -> Option<&TabulatedPresses> {
         self.tabulated.as_deref()
+    }
+
+    /// What its tabulated response is used for (where it has one).
+    pub fn table_use(&self) -> TableUse {
+        self.table_use
     }
 
     /// The background's factorisation, ready for the presses' low-rank updates: with the part

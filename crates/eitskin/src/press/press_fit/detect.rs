@@ -32,7 +32,7 @@ use rand_distr::{ChiSquared, Distribution, StandardNormal};
 use super::exact::ExactPresses;
 use super::scan::Scan;
 use super::tabulated::TabulatedPresses;
-use super::{PressFit, PressModel, PressScratch, SWEEPS};
+use super::{PressFit, PressModel, PressScratch, TableUse, SWEEPS};
 use crate::inverse::InverseError;
 use crate::noise::{threshold_of, CALIBRATION_SAMPLES};
 
@@ -54,8 +54,11 @@ const SCAN_STRIDE: usize = 2;
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Exact<'a> {
     pub(crate) presses: &'a ExactPresses,
-    /// One press's response tabulated, if the model has it: fits at the indenter's radius read it.
+    /// One press's response tabulated, if the model fits on it: fits at the indenter's radius
+    /// read it.
     pub(crate) table: Option<&'a TabulatedPresses>,
+    /// One press's response tabulated, if the model starts exact fits from it.
+    pub(crate) start: Option<&'a TabulatedPresses>,
     pub(crate) dv: &'a [f64],
     pub(crate) weights: &'a [f64],
 }
@@ -162,7 +165,8 @@ impl PressDetection {
     pub(super) fn exact<'a>(&'a self, dv: &'a [f64]) -> Option<Exact<'a>> {
         self.model.exact.as_deref().map(|presses| Exact {
             presses,
-            table: self.model.tabulated.as_deref(),
+            table: self.model.tabulated.as_deref().filter(|_| self.model.table_use == TableUse::Fit),
+            start: self.model.tabulated.as_deref().filter(|_| self.model.table_use == TableUse::Start),
             dv,
             weights: &self.weights,
         })

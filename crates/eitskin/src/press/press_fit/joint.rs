@@ -24,7 +24,7 @@
 
 use super::detect::{Exact, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter};
-use super::refine::{refine, refine_tabulated, solve_at, RefineParams, DEEPEST};
+use super::refine::{refine, refine_from_table, refine_tabulated, solve_at, RefineParams, DEEPEST};
 use super::scan::{Reach, Scan};
 use super::{dot, PressFit, PressModel, PressScratch};
 use crate::inverse::InverseError;
@@ -575,9 +575,14 @@ impl PressModel {
             bounds: self.grid.bounds(),
             converged_below: CONVERGED,
         };
-        let cost = match exact.table {
-            Some(table) => refine_tabulated(exact.presses, table, exact.dv, exact.weights, disks, &params, refining)?,
-            None => refine(exact.presses, exact.dv, exact.weights, disks, &params, refining)?,
+        let cost = match (exact.table, exact.start) {
+            (Some(table), _) => {
+                refine_tabulated(exact.presses, table, exact.dv, exact.weights, disks, &params, refining)?
+            }
+            (None, Some(table)) => {
+                refine_from_table(exact.presses, table, exact.dv, exact.weights, disks, &params, refining)?
+            }
+            (None, None) => refine(exact.presses, exact.dv, exact.weights, disks, &params, refining)?,
         };
         let own = refining.own_responses();
         responses.resize(responses.len().max(presses.len() * m), 0.0);
