@@ -440,7 +440,8 @@ pub(crate) struct Pipeline(eitskin::pipeline::Pipeline);
 #[pymethods]
 impl Pipeline {
     /// The pipeline of `spec`: `calibration` turns touches into forces; `fit` fits a press to
-    /// each touch; `reference_frames` (1–10,000) are averaged into the reference, which grows
+    /// each touch (as ``eitskin run`` does: each exact fit started from one press's tabulated
+    /// response, built here); `reference_frames` (1–10,000) are averaged into the reference, which grows
     /// to `reference_limit` (1–1,000,000) on frames without a touch;
     /// `false_alarm_rate` (false touches per no-touch frame, in (0, 0.5]); `average` frames
     /// (1–1,000) per image; `hyperparameter` λ or "auto" (from the reference frames' noise).

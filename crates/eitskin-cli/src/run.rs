@@ -125,16 +125,15 @@ pub struct Args {
     #[arg(long)]
     fresh_presses: bool,
     /// Fit presses found afresh on one press's exact response tabulated over the sheet (with
-    /// --fit or a fitted-drop calibration), with one exact solve per fit: three presses found
-    /// afresh in about three fifths of the time of the default's exact fits; in the hardest
-    /// cases (a weak press half taken up by a strong one, a wide press's neighbour) it decides
-    /// otherwise than the exact fit, the default.
+    /// --fit or a fitted-drop calibration), with one exact solve per fit, in place of exact fits
+    /// (the default); in the hardest cases (a weak press half taken up by a strong one, a wide
+    /// press's neighbour) it decides otherwise than the exact fit.
     #[arg(long, conflicts_with = "no_table_start")]
     press_table: bool,
-    /// Start each exact fit of presses found afresh from their linear fits, without tabulating
-    /// one press's exact response first (by default each starts where a fit on that table leaves
-    /// presses at least five indenter radii apart): about 0.25 s less setup and 21 MB less on
-    /// the paper's sheet, and each frame found afresh about two fifths slower.
+    /// Tabulate no press: each exact fit starts where the linear fits or the last fit left the
+    /// presses. By default one press's exact response is tabulated at setup (about 0.25 s on two
+    /// cores and 21 MB on the paper's sheet) and each exact fit of presses at least five
+    /// indenter radii apart starts where a fit on that table leaves them, in fewer solves.
     #[arg(long)]
     no_table_start: bool,
     /// The precision each frame's image is computed from: `half` reads a binary16 copy of the

@@ -102,10 +102,9 @@ pub struct ChainSetup {
     /// Fit a press to each touch (on by itself when the strength needs the press model).
     pub fit: bool,
     /// What one press's exact response tabulated is for, if it is made (not cached: tabulated
-    /// at each setup, about 0.25 s on two cores and 21 MB on the paper's sheet): exact fits of
-    /// presses found afresh started from it ([`TableUse::Start`], the default,
-    /// [`PressModel::with_table_start`]), or fits on it ([`TableUse::Fit`],
-    /// [`PressModel::with_tabulated`]); `None`: no table.
+    /// at each setup, about 0.25 s on two cores and 21 MB on the paper's sheet): the exact fits
+    /// of presses started from it ([`TableUse::Start`], [`TableUse::DEFAULT`]), or fits on it
+    /// ([`TableUse::Fit`], `run --press-table`); `None`: no table (`run --no-table-start`).
     pub press_table: Option<TableUse>,
     /// The pseudo-array and curves that turn strengths into forces, N.
     pub calibration: Option<(PseudoArray, Calibration)>,
@@ -122,7 +121,7 @@ impl ChainSetup {
             touch: TouchParams::default(),
             strength: Strength::Peak,
             fit: false,
-            press_table: Some(TableUse::Start),
+            press_table: TableUse::DEFAULT,
             calibration: None,
             half_precision: false,
         }
@@ -159,11 +158,7 @@ pub fn chain(spec: &SensorSpec, setup: ChainSetup) -> Result<Chain, Error> {
     let mut chain = Chain::new(recon, setup.touch);
     if setup.needs_press_model() {
         let press_model = press_model(spec)?;
-        chain = chain.with_press_model(match setup.press_table {
-            Some(TableUse::Start) => press_model.with_table_start()?,
-            Some(TableUse::Fit) => press_model.with_tabulated()?,
-            None => press_model,
-        });
+        chain = chain.with_press_model(press_model.with_table_use(setup.press_table)?);
     }
     if let Some(map) = map {
         chain = chain.with_contrast_map(map);

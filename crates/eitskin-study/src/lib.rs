@@ -62,7 +62,7 @@ use eitskin::inverse::mean_of_finite;
 use eitskin::inverse::{InverseError, Reconstructor, ReconstructorParams};
 use eitskin::labelled::{self, process_labelled, split_references};
 use eitskin::pipeline::PipelineParams;
-use eitskin::press_fit::{PressFit, PressModel, PressModelParams};
+use eitskin::press_fit::{PressFit, PressModel, PressModelParams, TableUse};
 use eitskin::pseudo_array::{PseudoArray, PseudoArrayError};
 use eitskin::sensitivity::{along_x, peaks};
 use eitskin::sim::{Press, SimParams, VirtualSensor};
@@ -244,9 +244,9 @@ pub fn run(spec: &SensorSpec, params: &StudyParams, progress: Progress<'_>) -> R
     let [lo, hi] = spec.outline.bounds();
     let side = hi[0] - lo[0];
     let radius = params.sim.hydrogel.indenter_radius;
-    // As `eitskin run` fits presses: each exact fit started from one press's tabulated response.
+    // As `eitskin run` fits presses (its table's default use).
     let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams { radius, ..Default::default() })?
-        .with_table_start()?;
+        .with_table_use(TableUse::DEFAULT)?;
     let reference_frames = rest_frames(&mut skin, params.repeats)?;
     let reference = mean_of_finite(&reference_frames);
 

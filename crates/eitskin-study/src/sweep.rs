@@ -42,7 +42,7 @@ use eitskin::chain::{Chain, LabelledFrame};
 use eitskin::inverse::{Reconstructor, ReconstructorParams};
 use eitskin::noise::NoiseModel;
 use eitskin::pipeline::{Pipeline, PipelineParams};
-use eitskin::press_fit::{refine, Disk, PressModel, PressModelParams, RefineParams, RefineScratch};
+use eitskin::press_fit::{refine, Disk, PressModel, PressModelParams, RefineParams, RefineScratch, TableUse};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::sim::{add_relative_noise, ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
 use eitskin::spec::SensorSpec;
@@ -191,8 +191,9 @@ pub fn run(spec: &SensorSpec, params: &SweepParams, progress: Progress<'_>) -> R
     progress("sweep: setting up", 0, 1);
     let model = spec.forward_model()?;
     let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
-    // As `eitskin run` fits presses: each exact fit started from one press's tabulated response.
-    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?.with_table_start()?;
+    // As `eitskin run` fits presses (its table's default use).
+    let press_model =
+        PressModel::new(&model, spec.conductivity, &PressModelParams::default())?.with_table_use(TableUse::DEFAULT)?;
     let array = PseudoArray::of_sensor(spec, [1, 1])?;
     let mut rng = SeededRng::seed_from_u64(params.seed);
 

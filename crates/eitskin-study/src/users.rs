@@ -37,7 +37,7 @@ use eitskin::labelled::{
     choose_strength, process_labelled, process_scenes, samples, split_references, PRESS_STRENGTHS,
 };
 use eitskin::pipeline::PipelineParams;
-use eitskin::press_fit::{PressModel, PressModelParams};
+use eitskin::press_fit::{PressModel, PressModelParams, TableUse};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::sim::{add_relative_noise, ForceLaw, Hydrogel, Press, Profile, SimParams, VirtualSensor};
 use eitskin::spec::SensorSpec;
@@ -206,8 +206,9 @@ pub fn run(spec: &SensorSpec, params: &UsersParams, progress: Progress<'_>) -> R
     progress("as users calibrate: setting up", 0, 1);
     let model = spec.forward_model()?;
     let recon = Reconstructor::new(&model, spec.conductivity, &ReconstructorParams::default())?;
-    // As `eitskin run` fits presses: each exact fit started from one press's tabulated response.
-    let press_model = PressModel::new(&model, spec.conductivity, &PressModelParams::default())?.with_table_start()?;
+    // As `eitskin run` fits presses (its table's default use).
+    let press_model =
+        PressModel::new(&model, spec.conductivity, &PressModelParams::default())?.with_table_use(TableUse::DEFAULT)?;
     let electrodes = spec.electrode_positions()?;
     let paper_array = PseudoArray::by_symmetry(&spec.outline, &electrodes, [5, 5])?;
     let one = PseudoArray::by_symmetry(&spec.outline, &electrodes, [1, 1])?;

@@ -166,14 +166,20 @@ fn chain_setup(
     ChainSetup {
         touch,
         fit: args.fit,
-        press_table: match (args.press_table, args.no_table_start) {
-            (true, _) => Some(TableUse::Fit),
-            (false, true) => None,
-            (false, false) => Some(TableUse::Start),
-        },
+        press_table: press_table(args),
         calibration,
         half_precision,
         ..ChainSetup::new(recon)
+    }
+}
+
+/// What the press model's table is for, as the flags ask: fits on it (`--press-table`), none
+/// (`--no-table-start`), else exact fits started from it (the default).
+fn press_table(args: &Args) -> Option<TableUse> {
+    match (args.press_table, args.no_table_start) {
+        (true, _) => Some(TableUse::Fit),
+        (false, true) => None,
+        (false, false) => TableUse::DEFAULT,
     }
 }
 
@@ -188,7 +194,8 @@ fn virtual_calibration(spec: &SensorSpec, args: &Args) -> Result<(PathBuf, eitsk
     );
     let started = std::time::Instant::now();
     let strength = Strength::FittedDrop;
-    let setup = ChainSetup { strength, ..ChainSetup::new(ReconstructorParams::default()) };
+    let setup =
+        ChainSetup { strength, press_table: press_table(args), ..ChainSetup::new(ReconstructorParams::default()) };
     let chain = load::chain("run", spec, setup)?;
     let array = PseudoArray::of_sensor(spec, [5, 5])?;
     let sim = eitskin::sim::SimParams::default();

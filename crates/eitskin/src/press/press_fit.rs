@@ -394,13 +394,19 @@ pub fn exact_model_for(
 /// What a press model's tabulated response ([`TabulatedPresses`]) is used for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TableUse {
-    /// Presses found afresh are fitted on the table, with one exact solve per fit for what it
-    /// leaves ([`refine_tabulated`]): `eitskin run --press-table`.
+    /// Presses are fitted on the table, with one exact solve per fit for what it leaves
+    /// ([`refine_tabulated`]): `eitskin run --press-table`.
     Fit,
-    /// Each exact fit of presses at least [`TABLE_START_APART`] indenter radii apart starts
+    /// Each exact fit of presses of the table's radius (their radii not fitted), at least
+    /// [`TABLE_START_APART`] radii apart and not already where the last exact solve was, starts
     /// where a fit on the table alone leaves them ([`refine_from_table`]): the exact fit
     /// decides, from nearer its optimum.
     Start,
+}
+
+impl TableUse {
+    /// What `eitskin run`, the studies and the Python `Pipeline` build the table for.
+    pub const DEFAULT: Option<TableUse> = Some(TableUse::Start);
 }
 
 /// The most bytes a press model's tabulated response may take ([`PressModel::with_tabulated`]),
@@ -586,8 +592,9 @@ impl PressModel {
     /// the sheet ([`TabulatedPresses`], at the response grid's spacing: about 21 MB and 0.26 s on
     /// two cores for the paper's sensor), so that presses found afresh are fitted on the table
     /// with one exact solve per fit ([`refine_tabulated`]) instead of several per iteration:
-    /// three presses at 0.05 % noise in about a third of the time, found as near where they
-    /// are. Not the default: the table's optimum is its smooth interpolant's, not the mesh's,
+    /// three presses at 0.05 % noise in a little over half the time of exact fits started from
+    /// the table ([`PressModel::with_table_start`]), found as near where they are. Not
+    /// the default: the table's optimum is its smooth interpolant's, not the mesh's,
     /// and in the harder cases the exact fit's tests settle (a weak press half taken up by a
     /// strong one, a wide press's neighbour, the mesh's own error at 90 dB) its fits go to
     /// another basin and decide otherwise. A model without exact responses, or whose table would
@@ -598,10 +605,18 @@ impl PressModel {
     }
 
     /// The same model with the table of [`PressModel::with_tabulated`], used only where each
-    /// exact fit of presses found afresh starts ([`TableUse::Start`]): the exact fit and its
-    /// tests decide as without it, in fewer solves. The default of `eitskin run`.
+    /// exact fit of presses starts ([`TableUse::Start`]): the exact fit and its tests decide as
+    /// without it, in fewer solves. `eitskin run`'s default.
     pub fn with_table_start(self) -> Result<PressModel, PressModelError> {
         self.with_table(TableUse::Start)
+    }
+
+    /// The same model with a table for `table_use` (`None`: as it is).
+    pub fn with_table_use(self, table_use: Option<TableUse>) -> Result<PressModel, PressModelError> {
+        match table_use {
+            Some(table_use) => self.with_table(table_use),
+            None => Ok(self),
+        }
     }
 
     /// The same model with one press's exact response tabulated, for `table_use`.
@@ -623,9 +638,9 @@ impl PressModel {
         self.tabulated.as_deref()
     }
 
-    /// What its tabulated response is used for (where it has one).
-    pub fn table_use(&self) -> TableUse {
-        self.table_use
+    /// What its tabulated response is used for; `None` where it has none.
+    pub fn table_use(&self) -> Option<TableUse> {
+        self.tabulated.as_ref().map(|_| self.table_use)
     }
 
     /// The background's factorisation, ready for the presses' low-rank updates: with the part

@@ -4,7 +4,7 @@
 //! on another's is in it), its Jacobian exact from the same solve ([`ExactPresses::derivative_into`]):
 //! one solve per iteration. [`refine_tabulated`] runs the same iterations on one press's
 //! tabulated response ([`TabulatedPresses`]), with one exact solve per fit for what the table
-//! leaves.
+//! leaves; [`refine_from_table`] runs them on the table alone first, then the exact fit from there.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
@@ -475,16 +475,12 @@ pub fn refine_tabulated(
     params: &RefineParams,
     scratch: &mut RefineScratch,
 ) -> Result<f64, ForwardError> {
-    if params.free_radii != 0 || disks.iter().any(|d| d.radius != table.radius()) {
+    if !reads_table(table, disks, params) {
         return refine(exact, dv, weights, disks, params, scratch);
     }
     let m = dv.len();
     let RefineScratch { exact: ex, solved_at, own, lm, coupling, jets, trial_jets: trial, work, .. } = scratch;
-    // Read from this table only (a scratch may serve another).
-    jets.at.clear();
-    trial.at.clear();
-    coupling.clear();
-    coupling.resize(m, 0.0);
+    fresh_from_table(jets, trial, coupling, m);
     lm.joint.resize(m, 0.0);
     let mut cost = 0.0;
     for correction in 0..=CORRECTIONS {
@@ -510,10 +506,12 @@ pub fn refine_tabulated(
 
 /// [`refine`] started where a fit on `table` alone (no exact solve: one press's response each,
 /// their fields on each other left out) leaves the presses, where they are of the table's
-/// radius, their radii are not fitted, and each is at least [`TABLE_START_APART`] radii from
-/// the others. The exact fit then takes a step or two from there where it took four or five
-/// from the linear fits, and decides as before (its optimum, its tests). Closer presses change
-/// each other's field too much for the table's start: there the exact fit starts as given.
+/// radius, their radii are not fitted, each is at least [`TABLE_START_APART`] radii from the
+/// others, and they are not already where the scratch's last exact solve was (a fit of the
+/// same presses again). The exact fit then takes a step or two from there where it took four
+/// or five from the linear fits, and decides as before (its optimum, its tests). Closer presses
+/// change each other's field too much for the table's start: there the exact fit starts as
+/// given.
 pub fn refine_from_table(
     exact: &ExactPresses,
     table: &TabulatedPresses,
@@ -528,15 +526,29 @@ pub fn refine_from_table(
         .iter()
         .enumerate()
         .all(|(i, a)| disks[..i].iter().all(|b| (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]) >= apart));
-    if far && params.free_radii == 0 && disks.iter().all(|d| d.radius == table.radius()) {
+    // Already where the last exact fit left them (a fit of the same presses again): from there.
+    let solved_at = &scratch.solved_at;
+    let at_last = solved_at.len() == disks.len() && solved_at.iter().zip(&*disks).all(|(a, b)| short(a, b));
+    if far && !at_last && reads_table(table, disks, params) {
         let RefineScratch { lm, coupling, jets, trial_jets: trial, work, .. } = scratch;
-        jets.at.clear();
-        trial.at.clear();
-        coupling.clear();
-        coupling.resize(dv.len(), 0.0);
+        fresh_from_table(jets, trial, coupling, dv.len());
         iterate(&mut Interpolated { table, coupling, jets, trial, work }, dv, weights, disks, params, lm)?;
     }
     refine(exact, dv, weights, disks, params, scratch)
+}
+
+/// Whether a fit of `disks` reads `table`: their radii are the table's and not fitted.
+fn reads_table(table: &TabulatedPresses, disks: &[Disk], params: &RefineParams) -> bool {
+    params.free_radii == 0 && disks.iter().all(|d| d.radius == table.radius())
+}
+
+/// A fit's reads of a table begun afresh (a scratch may serve another table): no jets kept, and
+/// no correction (`measurements` zeros).
+fn fresh_from_table(jets: &mut Jets, trial: &mut Jets, coupling: &mut Vec<f64>, measurements: usize) {
+    jets.at.clear();
+    trial.at.clear();
+    coupling.clear();
+    coupling.resize(measurements, 0.0);
 }
 
 /// The least distance between presses, in indenter radii, for which [`refine_from_table`]

@@ -298,7 +298,7 @@ fn consider<const L: usize>(
 crate::parallel::widest! {
     /// The point of the largest c̃/|g| (`c` times the inverse roots, f32) among those whose c̃ is
     /// at most its ceiling times `per_unit` (the inverse of the correlations' unit; NaN: none)
-    /// and farther than √`apart` from each of `found`: where the largest sure z is likeliest to
+    /// and at least √`apart` from each of `found`: where the largest sure z is likeliest to
     /// be, so that [`surest`]'s floor can be had from that point alone. `None` if no point's
     /// c̃ there is positive.
     fn likeliest = likeliest_portable(c: &[f32], steering: &Steering, per_unit: f32, found: &[[f32; 2]], apart: f32) -> Option<usize>
@@ -710,6 +710,7 @@ mod tests {
         let mut rng = SeededRng::seed_from_u64(6);
         let mut correlations = Vec::new();
         let apart = (2.0 * press.radius()).powi(2);
+        let mut steered_floors = 0;
         for case in 0..200 {
             let dv = frame(&press, &scan, case, &mut rng);
             let found: Vec<[f64; 2]> = (0..rng.random_range(0..3))
@@ -741,9 +742,16 @@ mod tests {
                 let steered = press.best_point(scan, &dv, &found, &mut correlations);
                 let bits = |p: Option<(usize, f64)>| p.map(|(j, z)| (j, z.to_bits()));
                 assert_eq!(bits(steered), bits(exact_whole), "case {case}, steered");
+                // How often the floor came from the steered point (else every point was tested).
+                let mut projection = [0.0; MAX_RANK];
+                let bounds = scan.correlate(&dv, &mut projection, &mut correlations);
+                let away = Away { xs: &scan.xs, ys: &scan.ys, found: &found, apart };
+                steered_floors +=
+                    usize::from(steered_floor(scan, &bounds, &away, &correlations, &scan.norms).is_some());
             }
         }
         assert!(press.best_point(&scan, &vec![0.0; m], &[], &mut correlations).is_none());
+        assert!(steered_floors >= 200, "the floor steered in {steered_floors} of 400 scans");
     }
 
     /// A new press's scan computes each point's unexplained share only where a z of the
