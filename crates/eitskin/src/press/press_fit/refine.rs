@@ -854,6 +854,54 @@ mod tests {
         }
     }
 
+    /// Three presses of the table's radius a few mm and 0.1 in drop from where `truth` (on a
+    /// coarse sheet) puts them, and the exact fit from there: Δv and its weights, the fit's
+    /// parameters, the start, the exact fit and each of its parameters' standard deviation (the
+    /// diagonal of (JJᵀ)⁻¹).
+    struct Fitted {
+        exact: ExactPresses,
+        table: TabulatedPresses,
+        dv: Vec<f64>,
+        weights: Vec<f64>,
+        params: RefineParams,
+        start: [Disk; 3],
+        solved: [Disk; 3],
+        std: Vec<f64>,
+    }
+
+    fn fitted_exactly(truth: &[Disk; 3], offsets: [[f64; 3]; 3]) -> Fitted {
+        let (model, exact, v0, dv) = setup(1200, truth);
+        let bounds = model.mesh().bounds();
+        let table = TabulatedPresses::new(&exact, bounds, 0.01, 0.0025).unwrap();
+        let weights: Vec<f64> = v0.iter().map(|v| 1.0 / (5e-4 * v.abs())).collect();
+        let start: [Disk; 3] = std::array::from_fn(|i| Disk {
+            centre: [truth[i].centre[0] + offsets[i][0], truth[i].centre[1] + offsets[i][1]],
+            drop: truth[i].drop + offsets[i][2],
+            ..truth[i]
+        });
+        let params = RefineParams { free_radii: 0, radius_range: [0.004, 0.025], bounds, converged_below: 0.01 };
+        let mut solved = start;
+        let mut scratch = RefineScratch::default();
+        refine(&exact, &dv, &weights, &mut solved, &params, &mut scratch).unwrap();
+        use faer::linalg::solvers::Solve;
+        let j = scratch.jacobian().to_owned();
+        let normal = &j * j.transpose();
+        let covariance = normal.partial_piv_lu().solve(Mat::<f64>::identity(normal.nrows(), normal.nrows()));
+        let std = (0..normal.nrows()).map(|a| covariance[(a, a)].sqrt()).collect();
+        Fitted { exact, table, dv, weights, params, start, solved, std }
+    }
+
+    impl Fitted {
+        /// Every parameter of `other` within a tenth of its standard deviation of the exact fit's.
+        fn assert_near(&self, other: &[Disk; 3]) {
+            for (i, (s, r)) in self.solved.iter().zip(other).enumerate() {
+                let off = [s.centre[0] - r.centre[0], s.centre[1] - r.centre[1], s.drop - r.drop];
+                let off: Vec<f64> = off.iter().enumerate().map(|(p, o)| o / self.std[3 * i + p]).collect();
+                assert!(off.iter().all(|o| o.abs() < 0.1), "{r:?} for {s:?}: {off:?} std");
+            }
+        }
+    }
+
     /// Presses of the table's radius fitted on the table with one exact solve land where the
     /// exact fit does, to a small part of their standard deviation, from a start a few mm and
     /// 0.1 in drop off; the misfit is the exact one; a free radius is the exact fit itself.
@@ -864,44 +912,22 @@ mod tests {
             Disk { centre: [-0.02, 0.03], radius: 0.01, drop: 0.3 },
             Disk { centre: [0.03, 0.06], radius: 0.01, drop: 0.5 },
         ];
-        let (model, exact, v0, dv) = setup(1200, &truth);
-        let bounds = model.mesh().bounds();
-        let table = TabulatedPresses::new(&exact, bounds, 0.01, 0.0025).unwrap();
-        let weights: Vec<f64> = v0.iter().map(|v| 1.0 / (5e-4 * v.abs())).collect();
-        let start = [
-            Disk { centre: [0.074, -0.053], radius: 0.01, drop: 0.7 },
-            Disk { centre: [-0.024, 0.027], radius: 0.01, drop: 0.4 },
-            Disk { centre: [0.027, 0.064], radius: 0.01, drop: 0.45 },
-        ];
-        let params = RefineParams { free_radii: 0, radius_range: [0.004, 0.025], bounds, converged_below: 0.01 };
+        let fit = fitted_exactly(&truth, [[0.004, -0.003, -0.15], [-0.004, -0.003, 0.1], [-0.003, 0.004, -0.05]]);
+        let Fitted { exact, table, dv, weights, params, start, .. } = &fit;
         let mut scratch = RefineScratch::default();
-        let (mut solved, mut read) = (start, start);
-        refine(&exact, &dv, &weights, &mut solved, &params, &mut scratch).unwrap();
-        use faer::linalg::solvers::Solve;
-        // Each parameter's variance at the exact fit: the diagonal of (JJᵀ)⁻¹.
-        let j = scratch.jacobian().to_owned();
-        let normal = &j * j.transpose();
-        let covariance = normal.partial_piv_lu().solve(Mat::<f64>::identity(normal.nrows(), normal.nrows()));
-        let cost = refine_tabulated(&exact, &table, &dv, &weights, &mut read, &params, &mut scratch).unwrap();
-        for (i, (s, r)) in solved.iter().zip(&read).enumerate() {
-            let std = |p: usize| covariance[(3 * i + p, 3 * i + p)].sqrt();
-            let off = [
-                (s.centre[0] - r.centre[0]) / std(0),
-                (s.centre[1] - r.centre[1]) / std(1),
-                (s.drop - r.drop) / std(2),
-            ];
-            assert!(off.iter().all(|o| o.abs() < 0.1), "{r:?} for {s:?}: {off:?} std");
-        }
+        let mut read = *start;
+        let cost = refine_tabulated(exact, table, dv, weights, &mut read, params, &mut scratch).unwrap();
+        fit.assert_near(&read);
         // Its misfit is the exact one at its presses, to a small part of one.
         let mut joint = vec![0.0; dv.len()];
         exact.response_into(&read, &mut ExactScratch::default(), &mut joint).unwrap();
-        let exact_cost: f64 = dv.iter().zip(&joint).zip(&weights).map(|((v, f), w)| (w * (v - f)).powi(2)).sum();
+        let exact_cost: f64 = dv.iter().zip(&joint).zip(weights).map(|((v, f), w)| (w * (v - f)).powi(2)).sum();
         assert!((cost - exact_cost).abs() < 0.1, "misfit {cost} for {exact_cost}");
         // A radius fitted: the exact fit's answer, to the bit.
-        let free = RefineParams { free_radii: 0b1, ..params };
-        let (mut solved, mut read) = (start, start);
-        let a = refine(&exact, &dv, &weights, &mut solved, &free, &mut scratch).unwrap();
-        let b = refine_tabulated(&exact, &table, &dv, &weights, &mut read, &free, &mut scratch).unwrap();
+        let free = RefineParams { free_radii: 0b1, ..*params };
+        let (mut solved, mut read) = (*start, *start);
+        let a = refine(exact, dv, weights, &mut solved, &free, &mut scratch).unwrap();
+        let b = refine_tabulated(exact, table, dv, weights, &mut read, &free, &mut scratch).unwrap();
         assert_eq!((a.to_bits(), solved), (b.to_bits(), read));
     }
 
@@ -916,42 +942,21 @@ mod tests {
             Disk { centre: [-0.05, 0.04], radius: 0.01, drop: 0.3 },
             Disk { centre: [0.04, 0.06], radius: 0.01, drop: 0.5 },
         ];
-        let (model, exact, v0, dv) = setup(1200, &truth);
-        let bounds = model.mesh().bounds();
-        let table = TabulatedPresses::new(&exact, bounds, 0.01, 0.0025).unwrap();
-        let weights: Vec<f64> = v0.iter().map(|v| 1.0 / (5e-4 * v.abs())).collect();
-        let start = [
-            Disk { centre: [0.064, -0.053], radius: 0.01, drop: 0.7 },
-            Disk { centre: [-0.054, 0.037], radius: 0.01, drop: 0.4 },
-            Disk { centre: [0.037, 0.064], radius: 0.01, drop: 0.45 },
-        ];
-        let params = RefineParams { free_radii: 0, radius_range: [0.004, 0.025], bounds, converged_below: 0.01 };
+        let fit = fitted_exactly(&truth, [[0.004, -0.003, -0.15], [-0.004, -0.003, 0.1], [-0.003, 0.004, -0.05]]);
+        let Fitted { exact, table, dv, weights, params, start, solved, .. } = &fit;
         let mut scratch = RefineScratch::default();
-        let (mut solved, mut started) = (start, start);
-        refine(&exact, &dv, &weights, &mut solved, &params, &mut scratch).unwrap();
-        use faer::linalg::solvers::Solve;
-        let j = scratch.jacobian().to_owned();
-        let normal = &j * j.transpose();
-        let covariance = normal.partial_piv_lu().solve(Mat::<f64>::identity(normal.nrows(), normal.nrows()));
-        refine_from_table(&exact, &table, &dv, &weights, &mut started, &params, &mut scratch).unwrap();
-        assert_ne!(started, solved, "a start of its own");
-        for (i, (s, r)) in solved.iter().zip(&started).enumerate() {
-            let std = |p: usize| covariance[(3 * i + p, 3 * i + p)].sqrt();
-            let off = [
-                (s.centre[0] - r.centre[0]) / std(0),
-                (s.centre[1] - r.centre[1]) / std(1),
-                (s.drop - r.drop) / std(2),
-            ];
-            assert!(off.iter().all(|o| o.abs() < 0.1), "{r:?} for {s:?}: {off:?} std");
-        }
+        let mut started = *start;
+        refine_from_table(exact, table, dv, weights, &mut started, params, &mut scratch).unwrap();
+        assert_ne!(&started, solved, "a start of its own");
+        fit.assert_near(&started);
         // Two presses 4 radii apart, or a radius fitted: the exact fit's answer, to the bit.
-        let mut close = start;
+        let mut close = *start;
         close[2].centre = [close[1].centre[0] + 0.04, close[1].centre[1]];
-        let free = RefineParams { free_radii: 0b1, ..params };
-        for (start, params) in [(close, params), (start, free)] {
+        let free = RefineParams { free_radii: 0b1, ..*params };
+        for (start, params) in [(close, *params), (*start, free)] {
             let (mut solved, mut started) = (start, start);
-            let a = refine(&exact, &dv, &weights, &mut solved, &params, &mut scratch).unwrap();
-            let b = refine_from_table(&exact, &table, &dv, &weights, &mut started, &params, &mut scratch).unwrap();
+            let a = refine(exact, dv, weights, &mut solved, &params, &mut scratch).unwrap();
+            let b = refine_from_table(exact, table, dv, weights, &mut started, &params, &mut scratch).unwrap();
             assert_eq!((a.to_bits(), solved), (b.to_bits(), started));
         }
     }
