@@ -508,8 +508,9 @@ pub fn refine_tabulated(
 /// their fields on each other left out) leaves the presses, where they are of the table's
 /// radius, their radii are not fitted, each is at least [`TABLE_START_APART`] radii from the
 /// others, and they are not already where the scratch's last exact solve was (a fit of the
-/// same presses again). The exact fit then takes a step or two from there where it took four
-/// or five from the linear fits, and decides as before (its optimum, its tests). Closer presses
+/// same presses again). The exact fit then starts near its optimum (three presses at 0.05 %
+/// noise: 3.8 exact solves a frame where the linear fits' start took 6.45), and decides as
+/// before (its optimum, its tests). Closer presses
 /// change each other's field too much for the table's start: there the exact fit starts as
 /// given.
 pub fn refine_from_table(
