@@ -870,6 +870,9 @@ mod tests {
         std: Vec<f64>,
     }
 
+    /// Where [`fitted_exactly`]'s fits start from the truth: x and y (m), drop.
+    const START_OFF: [[f64; 3]; 3] = [[0.004, -0.003, -0.15], [-0.004, -0.003, 0.1], [-0.003, 0.004, -0.05]];
+
     fn fitted_exactly(truth: &[Disk; 3], offsets: [[f64; 3]; 3]) -> Fitted {
         let (model, exact, v0, dv) = setup(1200, truth);
         let bounds = model.mesh().bounds();
@@ -901,6 +904,21 @@ mod tests {
                 assert!(off.iter().all(|o| o.abs() < 0.1), "{r:?} for {s:?}: {off:?} std");
             }
         }
+
+        /// `fit` from `start` with `params` is the exact fit from there, to the bit (its misfit
+        /// and its presses).
+        fn assert_exact_fit_itself(
+            &self,
+            start: [Disk; 3],
+            params: &RefineParams,
+            fit: impl Fn(&mut [Disk], &RefineParams, &mut RefineScratch) -> f64,
+        ) {
+            let mut scratch = RefineScratch::default();
+            let (mut solved, mut other) = (start, start);
+            let a = refine(&self.exact, &self.dv, &self.weights, &mut solved, params, &mut scratch).unwrap();
+            let b = fit(&mut other, params, &mut scratch);
+            assert_eq!((a.to_bits(), solved), (b.to_bits(), other));
+        }
     }
 
     /// Presses of the table's radius fitted on the table with one exact solve land where the
@@ -913,7 +931,7 @@ mod tests {
             Disk { centre: [-0.02, 0.03], radius: 0.01, drop: 0.3 },
             Disk { centre: [0.03, 0.06], radius: 0.01, drop: 0.5 },
         ];
-        let fit = fitted_exactly(&truth, [[0.004, -0.003, -0.15], [-0.004, -0.003, 0.1], [-0.003, 0.004, -0.05]]);
+        let fit = fitted_exactly(&truth, START_OFF);
         let Fitted { exact, table, dv, weights, params, start, .. } = &fit;
         let mut scratch = RefineScratch::default();
         let mut read = *start;
@@ -926,10 +944,9 @@ mod tests {
         assert!((cost - exact_cost).abs() < 0.1, "misfit {cost} for {exact_cost}");
         // A radius fitted: the exact fit's answer, to the bit.
         let free = RefineParams { free_radii: 0b1, ..*params };
-        let (mut solved, mut read) = (*start, *start);
-        let a = refine(exact, dv, weights, &mut solved, &free, &mut scratch).unwrap();
-        let b = refine_tabulated(exact, table, dv, weights, &mut read, &free, &mut scratch).unwrap();
-        assert_eq!((a.to_bits(), solved), (b.to_bits(), read));
+        fit.assert_exact_fit_itself(*start, &free, |disks, params, scratch| {
+            refine_tabulated(exact, table, dv, weights, disks, params, scratch).unwrap()
+        });
     }
 
     /// An exact fit started from the table lands where the exact fit from the same start does,
@@ -943,7 +960,7 @@ mod tests {
             Disk { centre: [-0.05, 0.04], radius: 0.01, drop: 0.3 },
             Disk { centre: [0.04, 0.06], radius: 0.01, drop: 0.5 },
         ];
-        let fit = fitted_exactly(&truth, [[0.004, -0.003, -0.15], [-0.004, -0.003, 0.1], [-0.003, 0.004, -0.05]]);
+        let fit = fitted_exactly(&truth, START_OFF);
         let Fitted { exact, table, dv, weights, params, start, solved, .. } = &fit;
         let mut scratch = RefineScratch::default();
         let mut started = *start;
@@ -955,10 +972,9 @@ mod tests {
         close[2].centre = [close[1].centre[0] + 0.04, close[1].centre[1]];
         let free = RefineParams { free_radii: 0b1, ..*params };
         for (start, params) in [(close, *params), (*start, free)] {
-            let (mut solved, mut started) = (start, start);
-            let a = refine(exact, dv, weights, &mut solved, &params, &mut scratch).unwrap();
-            let b = refine_from_table(exact, table, dv, weights, &mut started, &params, &mut scratch).unwrap();
-            assert_eq!((a.to_bits(), solved), (b.to_bits(), started));
+            fit.assert_exact_fit_itself(start, &params, |disks, params, scratch| {
+                refine_from_table(exact, table, dv, weights, disks, params, scratch).unwrap()
+            });
         }
     }
 
