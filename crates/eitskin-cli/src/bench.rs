@@ -13,18 +13,18 @@
 //! its noise has changed, and when only its reference has grown) and `auto_hyperparameter_2356` and `reconstructor_2356` (λ, then the reconstructor at it, on a
 //! KTC-sized 32-electrode tank, 2,356 channels), `press_model` (its response table and, by low-rank updates, the ladder
 //! of strong presses), `press_table` (one press's exact response tabulated over the sheet and
-//! its drop, [`PressModel::with_table_start`]: `run`'s exact fits start from it), `contrast_map`
+//! its drop, put to its default use, [`TableUse::DEFAULT`]), `contrast_map`
 //! (the contrast calibrations' map: 41 × 41 places × 11 presses simulated on the model and
 //! imaged) and `press_detection` (its noise threshold, from 400 noise frames) and,
 //! per frame (median over many frames), `frame_image`, `frame_touches`, `frame_press_fit` (one
 //! press fitted from the touch), `fleet_frame_half` and `fleet_frame_shared` (one image on one
 //! core from each of 100 sensors of one spec in turn, λ from each one's noise: from their own
 //! half-precision matrices, and through their shared basis; left out where there is none) and `frame_three_presses` (three presses found in Δv against
-//! 0.05 % noise, median of 201 runs on the noiseless frame, with `run`'s press model, whose
-//! exact fits start from the table), `frame_three_presses_noisy` (the same on 201 frames of the
+//! 0.05 % noise, median of 201 runs on the noiseless frame, with `run`'s press model, fitted on
+//! the table while it holds), `frame_three_presses_noisy` (the same on 201 frames of the
 //! presses held, each with its own 0.05 % noise; `frame_three_presses_noisy_tabulated` fitted on
-//! the table, [`PressModel::with_tabulated`], `run --press-table`; `_noisy_no_table` without
-//! it, `run --no-table-start`) and
+//! the table throughout, `run --press-table fit`; `_noisy_table_start` exact fits started from
+//! it, `run --press-table start`; `_noisy_no_table` without it, `run --press-table off`) and
 //! `frame_three_presses_carried` (those frames as a stream, the presses carried from frame to
 //! frame) and `frame_three_presses_carried_80db` (the same stream at 0.01 % noise, the reference
 //! of 100 frames); `simulated_frame` and `simulated_three_presses` (the virtual
@@ -47,7 +47,9 @@ use eitskin::contrast_map::{ContrastMap, ContrastMapParams};
 use eitskin::inverse::Channels;
 use eitskin::memory::Stage;
 use eitskin::pipeline::{Deferred, Pipeline, PipelineParams};
-use eitskin::press_fit::{exact_model_for, PressDetection, PressModel, PressModelParams, PressScratch, PressTrack};
+use eitskin::press_fit::{
+    exact_model_for, PressDetection, PressModel, PressModelParams, PressScratch, PressTrack, TableUse,
+};
 use eitskin::sim::VirtualSensor;
 use eitskin::touch::{detect_into, TouchScratch};
 use eitskin::{Reconstructor, ReconstructorParams, TouchParams};
@@ -428,13 +430,13 @@ fn frames(
 }
 
 /// Three presses (Δv `dv3`) found against 0.05 % noise per value (the reference of 10 frames),
-/// with `run`'s press model (each exact fit started from one press's tabulated response): on
-/// the noiseless frame, on 201 frames each with its own noise, found afresh and carried from
-/// frame to frame; and carried at 0.01 % (the virtual sensor's noise, a reference of 100
-/// frames). The noisy frames found afresh also without the table, and fitted on it.
+/// with `run`'s press model (its table's default use): on the noiseless frame, on 201 frames
+/// each with its own noise, found afresh and carried from frame to frame; and carried at 0.01 %
+/// (the virtual sensor's noise, a reference of 100 frames). The noisy frames found afresh also
+/// with the table's other uses, and without it.
 fn three_presses(linear: &PressModel, values: &[f64], dv3: &[f64], n: usize, stages: &mut Stages) -> Result<()> {
     let std: Vec<f64> = values.iter().map(|v| 5e-4 * v.abs() * 1.1_f64.sqrt()).collect();
-    let (t_table, press_model) = time(n.min(3), || Ok(linear.clone().with_table_start()?))?;
+    let (t_table, press_model) = time(n.min(3), || Ok(linear.clone().with_table_use(TableUse::DEFAULT)?))?;
     let press_model = &press_model;
     let (t_detection, detection) = time(n.min(3), || Ok(PressDetection::new(press_model, &std, 9.0, 1e-3)?))?;
     let (mut whitened, mut found, mut scratch) = (Vec::new(), Vec::with_capacity(16), PressScratch::default());
@@ -445,23 +447,21 @@ fn three_presses(linear: &PressModel, values: &[f64], dv3: &[f64], n: usize, sta
         (0..201).map(|_| dv3.iter().zip(std).map(|(d, s)| d + s * draw()).collect()).collect()
     };
     let held = held_under(&std);
-    let mut next = 0;
-    let (t_noisy, ()) = time(held.len(), || {
-        next += 1;
-        Ok(detection.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
-    })?;
-    let on_table = PressDetection::new(&linear.clone().with_tabulated()?, &std, 9.0, 1e-3)?;
-    let mut next = 0;
-    let (t_noisy_table, ()) = time(held.len(), || {
-        next += 1;
-        Ok(on_table.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
-    })?;
-    let without = PressDetection::new(linear, &std, 9.0, 1e-3)?;
-    let mut next = 0;
-    let (t_noisy_without, ()) = time(held.len(), || {
-        next += 1;
-        Ok(without.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
-    })?;
+    // The noisy frames found afresh, one after another, by `detection`.
+    let mut afresh = |detection: &PressDetection| {
+        let mut next = 0;
+        time(held.len(), || {
+            next += 1;
+            Ok(detection.detect_into(&held[next - 1], &mut whitened, &mut scratch, &mut found)?)
+        })
+    };
+    let (t_noisy, ()) = afresh(&detection)?;
+    let used_for = |table_use| -> Result<PressDetection> {
+        Ok(PressDetection::new(&press_model.clone().with_table_use(Some(table_use))?, &std, 9.0, 1e-3)?)
+    };
+    let (t_noisy_table, ()) = afresh(&used_for(TableUse::Fit)?)?;
+    let (t_noisy_start, ()) = afresh(&used_for(TableUse::Start)?)?;
+    let (t_noisy_without, ()) = afresh(&PressDetection::new(linear, &std, 9.0, 1e-3)?)?;
     let (mut track, mut next) = (PressTrack::default(), 0);
     let (t_carried, _) = time(held.len(), || {
         next += 1;
@@ -480,6 +480,7 @@ fn three_presses(linear: &PressModel, values: &[f64], dv3: &[f64], n: usize, sta
         ("frame_three_presses", t_detect),
         ("frame_three_presses_noisy", t_noisy),
         ("frame_three_presses_noisy_tabulated", t_noisy_table),
+        ("frame_three_presses_noisy_table_start", t_noisy_start),
         ("frame_three_presses_noisy_no_table", t_noisy_without),
         ("frame_three_presses_carried", t_carried),
         ("frame_three_presses_carried_80db", t_carried80),

@@ -43,7 +43,7 @@ use eitskin_io::stream::Start;
 
 pub(crate) use process::fill_frame_line;
 pub(crate) use process::{Drained, Processing, Tally};
-pub(crate) use setup::{choose_precision, Precision};
+pub(crate) use setup::{choose_precision, Precision, PressTable};
 use sink::{to_all, Flow, Lines, Recording, Sink, Viewing};
 
 use crate::{load, outputs, ranges, viewer};
@@ -124,18 +124,14 @@ pub struct Args {
     /// on a model of them while they explain it (a press held costs microseconds, not milliseconds).
     #[arg(long)]
     fresh_presses: bool,
-    /// Fit presses found afresh on one press's exact response tabulated over the sheet (with
-    /// --fit or a fitted-drop calibration), with one exact solve per fit, in place of exact fits
-    /// (the default); in the hardest cases (a weak press half taken up by a strong one, a wide
-    /// press's neighbour) it decides otherwise than the exact fit.
-    #[arg(long, conflicts_with = "no_table_start")]
-    press_table: bool,
-    /// Tabulate no press: each exact fit starts where the linear fits or the last fit left the
-    /// presses. By default one press's exact response is tabulated at setup (about 0.25 s on two
-    /// cores and 21 MB on the paper's sheet) and each exact fit of presses at least five
-    /// indenter radii apart starts where a fit on that table leaves them, in fewer solves.
-    #[arg(long)]
-    no_table_start: bool,
+    /// What one press's exact response, tabulated over the sheet at setup (about 0.25 s on two
+    /// cores and 21 MB on the paper's sheet), is used for in fitting presses (with --fit or a
+    /// fitted-drop calibration): `auto` fits on it while the presses are of the indenter's size
+    /// and at least five indenter radii apart (one exact solve a fit), and exactly from there
+    /// once a press's size is in question or two come closer; `fit` fits on it throughout; `start`
+    /// starts each exact fit of presses five radii apart from it; `off` tabulates nothing.
+    #[arg(long, value_enum, value_name = "USE", default_value_t = PressTable::Auto)]
+    press_table: PressTable,
     /// The precision each frame's image is computed from: `half` reads a binary16 copy of the
     /// reconstruction matrix (half the memory a frame reads, each pixel within 2⁻¹¹ times the sum
     /// of its terms' magnitudes), `single` the matrix itself; `auto` takes half where the

@@ -257,14 +257,19 @@ fn outputs_and_names_are_refused_before_any_work() {
     assert_eq!(String::from_utf8_lossy(&out.stderr), says);
     assert_eq!(out.status.code(), Some(2));
     assert!(std::fs::read_to_string(&frame).unwrap().contains("measurements"));
-    // A table to fit on and none at all, asked for together: refused by the flags.
-    let out = dir.eitskin(&["run", "--fit", "--press-table", "--no-table-start"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        stderr.starts_with("error: the argument '--press-table' cannot be used with '--no-table-start'"),
-        "{stderr}"
-    );
-    assert_eq!(out.status.code(), Some(2));
+    // The table's use not named, or named as no use there is: refused by the flag, its uses
+    // listed.
+    for press_table in [&["--press-table"][..], &["--press-table", "exact"]] {
+        let out = dir.eitskin(&[&["run", "--fit"][..], press_table].concat());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let said = [
+            "error: a value is required for '--press-table <USE>'",
+            "error: invalid value 'exact' for '--press-table <USE>'",
+        ];
+        assert!(said.iter().any(|s| stderr.starts_with(s)), "{stderr}");
+        assert!(stderr.contains("[possible values: auto, fit, start, off]"), "{stderr}");
+        assert_eq!(out.status.code(), Some(2));
+    }
 }
 
 /// `mesh --out m.png` wrote the mesh's JSON to m.png and then the picture over it ("wrote m.png

@@ -221,9 +221,10 @@ fn the_virtual_sensor_is_as_noisy_as_asked() {
     }
 }
 
-/// `--press-table`: presses found afresh in every frame (`--fresh-presses`) are fitted on the
-/// press model's tabulated response, and found where the exact fit finds them: the same
-/// frames with a press, each within 3 mm and 0.05 in drop of the exact fit's.
+/// `--press-table`: presses found afresh in every frame (`--fresh-presses`), fitted on the press
+/// model's tabulated response (`fit`) or on it while it holds (`auto`, the default), are found
+/// where the exact fit (`start`) finds them: the same frames with a press, each within 3 mm and
+/// 0.05 in drop of the exact fit's.
 #[test]
 fn presses_fitted_on_the_table_are_those_of_the_exact_fit() {
     let dir = scratch("press-table");
@@ -243,19 +244,22 @@ fn presses_fitted_on_the_table_are_those_of_the_exact_fit() {
         };
         touches.iter().filter(|t| t["press"].is_object()).map(press).collect()
     };
-    let (exact, table) = (run(&[]), run(&["--press-table"]));
-    assert_eq!(exact.len(), table.len());
-    let mut pressed = 0;
-    for (a, b) in exact.iter().zip(&table) {
-        let (a, b) = (presses(a), presses(b));
-        assert_eq!(a.len(), b.len(), "{a:?} against {b:?}");
-        for p in &a {
-            let near = b.iter().any(|q| (p.0 - q.0).hypot(p.1 - q.1) < 3.0 && (p.2 - q.2).abs() < 0.05);
-            assert!(near, "{p:?} has no match in {b:?}");
+    let exact = run(&["--press-table", "start"]);
+    let (table, auto) = (run(&["--press-table", "fit"]), run(&[]));
+    for read in [&table, &auto] {
+        assert_eq!(exact.len(), read.len());
+        let mut pressed = 0;
+        for (a, b) in exact.iter().zip(read) {
+            let (a, b) = (presses(a), presses(b));
+            assert_eq!(a.len(), b.len(), "{a:?} against {b:?}");
+            for p in &a {
+                let near = b.iter().any(|q| (p.0 - q.0).hypot(p.1 - q.1) < 3.0 && (p.2 - q.2).abs() < 0.05);
+                assert!(near, "{p:?} has no match in {b:?}");
+            }
+            pressed += usize::from(!a.is_empty());
         }
-        pressed += usize::from(!a.is_empty());
+        assert!(pressed >= 10, "{pressed} frames with a press");
     }
-    assert!(pressed >= 10, "{pressed} frames with a press");
     // And the flag is read: the fits are the table's, not the exact fit's to the last digit.
     let all = |lines: &[serde_json::Value]| lines.iter().flat_map(presses).collect::<Vec<_>>();
     assert_ne!(all(&exact), all(&table));

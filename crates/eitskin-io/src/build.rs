@@ -102,9 +102,10 @@ pub struct ChainSetup {
     /// Fit a press to each touch (on by itself when the strength needs the press model).
     pub fit: bool,
     /// What one press's exact response tabulated is for, if it is made (not cached: tabulated
-    /// at each setup, about 0.25 s on two cores and 21 MB on the paper's sheet): the exact fits
-    /// of presses started from it ([`TableUse::Start`], [`TableUse::DEFAULT`]), or fits on it
-    /// ([`TableUse::Fit`], `run --press-table`); `None`: no table (`run --no-table-start`).
+    /// at each setup, about 0.25 s on two cores and 21 MB on the paper's sheet): fits on it
+    /// while it holds ([`TableUse::Auto`], [`TableUse::DEFAULT`]), throughout
+    /// ([`TableUse::Fit`]), or exact fits started from it ([`TableUse::Start`]), as `run
+    /// --press-table auto|fit|start`; `None`: no table (`--press-table off`).
     pub press_table: Option<TableUse>,
     /// The pseudo-array and curves that turn strengths into forces, N.
     pub calibration: Option<(PseudoArray, Calibration)>,

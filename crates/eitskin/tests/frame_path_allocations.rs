@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use eitskin::calibration::{Calibration, Strength};
 use eitskin::chain::Chain;
 use eitskin::pipeline::{Pipeline, PipelineParams, Status};
-use eitskin::press_fit::{PressModel, PressModelParams};
+use eitskin::press_fit::{PressModel, PressModelParams, TableUse};
 use eitskin::pseudo_array::PseudoArray;
 use eitskin::sim::{Hydrogel, VirtualSensor};
 use eitskin::{Reconstructor, ReconstructorParams, SensorSpec, TouchParams};
@@ -102,12 +102,14 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     assert_eq!(pipeline.chain().tracked(), Some(eitskin::press_fit::Tracked::Found));
     assert_eq!(pipeline.touches().len(), 2, "{:?}", pipeline.touches());
     assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0, "allocations in a frame of presses found afresh");
-    // The same with the press model's tabulated response, fitted on it and starting exact fits
-    // from it: a stream that carries its presses (the default: whether it finds these afresh or
-    // fits them again from its model is the fit's to decide), and one that finds them afresh in
-    // every frame.
+    // The same with the press model's tabulated response, fitted on it, starting exact fits
+    // from it, and the two by turns (the default): a stream that carries its presses (the
+    // default: whether it finds these afresh or fits them again from its model is the fit's to
+    // decide), and one that finds them afresh in every frame.
     let linear = PressModel::new(&model, 1.0, &PressModelParams::default()).unwrap();
-    let tabulated = [linear.clone().with_tabulated().unwrap(), linear.with_table_start().unwrap()];
+    let auto = linear.with_table_use(Some(TableUse::Auto)).unwrap();
+    let tabulated = [TableUse::Fit, TableUse::Start, TableUse::Auto]
+        .map(|table_use| auto.clone().with_table_use(Some(table_use)).unwrap());
     for (press_model, carry_presses) in tabulated.iter().flat_map(|m| [(m, true), (m, false)]) {
         let recon = Reconstructor::new(&model, 1.0, &ReconstructorParams::default()).unwrap();
         let chain = Chain::new(recon, TouchParams::default()).with_press_model(press_model.clone());

@@ -31,6 +31,20 @@ pub enum Precision {
     Half,
 }
 
+/// What one press's tabulated response is used for in fitting presses (`--press-table`): the
+/// press model's `TableUse` of the same name, or none. (Each line is the flag's help.)
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PressTable {
+    /// Fitted on the table while it holds, exactly from there (the default)
+    Auto,
+    /// Fitted on the table throughout, one exact solve a fit
+    Fit,
+    /// Each exact fit of presses five radii apart started from a fit on the table
+    Start,
+    /// No table: exact fits from the linear search's places
+    Off,
+}
+
 /// Sets the pipelines whose precision is `auto` to half precision where the matrices every
 /// pipeline reads each frame overflow the last-level cache (bytes as the pipelines now read
 /// them), those of them that share their linearisation with another pipeline (sensors of one
@@ -173,13 +187,13 @@ fn chain_setup(
     }
 }
 
-/// What the press model's table is for, as the flags ask: fits on it (`--press-table`), none
-/// (`--no-table-start`), else exact fits started from it (the default).
+/// What the press model's table is for (`--press-table`).
 fn press_table(args: &Args) -> Option<TableUse> {
-    match (args.press_table, args.no_table_start) {
-        (true, _) => Some(TableUse::Fit),
-        (false, true) => None,
-        (false, false) => TableUse::DEFAULT,
+    match args.press_table {
+        PressTable::Auto => Some(TableUse::Auto),
+        PressTable::Fit => Some(TableUse::Fit),
+        PressTable::Start => Some(TableUse::Start),
+        PressTable::Off => None,
     }
 }
 

@@ -364,6 +364,8 @@ pub struct PressScratch {
     /// The fit (its count in `refits`) whose Jacobian `basis` is of, and its rank; `None` in a
     /// new frame.
     basis_of: Option<(usize, usize)>,
+    /// Whether this frame's fits are still read from the table ([`TableUse::Auto`]).
+    on_table: bool,
     unexplained: Vec<f64>,
     /// Per press of the last exact fit, its equivalent drop's variance (whitened noise of 1).
     variances: Vec<f64>,
@@ -402,11 +404,19 @@ pub enum TableUse {
     /// where a fit on the table alone leaves them ([`refine_from_table`]): the exact fit
     /// decides, from nearer its optimum.
     Start,
+    /// [`TableUse::Fit`] while every press is of the table's radius and each pair at least
+    /// [`TABLE_START_APART`] radii apart; [`TableUse::Start`] for the rest of the frame from the
+    /// first fit that would not be: a press whose size is in question (its score test, a weaker
+    /// neighbour, or held at the deepest drop), or a candidate press nearer another. The fits
+    /// then compared are exact on both sides. Presses of the indenter's kind far apart cost one
+    /// exact solve a fit; a press of another size, and presses close together, are decided by
+    /// the exact fit.
+    Auto,
 }
 
 impl TableUse {
     /// What `eitskin run`, the studies and the Python `Pipeline` build the table for.
-    pub const DEFAULT: Option<TableUse> = Some(TableUse::Start);
+    pub const DEFAULT: Option<TableUse> = Some(TableUse::Auto);
 }
 
 /// The most bytes a press model's tabulated response may take ([`PressModel::with_tabulated`]),
@@ -593,11 +603,11 @@ impl PressModel {
     /// two cores for the paper's sensor), so that presses found afresh are fitted on the table
     /// with one exact solve per fit ([`refine_tabulated`]) instead of several per iteration:
     /// three presses at 0.05 % noise in a little over half the time of exact fits started from
-    /// the table ([`PressModel::with_table_start`]), found as near where they are. Not
-    /// the default: the table's optimum is its smooth interpolant's, not the mesh's,
-    /// and in the harder cases the exact fit's tests settle (a weak press half taken up by a
-    /// strong one, a wide press's neighbour, the mesh's own error at 90 dB) its fits go to
-    /// another basin and decide otherwise. A model without exact responses, or whose table would
+    /// the table ([`PressModel::with_table_start`]), found as near where they are. Throughout,
+    /// not only while it holds ([`TableUse::Auto`], the default): in the harder cases the exact
+    /// fit's tests settle (a wide press's neighbour, a weak press half taken up by a strong one)
+    /// its tests compare a fit on the table with exact ones and decide otherwise. A model
+    /// without exact responses, or whose table would
     /// take more than [`TABLE_LIMIT`] bytes (a sheet wide against its indenter: the table grows
     /// as their ratio squared), is returned as it is.
     pub fn with_tabulated(self) -> Result<PressModel, PressModelError> {
@@ -606,7 +616,7 @@ impl PressModel {
 
     /// The same model with the table of [`PressModel::with_tabulated`], used only where each
     /// exact fit of presses starts ([`TableUse::Start`]): the exact fit and its tests decide as
-    /// without it, in fewer solves. `eitskin run`'s default.
+    /// without it, in fewer solves (`eitskin run --press-table start`).
     pub fn with_table_start(self) -> Result<PressModel, PressModelError> {
         self.with_table(TableUse::Start)
     }
@@ -619,8 +629,13 @@ impl PressModel {
         }
     }
 
-    /// The same model with one press's exact response tabulated, for `table_use`.
+    /// The same model with one press's exact response tabulated, for `table_use` (a table it
+    /// has already kept, put to that use).
     fn with_table(mut self, table_use: TableUse) -> Result<PressModel, PressModelError> {
+        if self.tabulated.is_some() {
+            self.table_use = table_use;
+            return Ok(self);
+        }
         let bytes = TabulatedPresses::bytes_for(self.grid.bounds(), self.grid.spacing, self.measurements);
         if bytes > TABLE_LIMIT {
             return Ok(self);

@@ -55,7 +55,7 @@ const SCAN_STRIDE: usize = 2;
 pub(crate) struct Exact<'a> {
     pub(crate) presses: &'a ExactPresses,
     /// One press's response tabulated, if the model fits on it: fits at the indenter's radius
-    /// read it.
+    /// read it (with `start` too, [`TableUse::Auto`]: while the frame is on the table).
     pub(crate) table: Option<&'a TabulatedPresses>,
     /// One press's response tabulated, if the model starts exact fits from it.
     pub(crate) start: Option<&'a TabulatedPresses>,
@@ -165,8 +165,8 @@ impl PressDetection {
     pub(super) fn exact<'a>(&'a self, dv: &'a [f64]) -> Option<Exact<'a>> {
         self.model.exact.as_deref().map(|presses| Exact {
             presses,
-            table: self.model.tabulated.as_deref().filter(|_| self.model.table_use == TableUse::Fit),
-            start: self.model.tabulated.as_deref().filter(|_| self.model.table_use == TableUse::Start),
+            table: self.model.tabulated.as_deref().filter(|_| self.model.table_use != TableUse::Start),
+            start: self.model.tabulated.as_deref().filter(|_| self.model.table_use != TableUse::Fit),
             dv,
             weights: &self.weights,
         })

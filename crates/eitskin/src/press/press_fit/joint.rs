@@ -24,7 +24,7 @@
 
 use super::detect::{Exact, MAX_PRESSES, MIN_DROP};
 use super::exact::{Disk, DiskParameter};
-use super::refine::{refine, refine_from_table, refine_tabulated, solve_at, RefineParams, DEEPEST};
+use super::refine::{refine, refine_from_table, refine_tabulated, solve_at, RefineParams, DEEPEST, TABLE_START_APART};
 use super::scan::{Reach, Scan};
 use super::{dot, PressFit, PressModel, PressScratch};
 use crate::inverse::InverseError;
@@ -225,6 +225,7 @@ impl PressModel {
         scratch.sizes.resize(presses.len(), Size::Untested);
         // Its solve is of another frame's presses, maybe on another model.
         scratch.exact_at.clear();
+        self.start_on_table(exact, presses, scratch);
         let mut cost = self.refit(exact, presses, scratch)?;
         scratch.rejected.clear();
         // Counted from here: the basis's fit is one of this frame's.
@@ -271,12 +272,14 @@ impl PressModel {
                 save(presses, scratch, m);
                 presses[i] = candidate;
                 let size = std::mem::replace(&mut scratch.sizes[i], Size::Untested);
-                let moved = self.refit(exact, presses, scratch)?;
+                let on_table = scratch.on_table;
+                let moved = self.fit_candidate(exact, presses, &mut cost, scratch)?;
                 // Clearly better, not the same place to rounding.
                 if moved < cost - 1.0 {
                     (cost, changed, stale) = (moved, true, false);
                 } else {
-                    scratch.sizes[i] = size;
+                    // Its size as tested, if on the same fit as now.
+                    scratch.sizes[i] = if scratch.on_table == on_table { size } else { Size::Untested };
                     restore(presses, scratch, m);
                     stale = true;
                 }
@@ -309,6 +312,14 @@ impl PressModel {
                 // press of its size: its size is fitted whatever the score, which reads only what
                 // a radius adds to the drop the fit could not give it.
                 let held = presses[i].drop >= DEEPEST;
+                let questioned = zz.powi(2) >= size_test * scale || neighbour.is_some() || held;
+                if questioned && scratch.on_table && exact.start.is_some() {
+                    // Its size in question: the frame fitted exactly from here, every test
+                    // made again on the exact fit.
+                    (cost, stale) = (self.leave_table(exact, presses, scratch)?, false);
+                    changed = true;
+                    break;
+                }
                 if zz.powi(2) < size_test * scale && neighbour.is_none() && !held {
                     scratch.sizes[i] = Size::Nominal;
                     continue;
@@ -396,7 +407,7 @@ impl PressModel {
                     save(presses, scratch, m);
                     presses.push(new);
                     scratch.sizes.push(Size::Untested);
-                    let with = self.refit(exact, presses, scratch)?;
+                    let with = self.fit_candidate(exact, presses, &mut cost, scratch)?;
                     if with <= cost - threshold * threshold {
                         cost = with;
                     } else {
@@ -435,7 +446,7 @@ impl PressModel {
         // Where the fit read each press from the table (no radius fitted), from its one exact
         // solve, where the presses were before the table's fit with that solve's correction
         // (within a short step of where they are).
-        let on_table = exact.table.is_some() && fitted(&scratch.sizes) == 0;
+        let on_table = scratch.on_table && fitted(&scratch.sizes) == 0;
         let PressScratch { disks, exact: ex, exact_at, response, refine: refining, basis, .. } = scratch;
         disks.clear();
         disks.extend(presses.iter().map(disk_of));
@@ -515,6 +526,71 @@ impl PressModel {
             .map(|(j, _)| j)
     }
 
+    /// Whether `presses` may be fitted on the table in `TableUse::Auto`: every one of the
+    /// indenter's radius, none sized (`sizes`), each pair at least [`TABLE_START_APART`] radii
+    /// apart.
+    fn table_holds(&self, presses: &[PressFit], sizes: &[Size]) -> bool {
+        let apart = TABLE_START_APART * self.radius;
+        fitted(sizes) == 0
+            && presses.iter().all(|p| p.radius == self.radius)
+            && presses.iter().enumerate().all(|(i, a)| {
+                presses[..i].iter().all(|b| (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]) >= apart)
+            })
+    }
+
+    /// Whether a frame's fits of `presses` (none sized yet) begin on the table: always for
+    /// `TableUse::Fit`, where the table holds for them for `TableUse::Auto`, never without
+    /// a table to fit on.
+    pub(super) fn start_on_table(&self, exact: Exact<'_>, presses: &[PressFit], scratch: &mut PressScratch) {
+        scratch.on_table = exact.table.is_some() && (exact.start.is_none() || self.table_holds(presses, &[]));
+    }
+
+    /// The frame off the table (`TableUse::Auto`): `presses` fitted exactly and every size
+    /// to be tested again; their misfit.
+    fn leave_table(
+        &self,
+        exact: Exact<'_>,
+        presses: &mut [PressFit],
+        scratch: &mut PressScratch,
+    ) -> Result<f64, InverseError> {
+        scratch.on_table = false;
+        scratch.sizes.iter_mut().for_each(|s| *s = Size::Untested);
+        self.refit(exact, presses, scratch)
+    }
+
+    /// The candidate `presses` fitted (those before it saved, their misfit `cost`); its misfit.
+    /// Where the frame is on the table (`TableUse::Auto`) and the table does not hold for the
+    /// candidate, before its fit or after it: the frame off the table, those before it fitted
+    /// exactly (`cost` now theirs, and saved again), then the candidate from where it was.
+    fn fit_candidate(
+        &self,
+        exact: Exact<'_>,
+        presses: &mut Vec<PressFit>,
+        cost: &mut f64,
+        scratch: &mut PressScratch,
+    ) -> Result<f64, InverseError> {
+        let on_table = scratch.on_table && exact.start.is_some();
+        if on_table && !self.table_holds(presses, &scratch.sizes) {
+            scratch.on_table = false;
+        } else {
+            let fitted = self.refit(exact, presses, scratch)?;
+            if !on_table || scratch.on_table {
+                return Ok(fitted);
+            }
+        }
+        let (m, k) = (self.measurements, presses.len());
+        let mut candidate = [presses[0]; MAX_PRESSES];
+        candidate[..k].copy_from_slice(presses);
+        scratch.sizes.truncate(scratch.saved.len());
+        restore(presses, scratch, m);
+        *cost = self.leave_table(exact, presses, scratch)?;
+        save(presses, scratch, m);
+        presses.clear();
+        presses.extend_from_slice(&candidate[..k]);
+        scratch.sizes.resize(k, Size::Untested);
+        self.refit(exact, presses, scratch)
+    }
+
     /// The index of the weaker (smaller z) of the first two presses nearer than two indenter
     /// radii to each other, if any.
     fn overlapping(&self, presses: &[PressFit]) -> Option<usize> {
@@ -566,6 +642,7 @@ impl PressModel {
     ) -> Result<f64, InverseError> {
         let m = self.measurements;
         scratch.refits += 1;
+        let table = exact.table.filter(|_| scratch.on_table);
         let PressScratch { disks, refine: refining, responses, .. } = &mut *scratch;
         disks.clear();
         disks.extend(presses.iter().map(disk_of));
@@ -575,7 +652,7 @@ impl PressModel {
             bounds: self.grid.bounds(),
             converged_below: CONVERGED,
         };
-        let cost = match (exact.table, exact.start) {
+        let cost = match (table, exact.start) {
             (Some(table), _) => {
                 refine_tabulated(exact.presses, table, exact.dv, exact.weights, disks, &params, refining)?
             }
@@ -589,6 +666,12 @@ impl PressModel {
         responses[..presses.len() * m].copy_from_slice(&own[..presses.len() * m]);
         for (press, disk) in presses.iter_mut().zip(disks.iter()) {
             (press.centre, press.radius, press.drop) = (disk.centre, disk.radius, disk.drop);
+        }
+        if table.is_some() && exact.start.is_some() && !self.table_holds(presses, &[]) {
+            // Fitted on the table nearer each other than it holds for: the frame exact from here.
+            scratch.on_table = false;
+            scratch.sizes.iter_mut().for_each(|s| *s = Size::Untested);
+            return self.refit_with(exact, presses, free_radii, scratch);
         }
         // Each drop's standard deviation: the fit's covariance, scaled by its misfit per degree
         // of freedom where the model's own error makes that over 1.

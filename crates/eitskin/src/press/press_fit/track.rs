@@ -517,6 +517,7 @@ impl PressDetection {
                 // Fitted again from where the step put them, linearised there, and tested by a
                 // step from there.
                 out.extend_from_slice(&track.current);
+                self.model.start_on_table(exact, out, scratch);
                 self.model.refit_with(exact, out, 0, scratch)?;
                 if track.linearise(exact, &self.scan, out)? {
                     if let Step::Held = track.step(self, whitened) {
