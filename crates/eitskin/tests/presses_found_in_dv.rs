@@ -426,12 +426,12 @@ fn a_fine_model_fits_presses_with_a_coarser_meshs_exact_responses() {
 }
 
 /// Three presses found afresh with each one's response read from the table of its exact
-/// response ([`PressModel::with_tabulated`]: one exact solve per fit instead of several per
-/// iteration) are found as well as with the exact fits, frame by frame on the same noisy frames
+/// response ([`PressModel::with_tabulated`]: no exact solve for presses apart, instead of
+/// several per iteration) are found as well as with the exact fits, frame by frame on the same noisy frames
 /// of a skin simulated on a finer mesh: every press in every frame, on average as near where it
-/// is and as near the gel's drop, within a fifth (measured: 2.27 mm and 0.028 in drop on the
-/// table, 2.21 mm and 0.027 exact). Frame by frame the two differ by up to 3.5 mm and 1.3 of a
-/// drop's standard deviation: the table's derivatives are the smooth interpolant's, the exact
+/// is and as near the gel's drop, within a fifth (measured: 2.23 mm and 0.028 in drop on the
+/// table, 2.25 mm and 0.027 exact). Frame by frame the two differ: the table leaves out the
+/// presses' fields on each other, its derivatives are the smooth interpolant's, the exact
 /// ones turn as the disk's edge crosses the coarse mesh's nodes, and with the misfit a finer
 /// mesh leaves the two optima apart.
 #[test]

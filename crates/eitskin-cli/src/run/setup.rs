@@ -37,7 +37,7 @@ pub enum Precision {
 pub enum PressTable {
     /// Fitted on the table while it holds, exactly from there (the default)
     Auto,
-    /// Fitted on the table throughout, one exact solve a fit
+    /// Fitted on the table throughout (presses nearer than five radii with one exact solve a fit)
     Fit,
     /// Each exact fit of presses five radii apart started from a fit on the table
     Start,

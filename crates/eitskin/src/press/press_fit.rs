@@ -396,8 +396,9 @@ pub fn exact_model_for(
 /// What a press model's tabulated response ([`TabulatedPresses`]) is used for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TableUse {
-    /// Presses are fitted on the table, with one exact solve per fit for what it leaves
-    /// ([`refine_tabulated`]): `eitskin run --press-table`.
+    /// Presses are fitted on the table ([`refine_tabulated`]: no exact solve where they are at
+    /// least [`TABLE_START_APART`] radii apart, one per fit for what it leaves where nearer):
+    /// `eitskin run --press-table fit`.
     Fit,
     /// Each exact fit of presses of the table's radius (their radii not fitted), at least
     /// [`TABLE_START_APART`] radii apart and not already where the last exact solve was, starts
@@ -408,9 +409,9 @@ pub enum TableUse {
     /// [`TABLE_START_APART`] radii apart; [`TableUse::Start`] for the rest of the frame from the
     /// first fit that would not be: a press whose size is in question (its score test, a weaker
     /// neighbour, or held at the deepest drop), or a candidate press nearer another. The fits
-    /// then compared are exact on both sides. Presses of the indenter's kind far apart cost one
-    /// exact solve a fit; a press of another size, and presses close together, are decided by
-    /// the exact fit.
+    /// then compared are exact on both sides. Presses of the indenter's kind far apart cost no
+    /// exact solve; a press of another size, and presses close together, are decided by the
+    /// exact fit.
     Auto,
 }
 
@@ -419,10 +420,11 @@ impl TableUse {
     pub const DEFAULT: Option<TableUse> = Some(TableUse::Auto);
 }
 
-/// The most bytes a press model's tabulated response may take ([`PressModel::with_tabulated`]),
-/// 128 MiB: a sheet of 500 × 500 mm under a 10 mm indenter takes 122 MiB, the paper's sheet
-/// 21 MiB, and under an indenter narrower than 4 mm more than the limit.
-pub const TABLE_LIMIT: f64 = 134_217_728.0;
+/// The most bytes a press model's tabulated response (with its radius derivative) may take
+/// ([`PressModel::with_tabulated`]), 256 MiB: a sheet of 500 × 500 mm under a 10 mm indenter
+/// takes 244 MiB, the paper's sheet 41 MiB, and under an indenter narrower than 4 mm more than
+/// the limit.
+pub const TABLE_LIMIT: f64 = 268_435_456.0;
 
 /// The largest drop a fitted press may have (a fraction of the background): all of it.
 pub const MAX_DROP: f64 = 1.0;
@@ -599,11 +601,11 @@ impl PressModel {
     }
 
     /// The same model with one press's exact response at the indenter's radius tabulated over
-    /// the sheet ([`TabulatedPresses`], at the response grid's spacing: about 21 MB and 0.26 s on
+    /// the sheet ([`TabulatedPresses`], at the response grid's spacing: about 41 MB and 0.26 s on
     /// two cores for the paper's sensor), so that presses found afresh are fitted on the table
-    /// with one exact solve per fit ([`refine_tabulated`]) instead of several per iteration:
-    /// three presses at 0.05 % noise in a little over half the time of exact fits started from
-    /// the table ([`PressModel::with_table_start`]), found as near where they are. Throughout,
+    /// with no exact solve where they are apart, one per fit where nearer ([`refine_tabulated`]),
+    /// instead of several per iteration: three presses at 0.05 % noise in under half the time of
+    /// exact fits started from the table ([`PressModel::with_table_start`]). Throughout,
     /// not only while it holds ([`TableUse::Auto`], the default): in the harder cases the exact
     /// fit's tests settle (a wide press's neighbour, a weak press half taken up by a strong one)
     /// its tests compare a fit on the table with exact ones and decide otherwise. A model
@@ -1004,7 +1006,7 @@ mod tests {
     }
 
     /// A table past the limit is not made: a 3 mm indenter on the paper's sheet would take
-    /// 225 MB; the model keeps fitting on its exact responses.
+    /// 450 MB; the model keeps fitting on its exact responses.
     #[test]
     fn a_table_too_large_is_not_made() {
         let mut spec = SensorSpec::square_hydrogel();
@@ -1016,7 +1018,7 @@ mod tests {
         let press_model = PressModel::new(&model, 1.0, &params).unwrap().with_tabulated().unwrap();
         assert!(press_model.tabulated().is_none() && press_model.exact().is_some());
         let small = TabulatedPresses::bytes_for(model.mesh().bounds(), 0.0025, 120);
-        assert!((small / 2f64.powi(20) - 20.67).abs() < 0.01, "{small}");
+        assert!((small / 2f64.powi(20) - 41.34).abs() < 0.01, "{small}");
     }
 
     #[test]

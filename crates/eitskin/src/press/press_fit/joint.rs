@@ -429,7 +429,8 @@ impl PressModel {
 
     /// The score test of press `i`'s radius at the last exact fit: ∂χ²/∂r over its standard
     /// deviation (∂F/∂r of the presses together; where the fit read each from the table, at its
-    /// one exact solve, a short step from where its last fit on the table left them),
+    /// one exact solve, a short step from where its last fit on the table left them, or where it
+    /// made none, the table's own radius derivative of each press alone),
     /// gᵀr / |g|, g = ∂F/∂r less its part in the span of the fit's Jacobian (the first `rank`
     /// vectors of the scratch's basis), r the whitened misfit; N(0, 1) if the indenter's radius
     /// is the press's. (With ∂F/∂r itself in place of g in gᵀr, what the fit had not converged,
@@ -452,7 +453,13 @@ impl PressModel {
         disks.extend(presses.iter().map(disk_of));
         // Of all of them, from the fit's own last solve where that was at these presses.
         let kept = if on_table {
-            refining.derivative_near_last_solve(exact.presses, disks, i, DiskParameter::Radius, response)
+            // Where the fit made no solve (presses apart), the table's: one press's alone.
+            refining.derivative_near_last_solve(exact.presses, disks, i, DiskParameter::Radius, response).or_else(
+                || {
+                    let table = exact.table?;
+                    refining.table_radius_derivative_into(table, &disks[i], response).then_some(true)
+                },
+            )
         } else {
             refining.derivative_at_last_solve(exact.presses, disks, i, DiskParameter::Radius, response)
         };
