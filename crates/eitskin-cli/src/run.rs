@@ -124,8 +124,8 @@ pub struct Args {
     /// on a model of them while they explain it (a press held costs microseconds, not milliseconds).
     #[arg(long)]
     fresh_presses: bool,
-    /// What one press's exact response, tabulated over the sheet at setup (about 0.3 s on two
-    /// cores and 41 MB on the paper's sheet), is used for in fitting presses (with --fit or a
+    /// What one press's exact response, tabulated over the sheet at setup (about 0.36 s on two
+    /// cores and 41 MiB on the paper's sheet), is used for in fitting presses (with --fit or a
     /// fitted-drop calibration): `auto` fits on it while the presses are of the indenter's size
     /// and at least five indenter radii apart (no exact solve), and exactly from there
     /// once a press's size is in question or two come closer; `fit` fits on it throughout; `start`

@@ -260,9 +260,11 @@ fn presses_fitted_on_the_table_are_those_of_the_exact_fit() {
         }
         assert!(pressed >= 10, "{pressed} frames with a press");
     }
-    // And the flag is read: the fits are the table's, not the exact fit's to the last digit.
+    // And the flag is read: the fits are the table's, not the exact fit's to the last digit,
+    // and so are the default's (these presses, far apart, fitted on the table).
     let all = |lines: &[serde_json::Value]| lines.iter().flat_map(presses).collect::<Vec<_>>();
     assert_ne!(all(&exact), all(&table));
+    assert_ne!(all(&exact), all(&auto));
 }
 
 /// One core or two (`--cores`): the same lines, rasters included, byte for byte, since the

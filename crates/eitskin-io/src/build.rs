@@ -102,7 +102,7 @@ pub struct ChainSetup {
     /// Fit a press to each touch (on by itself when the strength needs the press model).
     pub fit: bool,
     /// What one press's exact response tabulated is for, if it is made (not cached: tabulated
-    /// at each setup, about 0.3 s on two cores and 41 MB on the paper's sheet): fits on it
+    /// at each setup, about 0.36 s on two cores and 41 MiB on the paper's sheet): fits on it
     /// while it holds ([`TableUse::Auto`], [`TableUse::DEFAULT`]), throughout
     /// ([`TableUse::Fit`]), or exact fits started from it ([`TableUse::Start`]), as `run
     /// --press-table auto|fit|start`; `None`: no table (`--press-table off`).

@@ -73,6 +73,11 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
     skin.press([0.04, -0.06], 6.0);
     skin.press([-0.06, 0.05], 12.0);
     let moved = skin.frame().unwrap();
+    // And elsewhere again, like them (a stronger press and a weaker, apart).
+    skin.release();
+    skin.press([0.06, -0.03], 7.0);
+    skin.press([-0.04, 0.06], 11.0);
+    let elsewhere = skin.frame().unwrap();
     // The counter counts: a reference frame is copied into the pipeline.
     COUNTING.store(true, Ordering::Relaxed);
     pipeline.process(&frames[0]).unwrap();
@@ -117,10 +122,10 @@ fn a_frame_with_touches_fitted_presses_forces_and_learned_answers_allocates_noth
         for frame in &frames[..12] {
             on_table.process(frame).unwrap(); // the reference, and the presses found once
         }
-        // Its buffers grown as a frame of the moved presses asks (off the table, a carried
+        // Its buffers grown by presses moved as these are, elsewhere (off the table, a carried
         // press of a fitted size is fitted exactly, which fits on the table alone never ask
         // for), then back where they were.
-        on_table.process(&moved).unwrap();
+        on_table.process(&elsewhere).unwrap();
         on_table.process(&frames[12]).unwrap();
         ALLOCATIONS.store(0, Ordering::Relaxed);
         COUNTING.store(true, Ordering::Relaxed);

@@ -368,10 +368,11 @@ fn the_default_fits_on_the_table_only_while_it_holds() {
     let exact = found(&auto, Hydrogel::default(), &near);
     assert!(exact.iter().all(|f| f.len() == 2), "{exact:?}");
     assert_eq!(exact, found(&start, Hydrogel::default(), &near));
-    // Found farther apart, nearer once fitted on the table: exact from there. Two presses this
-    // near have more than one exact optimum within the noise, so it may end at another than the
-    // exact fit from the linear search's places: on average as near where they are and the
-    // gel's drop, within a fifth (measured: 1.9 mm and 0.054 of a drop, exact 1.9 mm, 0.047).
+    // Two presses 40 mm apart, wherever the linear search places them (farther, the fit on the
+    // table that brings them nearer hands them to the exact fit). Presses this near have more
+    // than one exact optimum within the noise, so it may end at another than the exact fit from
+    // the linear search's places: on average as near where they are and the gel's drop, within
+    // a fifth (measured: 1.9 mm and 0.054 of a drop, exact 1.9 mm, 0.047).
     let nearer = [([-0.06, 0.05], 10.0), ([-0.06, 0.01], 10.0)];
     let errors = |found: Vec<Vec<PressFit>>| {
         let (mut off, mut drop_off) = (0.0, 0.0);

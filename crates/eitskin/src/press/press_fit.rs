@@ -408,8 +408,8 @@ pub enum TableUse {
     /// [`TableUse::Fit`] while every press is of the table's radius and each pair at least
     /// [`TABLE_START_APART`] radii apart; [`TableUse::Start`] for the rest of the frame from the
     /// first fit that would not be: a press whose size is in question (its score test, a weaker
-    /// neighbour, or held at the deepest drop), or a candidate press nearer another. The fits
-    /// then compared are exact on both sides. Presses of the indenter's kind far apart cost no
+    /// neighbour, or held at the deepest drop), a candidate press nearer another, or a fit on
+    /// the table that leaves two nearer. The fits then compared are exact on both sides. Presses of the indenter's kind far apart cost no
     /// exact solve; a press of another size, and presses close together, are decided by the
     /// exact fit.
     Auto,
@@ -601,11 +601,12 @@ impl PressModel {
     }
 
     /// The same model with one press's exact response at the indenter's radius tabulated over
-    /// the sheet ([`TabulatedPresses`], at the response grid's spacing: about 41 MB and 0.26 s on
-    /// two cores for the paper's sensor), so that presses found afresh are fitted on the table
-    /// with no exact solve where they are apart, one per fit where nearer ([`refine_tabulated`]),
-    /// instead of several per iteration: three presses at 0.05 % noise in under half the time of
-    /// exact fits started from the table ([`PressModel::with_table_start`]). Throughout,
+    /// the sheet, with its radius derivative ([`TabulatedPresses`], at the response grid's
+    /// spacing: 41 MiB and about 0.36 s on two cores for the paper's sensor), so that presses
+    /// found afresh are fitted on the table with no exact solve where they are apart, one per fit
+    /// where nearer ([`refine_tabulated`]), instead of several per iteration: three presses at
+    /// 0.05 % noise in 80–85 µs where exact fits started from the table
+    /// ([`PressModel::with_table_start`]) take 216–228 µs (`eitskin bench`). Throughout,
     /// not only while it holds ([`TableUse::Auto`], the default): in the harder cases the exact
     /// fit's tests settle (a wide press's neighbour, a weak press half taken up by a strong one)
     /// its tests compare a fit on the table with exact ones and decide otherwise. A model

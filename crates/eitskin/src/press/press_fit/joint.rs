@@ -1,7 +1,8 @@
-//! The presses found, fitted together with their exact responses ([`super::refine()`]), and the set
-//! itself corrected by what the exact fit shows: the linear search leaves presses at a blend of
-//! two, splits a strong press into several weak ones (what the linearisation misses of it), and
-//! misses a weak press next to a strong one. After each exact fit, in turn:
+//! The presses found, fitted together with their exact responses ([`super::refine()`]; or, while
+//! they are of the indenter's size and apart, on one press's tabulated response, `TableUse::Auto`),
+//! and the set itself corrected by what the fit shows: the linear search leaves presses at a blend
+//! of two, splits a strong press into several weak ones (what the linearisation misses of it), and
+//! misses a weak press next to a strong one. After each fit, in turn:
 //! - two presses nearer than two indenter radii are one: the one with the smaller z goes;
 //! - a press whose z (against Δv less the others' exact responses) fails the threshold, or
 //!   whose drop is under [`MIN_DROP`], goes;
@@ -189,8 +190,9 @@ fn restore(presses: &mut Vec<PressFit>, scratch: &mut PressScratch, m: usize) {
     scratch.responses[..k].copy_from_slice(&scratch.saved_responses);
 }
 
-/// Exact fits per frame at most (each a few solves per iteration): past them the presses stay
-/// as the last fit left them. A frame of three presses of the study's kinds takes 1–6.
+/// Fits per frame at most (exact ones a few solves per iteration; on the table none): past them
+/// the presses stay as the last fit left them. A frame of three presses of the study's kinds
+/// takes 1–6.
 const REFITS: usize = 16;
 
 /// Rounds of corrections at most.
@@ -427,7 +429,7 @@ impl PressModel {
         Ok(())
     }
 
-    /// The score test of press `i`'s radius at the last exact fit: ∂χ²/∂r over its standard
+    /// The score test of press `i`'s radius at the last fit: ∂χ²/∂r over its standard
     /// deviation (∂F/∂r of the presses together; where the fit read each from the table, at its
     /// one exact solve, a short step from where its last fit on the table left them, or where it
     /// made none, the table's own radius derivative of each press alone),
@@ -568,7 +570,9 @@ impl PressModel {
     /// The candidate `presses` fitted (those before it saved, their misfit `cost`); its misfit.
     /// Where the frame is on the table (`TableUse::Auto`) and the table does not hold for the
     /// candidate, before its fit or after it: the frame off the table, those before it fitted
-    /// exactly (`cost` now theirs, and saved again), then the candidate from where it was.
+    /// exactly (`cost` now theirs, and saved again), then the candidate exactly, its presses
+    /// where that fit left those before it but where it put them otherwise (where its own fit
+    /// left them, if it was fitted).
     fn fit_candidate(
         &self,
         exact: Exact<'_>,
@@ -585,15 +589,22 @@ impl PressModel {
                 return Ok(fitted);
             }
         }
-        let (m, k) = (self.measurements, presses.len());
+        let (m, k, before) = (self.measurements, presses.len(), scratch.saved.len());
         let mut candidate = [presses[0]; MAX_PRESSES];
         candidate[..k].copy_from_slice(presses);
-        scratch.sizes.truncate(scratch.saved.len());
+        // The presses the candidate moved or added (a re-placed one, a new one).
+        let mut its_own = [false; MAX_PRESSES];
+        for (j, own) in its_own.iter_mut().enumerate().take(k) {
+            *own = scratch.saved.get(j) != Some(&candidate[j]);
+        }
+        scratch.sizes.truncate(before);
         restore(presses, scratch, m);
         *cost = self.leave_table(exact, presses, scratch)?;
         save(presses, scratch, m);
-        presses.clear();
-        presses.extend_from_slice(&candidate[..k]);
+        presses.resize(k, candidate[0]);
+        for j in (0..k).filter(|&j| j >= before || its_own[j]) {
+            presses[j] = candidate[j];
+        }
         scratch.sizes.resize(k, Size::Untested);
         self.refit(exact, presses, scratch)
     }

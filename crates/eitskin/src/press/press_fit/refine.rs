@@ -472,12 +472,12 @@ pub fn refine(
 }
 
 /// [`refine`] with each press's response read from `table` (made from `exact`); each press's own
-/// response is the table's. Presses at least [`TABLE_START_APART`] radii apart are fitted on the
-/// table alone (their fields on each other about 1 % of Δv, the table's own error a few tenths
-/// of a percent), no exact solve made. Nearer, what the table leaves of their joint response
-/// comes from one exact solve: the fit on the table alone, the exact joint response there, then
-/// the fit on the table with that difference added; its misfit is then the exact one to first
-/// order in how far that last fit moved. Where radii are fitted, or a press is not of the
+/// response is the table's. Presses the fit on the table alone leaves at least
+/// [`TABLE_START_APART`] radii apart stay so fitted (their fields on each other about 1 % of Δv,
+/// the table's own error a few tenths of a percent), no exact solve made. Nearer, what the table
+/// leaves of their joint response comes from one exact solve there, then the fit on the table
+/// with that difference added; its misfit is then the exact one to first order in how far that
+/// last fit moved. Where radii are fitted, or a press is not of the
 /// table's radius, [`refine`] itself.
 pub fn refine_tabulated(
     exact: &ExactPresses,
@@ -492,24 +492,21 @@ pub fn refine_tabulated(
         return refine(exact, dv, weights, disks, params, scratch);
     }
     let m = dv.len();
-    let corrections = if apart(disks, TABLE_START_APART * table.radius()) { 0 } else { CORRECTIONS };
     let RefineScratch { exact: ex, solved_at, own, lm, coupling, jets, trial_jets: trial, work, .. } = scratch;
     fresh_from_table(jets, trial, coupling, m);
-    if corrections == 0 {
-        // No solve of these presses: the last one (of others, maybe of another model) is not theirs.
-        solved_at.clear();
-    }
+    // No solve of these presses yet: the last one (of others, maybe of another model) is not theirs.
+    solved_at.clear();
     lm.joint.resize(m, 0.0);
-    let mut cost = 0.0;
-    for correction in 0..=corrections {
-        if correction > 0 {
-            // The table's joint response at the fit (its jets there), then the exact one.
-            let mut table_only = Interpolated { table, coupling, jets, trial, work };
-            table_only.response_into(disks, &mut lm.perturbed)?;
-            solve_at(exact, disks, ex, solved_at, &mut lm.joint)?;
-            for ((c, f), t) in coupling.iter_mut().zip(&lm.joint).zip(&lm.perturbed) {
-                *c += f - t;
-            }
+    let mut cost = iterate(&mut Interpolated { table, coupling, jets, trial, work }, dv, weights, disks, params, lm)?;
+    // Where that fit leaves presses nearer each other than the table alone holds for.
+    let corrections = if apart(disks, TABLE_START_APART * table.radius()) { 0 } else { CORRECTIONS };
+    for _ in 0..corrections {
+        // The table's joint response at the fit (its jets there), then the exact one.
+        let mut table_only = Interpolated { table, coupling, jets, trial, work };
+        table_only.response_into(disks, &mut lm.perturbed)?;
+        solve_at(exact, disks, ex, solved_at, &mut lm.joint)?;
+        for ((c, f), t) in coupling.iter_mut().zip(&lm.joint).zip(&lm.perturbed) {
+            *c += f - t;
         }
         cost = iterate(&mut Interpolated { table, coupling, jets, trial, work }, dv, weights, disks, params, lm)?;
     }
@@ -573,7 +570,8 @@ fn fresh_from_table(jets: &mut Jets, trial: &mut Jets, coupling: &mut Vec<f64>, 
     coupling.resize(measurements, 0.0);
 }
 
-/// The least distance between presses, in indenter radii, for which [`refine_from_table`]
+/// The least distance between presses, in indenter radii, for which they are fitted on the
+/// table alone ([`refine_tabulated`], and `TableUse::Auto`'s frames) and [`refine_from_table`]
 /// starts their exact fit from the table: two presses 50 mm apart (five radii of the paper's
 /// indenter) change each other's Δv by about 1 %.
 pub const TABLE_START_APART: f64 = 5.0;
@@ -917,6 +915,28 @@ mod tests {
     }
 
     impl Fitted {
+        /// Fitted on the table from the start: the presses, their misfit, and the scratch.
+        fn on_table(&self) -> ([Disk; 3], f64, RefineScratch) {
+            let (mut scratch, mut read) = (RefineScratch::default(), self.start);
+            let cost = refine_tabulated(
+                &self.exact,
+                &self.table,
+                &self.dv,
+                &self.weights,
+                &mut read,
+                &self.params,
+                &mut scratch,
+            );
+            (read, cost.unwrap(), scratch)
+        }
+
+        /// The exact misfit at `disks`.
+        fn exact_misfit(&self, disks: &[Disk; 3]) -> f64 {
+            let mut joint = vec![0.0; self.dv.len()];
+            self.exact.response_into(disks, &mut ExactScratch::default(), &mut joint).unwrap();
+            self.dv.iter().zip(&joint).zip(&self.weights).map(|((v, f), w)| (w * (v - f)).powi(2)).sum()
+        }
+
         /// Every parameter of `other` within a tenth of its standard deviation of the exact fit's.
         fn assert_near(&self, other: &[Disk; 3]) {
             for (i, (s, r)) in self.solved.iter().zip(other).enumerate() {
@@ -955,14 +975,10 @@ mod tests {
         ];
         let fit = fitted_exactly(&truth, START_OFF);
         let Fitted { exact, table, dv, weights, params, start, .. } = &fit;
-        let mut scratch = RefineScratch::default();
-        let mut read = *start;
-        let cost = refine_tabulated(exact, table, dv, weights, &mut read, params, &mut scratch).unwrap();
+        let (read, cost, _) = fit.on_table();
         fit.assert_near(&read);
         // Its misfit is the exact one at its presses, to a small part of one.
-        let mut joint = vec![0.0; dv.len()];
-        exact.response_into(&read, &mut ExactScratch::default(), &mut joint).unwrap();
-        let exact_cost: f64 = dv.iter().zip(&joint).zip(weights).map(|((v, f), w)| (w * (v - f)).powi(2)).sum();
+        let exact_cost = fit.exact_misfit(&read);
         assert!((cost - exact_cost).abs() < 0.1, "misfit {cost} for {exact_cost}");
         // A radius fitted: the exact fit's answer, to the bit.
         let free = RefineParams { free_radii: 0b1, ..*params };
@@ -984,19 +1000,15 @@ mod tests {
             Disk { centre: [0.03, 0.06], radius: 0.01, drop: 0.5 },
         ];
         let fit = fitted_exactly(&truth, START_OFF);
-        let Fitted { exact, table, dv, weights, params, start, solved, std } = &fit;
-        let mut scratch = RefineScratch::default();
-        let mut read = *start;
-        let cost = refine_tabulated(exact, table, dv, weights, &mut read, params, &mut scratch).unwrap();
+        let (read, cost, scratch) = fit.on_table();
         assert!(scratch.solved_at.is_empty());
+        let Fitted { solved, std, .. } = &fit;
         let mut worst: f64 = 0.0;
         for (i, (s, r)) in solved.iter().zip(&read).enumerate() {
             let off = [s.centre[0] - r.centre[0], s.centre[1] - r.centre[1], s.drop - r.drop];
             off.iter().enumerate().for_each(|(p, o)| worst = worst.max((o / std[3 * i + p]).abs()));
         }
-        let mut joint = vec![0.0; dv.len()];
-        exact.response_into(&read, &mut ExactScratch::default(), &mut joint).unwrap();
-        let exact_cost: f64 = dv.iter().zip(&joint).zip(weights).map(|((v, f), w)| (w * (v - f)).powi(2)).sum();
+        let exact_cost = fit.exact_misfit(&read);
         assert!(worst < 0.2, "{worst} std");
         assert!((cost - exact_cost).abs() < 0.1, "misfit {cost} for {exact_cost}");
     }
