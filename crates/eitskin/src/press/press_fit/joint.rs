@@ -712,3 +712,56 @@ impl PressModel {
         Ok(cost)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::{PressDetection, PressModelParams, TableUse};
+    use super::*;
+    use crate::conductivity::{with_inclusions, Inclusion};
+    use crate::SensorSpec;
+
+    /// Two presses 40 mm apart, begun on the table 55 mm apart (the second 15 mm off): the fit on
+    /// the table brings them nearer than it holds for, and the frame leaves it, both presses
+    /// found and fitted exactly (an exact fit from there stays where it is, to the bit).
+    #[test]
+    fn presses_fitted_nearer_on_the_table_take_the_frame_off_it() {
+        let mut spec = SensorSpec::square_hydrogel();
+        spec.mesh.triangles = 1500;
+        let model = spec.forward_model().unwrap();
+        let params = PressModelParams::default();
+        let auto = PressModel::new(&model, 1.0, &params).unwrap().with_table_use(Some(TableUse::Auto)).unwrap();
+        let truth = [[-0.06, 0.05], [-0.06, 0.01]];
+        let inclusions = truth.map(|centre| Inclusion { centre, radius: params.radius, conductivity: 0.3 });
+        let v0 = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
+        let pressed = model.measure(&with_inclusions(model.mesh(), 1.0, &inclusions)).unwrap();
+        let dv: Vec<f64> = pressed.iter().zip(&v0).map(|(p, v)| p - v).collect();
+        let std: Vec<f64> = v0.iter().map(|v| 5e-4 * v.abs()).collect();
+        let detection = PressDetection::new(&auto, &std, f64::INFINITY, 1e-3).unwrap();
+        let mut whitened = Vec::new();
+        detection.whiten_into(&dv, &mut whitened).unwrap();
+        let exact = detection.exact(&dv).unwrap();
+        let start = |centre| PressFit {
+            centre,
+            radius: params.radius,
+            contrast: 1.0,
+            drop: 0.7,
+            z: 100.0,
+            equivalent_drop_std: None,
+        };
+        let (mut presses, mut scratch) = (vec![start(truth[0]), start([-0.06, -0.005])], PressScratch::default());
+        let threshold = detection.threshold;
+        auto.fit_jointly(&detection.scan, &whitened, threshold, exact, &mut presses, &mut scratch).unwrap();
+        assert!(!scratch.on_table);
+        assert_eq!(presses.len(), 2, "{presses:?}");
+        for at in truth {
+            let near = presses.iter().any(|p| (p.centre[0] - at[0]).hypot(p.centre[1] - at[1]) < 0.003);
+            assert!(near, "{at:?}: {presses:?}");
+        }
+        // The last fit exact: fitted exactly again from there, the same presses to the bit.
+        let places = |p: &[PressFit]| p.iter().map(|p| (p.centre, p.drop, p.radius)).collect::<Vec<_>>();
+        let before = places(&presses);
+        auto.refit(exact, &mut presses, &mut scratch).unwrap();
+        assert!(!scratch.on_table);
+        assert_eq!(before, places(&presses));
+    }
+}
