@@ -715,26 +715,19 @@ impl PressModel {
 
 #[cfg(test)]
 mod tests {
+    use super::super::refine::tests::setup;
     use super::super::{PressDetection, PressModelParams, TableUse};
     use super::*;
-    use crate::conductivity::{with_inclusions, Inclusion};
-    use crate::SensorSpec;
 
     /// Two presses 40 mm apart, begun on the table 55 mm apart (the second 15 mm off): the fit on
     /// the table brings them nearer than it holds for, and the frame leaves it, both presses
     /// found and fitted exactly (an exact fit from there stays where it is, to the bit).
     #[test]
     fn presses_fitted_nearer_on_the_table_take_the_frame_off_it() {
-        let mut spec = SensorSpec::square_hydrogel();
-        spec.mesh.triangles = 1500;
-        let model = spec.forward_model().unwrap();
         let params = PressModelParams::default();
-        let auto = PressModel::new(&model, 1.0, &params).unwrap().with_table_use(Some(TableUse::Auto)).unwrap();
         let truth = [[-0.06, 0.05], [-0.06, 0.01]];
-        let inclusions = truth.map(|centre| Inclusion { centre, radius: params.radius, conductivity: 0.3 });
-        let v0 = model.measure(&vec![1.0; model.mesh().triangles().len()]).unwrap();
-        let pressed = model.measure(&with_inclusions(model.mesh(), 1.0, &inclusions)).unwrap();
-        let dv: Vec<f64> = pressed.iter().zip(&v0).map(|(p, v)| p - v).collect();
+        let (model, _, v0, dv) = setup(1500, &truth.map(|centre| Disk { centre, radius: params.radius, drop: 0.7 }));
+        let auto = PressModel::new(&model, 1.0, &params).unwrap().with_table_use(Some(TableUse::Auto)).unwrap();
         let std: Vec<f64> = v0.iter().map(|v| 5e-4 * v.abs()).collect();
         let detection = PressDetection::new(&auto, &std, f64::INFINITY, 1e-3).unwrap();
         let mut whitened = Vec::new();

@@ -769,7 +769,7 @@ fn moved(disk: &Disk, step: MatRef<'_, f64>, first: usize, per: usize, params: &
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::conductivity::{with_inclusions, Inclusion};
     use crate::forward::LowRankUpdate;
@@ -777,7 +777,10 @@ mod tests {
 
     /// The paper's sensor meshed at about `triangles`, its exact presses at a background of 1 S/m,
     /// and Δv of flat presses `truth` pressed together.
-    fn setup(triangles: usize, truth: &[Disk]) -> (crate::forward::ForwardModel, ExactPresses, Vec<f64>, Vec<f64>) {
+    pub(crate) fn setup(
+        triangles: usize,
+        truth: &[Disk],
+    ) -> (crate::forward::ForwardModel, ExactPresses, Vec<f64>, Vec<f64>) {
         let mut spec = SensorSpec::square_hydrogel();
         spec.mesh.triangles = triangles;
         let model = spec.forward_model().unwrap();
